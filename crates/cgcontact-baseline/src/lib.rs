@@ -1,0 +1,3 @@
+//! Comparison strategies behind the core's `Locator` trait (filled by issue 3).
+#![deny(missing_docs)]
+#![forbid(unsafe_code)]

@@ -1,0 +1,338 @@
+//! A deformed body: a lattice, its active cells, and one displacement per node of an active cell.
+//!
+//! Nothing else is stored: no coordinates (they come from the lattice), no connectivity (corners come
+//! from index arithmetic). Displacements live in one compact array, in ascending lattice node order,
+//! and a `u32` per lattice node maps it to its slot there (28 bytes per node in all for a dense body).
+
+use bitvec::vec::BitVec;
+use glam::DVec3;
+
+use crate::hex8;
+use crate::lattice::{CORNER_OFFSETS, CellId, Lattice};
+use crate::Error;
+
+/// Slot value of a lattice node that belongs to no active cell.
+const NO_SLOT: u32 = u32::MAX;
+
+/// A body meshed on a cartesian lattice and deformed by nodal displacements.
+#[derive(Clone, Debug)]
+pub struct Body {
+    lattice: Lattice,
+    active: BitVec,
+    active_count: usize,
+    /// For each lattice node, its slot in `u`, or `NO_SLOT`.
+    slot: Vec<u32>,
+    /// Displacement of each node of an active cell, in ascending lattice node order.
+    u: Vec<DVec3>,
+}
+
+impl Body {
+    /// An undeformed body: the lattice's cells where `active` is set.
+    ///
+    /// Errors when the mask's length is not the lattice's cell count, or no cell is active.
+    pub fn undeformed(lattice: Lattice, active: BitVec) -> Result<Self, Error> {
+        if active.len() != lattice.cell_count() {
+            return Err(Error::LengthMismatch {
+                what: "active cell mask",
+                expected: lattice.cell_count(),
+                got: active.len(),
+            });
+        }
+        let active_count = active.count_ones();
+        if active_count == 0 {
+            return Err(Error::EmptyBody);
+        }
+        let mut slot = vec![NO_SLOT; lattice.node_count()];
+        for cell in active.iter_ones() {
+            let ijk = lattice.cell_ijk(CellId(cell as u32)).expect("mask length equals the cell count");
+            for node in lattice.corner_nodes(ijk) {
+                slot[node] = 0;
+            }
+        }
+        let mut next = 0u32;
+        for s in slot.iter_mut().filter(|s| **s != NO_SLOT) {
+            *s = next;
+            next += 1;
+        }
+        let u = vec![DVec3::ZERO; next as usize];
+        Ok(Self { lattice, active, active_count, slot, u })
+    }
+
+    /// A body with every lattice cell active.
+    pub fn full(lattice: Lattice) -> Self {
+        let active = BitVec::repeat(true, lattice.cell_count());
+        Self::undeformed(lattice, active).expect("a lattice has at least one cell and the mask fits it")
+    }
+
+    /// A body with displacements given per node of an active cell, in ascending lattice node order
+    /// (the order of [`Body::nodes`]).
+    pub fn new(lattice: Lattice, active: BitVec, u: &[DVec3]) -> Result<Self, Error> {
+        let mut body = Self::undeformed(lattice, active)?;
+        body.set_displacements(u)?;
+        Ok(body)
+    }
+
+    /// A body with displacements taken from a dense field, one per lattice node (values at nodes of
+    /// no active cell are ignored).
+    pub fn from_dense(lattice: Lattice, active: BitVec, dense: &[DVec3]) -> Result<Self, Error> {
+        let mut body = Self::undeformed(lattice, active)?;
+        if dense.len() != lattice.node_count() {
+            return Err(Error::LengthMismatch {
+                what: "dense displacement field",
+                expected: lattice.node_count(),
+                got: dense.len(),
+            });
+        }
+        body.update_displacements(|node, _, u| *u = dense[node])?;
+        Ok(body)
+    }
+
+    /// The lattice.
+    #[inline]
+    #[must_use]
+    pub fn lattice(&self) -> &Lattice {
+        &self.lattice
+    }
+
+    /// The active cell mask (one bit per lattice cell).
+    #[inline]
+    #[must_use]
+    pub fn active(&self) -> &BitVec {
+        &self.active
+    }
+
+    /// Whether lattice cell `cell` is active (false when out of range).
+    #[inline]
+    #[must_use]
+    pub fn is_active(&self, cell: CellId) -> bool {
+        self.active.get(cell.index()).is_some_and(|b| *b)
+    }
+
+    /// Number of active cells.
+    #[inline]
+    #[must_use]
+    pub fn active_count(&self) -> usize {
+        self.active_count
+    }
+
+    /// Ids of the active cells, ascending.
+    pub fn active_cells(&self) -> impl Iterator<Item = CellId> + '_ {
+        self.active.iter_ones().map(|c| CellId(c as u32))
+    }
+
+    /// Number of nodes carrying a displacement (nodes of active cells).
+    #[inline]
+    #[must_use]
+    pub fn node_count(&self) -> usize {
+        self.u.len()
+    }
+
+    /// Lattice indices of the nodes carrying a displacement, in slot order.
+    pub fn nodes(&self) -> impl Iterator<Item = usize> + '_ {
+        self.slot.iter().enumerate().filter(|(_, s)| **s != NO_SLOT).map(|(n, _)| n)
+    }
+
+    /// Displacements in slot order (see [`Body::nodes`]).
+    #[inline]
+    #[must_use]
+    pub fn displacements(&self) -> &[DVec3] {
+        &self.u
+    }
+
+    /// Displacement of lattice node `node`, or `None` when it belongs to no active cell.
+    #[inline]
+    #[must_use]
+    pub fn displacement(&self, node: usize) -> Option<DVec3> {
+        match self.slot.get(node) {
+            Some(&s) if s != NO_SLOT => Some(self.u[s as usize]),
+            _ => None,
+        }
+    }
+
+    /// Replace every displacement (slot order), in place: nothing is rebuilt.
+    pub fn set_displacements(&mut self, u: &[DVec3]) -> Result<(), Error> {
+        if u.len() != self.u.len() {
+            return Err(Error::LengthMismatch { what: "displacements", expected: self.u.len(), got: u.len() });
+        }
+        if let Some(i) = u.iter().position(|v| !v.is_finite()) {
+            let node = self.nodes().nth(i).expect("slot exists");
+            return Err(Error::NonFiniteDisplacement { node, value: u[i].to_array() });
+        }
+        self.u.copy_from_slice(u);
+        Ok(())
+    }
+
+    /// Update displacements in place with `f(lattice node, undeformed position, &mut u)`.
+    ///
+    /// On a non-finite result the error names the node; every displacement is then reset to zero so
+    /// that the body never holds a value the locator would trip on.
+    pub fn update_displacements(
+        &mut self,
+        mut f: impl FnMut(usize, DVec3, &mut DVec3),
+    ) -> Result<(), Error> {
+        let lattice = self.lattice;
+        let mut bad = None;
+        for (node, &s) in self.slot.iter().enumerate() {
+            if s == NO_SLOT {
+                continue;
+            }
+            let ijk = lattice.node_ijk(node).expect("slot array has one entry per node");
+            let u = &mut self.u[s as usize];
+            f(node, lattice.node_position(ijk), u);
+            if bad.is_none() && !u.is_finite() {
+                bad = Some((node, u.to_array()));
+            }
+        }
+        if let Some((node, value)) = bad {
+            self.u.fill(DVec3::ZERO);
+            return Err(Error::NonFiniteDisplacement { node, value });
+        }
+        Ok(())
+    }
+
+    /// Heap bytes held by the body (mask, node slots, displacements): what "memory per node" measures.
+    #[must_use]
+    pub fn heap_bytes(&self) -> usize {
+        self.active.capacity() / 8 + self.slot.capacity() * size_of::<u32>() + self.u.capacity() * size_of::<DVec3>()
+    }
+
+    /// Largest displacement component per axis over all nodes (the search bound of the locator).
+    #[must_use]
+    pub fn max_displacement(&self) -> DVec3 {
+        self.u.iter().fold(DVec3::ZERO, |m, v| m.max(v.abs()))
+    }
+
+    /// Corner displacements of active cell `ijk`, in VTK order. The caller guarantees the cell is active.
+    #[inline]
+    pub(crate) fn corner_displacements(&self, ijk: [u32; 3]) -> [DVec3; 8] {
+        self.lattice.corner_nodes(ijk).map(|n| self.u[self.slot[n] as usize])
+    }
+
+    /// Corner displacements where they exist, zero elsewhere (for cells that may be inactive).
+    #[inline]
+    pub(crate) fn corner_displacements_or_zero(&self, ijk: [u32; 3]) -> [DVec3; 8] {
+        self.lattice.corner_nodes(ijk).map(|n| match self.slot[n] {
+            NO_SLOT => DVec3::ZERO,
+            s => self.u[s as usize],
+        })
+    }
+
+    /// Corner positions of a deformed cell relative to its lowest undeformed node, VTK order.
+    #[inline]
+    pub(crate) fn local_corners(&self, ijk: [u32; 3]) -> [DVec3; 8] {
+        let u = self.corner_displacements(ijk);
+        let h = self.lattice.h();
+        std::array::from_fn(|c| {
+            let [a, b, d] = CORNER_OFFSETS[c];
+            DVec3::new(a as f64, b as f64, d as f64) * h + u[c]
+        })
+    }
+
+    /// Deformed corner positions of active cell `cell` in global coordinates, VTK order.
+    ///
+    /// Returns `None` when the cell is inactive or out of range.
+    #[must_use]
+    pub fn corners(&self, cell: CellId) -> Option<[DVec3; 8]> {
+        if !self.is_active(cell) {
+            return None;
+        }
+        let ijk = self.lattice.cell_ijk(cell)?;
+        let low = self.lattice.node_position(ijk);
+        Some(self.local_corners(ijk).map(|c| low + c))
+    }
+
+    /// Active cells whose Jacobian determinant is not positive at some corner, with the smallest
+    /// corner determinant divided by the undeformed one (≤ 0), ascending by cell.
+    #[must_use]
+    pub fn inverted_cells(&self) -> Vec<(CellId, f64)> {
+        let h = self.lattice.h();
+        let undeformed = h.x * h.y * h.z / 8.0;
+        self.active_cells()
+            .filter_map(|cell| {
+                let ijk = self.lattice.cell_ijk(cell).expect("active cells are in range");
+                let ratio = hex8::min_corner_det(&self.local_corners(ijk)) / undeformed;
+                // `!(ratio > 0)` also catches NaN.
+                (!(ratio > 0.0)).then_some((cell, ratio))
+            })
+            .collect()
+    }
+
+    /// Check the body: every displacement finite and no inverted cell (errors name them).
+    pub fn validate(&self) -> Result<(), Error> {
+        if let Some(i) = self.u.iter().position(|v| !v.is_finite()) {
+            let node = self.nodes().nth(i).expect("slot exists");
+            return Err(Error::NonFiniteDisplacement { node, value: self.u[i].to_array() });
+        }
+        let inverted = self.inverted_cells();
+        if inverted.is_empty() { Ok(()) } else { Err(Error::InvertedCells(inverted)) }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn lattice() -> Lattice {
+        Lattice::new(DVec3::new(1.0, 2.0, 3.0), DVec3::splat(0.5), [3, 2, 2]).unwrap()
+    }
+
+    #[test]
+    fn only_nodes_of_active_cells_carry_displacements() {
+        let l = lattice();
+        let mut active = BitVec::repeat(false, l.cell_count());
+        active.set(0, true);
+        let body = Body::undeformed(l, active).unwrap();
+        assert_eq!(body.node_count(), 8);
+        let corners = l.corner_nodes([0, 0, 0]);
+        let nodes: Vec<usize> = body.nodes().collect();
+        let mut sorted = corners.to_vec();
+        sorted.sort_unstable();
+        assert_eq!(nodes, sorted);
+        assert!(body.displacement(l.node_index([3, 0, 0])).is_none());
+    }
+
+    #[test]
+    fn dense_field_and_in_place_update() {
+        let l = lattice();
+        let dense: Vec<DVec3> = (0..l.node_count()).map(|n| DVec3::splat(n as f64 * 1e-3)).collect();
+        let mut body = Body::from_dense(l, BitVec::repeat(true, l.cell_count()), &dense).unwrap();
+        assert_eq!(body.node_count(), l.node_count());
+        assert_eq!(body.displacement(7), Some(dense[7]));
+        body.update_displacements(|node, x, u| *u = x * 0.0 + DVec3::X * node as f64 * 1e-4).unwrap();
+        assert_eq!(body.displacement(7), Some(DVec3::X * 7e-4));
+        assert!((body.max_displacement().x - (l.node_count() - 1) as f64 * 1e-4).abs() < 1e-15);
+    }
+
+    #[test]
+    fn bad_input_is_an_error() {
+        let l = lattice();
+        assert_eq!(Body::undeformed(l, BitVec::repeat(false, l.cell_count())).unwrap_err(), Error::EmptyBody);
+        assert!(matches!(Body::undeformed(l, BitVec::repeat(true, 3)), Err(Error::LengthMismatch { .. })));
+        let mut body = Body::full(l);
+        let mut u = vec![DVec3::ZERO; body.node_count()];
+        u[5] = DVec3::new(0.0, f64::NAN, 0.0);
+        assert!(matches!(body.set_displacements(&u), Err(Error::NonFiniteDisplacement { node: 5, .. })));
+        assert!(matches!(body.set_displacements(&u[1..]), Err(Error::LengthMismatch { .. })));
+        let err = body.update_displacements(|n, _, u| if n == 9 { u.x = f64::INFINITY }).unwrap_err();
+        assert!(matches!(err, Error::NonFiniteDisplacement { node: 9, .. }));
+        assert!(body.displacements().iter().all(|u| *u == DVec3::ZERO));
+    }
+
+    #[test]
+    fn inverted_cells_are_named() {
+        let l = lattice();
+        let mut body = Body::full(l);
+        assert!(body.validate().is_ok());
+        // Push node (1, 1, 1) past its neighbours along x: cells on both sides of it fold over.
+        let target = l.node_index([1, 1, 1]);
+        body.update_displacements(|n, _, u| if n == target { u.x = 0.8 }).unwrap();
+        let inverted = body.inverted_cells();
+        assert!(!inverted.is_empty());
+        for (cell, ratio) in &inverted {
+            assert!(*ratio <= 0.0);
+            let ijk = l.cell_ijk(*cell).unwrap();
+            assert!(l.corner_nodes(ijk).contains(&target), "{cell} does not touch the moved node");
+        }
+        assert!(matches!(body.validate(), Err(Error::InvertedCells(_))));
+    }
+}

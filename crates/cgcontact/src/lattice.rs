@@ -1,0 +1,278 @@
+//! The undeformed cartesian lattice: origin, spacing per axis, cell counts, and index arithmetic.
+//!
+//! Node positions are never stored: node (i, j, k) sits at `origin + (i, j, k) * h`, exact to one
+//! rounding. Cells and nodes are numbered x fastest, then y, then z (VTK's structured order).
+
+use glam::DVec3;
+
+use crate::Error;
+
+/// The 8 corners of a hexahedron in VTK order, as lattice offsets (0 or 1 per axis) from the cell's
+/// lowest node. Corner `c` sits at local coordinates `2 * CORNER_OFFSETS[c] - 1`.
+pub const CORNER_OFFSETS: [[u32; 3]; 8] = [
+    [0, 0, 0],
+    [1, 0, 0],
+    [1, 1, 0],
+    [0, 1, 0],
+    [0, 0, 1],
+    [1, 0, 1],
+    [1, 1, 1],
+    [0, 1, 1],
+];
+
+/// Identity of a cell: its linear index in the lattice (x fastest, then y, then z).
+///
+/// A newtype, so that h-adaptive bodies can later widen it to a (level, i, j, k) key without
+/// changing the signatures that carry it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct CellId(pub u32);
+
+impl CellId {
+    /// The linear index, for indexing arrays of per-cell values.
+    #[inline]
+    #[must_use]
+    pub fn index(self) -> usize {
+        self.0 as usize
+    }
+}
+
+impl std::fmt::Display for CellId {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "cell {}", self.0)
+    }
+}
+
+/// A regular cartesian lattice of `cells[0] × cells[1] × cells[2]` hexahedra.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Lattice {
+    origin: DVec3,
+    h: DVec3,
+    cells: [u32; 3],
+}
+
+impl Lattice {
+    /// A lattice with its lowest node at `origin`, spacing `h` per axis and `cells` cells per axis.
+    ///
+    /// Errors when a value is not finite, a spacing is not positive, a count is zero, or the node
+    /// count does not fit the `u32` indices used throughout.
+    pub fn new(origin: DVec3, h: DVec3, cells: [u32; 3]) -> Result<Self, Error> {
+        if !origin.is_finite() {
+            return Err(Error::InvalidLattice(format!("origin {origin} is not finite")));
+        }
+        if !(h.is_finite() && h.min_element() > 0.0) {
+            return Err(Error::InvalidLattice(format!(
+                "spacing {h} must be finite and positive on every axis"
+            )));
+        }
+        if cells.contains(&0) {
+            return Err(Error::InvalidLattice(format!(
+                "cell counts {cells:?} must be at least 1 on every axis"
+            )));
+        }
+        let nodes: u64 = cells.iter().map(|&n| u64::from(n) + 1).product();
+        if nodes >= u64::from(u32::MAX) {
+            return Err(Error::InvalidLattice(format!(
+                "{nodes} nodes exceed the 2^32 - 1 indices this library uses"
+            )));
+        }
+        Ok(Self { origin, h, cells })
+    }
+
+    /// Position of node (0, 0, 0).
+    #[inline]
+    #[must_use]
+    pub fn origin(&self) -> DVec3 {
+        self.origin
+    }
+
+    /// Spacing per axis.
+    #[inline]
+    #[must_use]
+    pub fn h(&self) -> DVec3 {
+        self.h
+    }
+
+    /// Cell counts per axis.
+    #[inline]
+    #[must_use]
+    pub fn cells(&self) -> [u32; 3] {
+        self.cells
+    }
+
+    /// Node counts per axis (`cells + 1`).
+    #[inline]
+    #[must_use]
+    pub fn nodes(&self) -> [u32; 3] {
+        [self.cells[0] + 1, self.cells[1] + 1, self.cells[2] + 1]
+    }
+
+    /// Total number of cells.
+    #[inline]
+    #[must_use]
+    pub fn cell_count(&self) -> usize {
+        self.cells.iter().map(|&n| n as usize).product()
+    }
+
+    /// Total number of nodes.
+    #[inline]
+    #[must_use]
+    pub fn node_count(&self) -> usize {
+        self.nodes().iter().map(|&n| n as usize).product()
+    }
+
+    /// The upper corner of the lattice's box.
+    #[inline]
+    #[must_use]
+    pub fn upper(&self) -> DVec3 {
+        self.origin + self.h * DVec3::new(self.cells[0] as f64, self.cells[1] as f64, self.cells[2] as f64)
+    }
+
+    /// Linear index of cell (i, j, k). The caller guarantees it lies in the lattice.
+    #[inline]
+    #[must_use]
+    pub fn cell_id(&self, ijk: [u32; 3]) -> CellId {
+        debug_assert!(ijk[0] < self.cells[0] && ijk[1] < self.cells[1] && ijk[2] < self.cells[2]);
+        CellId(ijk[0] + self.cells[0] * (ijk[1] + self.cells[1] * ijk[2]))
+    }
+
+    /// Lattice indices of a cell, or `None` when the id is out of range.
+    #[inline]
+    #[must_use]
+    pub fn cell_ijk(&self, cell: CellId) -> Option<[u32; 3]> {
+        if cell.index() >= self.cell_count() {
+            return None;
+        }
+        let [nx, ny, _] = self.cells;
+        let c = cell.0;
+        Some([c % nx, (c / nx) % ny, c / (nx * ny)])
+    }
+
+    /// Linear index of node (i, j, k). The caller guarantees it lies in the lattice.
+    #[inline]
+    #[must_use]
+    pub fn node_index(&self, ijk: [u32; 3]) -> usize {
+        let [nx, ny, _] = self.nodes();
+        ijk[0] as usize + nx as usize * (ijk[1] as usize + ny as usize * ijk[2] as usize)
+    }
+
+    /// Lattice indices of node `index`, or `None` when out of range.
+    #[inline]
+    #[must_use]
+    pub fn node_ijk(&self, index: usize) -> Option<[u32; 3]> {
+        if index >= self.node_count() {
+            return None;
+        }
+        let [nx, ny, _] = self.nodes().map(|n| n as usize);
+        Some([(index % nx) as u32, ((index / nx) % ny) as u32, (index / (nx * ny)) as u32])
+    }
+
+    /// Undeformed position of node (i, j, k).
+    #[inline]
+    #[must_use]
+    pub fn node_position(&self, ijk: [u32; 3]) -> DVec3 {
+        self.origin + self.h * DVec3::new(ijk[0] as f64, ijk[1] as f64, ijk[2] as f64)
+    }
+
+    /// Linear node indices of a cell's 8 corners, in VTK order.
+    #[inline]
+    #[must_use]
+    pub fn corner_nodes(&self, ijk: [u32; 3]) -> [usize; 8] {
+        let [nx, ny, _] = self.nodes().map(|n| n as usize);
+        let base = self.node_index(ijk);
+        CORNER_OFFSETS.map(|[a, b, c]| base + a as usize + nx * (b as usize + ny * c as usize))
+    }
+
+    /// Continuous lattice coordinates of `x`: `(x - origin) / h`; cell (i, j, k) spans [i, i+1] etc.
+    #[inline]
+    #[must_use]
+    pub fn lattice_coords(&self, x: DVec3) -> DVec3 {
+        (x - self.origin) / self.h
+    }
+
+    /// The cell holding `x` in the undeformed lattice, or `None` when `x` lies outside the lattice's
+    /// box (or is not finite). Points on the upper boundary belong to the last cell.
+    #[inline]
+    #[must_use]
+    pub fn cell_of(&self, x: DVec3) -> Option<[u32; 3]> {
+        let t = self.lattice_coords(x);
+        let mut ijk = [0u32; 3];
+        for axis in 0..3 {
+            let n = self.cells[axis] as f64;
+            // Written so that NaN fails the test.
+            if !(t[axis] >= 0.0 && t[axis] <= n) {
+                return None;
+            }
+            ijk[axis] = (t[axis] as u32).min(self.cells[axis] - 1);
+        }
+        Some(ijk)
+    }
+
+    /// The cell nearest to continuous lattice coordinates `t` (clamped into the lattice), for finite `t`.
+    #[inline]
+    #[must_use]
+    pub(crate) fn clamped_cell(&self, t: DVec3) -> [u32; 3] {
+        let mut ijk = [0u32; 3];
+        for axis in 0..3 {
+            let top = (self.cells[axis] - 1) as f64;
+            // `as` saturates and maps NaN to 0; the clamp keeps the result in range.
+            ijk[axis] = t[axis].floor().clamp(0.0, top) as u32;
+        }
+        ijk
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn lattice() -> Lattice {
+        Lattice::new(DVec3::new(-1.0, 2.0, 0.5), DVec3::new(0.5, 0.25, 1.0), [4, 3, 2]).unwrap()
+    }
+
+    #[test]
+    fn cell_and_node_indices_round_trip() {
+        let l = lattice();
+        for c in 0..l.cell_count() as u32 {
+            let ijk = l.cell_ijk(CellId(c)).unwrap();
+            assert_eq!(l.cell_id(ijk), CellId(c));
+        }
+        assert_eq!(l.cell_ijk(CellId(l.cell_count() as u32)), None);
+        for n in 0..l.node_count() {
+            assert_eq!(l.node_index(l.node_ijk(n).unwrap()), n);
+        }
+        assert_eq!(l.node_ijk(l.node_count()), None);
+    }
+
+    #[test]
+    fn corners_follow_vtk_order() {
+        let l = lattice();
+        let ijk = [1, 2, 0];
+        let corners = l.corner_nodes(ijk);
+        let low = l.node_position(ijk);
+        for (c, &node) in corners.iter().enumerate() {
+            let p = l.node_position(l.node_ijk(node).unwrap());
+            let o = CORNER_OFFSETS[c];
+            let expected = low + l.h() * DVec3::new(o[0] as f64, o[1] as f64, o[2] as f64);
+            assert_eq!(p, expected, "corner {c}");
+        }
+    }
+
+    #[test]
+    fn cell_of_point() {
+        let l = lattice();
+        assert_eq!(l.cell_of(DVec3::new(-1.0, 2.0, 0.5)), Some([0, 0, 0]));
+        assert_eq!(l.cell_of(l.upper()), Some([3, 2, 1]));
+        assert_eq!(l.cell_of(DVec3::new(-0.26, 2.3, 1.6)), Some([1, 1, 1]));
+        assert_eq!(l.cell_of(DVec3::new(-1.0001, 2.0, 0.5)), None);
+        assert_eq!(l.cell_of(DVec3::new(f64::NAN, 2.0, 0.5)), None);
+        assert_eq!(l.cell_of(l.upper() + DVec3::X * 1e-9), None);
+    }
+
+    #[test]
+    fn bad_lattices_are_errors() {
+        assert!(Lattice::new(DVec3::ZERO, DVec3::new(1.0, 0.0, 1.0), [1, 1, 1]).is_err());
+        assert!(Lattice::new(DVec3::ZERO, DVec3::ONE, [1, 0, 1]).is_err());
+        assert!(Lattice::new(DVec3::NAN, DVec3::ONE, [1, 1, 1]).is_err());
+        assert!(Lattice::new(DVec3::ZERO, DVec3::ONE, [100_000, 100_000, 1]).is_err());
+    }
+}

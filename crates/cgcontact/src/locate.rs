@@ -1,0 +1,256 @@
+//! Point location: the [`Locator`] trait every strategy implements, and the lattice locator.
+//!
+//! # Why the lattice search is complete
+//! A point x inside deformed cell c satisfies x = X(ξ) + u(ξ), with X(ξ) the undeformed point of c and
+//! u(ξ) a convex combination of c's corner displacements. So the undeformed point X = x − u(ξ) lies
+//! within `u_max` (per axis, the largest nodal displacement component) of x, and c is one of the lattice
+//! cells meeting the box [x − u_max, x + u_max]. The locator visits exactly those cells (and only the
+//! active ones), so it cannot miss the containing cell of a valid mesh. It visits them nearest first,
+//! starting at the cell holding x − ũ, ũ the displacement interpolated at x on the undeformed lattice,
+//! which is the containing cell for almost every point.
+
+use glam::DVec3;
+use rayon::prelude::*;
+use smallvec::SmallVec;
+
+use crate::body::Body;
+use crate::hex8::{Hex8Map, Hex8Map32, Kernel, NewtonOptions, Status};
+use crate::lattice::CellId;
+use crate::settings::{CandidateOrder, Precision, Settings};
+use crate::{Error, PointError};
+
+/// A located point: the cell holding it and its local coordinates there.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit {
+    /// The cell (lattice cell id for the lattice locator; each strategy documents its numbering).
+    pub cell: CellId,
+    /// Local coordinates in [−1, 1]³ (up to the inside tolerance), VTK corner 0 at (−1, −1, −1).
+    pub xi: DVec3,
+    /// Newton iterations of the successful inversion.
+    pub iterations: u32,
+    /// Physical residual |x − x(ξ)| of the answer.
+    pub residual: f64,
+    /// Newton inversions tried for this point, the successful one included.
+    pub inversions: u32,
+}
+
+/// The answer for one point: a hit, `Ok(None)` when no cell holds it, or why the point was refused.
+pub type Answer = Result<Option<Hit>, PointError>;
+
+/// Every cell holding a point (points on shared faces, edges and nodes have 2, 4 or 8), sorted by cell.
+pub type Owners = SmallVec<[Hit; 8]>;
+
+/// A point-location strategy. Implemented by the lattice locator and by every baseline, so that
+/// tests and benchmarks treat them alike. Implementations are `Sync`: queries take `&self`.
+pub trait Locator: Sync {
+    /// Short name for reports ("lattice", "brute", ...).
+    fn name(&self) -> &str;
+
+    /// The cell holding `x` (one of them when `x` is on a shared face, edge or node).
+    fn locate(&self, x: DVec3) -> Answer;
+
+    /// Every cell holding `x`, sorted by cell id.
+    fn locate_owners(&self, x: DVec3) -> Result<Owners, PointError>;
+
+    /// [`Locator::locate`] for every point, in parallel on the current rayon pool, answers in input
+    /// order, written into `out` (resized; no allocation per point).
+    fn locate_all_into(&self, points: &[DVec3], out: &mut Vec<Answer>) {
+        points.par_iter().map(|&x| self.locate(x)).collect_into_vec(out);
+    }
+
+    /// [`Locator::locate`] for every point, in parallel, answers in input order.
+    fn locate_all(&self, points: &[DVec3]) -> Vec<Answer> {
+        let mut out = Vec::with_capacity(points.len());
+        self.locate_all_into(points, &mut out);
+        out
+    }
+}
+
+/// The lattice locator: hashes a point to its lattice cell and inverts only the few deformed
+/// neighbours that can hold it. Built in O(nodes) from a body it borrows.
+#[derive(Clone, Debug)]
+pub struct LatticeLocator<'a> {
+    body: &'a Body,
+    settings: Settings,
+    newton: NewtonOptions,
+    /// Largest displacement component per axis.
+    u_max: DVec3,
+    /// The lattice's box padded by `u_max`: points outside are rejected at once.
+    reach_low: DVec3,
+    reach_high: DVec3,
+    /// Rounding allowance of the kernel, in ξ units, independent of the point.
+    kernel_allowance: f64,
+}
+
+/// What a candidate search does with each inside hit.
+enum Collect<'o> {
+    First,
+    All(&'o mut Owners),
+}
+
+impl<'a> LatticeLocator<'a> {
+    /// A locator over `body` (O(nodes): one pass for the displacement bound).
+    pub fn new(body: &'a Body, settings: Settings) -> Result<Self, Error> {
+        settings.validate()?;
+        let u_max = body.max_displacement();
+        if !u_max.is_finite() {
+            // Bodies reject non-finite displacements; this guards against any future path that doesn't.
+            body.validate()?;
+        }
+        let lattice = body.lattice();
+        let h_min = lattice.h().min_element();
+        let kernel_allowance = 8.0 * settings.epsilon() * (2.0 + u_max.max_element() / h_min);
+        Ok(Self {
+            body,
+            settings,
+            newton: settings.newton(),
+            u_max,
+            reach_low: lattice.origin() - u_max,
+            reach_high: lattice.upper() + u_max,
+            kernel_allowance,
+        })
+    }
+
+    /// The body searched.
+    #[must_use]
+    pub fn body(&self) -> &Body {
+        self.body
+    }
+
+    /// The settings in force.
+    #[must_use]
+    pub fn settings(&self) -> &Settings {
+        &self.settings
+    }
+
+    /// Largest displacement component per axis: the half-width of the search box.
+    #[must_use]
+    pub fn max_displacement(&self) -> DVec3 {
+        self.u_max
+    }
+
+    /// Inside tolerance for point `x`: the setting plus the rounding carried by the coordinates
+    /// themselves (a point given on a face of a cell far from the origin is only known to
+    /// `eps * |x|`), so that closed cells stay closed at any offset, and no more.
+    #[inline]
+    fn inside_tol(&self, x: DVec3) -> f64 {
+        let h_min = self.body.lattice().h().min_element();
+        let magnitude = x.abs().max_element().max(self.body.lattice().origin().abs().max_element());
+        self.settings.inside_tol + self.kernel_allowance + 8.0 * f64::EPSILON * magnitude / h_min
+    }
+
+    fn search(&self, x: DVec3, mut collect: Collect<'_>) -> Result<Option<Hit>, PointError> {
+        if !x.is_finite() {
+            return Err(PointError::NonFinite);
+        }
+        let inside_tol = self.inside_tol(x);
+        let lattice = self.body.lattice();
+        let slack = lattice.h() * inside_tol;
+        if x.cmplt(self.reach_low - slack).any() || x.cmpgt(self.reach_high + slack).any() {
+            return Ok(None);
+        }
+        let options = NewtonOptions { inside_tol, ..self.newton };
+        match self.settings.precision {
+            Precision::F64 => Ok(self.search_with::<Hex8Map>(x, &options, &mut collect)),
+            Precision::F32 => Ok(self.search_with::<Hex8Map32>(x, &options, &mut collect)),
+        }
+    }
+
+    /// The predicted undeformed position of `x`: x − ũ, ũ interpolated at x on the undeformed lattice.
+    #[inline]
+    fn predicted_origin(&self, x: DVec3) -> DVec3 {
+        let lattice = self.body.lattice();
+        let t = lattice.lattice_coords(x);
+        let ijk = lattice.clamped_cell(t);
+        let u = self.body.corner_displacements_or_zero(ijk);
+        let xi = (2.0 * (t - DVec3::from_array(ijk.map(f64::from))) - 1.0).clamp(DVec3::NEG_ONE, DVec3::ONE);
+        x - Hex8Map::new(&u).map(xi)
+    }
+
+    fn search_with<K: Kernel>(&self, x: DVec3, options: &NewtonOptions, collect: &mut Collect<'_>) -> Option<Hit> {
+        let lattice = self.body.lattice();
+        let h = lattice.h();
+        let guess = match self.settings.order {
+            CandidateOrder::Predicted => self.predicted_origin(x),
+            CandidateOrder::Undeformed => x,
+        };
+        let t_guess = lattice.lattice_coords(guess);
+        let start = lattice.clamped_cell(t_guess);
+        // Lattice cells meeting [x − u_max, x + u_max], widened by the inside tolerance.
+        let widen = options.inside_tol;
+        let t_low = lattice.lattice_coords(x - self.u_max) - widen;
+        let t_high = lattice.lattice_coords(x + self.u_max) + widen;
+        let low = lattice.clamped_cell(t_low);
+        let high = lattice.clamped_cell(t_high);
+        let start = [0, 1, 2].map(|a| start[a].clamp(low[a], high[a]));
+
+        let mut inversions = 0u32;
+        let mut found = None;
+        let radius = (0..3).map(|a| (start[a] - low[a]).max(high[a] - start[a])).max().unwrap_or(0);
+        'rings: for r in 0..=radius {
+            let r = r as i64;
+            let s = start.map(i64::from);
+            let (lo, hi) = (low.map(i64::from), high.map(i64::from));
+            for k in (s[2] - r).max(lo[2])..=(s[2] + r).min(hi[2]) {
+                for j in (s[1] - r).max(lo[1])..=(s[1] + r).min(hi[1]) {
+                    // On the shell's top, bottom and sides the whole row is at distance r; elsewhere
+                    // only its two ends are.
+                    let whole_row = (k - s[2]).abs() == r || (j - s[1]).abs() == r;
+                    let (first, last) = ((s[0] - r).max(lo[0]), (s[0] + r).min(hi[0]));
+                    let ends = [s[0] - r, s[0] + r];
+                    let step = if whole_row { 1 } else { (2 * r).max(1) as usize };
+                    for i in (ends[0]..=ends[1]).step_by(step) {
+                        if i < first || i > last {
+                            continue;
+                        }
+                        let ijk = [i as u32, j as u32, k as u32];
+                        let cell = lattice.cell_id(ijk);
+                        if !self.body.is_active(cell) {
+                            continue;
+                        }
+                        let map = K::lattice_cell(h, &self.body.corner_displacements(ijk));
+                        let low_node = lattice.node_position(ijk);
+                        let xi0 = 2.0 * (t_guess - DVec3::from_array(ijk.map(f64::from))) - 1.0;
+                        let inversion = map.invert_f64(x - low_node, xi0, options);
+                        inversions += 1;
+                        if inversion.status == Status::Inside {
+                            let hit = Hit {
+                                cell,
+                                xi: inversion.xi.clamp(DVec3::NEG_ONE, DVec3::ONE),
+                                iterations: inversion.iterations,
+                                residual: inversion.residual,
+                                inversions,
+                            };
+                            match collect {
+                                Collect::First => {
+                                    found = Some(hit);
+                                    break 'rings;
+                                }
+                                Collect::All(owners) => owners.push(hit),
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        found
+    }
+}
+
+impl Locator for LatticeLocator<'_> {
+    fn name(&self) -> &str {
+        "lattice"
+    }
+
+    #[inline]
+    fn locate(&self, x: DVec3) -> Answer {
+        self.search(x, Collect::First)
+    }
+
+    fn locate_owners(&self, x: DVec3) -> Result<Owners, PointError> {
+        let mut owners = Owners::new();
+        self.search(x, Collect::All(&mut owners))?;
+        owners.sort_unstable_by_key(|hit| hit.cell);
+        Ok(owners)
+    }
+}

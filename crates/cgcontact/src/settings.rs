@@ -1,0 +1,96 @@
+//! Settings of a search, with defaults chosen from the measured accuracy/speed trade (docs/).
+
+use crate::hex8::NewtonOptions;
+use crate::Error;
+
+/// Floating-point precision of the Newton kernel.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Precision {
+    /// f64 (`DVec3`): the default, ξ error ≈ 1e-15.
+    #[default]
+    F64,
+    /// f32 (glam's SIMD `Vec3A`) in the cell's local frame: faster, ξ error ≈ 1e-6.
+    F32,
+}
+
+/// Order in which the lattice locator tries candidate cells.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum CandidateOrder {
+    /// Start at the cell holding x − ũ (ũ the displacement interpolated at x on the undeformed lattice),
+    /// then rings of growing Chebyshev distance around it. One inversion for most points.
+    #[default]
+    Predicted,
+    /// Start at the cell holding x itself (ignores the displacement), then rings around it.
+    Undeformed,
+}
+
+/// Settings of a search.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Settings {
+    /// Kernel precision.
+    pub precision: Precision,
+    /// Newton stops when its step is at most this (ξ units). Convergence is quadratic, so the error of
+    /// the result is far below this.
+    pub newton_tol: f64,
+    /// Newton iteration limit per candidate cell.
+    pub max_iter: u32,
+    /// A point is inside when every |ξ_k| ≤ 1 + `inside_tol` + a rounding allowance that grows with the
+    /// size of the coordinates relative to the cell (see docs/numerics.md).
+    pub inside_tol: f64,
+    /// Candidate order of the lattice locator.
+    pub order: CandidateOrder,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Self {
+            precision: Precision::F64,
+            newton_tol: 1e-10,
+            max_iter: 20,
+            inside_tol: 1e-12,
+            order: CandidateOrder::Predicted,
+        }
+    }
+}
+
+impl Settings {
+    /// Defaults for f32: a Newton tolerance and inside tolerance suited to single precision.
+    #[must_use]
+    pub fn f32() -> Self {
+        Self { precision: Precision::F32, newton_tol: 1e-5, inside_tol: 1e-6, ..Self::default() }
+    }
+
+    /// Check ranges: tolerances finite and non-negative, at least one iteration.
+    pub fn validate(&self) -> Result<(), Error> {
+        if !(self.newton_tol.is_finite() && self.newton_tol > 0.0) {
+            return Err(Error::InvalidSettings(format!("Newton tolerance {} must be finite and > 0", self.newton_tol)));
+        }
+        if !(self.inside_tol.is_finite() && self.inside_tol >= 0.0) {
+            return Err(Error::InvalidSettings(format!("inside tolerance {} must be finite and ≥ 0", self.inside_tol)));
+        }
+        if self.max_iter == 0 {
+            return Err(Error::InvalidSettings("the iteration limit must be at least 1".into()));
+        }
+        Ok(())
+    }
+
+    /// The Newton options these settings give, before any per-point rounding allowance.
+    #[must_use]
+    pub fn newton(&self) -> NewtonOptions {
+        NewtonOptions {
+            tol: self.newton_tol,
+            max_iter: self.max_iter,
+            inside_tol: self.inside_tol,
+            ..NewtonOptions::default()
+        }
+    }
+
+    /// Machine epsilon of the kernel's precision.
+    #[must_use]
+    pub fn epsilon(&self) -> f64 {
+        match self.precision {
+            Precision::F64 => f64::EPSILON,
+            Precision::F32 => f32::EPSILON as f64,
+        }
+    }
+}
