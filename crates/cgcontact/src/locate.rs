@@ -78,8 +78,6 @@ pub struct LatticeLocator<'a> {
     /// The lattice's box padded by `u_max`: points outside are rejected at once.
     reach_low: DVec3,
     reach_high: DVec3,
-    /// Rounding allowance of the kernel, in ξ units, independent of the point.
-    kernel_allowance: f64,
 }
 
 /// What a candidate search does with each inside hit.
@@ -98,8 +96,6 @@ impl<'a> LatticeLocator<'a> {
             body.validate()?;
         }
         let lattice = body.lattice();
-        let h_min = lattice.h().min_element();
-        let kernel_allowance = 8.0 * settings.epsilon() * (2.0 + u_max.max_element() / h_min);
         Ok(Self {
             body,
             settings,
@@ -107,7 +103,6 @@ impl<'a> LatticeLocator<'a> {
             u_max,
             reach_low: lattice.origin() - u_max,
             reach_high: lattice.upper() + u_max,
-            kernel_allowance,
         })
     }
 
@@ -129,21 +124,11 @@ impl<'a> LatticeLocator<'a> {
         self.u_max
     }
 
-    /// Inside tolerance for point `x`: the setting plus the rounding carried by the coordinates
-    /// themselves (a point given on a face of a cell far from the origin is only known to
-    /// `eps * |x|`), so that closed cells stay closed at any offset, and no more.
-    #[inline]
-    fn inside_tol(&self, x: DVec3) -> f64 {
-        let h_min = self.body.lattice().h().min_element();
-        let magnitude = x.abs().max_element().max(self.body.lattice().origin().abs().max_element());
-        self.settings.inside_tol + self.kernel_allowance + 8.0 * f64::EPSILON * magnitude / h_min
-    }
-
     fn search(&self, x: DVec3, mut collect: Collect<'_>) -> Result<Option<Hit>, PointError> {
         if !x.is_finite() {
             return Err(PointError::NonFinite);
         }
-        let inside_tol = self.inside_tol(x);
+        let inside_tol = self.settings.inside_tolerance(self.body.lattice(), self.u_max.max_element(), x);
         let lattice = self.body.lattice();
         let slack = lattice.h() * inside_tol;
         if x.cmplt(self.reach_low - slack).any() || x.cmpgt(self.reach_high + slack).any() {

@@ -1,7 +1,9 @@
 //! Settings of a search, with defaults chosen from the measured accuracy/speed trade (docs/).
 
+use glam::DVec3;
+
 use crate::hex8::NewtonOptions;
-use crate::Error;
+use crate::{Error, Lattice};
 
 /// Floating-point precision of the Newton kernel.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -83,6 +85,18 @@ impl Settings {
             inside_tol: self.inside_tol,
             ..NewtonOptions::default()
         }
+    }
+
+    /// Inside tolerance (ξ units) for a query at `x` on `lattice` with largest displacement component
+    /// `u_max`: the setting plus the rounding carried by the data. A point given on a face of a cell far
+    /// from the origin is only known to `eps · |x|`, and the kernel rounds at its own precision, so the
+    /// allowance is 8 ε₆₄ |x|∞ / h_min + 8 ε_kernel (2 + u_max / h_min): closed cells stay closed at any
+    /// offset, and no more. Every strategy uses this, so that they agree on what "inside" means.
+    #[must_use]
+    pub fn inside_tolerance(&self, lattice: &Lattice, u_max: f64, x: DVec3) -> f64 {
+        let h_min = lattice.h().min_element();
+        let magnitude = x.abs().max_element().max(lattice.origin().abs().max_element());
+        self.inside_tol + 8.0 * self.epsilon() * (2.0 + u_max / h_min) + 8.0 * f64::EPSILON * magnitude / h_min
     }
 
     /// Machine epsilon of the kernel's precision.
