@@ -1,3 +1,64 @@
-//! Comparison strategies behind the core's `Locator` trait (filled by issue 3).
+//! # cgcontact-baseline
+//!
+//! Every strategy the lattice locator ([`cgcontact::LatticeLocator`]) is measured against, behind the
+//! same [`Locator`](cgcontact::Locator) trait, so that one benchmark and one test harness treat them
+//! all alike. All of them invert candidates with the core's hex8 kernel ([`cgcontact::hex8`]) in the
+//! candidate cell's local frame, with the inside tolerance of
+//! [`Settings::inside_tolerance`](cgcontact::Settings::inside_tolerance), so they agree with the
+//! lattice locator on what "inside" means; only [`Inversion::SeedFaithful`] uses the seed's own
+//! Newton ([`seed_eval_loc_coords`]). Cells are lattice [`CellId`](cgcontact::CellId)s.
+//!
+//! | strategy | [`Locator::name`](cgcontact::Locator::name) | candidates of a point | order tried | complete? | cost per point |
+//! |---|---|---|---|---|---|
+//! | [`BruteForce`] | `brute` | every active cell | ascending cell | yes (the test oracle) | O(cells) inversions |
+//! | [`CentroidRadius`] (FEAVOX's original filter) | `centroid` | cells whose deformed centroid is within a radius (default: largest deformed half-diagonal) | nearest centroid first | no | O(cells) distances |
+//! | [`NodeRadius`] (the seed's `whereami`) | `noderad`, `noderad-seed` | cells touching a deformed node within the minimum node distance ([`RadiusRule`]) | ascending cell | no | O(nodes) distances |
+//! | [`RTree`] (rstar over deformed cell boxes) | `rtree` | cells whose widened bounding box holds the point | ascending cell | yes | O(log cells) + a few inversions |
+//!
+//! Where strategies answer one cell for a point shared by several (a face, edge or node), brute force
+//! and the R-tree answer the lowest cell id among the owners; `locate_owners` gives all of them.
+//! docs/baselines.md counts where the seed's filters miss or pick a wrong cell.
+//!
+//! ```
+//! use cgcontact::glam::DVec3;
+//! use cgcontact::{Body, Lattice, LatticeLocator, Locator, Settings};
+//! use cgcontact_baseline::{BruteForce, CentroidRadius, Inversion, NodeRadius, NodeRadiusOptions, RTree};
+//!
+//! let lattice = Lattice::new(DVec3::ZERO, DVec3::splat(0.25), [4, 4, 4])?;
+//! let mut body = Body::full(lattice);
+//! body.update_displacements(|_node, x, u| *u = DVec3::new(0.0, 0.0, -0.05 * x.z * x.x))?;
+//! let settings = Settings::default();
+//!
+//! let seed = NodeRadiusOptions { inversion: Inversion::SeedFaithful, ..Default::default() };
+//! let strategies: Vec<Box<dyn Locator + '_>> = vec![
+//!     Box::new(LatticeLocator::new(&body, settings)?),
+//!     Box::new(BruteForce::new(&body, settings)?),
+//!     Box::new(CentroidRadius::new(&body, settings)?),
+//!     Box::new(NodeRadius::new(&body, settings)?),
+//!     Box::new(NodeRadius::with_options(&body, settings, seed)?),
+//!     Box::new(RTree::new(&body, settings)?),
+//! ];
+//! let x = DVec3::new(0.6, 0.3, 0.2);
+//! for strategy in &strategies {
+//!     let hit = strategy.locate(x).expect("finite point").expect("inside the body");
+//!     println!("{:>12}: {} at ξ = {:.3} after {} inversion(s)", strategy.name(), hit.cell, hit.xi, hit.inversions);
+//! }
+//! let exact = strategies[1].locate(x).unwrap().unwrap();
+//! assert_eq!(strategies[5].locate(x).unwrap().unwrap().cell, exact.cell);
+//! # Ok::<(), cgcontact::Error>(())
+//! ```
 #![deny(missing_docs)]
 #![forbid(unsafe_code)]
+
+mod brute;
+mod centroid;
+mod common;
+mod noderad;
+mod rtree;
+mod seed_newton;
+
+pub use brute::BruteForce;
+pub use centroid::CentroidRadius;
+pub use noderad::{Inversion, NodeRadius, NodeRadiusOptions, RadiusRule};
+pub use rtree::RTree;
+pub use seed_newton::{SEED_MAX_ITER, SEED_TOL, seed_eval_loc_coords};
