@@ -25,13 +25,15 @@ fn indented_block(cells: [u32; 3], h: f64) -> Body {
         bottom: 0.0,
     };
     let mut body = Body::full(lattice);
-    body.update_displacements(|_, x, u| *u = field.displacement(x)).expect("finite field");
+    body.update_displacements(|_, x, u| *u = field.displacement(x))
+        .expect("finite field");
     body
 }
 
 fn locate_all(c: &mut Criterion) {
     let body = indented_block([20, 40, 20], 0.25);
-    body.validate().expect("the indentation keeps every cell valid");
+    body.validate()
+        .expect("the indentation keeps every cell valid");
     let points: Vec<DVec3> = known_points(&body, POINTS, 7).iter().map(|p| p.x).collect();
     let locator = LatticeLocator::new(&body, Settings::default()).expect("valid settings");
 
@@ -54,7 +56,10 @@ fn locate_all(c: &mut Criterion) {
     let mut group = c.benchmark_group("locate_all/fine-block-f64");
     group.throughput(Throughput::Elements(POINTS as u64));
     let mut out = Vec::with_capacity(POINTS);
-    let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().expect("pool");
+    let one = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .expect("pool");
     group.bench_function("1 thread", |b| {
         b.iter(|| one.install(|| locator.locate_all_into(black_box(&points), &mut out)))
     });

@@ -30,6 +30,10 @@ impl Indentation {
         let profile = (-d.length_squared() / (2.0 * self.width * self.width)).exp();
         let decay = ((x.z - self.bottom) / (self.top - self.bottom)).clamp(0.0, 1.0);
         let sink = self.depth * profile * decay;
-        DVec3::new(0.3 * sink * d.x / self.width, 0.3 * sink * d.y / self.width, -sink)
+        DVec3::new(
+            0.3 * sink * d.x / self.width,
+            0.3 * sink * d.y / self.width,
+            -sink,
+        )
     }
 }

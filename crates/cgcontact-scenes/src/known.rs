@@ -1,7 +1,7 @@
 //! Query points built from known (cell, ξ): every answer is checkable.
 
-use cgcontact::hex8::{Hex8Map, Kernel};
 use cgcontact::glam::DVec3;
+use cgcontact::hex8::{Hex8Map, Kernel};
 use cgcontact::{Body, CellId};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -26,9 +26,18 @@ pub fn known_points(body: &Body, count: usize, seed: u64) -> Vec<KnownPoint> {
     (0..count)
         .map(|_| {
             let cell = active[rng.random_range(0..active.len())];
-            let xi = DVec3::new(rng.random_range(-1.0..=1.0), rng.random_range(-1.0..=1.0), rng.random_range(-1.0..=1.0));
-            let ijk = lattice.cell_ijk(cell).expect("active cells are in the lattice");
-            let u = lattice.corner_nodes(ijk).map(|n| body.displacement(n).expect("corners of active cells carry displacements"));
+            let xi = DVec3::new(
+                rng.random_range(-1.0..=1.0),
+                rng.random_range(-1.0..=1.0),
+                rng.random_range(-1.0..=1.0),
+            );
+            let ijk = lattice
+                .cell_ijk(cell)
+                .expect("active cells are in the lattice");
+            let u = lattice.corner_nodes(ijk).map(|n| {
+                body.displacement(n)
+                    .expect("corners of active cells carry displacements")
+            });
             let x = lattice.node_position(ijk) + Hex8Map::lattice_cell(lattice.h(), &u).map(xi);
             KnownPoint { x, cell, xi }
         })

@@ -7,9 +7,9 @@
 use bitvec::vec::BitVec;
 use glam::DVec3;
 
+use crate::Error;
 use crate::hex8;
 use crate::lattice::{CORNER_OFFSETS, CellId, Lattice};
-use crate::Error;
 
 /// Slot value of a lattice node that belongs to no active cell.
 const NO_SLOT: u32 = u32::MAX;
@@ -24,6 +24,8 @@ pub struct Body {
     slot: Vec<u32>,
     /// Displacement of each node of an active cell, in ascending lattice node order.
     u: Vec<DVec3>,
+    /// Node index of each corner (VTK order) minus that of corner 0, for any cell.
+    corner_offsets: [usize; 8],
 }
 
 impl Body {
@@ -44,7 +46,9 @@ impl Body {
         }
         let mut slot = vec![NO_SLOT; lattice.node_count()];
         for cell in active.iter_ones() {
-            let ijk = lattice.cell_ijk(CellId(cell as u32)).expect("mask length equals the cell count");
+            let ijk = lattice
+                .cell_ijk(CellId(cell as u32))
+                .expect("mask length equals the cell count");
             for node in lattice.corner_nodes(ijk) {
                 slot[node] = 0;
             }
@@ -55,13 +59,22 @@ impl Body {
             next += 1;
         }
         let u = vec![DVec3::ZERO; next as usize];
-        Ok(Self { lattice, active, active_count, slot, u })
+        let corner_offsets = lattice.corner_nodes([0, 0, 0]);
+        Ok(Self {
+            lattice,
+            active,
+            active_count,
+            slot,
+            u,
+            corner_offsets,
+        })
     }
 
     /// A body with every lattice cell active.
     pub fn full(lattice: Lattice) -> Self {
         let active = BitVec::repeat(true, lattice.cell_count());
-        Self::undeformed(lattice, active).expect("a lattice has at least one cell and the mask fits it")
+        Self::undeformed(lattice, active)
+            .expect("a lattice has at least one cell and the mask fits it")
     }
 
     /// A body with displacements given per node of an active cell, in ascending lattice node order
@@ -105,7 +118,15 @@ impl Body {
     #[inline]
     #[must_use]
     pub fn is_active(&self, cell: CellId) -> bool {
-        self.active.get(cell.index()).is_some_and(|b| *b)
+        // A word lookup: BitVec's proxy-reference `get` costs measurably on the hot path.
+        let i = cell.index();
+        let word = self
+            .active
+            .as_raw_slice()
+            .get(i / usize::BITS as usize)
+            .copied()
+            .unwrap_or(0);
+        i < self.active.len() && (word >> (i % usize::BITS as usize)) & 1 == 1
     }
 
     /// Number of active cells.
@@ -129,7 +150,11 @@ impl Body {
 
     /// Lattice indices of the nodes carrying a displacement, in slot order.
     pub fn nodes(&self) -> impl Iterator<Item = usize> + '_ {
-        self.slot.iter().enumerate().filter(|(_, s)| **s != NO_SLOT).map(|(n, _)| n)
+        self.slot
+            .iter()
+            .enumerate()
+            .filter(|(_, s)| **s != NO_SLOT)
+            .map(|(n, _)| n)
     }
 
     /// Displacements in slot order (see [`Body::nodes`]).
@@ -152,11 +177,18 @@ impl Body {
     /// Replace every displacement (slot order), in place: nothing is rebuilt.
     pub fn set_displacements(&mut self, u: &[DVec3]) -> Result<(), Error> {
         if u.len() != self.u.len() {
-            return Err(Error::LengthMismatch { what: "displacements", expected: self.u.len(), got: u.len() });
+            return Err(Error::LengthMismatch {
+                what: "displacements",
+                expected: self.u.len(),
+                got: u.len(),
+            });
         }
         if let Some(i) = u.iter().position(|v| !v.is_finite()) {
             let node = self.nodes().nth(i).expect("slot exists");
-            return Err(Error::NonFiniteDisplacement { node, value: u[i].to_array() });
+            return Err(Error::NonFiniteDisplacement {
+                node,
+                value: u[i].to_array(),
+            });
         }
         self.u.copy_from_slice(u);
         Ok(())
@@ -176,7 +208,9 @@ impl Body {
             if s == NO_SLOT {
                 continue;
             }
-            let ijk = lattice.node_ijk(node).expect("slot array has one entry per node");
+            let ijk = lattice
+                .node_ijk(node)
+                .expect("slot array has one entry per node");
             let u = &mut self.u[s as usize];
             f(node, lattice.node_position(ijk), u);
             if bad.is_none() && !u.is_finite() {
@@ -193,7 +227,9 @@ impl Body {
     /// Heap bytes held by the body (mask, node slots, displacements): what "memory per node" measures.
     #[must_use]
     pub fn heap_bytes(&self) -> usize {
-        self.active.capacity() / 8 + self.slot.capacity() * size_of::<u32>() + self.u.capacity() * size_of::<DVec3>()
+        self.active.capacity() / 8
+            + self.slot.capacity() * size_of::<u32>()
+            + self.u.capacity() * size_of::<DVec3>()
     }
 
     /// Largest displacement component per axis over all nodes (the search bound of the locator).
@@ -205,13 +241,16 @@ impl Body {
     /// Corner displacements of active cell `ijk`, in VTK order. The caller guarantees the cell is active.
     #[inline]
     pub(crate) fn corner_displacements(&self, ijk: [u32; 3]) -> [DVec3; 8] {
-        self.lattice.corner_nodes(ijk).map(|n| self.u[self.slot[n] as usize])
+        let base = self.lattice.node_index(ijk);
+        self.corner_offsets
+            .map(|o| self.u[self.slot[base + o] as usize])
     }
 
     /// Corner displacements where they exist, zero elsewhere (for cells that may be inactive).
     #[inline]
     pub(crate) fn corner_displacements_or_zero(&self, ijk: [u32; 3]) -> [DVec3; 8] {
-        self.lattice.corner_nodes(ijk).map(|n| match self.slot[n] {
+        let base = self.lattice.node_index(ijk);
+        self.corner_offsets.map(|o| match self.slot[base + o] {
             NO_SLOT => DVec3::ZERO,
             s => self.u[s as usize],
         })
@@ -249,7 +288,10 @@ impl Body {
         let undeformed = h.x * h.y * h.z / 8.0;
         self.active_cells()
             .filter_map(|cell| {
-                let ijk = self.lattice.cell_ijk(cell).expect("active cells are in range");
+                let ijk = self
+                    .lattice
+                    .cell_ijk(cell)
+                    .expect("active cells are in range");
                 let ratio = hex8::min_corner_det(&self.local_corners(ijk)) / undeformed;
                 // `!(ratio > 0)` also catches NaN.
                 (!(ratio > 0.0)).then_some((cell, ratio))
@@ -261,10 +303,17 @@ impl Body {
     pub fn validate(&self) -> Result<(), Error> {
         if let Some(i) = self.u.iter().position(|v| !v.is_finite()) {
             let node = self.nodes().nth(i).expect("slot exists");
-            return Err(Error::NonFiniteDisplacement { node, value: self.u[i].to_array() });
+            return Err(Error::NonFiniteDisplacement {
+                node,
+                value: self.u[i].to_array(),
+            });
         }
         let inverted = self.inverted_cells();
-        if inverted.is_empty() { Ok(()) } else { Err(Error::InvertedCells(inverted)) }
+        if inverted.is_empty() {
+            Ok(())
+        } else {
+            Err(Error::InvertedCells(inverted))
+        }
     }
 }
 
@@ -294,11 +343,14 @@ mod tests {
     #[test]
     fn dense_field_and_in_place_update() {
         let l = lattice();
-        let dense: Vec<DVec3> = (0..l.node_count()).map(|n| DVec3::splat(n as f64 * 1e-3)).collect();
+        let dense: Vec<DVec3> = (0..l.node_count())
+            .map(|n| DVec3::splat(n as f64 * 1e-3))
+            .collect();
         let mut body = Body::from_dense(l, BitVec::repeat(true, l.cell_count()), &dense).unwrap();
         assert_eq!(body.node_count(), l.node_count());
         assert_eq!(body.displacement(7), Some(dense[7]));
-        body.update_displacements(|node, x, u| *u = x * 0.0 + DVec3::X * node as f64 * 1e-4).unwrap();
+        body.update_displacements(|node, x, u| *u = x * 0.0 + DVec3::X * node as f64 * 1e-4)
+            .unwrap();
         assert_eq!(body.displacement(7), Some(DVec3::X * 7e-4));
         assert!((body.max_displacement().x - (l.node_count() - 1) as f64 * 1e-4).abs() < 1e-15);
     }
@@ -306,14 +358,32 @@ mod tests {
     #[test]
     fn bad_input_is_an_error() {
         let l = lattice();
-        assert_eq!(Body::undeformed(l, BitVec::repeat(false, l.cell_count())).unwrap_err(), Error::EmptyBody);
-        assert!(matches!(Body::undeformed(l, BitVec::repeat(true, 3)), Err(Error::LengthMismatch { .. })));
+        assert_eq!(
+            Body::undeformed(l, BitVec::repeat(false, l.cell_count())).unwrap_err(),
+            Error::EmptyBody
+        );
+        assert!(matches!(
+            Body::undeformed(l, BitVec::repeat(true, 3)),
+            Err(Error::LengthMismatch { .. })
+        ));
         let mut body = Body::full(l);
         let mut u = vec![DVec3::ZERO; body.node_count()];
         u[5] = DVec3::new(0.0, f64::NAN, 0.0);
-        assert!(matches!(body.set_displacements(&u), Err(Error::NonFiniteDisplacement { node: 5, .. })));
-        assert!(matches!(body.set_displacements(&u[1..]), Err(Error::LengthMismatch { .. })));
-        let err = body.update_displacements(|n, _, u| if n == 9 { u.x = f64::INFINITY }).unwrap_err();
+        assert!(matches!(
+            body.set_displacements(&u),
+            Err(Error::NonFiniteDisplacement { node: 5, .. })
+        ));
+        assert!(matches!(
+            body.set_displacements(&u[1..]),
+            Err(Error::LengthMismatch { .. })
+        ));
+        let err = body
+            .update_displacements(|n, _, u| {
+                if n == 9 {
+                    u.x = f64::INFINITY
+                }
+            })
+            .unwrap_err();
         assert!(matches!(err, Error::NonFiniteDisplacement { node: 9, .. }));
         assert!(body.displacements().iter().all(|u| *u == DVec3::ZERO));
     }
@@ -325,13 +395,21 @@ mod tests {
         assert!(body.validate().is_ok());
         // Push node (1, 1, 1) past its neighbours along x: cells on both sides of it fold over.
         let target = l.node_index([1, 1, 1]);
-        body.update_displacements(|n, _, u| if n == target { u.x = 0.8 }).unwrap();
+        body.update_displacements(|n, _, u| {
+            if n == target {
+                u.x = 0.8
+            }
+        })
+        .unwrap();
         let inverted = body.inverted_cells();
         assert!(!inverted.is_empty());
         for (cell, ratio) in &inverted {
             assert!(*ratio <= 0.0);
             let ijk = l.cell_ijk(*cell).unwrap();
-            assert!(l.corner_nodes(ijk).contains(&target), "{cell} does not touch the moved node");
+            assert!(
+                l.corner_nodes(ijk).contains(&target),
+                "{cell} does not touch the moved node"
+            );
         }
         assert!(matches!(body.validate(), Err(Error::InvertedCells(_))));
     }

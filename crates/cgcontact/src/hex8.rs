@@ -50,7 +50,12 @@ pub struct NewtonOptions {
 
 impl Default for NewtonOptions {
     fn default() -> Self {
-        Self { tol: 1e-10, max_iter: 20, inside_tol: 1e-12, det_ratio_min: 1e-12 }
+        Self {
+            tol: 1e-10,
+            max_iter: 20,
+            inside_tol: 1e-12,
+            det_ratio_min: 1e-12,
+        }
     }
 }
 
@@ -88,6 +93,9 @@ pub trait Kernel: Copy + Send + Sync {
     /// The map of a lattice cell of spacing `h` whose corners are displaced by `u` (VTK order),
     /// in the cell's local frame (lowest undeformed node at the origin).
     fn lattice_cell(h: DVec3, u: &[DVec3; 8]) -> Self;
+    /// [`Kernel::lattice_cell`] from the displacement map `u` (the trilinear interpolation of the corner
+    /// displacements, built once in f64): lets a caller that already interpolated u in a cell reuse it.
+    fn lattice_cell_from_displacement_map(h: DVec3, u: &Hex8Map) -> Self;
     /// The map of a hexahedron with arbitrary corners (VTK order), already in a local frame.
     fn from_corners(corners: &[DVec3; 8]) -> Self;
     /// Newton inversion of `x` (same frame as the corners) starting from `xi0` (clamped to [−1, 1]³).
@@ -170,8 +178,12 @@ macro_rules! stamp_hex8 {
                 let inside = 1.0 + options.inside_tol as $S;
                 let det_floor = options.det_ratio_min as $S * self.det_at_center().abs();
                 let mut xi = xi0.clamp(<$V>::splat(-1.0), <$V>::splat(1.0));
-                let (mut fx, mut jac) = self.map_and_jacobian(xi);
-                let mut r = x - fx;
+                // Residual and Jacobian at an iterate.
+                let evaluate = |xi: $V| {
+                    let (fx, jac) = self.map_and_jacobian(xi);
+                    (x - fx, jac)
+                };
+                let (mut r, mut jac) = evaluate(xi);
                 let mut rr = r.dot(r);
                 let finish = |status, xi: $V, iterations, rr: $S| Inversion {
                     status,
@@ -188,33 +200,43 @@ macro_rules! stamp_hex8 {
                         return finish(Status::Singular, xi, iteration - 1, rr);
                     }
                     let delta = <$V>::new(k0.dot(r), c2.cross(c0).dot(r), c0.cross(c1).dot(r)) / det;
+                    let size = delta.abs().max_element();
+                    if size <= tol {
+                        // Converged: the step is below tolerance, and convergence is quadratic, so the
+                        // error after it is of order size². Only the residual is evaluated (no Jacobian).
+                        xi += delta;
+                        r = x - self.map(xi);
+                        rr = r.dot(r);
+                        let status = if !xi.is_finite() || !rr.is_finite() {
+                            Status::Singular
+                        } else if xi.abs().max_element() <= inside {
+                            Status::Inside
+                        } else {
+                            Status::Outside
+                        };
+                        return finish(status, xi, iteration, rr);
+                    }
                     let mut step = delta;
                     let mut trial = (xi + step).clamp(<$V>::splat(-BOX), <$V>::splat(BOX));
-                    (fx, jac) = self.map_and_jacobian(trial);
-                    let mut r_trial = x - fx;
+                    let (mut r_trial, mut jac_trial) = evaluate(trial);
                     let mut rr_trial = r_trial.dot(r_trial);
                     let mut halvings = 0;
                     while rr_trial > rr && step.abs().max_element() > LINE_SEARCH_ABOVE && halvings < 10 {
                         step *= 0.5;
                         halvings += 1;
                         trial = (xi + step).clamp(<$V>::splat(-BOX), <$V>::splat(BOX));
-                        (fx, jac) = self.map_and_jacobian(trial);
-                        r_trial = x - fx;
+                        (r_trial, jac_trial) = evaluate(trial);
                         rr_trial = r_trial.dot(r_trial);
                     }
                     let moved = (trial - xi).abs().max_element();
                     xi = trial;
+                    jac = jac_trial;
                     r = r_trial;
                     rr = rr_trial;
                     if !xi.is_finite() || !rr.is_finite() {
                         return finish(Status::Singular, xi, iteration, rr);
                     }
-                    let reach = xi.abs().max_element();
-                    if moved <= tol {
-                        let status = if reach <= inside { Status::Inside } else { Status::Outside };
-                        return finish(status, xi, iteration, rr);
-                    }
-                    if moved < EARLY_OUTSIDE_STEP && reach > inside + EARLY_OUTSIDE_MARGIN {
+                    if moved < EARLY_OUTSIDE_STEP && xi.abs().max_element() > inside + EARLY_OUTSIDE_MARGIN {
                         return finish(Status::Outside, xi, iteration, rr);
                     }
                 }
@@ -227,7 +249,12 @@ macro_rules! stamp_hex8 {
 
             #[inline]
             fn lattice_cell(h: DVec3, u: &[DVec3; 8]) -> Self {
-                let mut map = Self::new(&u.map($to_v));
+                Self::lattice_cell_from_displacement_map(h, &Hex8Map::new(u))
+            }
+
+            #[inline]
+            fn lattice_cell_from_displacement_map(h: DVec3, u: &Hex8Map) -> Self {
+                let mut map = Self { a: u.a.map($to_v) };
                 // The undeformed part of the map is h (1 + ξ) / 2 per axis: add it to the coefficients.
                 let half = $to_v(h * 0.5);
                 map.a[0] += half;
@@ -299,7 +326,11 @@ mod tests {
     fn map_matches_shape_functions() {
         let corners = distorted();
         let map = Hex8Map::new(&corners);
-        for xi in [DVec3::ZERO, DVec3::new(0.3, -0.7, 0.9), DVec3::new(-1.0, 1.0, 0.25)] {
+        for xi in [
+            DVec3::ZERO,
+            DVec3::new(0.3, -0.7, 0.9),
+            DVec3::new(-1.0, 1.0, 0.25),
+        ] {
             let n = shape(xi);
             let by_shape: DVec3 = (0..8).map(|c| corners[c] * n[c]).sum();
             assert!((map.map(xi) - by_shape).length() < 1e-15);
@@ -328,10 +359,18 @@ mod tests {
     fn newton_recovers_known_xi() {
         let map = Hex8Map::new(&distorted());
         let options = NewtonOptions::default();
-        for xi in [DVec3::ZERO, DVec3::new(0.9, -0.99, 0.5), DVec3::new(-1.0, 1.0, -1.0)] {
+        for xi in [
+            DVec3::ZERO,
+            DVec3::new(0.9, -0.99, 0.5),
+            DVec3::new(-1.0, 1.0, -1.0),
+        ] {
             let inv = map.invert(map.map(xi), DVec3::ZERO, &options);
             assert_eq!(inv.status, Status::Inside);
-            assert!((inv.xi - xi).abs().max_element() < 1e-12, "{:?} vs {xi}", inv.xi);
+            assert!(
+                (inv.xi - xi).abs().max_element() < 1e-12,
+                "{:?} vs {xi}",
+                inv.xi
+            );
             assert!(inv.iterations <= 8);
         }
         let outside = map.invert(map.map(DVec3::new(1.5, 0.0, 0.0)), DVec3::ZERO, &options);
@@ -344,7 +383,15 @@ mod tests {
         let map = Hex8Map32::from_corners(&corners);
         let xi = DVec3::new(0.3, 0.2, -0.8);
         let x = Hex8Map::new(&corners).map(xi);
-        let inv = map.invert_f64(x, DVec3::ZERO, &NewtonOptions { tol: 1e-5, inside_tol: 1e-6, ..Default::default() });
+        let inv = map.invert_f64(
+            x,
+            DVec3::ZERO,
+            &NewtonOptions {
+                tol: 1e-5,
+                inside_tol: 1e-6,
+                ..Default::default()
+            },
+        );
         assert_eq!(inv.status, Status::Inside);
         assert!((inv.xi - xi).abs().max_element() < 1e-5);
     }
@@ -353,9 +400,14 @@ mod tests {
     fn degenerate_cell_is_singular_not_nan() {
         // All corners on one plane: det J = 0 everywhere.
         let flat = distorted().map(|c| DVec3::new(c.x, c.y, 0.0));
-        let inv = Hex8Map::new(&flat).invert(DVec3::new(0.5, 0.5, 0.0), DVec3::ZERO, &NewtonOptions::default());
+        let inv = Hex8Map::new(&flat).invert(
+            DVec3::new(0.5, 0.5, 0.0),
+            DVec3::ZERO,
+            &NewtonOptions::default(),
+        );
         assert_eq!(inv.status, Status::Singular);
-        let nan = Hex8Map::new(&distorted()).invert(DVec3::NAN, DVec3::ZERO, &NewtonOptions::default());
+        let nan =
+            Hex8Map::new(&distorted()).invert(DVec3::NAN, DVec3::ZERO, &NewtonOptions::default());
         assert_ne!(nan.status, Status::Inside);
         assert!(min_corner_det(&flat).abs() < 1e-15);
         assert!(min_corner_det(&distorted()) > 0.0);

@@ -57,7 +57,9 @@ impl Lattice {
     /// count does not fit the `u32` indices used throughout.
     pub fn new(origin: DVec3, h: DVec3, cells: [u32; 3]) -> Result<Self, Error> {
         if !origin.is_finite() {
-            return Err(Error::InvalidLattice(format!("origin {origin} is not finite")));
+            return Err(Error::InvalidLattice(format!(
+                "origin {origin} is not finite"
+            )));
         }
         if !(h.is_finite() && h.min_element() > 0.0) {
             return Err(Error::InvalidLattice(format!(
@@ -124,7 +126,13 @@ impl Lattice {
     #[inline]
     #[must_use]
     pub fn upper(&self) -> DVec3 {
-        self.origin + self.h * DVec3::new(self.cells[0] as f64, self.cells[1] as f64, self.cells[2] as f64)
+        self.origin
+            + self.h
+                * DVec3::new(
+                    self.cells[0] as f64,
+                    self.cells[1] as f64,
+                    self.cells[2] as f64,
+                )
     }
 
     /// Linear index of cell (i, j, k). The caller guarantees it lies in the lattice.
@@ -163,7 +171,11 @@ impl Lattice {
             return None;
         }
         let [nx, ny, _] = self.nodes().map(|n| n as usize);
-        Some([(index % nx) as u32, ((index / nx) % ny) as u32, (index / (nx * ny)) as u32])
+        Some([
+            (index % nx) as u32,
+            ((index / nx) % ny) as u32,
+            (index / (nx * ny)) as u32,
+        ])
     }
 
     /// Undeformed position of node (i, j, k).
@@ -226,7 +238,12 @@ mod tests {
     use super::*;
 
     fn lattice() -> Lattice {
-        Lattice::new(DVec3::new(-1.0, 2.0, 0.5), DVec3::new(0.5, 0.25, 1.0), [4, 3, 2]).unwrap()
+        Lattice::new(
+            DVec3::new(-1.0, 2.0, 0.5),
+            DVec3::new(0.5, 0.25, 1.0),
+            [4, 3, 2],
+        )
+        .unwrap()
     }
 
     #[test]

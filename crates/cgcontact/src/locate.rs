@@ -14,7 +14,7 @@ use rayon::prelude::*;
 use smallvec::SmallVec;
 
 use crate::body::Body;
-use crate::hex8::{Hex8Map, Hex8Map32, Kernel, NewtonOptions, Status};
+use crate::hex8::{Hex8Map, Hex8Map32, Inversion, Kernel, NewtonOptions, Status};
 use crate::lattice::CellId;
 use crate::settings::{CandidateOrder, Precision, Settings};
 use crate::{Error, PointError};
@@ -55,7 +55,10 @@ pub trait Locator: Sync {
     /// [`Locator::locate`] for every point, in parallel on the current rayon pool, answers in input
     /// order, written into `out` (resized; no allocation per point).
     fn locate_all_into(&self, points: &[DVec3], out: &mut Vec<Answer>) {
-        points.par_iter().map(|&x| self.locate(x)).collect_into_vec(out);
+        points
+            .par_iter()
+            .map(|&x| self.locate(x))
+            .collect_into_vec(out);
     }
 
     /// [`Locator::locate`] for every point, in parallel, answers in input order.
@@ -75,6 +78,8 @@ pub struct LatticeLocator<'a> {
     newton: NewtonOptions,
     /// Largest displacement component per axis.
     u_max: DVec3,
+    /// 1 / h per axis.
+    inv_h: DVec3,
     /// The lattice's box padded by `u_max`: points outside are rejected at once.
     reach_low: DVec3,
     reach_high: DVec3,
@@ -101,6 +106,7 @@ impl<'a> LatticeLocator<'a> {
             settings,
             newton: settings.newton(),
             u_max,
+            inv_h: lattice.h().recip(),
             reach_low: lattice.origin() - u_max,
             reach_high: lattice.upper() + u_max,
         })
@@ -128,91 +134,136 @@ impl<'a> LatticeLocator<'a> {
         if !x.is_finite() {
             return Err(PointError::NonFinite);
         }
-        let inside_tol = self.settings.inside_tolerance(self.body.lattice(), self.u_max.max_element(), x);
+        let inside_tol =
+            self.settings
+                .inside_tolerance(self.body.lattice(), self.u_max.max_element(), x);
         let lattice = self.body.lattice();
         let slack = lattice.h() * inside_tol;
         if x.cmplt(self.reach_low - slack).any() || x.cmpgt(self.reach_high + slack).any() {
             return Ok(None);
         }
-        let options = NewtonOptions { inside_tol, ..self.newton };
+        let options = NewtonOptions {
+            inside_tol,
+            ..self.newton
+        };
         match self.settings.precision {
             Precision::F64 => Ok(self.search_with::<Hex8Map>(x, &options, &mut collect)),
             Precision::F32 => Ok(self.search_with::<Hex8Map32>(x, &options, &mut collect)),
         }
     }
 
-    /// The predicted undeformed position of `x`: x − ũ, ũ interpolated at x on the undeformed lattice.
+    /// Invert candidate cell `ijk` (active) for `x`; `t_guess` is the predicted undeformed position in
+    /// lattice coordinates (gives the starting ξ), `u_map` the cell's displacement map when the caller
+    /// already has it.
     #[inline]
-    fn predicted_origin(&self, x: DVec3) -> DVec3 {
+    fn try_cell<K: Kernel>(
+        &self,
+        x: DVec3,
+        ijk: [u32; 3],
+        t_guess: DVec3,
+        u_map: Option<&Hex8Map>,
+        options: &NewtonOptions,
+    ) -> Inversion {
         let lattice = self.body.lattice();
-        let t = lattice.lattice_coords(x);
-        let ijk = lattice.clamped_cell(t);
-        let u = self.body.corner_displacements_or_zero(ijk);
-        let xi = (2.0 * (t - DVec3::from_array(ijk.map(f64::from))) - 1.0).clamp(DVec3::NEG_ONE, DVec3::ONE);
-        x - Hex8Map::new(&u).map(xi)
+        let map = match u_map {
+            Some(u_map) => K::lattice_cell_from_displacement_map(lattice.h(), u_map),
+            None => K::lattice_cell(lattice.h(), &self.body.corner_displacements(ijk)),
+        };
+        let xi0 = 2.0 * (t_guess - DVec3::from_array(ijk.map(f64::from))) - 1.0;
+        map.invert_f64(x - lattice.node_position(ijk), xi0, options)
     }
 
-    fn search_with<K: Kernel>(&self, x: DVec3, options: &NewtonOptions, collect: &mut Collect<'_>) -> Option<Hit> {
+    fn search_with<K: Kernel>(
+        &self,
+        x: DVec3,
+        options: &NewtonOptions,
+        collect: &mut Collect<'_>,
+    ) -> Option<Hit> {
         let lattice = self.body.lattice();
-        let h = lattice.h();
-        let guess = match self.settings.order {
-            CandidateOrder::Predicted => self.predicted_origin(x),
-            CandidateOrder::Undeformed => x,
+        let t_x = (x - lattice.origin()) * self.inv_h;
+        let cell_x = lattice.clamped_cell(t_x);
+        // The predicted undeformed position x − ũ, ũ interpolated at x in the cell holding x (corners
+        // of inactive cells count as undisplaced: it is only a guess).
+        let (t_guess, u_map_x) = match self.settings.order {
+            CandidateOrder::Predicted => {
+                let u_map = Hex8Map::new(&self.body.corner_displacements_or_zero(cell_x));
+                let xi_x = (2.0 * (t_x - DVec3::from_array(cell_x.map(f64::from))) - 1.0)
+                    .clamp(DVec3::NEG_ONE, DVec3::ONE);
+                (t_x - u_map.map(xi_x) * self.inv_h, Some(u_map))
+            }
+            CandidateOrder::Undeformed => (t_x, None),
         };
-        let t_guess = lattice.lattice_coords(guess);
-        let start = lattice.clamped_cell(t_guess);
-        // Lattice cells meeting [x − u_max, x + u_max], widened by the inside tolerance.
-        let widen = options.inside_tol;
-        let t_low = lattice.lattice_coords(x - self.u_max) - widen;
-        let t_high = lattice.lattice_coords(x + self.u_max) + widen;
-        let low = lattice.clamped_cell(t_low);
-        let high = lattice.clamped_cell(t_high);
-        let start = [0, 1, 2].map(|a| start[a].clamp(low[a], high[a]));
-
+        let first = lattice.clamped_cell(t_guess);
         let mut inversions = 0u32;
         let mut found = None;
-        let radius = (0..3).map(|a| (start[a] - low[a]).max(high[a] - start[a])).max().unwrap_or(0);
-        'rings: for r in 0..=radius {
-            let r = r as i64;
-            let s = start.map(i64::from);
-            let (lo, hi) = (low.map(i64::from), high.map(i64::from));
+        let mut visit = |ijk: [u32; 3], u_map: Option<&Hex8Map>, found: &mut Option<Hit>| -> bool {
+            let cell = lattice.cell_id(ijk);
+            if !self.body.is_active(cell) {
+                return false;
+            }
+            let inversion = self.try_cell::<K>(x, ijk, t_guess, u_map, options);
+            inversions += 1;
+            if inversion.status != Status::Inside {
+                return false;
+            }
+            let hit = Hit {
+                cell,
+                xi: inversion.xi.clamp(DVec3::NEG_ONE, DVec3::ONE),
+                iterations: inversion.iterations,
+                residual: inversion.residual,
+                inversions,
+            };
+            match collect {
+                Collect::First => {
+                    *found = Some(hit);
+                    true
+                }
+                Collect::All(owners) => {
+                    owners.push(hit);
+                    false
+                }
+            }
+        };
+        // The predicted cell first: it holds the point almost always, and when it is the cell holding
+        // x its displacement map is already built.
+        let reuse = if first == cell_x {
+            u_map_x.as_ref()
+        } else {
+            None
+        };
+        if visit(first, reuse, &mut found) {
+            return found;
+        }
+        // Then every other cell meeting [x − u_max, x + u_max] (widened by the inside tolerance), in rings
+        // of growing Chebyshev distance around the predicted cell.
+        let widen = options.inside_tol;
+        let low = lattice.clamped_cell(t_x - self.u_max * self.inv_h - widen);
+        let high = lattice.clamped_cell(t_x + self.u_max * self.inv_h + widen);
+        let s = [0, 1, 2].map(|a| i64::from(first[a].clamp(low[a], high[a])));
+        let (lo, hi) = (low.map(i64::from), high.map(i64::from));
+        let radius = (0..3)
+            .map(|a| (s[a] - lo[a]).max(hi[a] - s[a]))
+            .max()
+            .unwrap_or(0);
+        for r in 0..=radius {
             for k in (s[2] - r).max(lo[2])..=(s[2] + r).min(hi[2]) {
                 for j in (s[1] - r).max(lo[1])..=(s[1] + r).min(hi[1]) {
                     // On the shell's top, bottom and sides the whole row is at distance r; elsewhere
                     // only its two ends are.
                     let whole_row = (k - s[2]).abs() == r || (j - s[1]).abs() == r;
-                    let (first, last) = ((s[0] - r).max(lo[0]), (s[0] + r).min(hi[0]));
-                    let ends = [s[0] - r, s[0] + r];
-                    let step = if whole_row { 1 } else { (2 * r).max(1) as usize };
-                    for i in (ends[0]..=ends[1]).step_by(step) {
-                        if i < first || i > last {
-                            continue;
-                        }
+                    let (from, to) = ((s[0] - r).max(lo[0]), (s[0] + r).min(hi[0]));
+                    let step = if whole_row {
+                        1
+                    } else {
+                        (2 * r).max(1) as usize
+                    };
+                    for i in (s[0] - r..=s[0] + r).step_by(step) {
                         let ijk = [i as u32, j as u32, k as u32];
-                        let cell = lattice.cell_id(ijk);
-                        if !self.body.is_active(cell) {
+                        if i < from || i > to || ijk == first {
                             continue;
                         }
-                        let map = K::lattice_cell(h, &self.body.corner_displacements(ijk));
-                        let low_node = lattice.node_position(ijk);
-                        let xi0 = 2.0 * (t_guess - DVec3::from_array(ijk.map(f64::from))) - 1.0;
-                        let inversion = map.invert_f64(x - low_node, xi0, options);
-                        inversions += 1;
-                        if inversion.status == Status::Inside {
-                            let hit = Hit {
-                                cell,
-                                xi: inversion.xi.clamp(DVec3::NEG_ONE, DVec3::ONE),
-                                iterations: inversion.iterations,
-                                residual: inversion.residual,
-                                inversions,
-                            };
-                            match collect {
-                                Collect::First => {
-                                    found = Some(hit);
-                                    break 'rings;
-                                }
-                                Collect::All(owners) => owners.push(hit),
-                            }
+                        if visit(ijk, None, &mut found) {
+                            return found;
                         }
                     }
                 }

@@ -59,19 +59,32 @@ impl Settings {
     /// Defaults for f32: a Newton tolerance and inside tolerance suited to single precision.
     #[must_use]
     pub fn f32() -> Self {
-        Self { precision: Precision::F32, newton_tol: 1e-5, inside_tol: 1e-6, ..Self::default() }
+        Self {
+            precision: Precision::F32,
+            newton_tol: 1e-5,
+            inside_tol: 1e-6,
+            ..Self::default()
+        }
     }
 
     /// Check ranges: tolerances finite and non-negative, at least one iteration.
     pub fn validate(&self) -> Result<(), Error> {
         if !(self.newton_tol.is_finite() && self.newton_tol > 0.0) {
-            return Err(Error::InvalidSettings(format!("Newton tolerance {} must be finite and > 0", self.newton_tol)));
+            return Err(Error::InvalidSettings(format!(
+                "Newton tolerance {} must be finite and > 0",
+                self.newton_tol
+            )));
         }
         if !(self.inside_tol.is_finite() && self.inside_tol >= 0.0) {
-            return Err(Error::InvalidSettings(format!("inside tolerance {} must be finite and ≥ 0", self.inside_tol)));
+            return Err(Error::InvalidSettings(format!(
+                "inside tolerance {} must be finite and ≥ 0",
+                self.inside_tol
+            )));
         }
         if self.max_iter == 0 {
-            return Err(Error::InvalidSettings("the iteration limit must be at least 1".into()));
+            return Err(Error::InvalidSettings(
+                "the iteration limit must be at least 1".into(),
+            ));
         }
         Ok(())
     }
@@ -95,8 +108,13 @@ impl Settings {
     #[must_use]
     pub fn inside_tolerance(&self, lattice: &Lattice, u_max: f64, x: DVec3) -> f64 {
         let h_min = lattice.h().min_element();
-        let magnitude = x.abs().max_element().max(lattice.origin().abs().max_element());
-        self.inside_tol + 8.0 * self.epsilon() * (2.0 + u_max / h_min) + 8.0 * f64::EPSILON * magnitude / h_min
+        let magnitude = x
+            .abs()
+            .max_element()
+            .max(lattice.origin().abs().max_element());
+        self.inside_tol
+            + 8.0 * self.epsilon() * (2.0 + u_max / h_min)
+            + 8.0 * f64::EPSILON * magnitude / h_min
     }
 
     /// Machine epsilon of the kernel's precision.
