@@ -1,0 +1,225 @@
+//! Brute force and the R-tree agree with the lattice locator on generated scenes: volume points with
+//! known answers, points on shared faces/edges/nodes, points within 1e-9 h of the outer boundary (both
+//! sides), points anywhere in the body's box, and points far outside.
+
+mod common;
+
+use cgcontact::glam::DVec3;
+use cgcontact::{LatticeLocator, Locator, PointError, Settings};
+use cgcontact_baseline::{BruteForce, RTree};
+use common::{Kind, Spec};
+
+/// Checks every point; returns how many were located (so callers can check the scene is not trivial).
+///
+/// `xi_tol` bounds the ξ difference between strategies; against a known ξ the bound adds the rounding
+/// of the generated point's global coordinates. Where the inside tolerance exceeds the ±1e-9 h offset
+/// of the boundary points (f32, or coordinates far from the origin: the tolerance absorbs the rounding
+/// of the data), only the strategies' agreement is checked there.
+fn check_scene(spec: &Spec, points_per_kind: usize, settings: Settings, xi_tol: f64) -> usize {
+    let body = common::body(spec);
+    let lattice = LatticeLocator::new(&body, settings).unwrap();
+    let brute = BruteForce::new(&body, settings).unwrap();
+    let rtree = RTree::new(&body, settings).unwrap();
+    let u_max = body.max_displacement().max_element();
+    let mut located = 0;
+    for (index, (x, kind)) in common::points(&body, points_per_kind, spec.seed + 1)
+        .into_iter()
+        .enumerate()
+    {
+        let boundary_resolved = 2e-9 > 2.0 * settings.inside_tolerance(body.lattice(), u_max, x);
+        let known_tol = xi_tol + 64.0 * f64::EPSILON * x.abs().max_element() / spec.h.min_element();
+        let context = || format!("point {index} {x} ({kind:?}) in {spec:?}");
+        let expected = lattice.locate(x).unwrap();
+        let owners = brute.locate_owners(x).unwrap();
+        let first = brute.locate(x).unwrap();
+        let by_tree = rtree.locate(x).unwrap();
+        let tree_owners = rtree.locate_owners(x).unwrap();
+
+        // Same found / not found.
+        assert_eq!(
+            expected.is_some(),
+            !owners.is_empty(),
+            "lattice vs brute owners, {}",
+            context()
+        );
+        assert_eq!(
+            first.is_some(),
+            !owners.is_empty(),
+            "brute locate vs owners, {}",
+            context()
+        );
+        assert_eq!(
+            by_tree.is_some(),
+            !owners.is_empty(),
+            "rtree vs brute, {}",
+            context()
+        );
+        // Brute force answers the lowest owner; so does the R-tree (it tries its candidates ascending).
+        if let Some(hit) = first {
+            assert_eq!(hit.cell, owners[0].cell, "{}", context());
+            assert_eq!(by_tree.unwrap().cell, hit.cell, "{}", context());
+        }
+        let cells = |o: &cgcontact::Owners| o.iter().map(|h| h.cell).collect::<Vec<_>>();
+        assert_eq!(
+            cells(&tree_owners),
+            cells(&owners),
+            "rtree owners, {}",
+            context()
+        );
+        // The lattice's cell is among the owners, at the same ξ.
+        if let Some(hit) = expected {
+            located += 1;
+            let owner = owners
+                .iter()
+                .find(|o| o.cell == hit.cell)
+                .unwrap_or_else(|| {
+                    panic!(
+                        "lattice cell {} not among brute owners {:?}, {}",
+                        hit.cell,
+                        cells(&owners),
+                        context()
+                    )
+                });
+            assert!(
+                (owner.xi - hit.xi).abs().max_element() <= xi_tol,
+                "ξ {} vs {}, {}",
+                owner.xi,
+                hit.xi,
+                context()
+            );
+        }
+        // Known answers.
+        match kind {
+            Kind::Volume { cell, xi } | Kind::Shared { cell, xi } => {
+                let owner = owners
+                    .iter()
+                    .find(|o| o.cell == cell)
+                    .unwrap_or_else(|| panic!("known cell missed, {}", context()));
+                assert!(
+                    (owner.xi - xi).abs().max_element() <= known_tol,
+                    "ξ {} vs known {xi}, {}",
+                    owner.xi,
+                    context()
+                );
+            }
+            Kind::NearBoundary { .. } if !boundary_resolved => {}
+            Kind::NearBoundary {
+                cell,
+                outside: false,
+            } => {
+                assert!(
+                    owners.iter().any(|o| o.cell == cell),
+                    "known cell missed, {}",
+                    context()
+                );
+            }
+            Kind::NearBoundary {
+                cell,
+                outside: true,
+            } => {
+                assert!(
+                    owners.iter().all(|o| o.cell != cell),
+                    "1e-9 h outside yet inside, {}",
+                    context()
+                );
+            }
+            Kind::Far => assert!(owners.is_empty(), "{}", context()),
+            Kind::InBox => {}
+        }
+        // Inversions are counted: at least one per hit.
+        for hit in [expected, first, by_tree].into_iter().flatten() {
+            assert!(hit.inversions >= 1);
+        }
+    }
+    located
+}
+
+const MILD: Spec = Spec {
+    origin: DVec3::new(-1.0, 0.5, 2.0),
+    h: DVec3::new(0.25, 0.25, 0.25),
+    cells: [8, 7, 6],
+    amplitude: 0.5,
+    jitter: 0.1,
+    holes: 0.0,
+    seed: 11,
+};
+
+#[test]
+fn mild_scene() {
+    assert!(check_scene(&MILD, 300, Settings::default(), 1e-10) > 600);
+}
+
+#[test]
+fn large_displacements_jitter_and_holes() {
+    // Displacements up to 2 h (more than a cell), seeded jitter, 15 % of cells missing.
+    let spec = Spec {
+        amplitude: 2.0,
+        jitter: 0.15,
+        holes: 0.15,
+        cells: [12, 10, 8],
+        seed: 23,
+        ..MILD
+    };
+    assert!(
+        common::body(&spec).max_displacement().max_element() > 1.5 * spec.h.x,
+        "displacements exceed a cell"
+    );
+    assert!(check_scene(&spec, 300, Settings::default(), 1e-10) > 600);
+}
+
+#[test]
+fn anisotropic_and_far_from_origin() {
+    let spec = Spec {
+        origin: DVec3::new(1.0e5, -3.0e5, 2.0e4),
+        h: DVec3::new(0.5, 0.25, 0.1),
+        amplitude: 1.5,
+        jitter: 0.1,
+        holes: 0.1,
+        cells: [7, 8, 9],
+        seed: 37,
+    };
+    assert!(check_scene(&spec, 300, Settings::default(), 1e-10) > 600);
+}
+
+#[test]
+fn single_precision_kernel() {
+    // f32 in the local frame: same cells, ξ to single precision, far from the origin too.
+    let spec = Spec {
+        origin: DVec3::new(3.0e4, 1.0e4, -2.0e4),
+        amplitude: 1.0,
+        holes: 0.1,
+        seed: 41,
+        ..MILD
+    };
+    assert!(check_scene(&spec, 150, Settings::f32(), 1e-4) > 300);
+}
+
+#[test]
+fn non_finite_points_are_errors() {
+    let body = common::body(&MILD);
+    let brute = BruteForce::new(&body, Settings::default()).unwrap();
+    let rtree = RTree::new(&body, Settings::default()).unwrap();
+    for x in [
+        DVec3::new(f64::NAN, 0.0, 0.0),
+        DVec3::new(0.0, f64::INFINITY, 0.0),
+    ] {
+        assert_eq!(brute.locate(x), Err(PointError::NonFinite));
+        assert_eq!(rtree.locate(x), Err(PointError::NonFinite));
+        assert_eq!(rtree.locate_owners(x).unwrap_err(), PointError::NonFinite);
+    }
+    let answers = brute.locate_all(&[DVec3::NAN, DVec3::splat(-50.0)]);
+    assert_eq!(answers, vec![Err(PointError::NonFinite), Ok(None)]);
+    assert!(rtree.build_time().as_secs_f64() >= 0.0);
+    assert_eq!(rtree.len(), body.active_count());
+}
+
+#[test]
+fn bad_settings_are_errors() {
+    let body = common::body(&MILD);
+    let bad = Settings {
+        max_iter: 0,
+        ..Settings::default()
+    };
+    assert!(BruteForce::new(&body, bad).is_err());
+    assert!(RTree::new(&body, bad).is_err());
+}
