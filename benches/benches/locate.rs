@@ -8,27 +8,11 @@
 use std::hint::black_box;
 
 use cgcontact::glam::DVec3;
-use cgcontact::{Body, Lattice, LatticeLocator, Locator, Settings};
-use cgcontact_scenes::{Indentation, known_points};
+use cgcontact::{LatticeLocator, Locator, Settings};
+use cgcontact_scenes::indented_block;
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 
 const POINTS: usize = 100_000;
-
-fn indented_block(cells: [u32; 3], h: f64) -> Body {
-    let lattice = Lattice::new(DVec3::ZERO, DVec3::splat(h), cells).expect("valid lattice");
-    let upper = lattice.upper();
-    let field = Indentation {
-        center: upper * 0.5,
-        width: 4.0 * h,
-        depth: 0.45 * h,
-        top: upper.z,
-        bottom: 0.0,
-    };
-    let mut body = Body::full(lattice);
-    body.update_displacements(|_, x, u| *u = field.displacement(x))
-        .expect("finite field");
-    body
-}
 
 fn locate_all(c: &mut Criterion) {
     let body = indented_block([20, 40, 20], 0.25);
@@ -77,7 +61,9 @@ fn locate_all(c: &mut Criterion) {
 }
 
 fn build(c: &mut Criterion) {
-    let body = indented_block([40, 80, 40], 0.125);
+    let body = indented_block([40, 80, 40], DVec3::splat(0.125), 0, 7)
+        .expect("valid scene")
+        .body;
     println!(
         "build scene: {} nodes, body heap {} bytes = {:.1} bytes per node",
         body.node_count(),
