@@ -15,10 +15,9 @@ use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 const POINTS: usize = 100_000;
 
 fn locate_all(c: &mut Criterion) {
-    let body = indented_block([20, 40, 20], 0.25);
-    body.validate()
-        .expect("the indentation keeps every cell valid");
-    let points: Vec<DVec3> = known_points(&body, POINTS, 7).iter().map(|p| p.x).collect();
+    let scene = indented_block([20, 40, 20], DVec3::splat(0.25), POINTS, 7).expect("valid scene");
+    let body = scene.body;
+    let points: Vec<DVec3> = scene.known.iter().map(|p| p.x).collect();
     let locator = LatticeLocator::new(&body, Settings::default()).expect("valid settings");
 
     // Report what the benchmark cannot: inversions per located point, and the max displacement.
