@@ -1,3 +1,63 @@
-//! Reading and writing VTK meshes and CSV points/results (filled by issue 4).
+//! # cgcontact-io
+//!
+//! Reading and writing the files of [`cgcontact`]: VTK meshes in, lattice bodies out; CSV points in,
+//! CSV results out; VTK files for ParaView.
+//!
+//! | piece | what it does |
+//! |---|---|
+//! | [`read_mesh`] | a VTK unstructured grid of hexahedra (legacy `.vtk` ASCII/binary, XML `.vtu` ascii/base64/appended, raw or zlib/LZ4-compressed) → [`LatticeMesh`]: the [`Body`](cgcontact::Body) plus the [`CellMap`] between the input's cell order and lattice cells |
+//! | [`HexMesh::to_lattice`] | lattice detection: origin, spacing per axis and counts from the nodes (to 1e-9 of the spacing), every cell checked to be one lattice cube in VTK corner order |
+//! | [`write_mesh`] | a body in any of the three flavours ([`MeshFormat`]); [`read_mesh`] reads it back exactly |
+//! | [`read_points`], [`write_results`], [`read_results`] | CSV points `x,y,z` and results `point,cell,xi,eta,zeta,...` |
+//! | [`write_deformed_vtu`], [`write_points_vtu`] | the deformed mesh (cells with `points_held`, `active`) and the located points (`cell`, `xi`) for ParaView |
+//!
+//! Every error is an [`IoError`] naming the file and the offending line, cell or node; no input
+//! makes this crate panic. `docs/formats.md` describes the formats as implemented.
+//!
+//! ```
+//! use cgcontact::{Body, Lattice, LatticeLocator, Locator, Settings};
+//! use cgcontact::glam::DVec3;
+//! use cgcontact_io::{CellMap, DisplacementArray, MeshFormat, read_mesh, read_results, write_mesh, write_results};
+//!
+//! let dir = tempfile::tempdir()?;
+//! // A body saved as a scene file...
+//! let mut body = Body::full(Lattice::new(DVec3::new(1e3, 0.0, 0.0), DVec3::splat(0.5), [4, 2, 2])?);
+//! body.update_displacements(|_, x, u| *u = DVec3::new(0.0, 0.0, -0.01 * (x.x - 1e3)))?;
+//! let path = dir.path().join("block.vtu");
+//! write_mesh(&path, &body, MeshFormat::Xml)?;
+//!
+//! // ... read back as a user's mesh: the lattice is detected from the nodes.
+//! let mesh = read_mesh(&path, &DisplacementArray::Default)?;
+//! assert_eq!(mesh.body.lattice().cells(), [4, 2, 2]);
+//! assert_eq!(mesh.body.displacements(), body.displacements());
+//!
+//! // Locate points and write results with the input's cell numbers.
+//! let locator = LatticeLocator::new(&mesh.body, Settings::default())?;
+//! let answers = locator.locate_all(&[DVec3::new(1000.3, 0.2, 0.4), DVec3::splat(-5.0)]);
+//! let results = dir.path().join("results.csv");
+//! write_results(&results, &answers, &mesh.cells)?;
+//! let rows = read_results(&results)?;
+//! assert_eq!(rows[0].cell, Some(0));
+//! assert_eq!(rows[1].cell, None);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
 #![deny(missing_docs)]
 #![forbid(unsafe_code)]
+
+mod csv_io;
+mod error;
+mod mesh;
+mod raw_appended;
+mod vtk_read;
+mod vtk_write;
+
+pub use csv_io::{
+    RESULTS_HEADER, ResultRow, parse_points, parse_results, read_points, read_results,
+    write_points, write_results, write_results_to,
+};
+pub use error::{ErrorKind, IoError};
+pub use mesh::{CellMap, HexMesh, LATTICE_TOLERANCE, LatticeMesh};
+pub use vtk_read::{
+    DEFAULT_DISPLACEMENT, DisplacementArray, parse_hex_mesh, read_hex_mesh, read_mesh,
+};
+pub use vtk_write::{MeshFormat, write_deformed_vtu, write_mesh, write_points_vtu};

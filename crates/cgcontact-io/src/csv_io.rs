@@ -1,0 +1,253 @@
+//! CSV points in, CSV results out (and back in, for tests and scripts).
+
+use std::io::{Read, Write};
+use std::path::Path;
+
+use cgcontact::Answer;
+use glam::DVec3;
+
+use crate::{CellMap, ErrorKind, IoError};
+
+/// The results file's header: the contract's five columns, then ours.
+pub const RESULTS_HEADER: [&str; 8] = [
+    "point",
+    "cell",
+    "xi",
+    "eta",
+    "zeta",
+    "iterations",
+    "residual",
+    "inversions",
+];
+
+/// Read query points from a CSV file: three columns x, y, z; an optional header line.
+///
+/// The first row is a header when none of its fields is a number (`x,y,z`, say). Blank lines and
+/// lines starting with `#` are skipped; fields may be padded with spaces. NaN and infinite values
+/// (`nan`, `inf`) are read as such, so the library can answer for each point; a field that is not a
+/// number, or a row without exactly 3 fields, is an error naming its 1-based line. A file without
+/// data rows is an error.
+pub fn read_points(path: impl AsRef<Path>) -> Result<Vec<DVec3>, IoError> {
+    let path = path.as_ref();
+    let file = std::fs::File::open(path).map_err(|e| ErrorKind::Io(e).in_file(path))?;
+    parse_points(file).map_err(|e| e.in_file(path))
+}
+
+/// [`read_points`] from any reader.
+pub fn parse_points(reader: impl Read) -> Result<Vec<DVec3>, ErrorKind> {
+    let mut csv = csv_reader(reader);
+    let mut points = Vec::new();
+    let mut record = csv::StringRecord::new();
+    let mut first = true;
+    loop {
+        match csv.read_record(&mut record) {
+            Ok(false) => break,
+            Ok(true) => {}
+            Err(e) => return Err(csv_error(&e)),
+        }
+        let line = record.position().map_or(0, csv::Position::line);
+        let numbers: Vec<Option<f64>> = record.iter().map(|f| f.parse::<f64>().ok()).collect();
+        if first {
+            first = false;
+            if numbers.iter().all(Option::is_none) {
+                continue; // a header
+            }
+        }
+        if record.len() != 3 {
+            return Err(ErrorKind::Csv {
+                line,
+                message: format!("{} fields, expected 3 (x,y,z)", record.len()),
+            });
+        }
+        let mut xyz = [0.0; 3];
+        for (axis, (value, text)) in numbers.iter().zip(record.iter()).enumerate() {
+            xyz[axis] = value.ok_or_else(|| ErrorKind::Csv {
+                line,
+                message: format!("field {} (`{text}`) is not a number", axis + 1),
+            })?;
+        }
+        points.push(DVec3::from_array(xyz));
+    }
+    if points.is_empty() {
+        return Err(ErrorKind::Empty);
+    }
+    Ok(points)
+}
+
+/// Write points as CSV with header `x,y,z` (shortest round-trip form: read back bitwise).
+pub fn write_points(path: impl AsRef<Path>, points: &[DVec3]) -> Result<(), IoError> {
+    let path = path.as_ref();
+    let io = |e: std::io::Error| ErrorKind::Io(e).in_file(path);
+    let mut out = std::io::BufWriter::new(std::fs::File::create(path).map_err(io)?);
+    writeln!(out, "x,y,z").map_err(io)?;
+    for p in points {
+        writeln!(out, "{},{},{}", p.x, p.y, p.z).map_err(io)?;
+    }
+    out.flush().map_err(io)
+}
+
+/// One row of a results file.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ResultRow {
+    /// 0-based row of the points file.
+    pub point: usize,
+    /// Input mesh cell index, or `None` when not located (−1 in the file).
+    pub cell: Option<usize>,
+    /// Local coordinates (ξ, η, ζ), NaN when not located.
+    pub xi: DVec3,
+    /// Newton iterations of the accepted inversion (0 when not located).
+    pub iterations: u32,
+    /// Residual |x − x(ξ)| (NaN when not located).
+    pub residual: f64,
+    /// Newton inversions tried (0 when not located: the file leaves it empty).
+    pub inversions: u32,
+}
+
+/// Write results as CSV: header [`RESULTS_HEADER`], one row per answer, `cell` as the input mesh's
+/// cell index (via `cells`) or −1, floating point values in shortest round-trip form (`NaN` for ξ
+/// and the residual of points not located).
+pub fn write_results(
+    path: impl AsRef<Path>,
+    answers: &[Answer],
+    cells: &CellMap,
+) -> Result<(), IoError> {
+    let path = path.as_ref();
+    let io = |e: std::io::Error| ErrorKind::Io(e).in_file(path);
+    let mut out = std::io::BufWriter::new(std::fs::File::create(path).map_err(io)?);
+    write_results_to(&mut out, answers, cells).map_err(io)?;
+    out.flush().map_err(io)
+}
+
+/// [`write_results`] to any writer.
+pub fn write_results_to(
+    mut out: impl Write,
+    answers: &[Answer],
+    cells: &CellMap,
+) -> std::io::Result<()> {
+    writeln!(out, "{}", RESULTS_HEADER.join(","))?;
+    for (point, answer) in answers.iter().enumerate() {
+        match answer {
+            Ok(Some(hit)) => {
+                let cell = cells.input_cell(hit.cell).map_or(-1, |c| c as i64);
+                writeln!(
+                    out,
+                    "{point},{cell},{},{},{},{},{},{}",
+                    hit.xi.x, hit.xi.y, hit.xi.z, hit.iterations, hit.residual, hit.inversions
+                )?;
+            }
+            // The inversions tried are not reported without a hit: left empty.
+            Ok(None) | Err(_) => writeln!(out, "{point},-1,NaN,NaN,NaN,0,NaN,")?,
+        }
+    }
+    Ok(())
+}
+
+/// Read a results file (header first; the columns after `zeta` are optional).
+pub fn read_results(path: impl AsRef<Path>) -> Result<Vec<ResultRow>, IoError> {
+    let path = path.as_ref();
+    let file = std::fs::File::open(path).map_err(|e| ErrorKind::Io(e).in_file(path))?;
+    parse_results(file).map_err(|e| e.in_file(path))
+}
+
+/// [`read_results`] from any reader.
+pub fn parse_results(reader: impl Read) -> Result<Vec<ResultRow>, ErrorKind> {
+    let mut csv = csv_reader(reader);
+    let mut record = csv::StringRecord::new();
+    match csv.read_record(&mut record) {
+        Ok(true) => {}
+        Ok(false) => return Err(ErrorKind::Empty),
+        Err(e) => return Err(csv_error(&e)),
+    }
+    let header_line = record.position().map_or(1, csv::Position::line);
+    let names: Vec<String> = record.iter().map(str::to_owned).collect();
+    if names.len() < 5 || names[..5] != RESULTS_HEADER[..5] {
+        return Err(ErrorKind::Csv {
+            line: header_line,
+            message: format!(
+                "header `{}` does not start with point,cell,xi,eta,zeta",
+                names.join(",")
+            ),
+        });
+    }
+    let column = |name: &str| names.iter().position(|n| n == name);
+    let (iterations, residual, inversions) = (
+        column("iterations"),
+        column("residual"),
+        column("inversions"),
+    );
+    let mut rows = Vec::new();
+    loop {
+        match csv.read_record(&mut record) {
+            Ok(false) => break,
+            Ok(true) => {}
+            Err(e) => return Err(csv_error(&e)),
+        }
+        let line = record.position().map_or(0, csv::Position::line);
+        if record.len() != names.len() {
+            return Err(ErrorKind::Csv {
+                line,
+                message: format!("{} fields, the header has {}", record.len(), names.len()),
+            });
+        }
+        let field = |i: usize| record.get(i).unwrap_or("");
+        let bad = |i: usize| ErrorKind::Csv {
+            line,
+            message: format!("{} `{}` is not valid", names[i], field(i)),
+        };
+        let point = field(0).parse::<usize>().map_err(|_| bad(0))?;
+        let cell = match field(1).parse::<i64>().map_err(|_| bad(1))? {
+            -1 => None,
+            c if c >= 0 => Some(c as usize),
+            _ => return Err(bad(1)),
+        };
+        let f = |i: usize| field(i).parse::<f64>().map_err(|_| bad(i));
+        let xi = DVec3::new(f(2)?, f(3)?, f(4)?);
+        // Optional columns may be empty (no value for that row).
+        let optional_u32 = |i: Option<usize>| -> Result<u32, ErrorKind> {
+            match i {
+                Some(i) if !field(i).is_empty() => field(i).parse().map_err(|_| bad(i)),
+                _ => Ok(0),
+            }
+        };
+        let residual = match residual {
+            Some(i) if !field(i).is_empty() => f(i)?,
+            _ => f64::NAN,
+        };
+        rows.push(ResultRow {
+            point,
+            cell,
+            xi,
+            iterations: optional_u32(iterations)?,
+            residual,
+            inversions: optional_u32(inversions)?,
+        });
+    }
+    Ok(rows)
+}
+
+fn csv_reader(reader: impl Read) -> csv::Reader<impl Read> {
+    csv::ReaderBuilder::new()
+        .has_headers(false)
+        .flexible(true)
+        .trim(csv::Trim::All)
+        .comment(Some(b'#'))
+        .from_reader(reader)
+}
+
+fn csv_error(e: &csv::Error) -> ErrorKind {
+    let line = e.position().map_or(0, csv::Position::line);
+    match e.kind() {
+        csv::ErrorKind::Utf8 { .. } => ErrorKind::Csv {
+            line,
+            message: "not valid UTF-8 text".to_owned(),
+        },
+        csv::ErrorKind::Io(io) => ErrorKind::Csv {
+            line,
+            message: format!("read error: {io}"),
+        },
+        _ => ErrorKind::Csv {
+            line,
+            message: e.to_string(),
+        },
+    }
+}

@@ -1,0 +1,225 @@
+//! Errors: every file a user can pass is answered with a value that names the file and the offending
+//! line, cell or node, never with a panic.
+
+use std::path::{Path, PathBuf};
+
+/// An error reading or writing a file: the file's path and what went wrong in it.
+///
+/// Displays as one line, `PATH: what (cell/node/line)`, fit for a command line's error message.
+#[derive(Debug, thiserror::Error)]
+#[error("{}: {kind}", path.display())]
+pub struct IoError {
+    path: PathBuf,
+    kind: ErrorKind,
+}
+
+impl IoError {
+    /// An error in file `path`.
+    #[must_use]
+    pub fn new(path: impl Into<PathBuf>, kind: ErrorKind) -> Self {
+        Self {
+            path: path.into(),
+            kind,
+        }
+    }
+
+    /// The file the error is about.
+    #[must_use]
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// What went wrong.
+    #[must_use]
+    pub fn kind(&self) -> &ErrorKind {
+        &self.kind
+    }
+
+    /// What went wrong, by value.
+    #[must_use]
+    pub fn into_kind(self) -> ErrorKind {
+        self.kind
+    }
+}
+
+/// What went wrong in a mesh, points or results file (or in an in-memory [`crate::HexMesh`]).
+///
+/// Cell and node indices are 0-based indices in the input's own order; line numbers are 1-based.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ErrorKind {
+    /// The operating system refused to read or write the file.
+    #[error("{0}")]
+    Io(#[from] std::io::Error),
+    /// The file is not in a format this crate reads.
+    #[error("unrecognised format: {0}")]
+    Format(String),
+    /// The VTK parser rejected the file (truncated, malformed, or a feature it does not support).
+    #[error("malformed VTK file: {0}")]
+    Vtk(String),
+    /// The data set is not an unstructured grid.
+    #[error("the data set is a {0}, expected an unstructured grid")]
+    NotUnstructuredGrid(&'static str),
+    /// The mesh has no cells.
+    #[error("the mesh has no cells")]
+    NoCells,
+    /// The point coordinates are unusable as a whole (wrong type or count).
+    #[error("POINTS: {0}")]
+    Points(String),
+    /// The cell arrays are inconsistent (counts, offsets, connectivity).
+    #[error("cells: {0}")]
+    Topology(String),
+    /// A cell is not a hexahedron.
+    #[error(
+        "cell {cell}: VTK cell type {vtk_type} ({name}); only hexahedra (type 12) are supported"
+    )]
+    NotHexahedron {
+        /// Input cell index.
+        cell: usize,
+        /// Its VTK type number.
+        vtk_type: u8,
+        /// Its VTK type name.
+        name: String,
+    },
+    /// A cell references a node that the file does not have.
+    #[error("cell {cell}: references node {node}, but the mesh has {points} nodes")]
+    MissingNode {
+        /// Input cell index.
+        cell: usize,
+        /// The node index referenced.
+        node: u64,
+        /// The number of nodes in the mesh.
+        points: usize,
+    },
+    /// A node of some cell has a NaN or infinite coordinate.
+    #[error("node {node}: coordinates {position:?} are not finite")]
+    NonFiniteNode {
+        /// Input node index.
+        node: usize,
+        /// The coordinates found.
+        position: [f64; 3],
+    },
+    /// The nodes do not span a lattice (all on one plane, or too few to tell).
+    #[error("not a lattice: {0}")]
+    Degenerate(String),
+    /// A node of some cell is not on the lattice detected from the others.
+    #[error(
+        "node {node} at {position:?} is not on the lattice (origin {origin:?}, spacing {h:?}): \
+         it is {offset:?} spacings from the nearest lattice node"
+    )]
+    OffLattice {
+        /// Input node index.
+        node: usize,
+        /// Its coordinates.
+        position: [f64; 3],
+        /// Detected lattice origin.
+        origin: [f64; 3],
+        /// Detected lattice spacing.
+        h: [f64; 3],
+        /// Offset from the nearest lattice node, in units of the spacing per axis.
+        offset: [f64; 3],
+    },
+    /// A hexahedron whose corners are not one lattice cell's corners in VTK order.
+    #[error(
+        "cell {cell}: corner {corner} (node {node}) is at lattice node {found:?}, expected {expected:?}: \
+         the cell is not one lattice cube with its corners in VTK order"
+    )]
+    NotLatticeCell {
+        /// Input cell index.
+        cell: usize,
+        /// The corner (0..8, VTK order) that does not fit.
+        corner: usize,
+        /// Input node index of that corner.
+        node: usize,
+        /// The lattice node it sits at.
+        found: [i64; 3],
+        /// The lattice node it should sit at, given corner 0.
+        expected: [i64; 3],
+    },
+    /// Two input cells are the same lattice cell.
+    #[error("cells {first} and {second} are the same lattice cell {ijk:?}")]
+    DuplicateCell {
+        /// The earlier input cell index.
+        first: usize,
+        /// The later input cell index.
+        second: usize,
+        /// Lattice indices of the cell.
+        ijk: [u32; 3],
+    },
+    /// The lattice spanned by the nodes would be far larger than the mesh (a few cells far apart).
+    #[error(
+        "the lattice spanned by the nodes has {lattice_nodes} nodes for {used_nodes} used ones: {message}"
+    )]
+    TooSparse {
+        /// Nodes of the detected lattice.
+        lattice_nodes: u64,
+        /// Nodes used by cells.
+        used_nodes: usize,
+        /// Why that is refused.
+        message: &'static str,
+    },
+    /// The displacement array asked for is not in the file.
+    #[error("no point data array named `{name}` (point arrays found: {available})")]
+    MissingDisplacement {
+        /// The name asked for.
+        name: String,
+        /// The point data arrays present, comma separated.
+        available: String,
+    },
+    /// The displacement array is not a 3-vector per node.
+    #[error("point data array `{name}`: {message}")]
+    BadDisplacement {
+        /// The array's name.
+        name: String,
+        /// What is wrong with it.
+        message: String,
+    },
+    /// A node of some cell has a NaN or infinite displacement.
+    #[error("node {node}: displacement {value:?} is not finite")]
+    NonFiniteDisplacement {
+        /// Input node index.
+        node: usize,
+        /// The value found.
+        value: [f64; 3],
+    },
+    /// Two input nodes at the same lattice node carry different displacements.
+    #[error(
+        "nodes {first} and {second} are the same lattice node but have different displacements \
+         {first_u:?} and {second_u:?}"
+    )]
+    InconsistentDisplacement {
+        /// The earlier input node index.
+        first: usize,
+        /// The later input node index.
+        second: usize,
+        /// Displacement of the first.
+        first_u: [f64; 3],
+        /// Displacement of the second.
+        second_u: [f64; 3],
+    },
+    /// A bad row in a CSV file.
+    #[error("line {line}: {message}")]
+    Csv {
+        /// 1-based line number.
+        line: u64,
+        /// What is wrong with it.
+        message: String,
+    },
+    /// A CSV file with no data rows.
+    #[error("no data rows")]
+    Empty,
+    /// Two inputs that must match do not (points and answers, say).
+    #[error("{0}")]
+    Mismatch(String),
+    /// The core library refused the lattice or body built from the file.
+    #[error(transparent)]
+    Core(#[from] cgcontact::Error),
+}
+
+impl ErrorKind {
+    /// This error, in file `path`.
+    #[must_use]
+    pub fn in_file(self, path: impl Into<PathBuf>) -> IoError {
+        IoError::new(path, self)
+    }
+}

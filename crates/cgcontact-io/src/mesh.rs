@@ -1,0 +1,499 @@
+//! Explicit hexahedral meshes as files hold them, and lattice detection: turning one into a
+//! [`Body`] while keeping the map between the input's cell order and lattice cells.
+
+use bitvec::vec::BitVec;
+use cgcontact::{Body, CORNER_OFFSETS, CellId, Lattice};
+use glam::DVec3;
+
+use crate::ErrorKind;
+
+/// Relative tolerance, in units of the spacing, within which a node counts as a lattice node.
+pub const LATTICE_TOLERANCE: f64 = 1e-9;
+
+/// Extra tolerance in units of the coordinates' own magnitude, for the rounding of `origin + i * h`
+/// to f64 (a few ulps): far from the origin it can exceed `LATTICE_TOLERANCE * h`.
+const ROUNDING_SLACK: f64 = 4.0 * f64::EPSILON;
+
+/// A lattice may have at most this many nodes, or 64 per node in use if that is more. Beyond that
+/// the body's per-node slot array (4 bytes per lattice node) would dwarf the mesh: a few cells far
+/// apart, or a spacing detected wrong.
+const MAX_LATTICE_NODES: u64 = 1 << 26;
+const MAX_LATTICE_NODES_PER_USED_NODE: u64 = 64;
+
+/// Sentinel in [`CellMap`]'s lattice-to-input table.
+const NO_CELL: u32 = u32::MAX;
+
+/// An explicit mesh of hexahedra, as read from a file: node coordinates, 8 node indices per cell in
+/// VTK corner order, and optionally one displacement per node.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct HexMesh {
+    /// Undeformed node coordinates.
+    pub points: Vec<DVec3>,
+    /// Each cell's 8 node indices, in VTK hexahedron order.
+    pub cells: Vec<[u32; 8]>,
+    /// One displacement per node, or `None` for an undeformed mesh.
+    pub displacement: Option<Vec<DVec3>>,
+}
+
+/// The map between the input mesh's cell order and lattice cells (both ways).
+///
+/// Results report the input's cell index; the locator works in lattice cells.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct CellMap {
+    lattice_of_input: Vec<CellId>,
+    /// One entry per lattice cell: its input index, or `NO_CELL`.
+    input_of_lattice: Vec<u32>,
+}
+
+impl CellMap {
+    /// The map for a body whose input order is its active cells in ascending lattice order: the
+    /// order [`crate::write_mesh`] writes, and the natural one for generated bodies.
+    #[must_use]
+    pub fn ascending(body: &Body) -> Self {
+        let lattice_of_input: Vec<CellId> = body.active_cells().collect();
+        let mut input_of_lattice = vec![NO_CELL; body.lattice().cell_count()];
+        for (input, cell) in lattice_of_input.iter().enumerate() {
+            input_of_lattice[cell.index()] = input as u32;
+        }
+        Self {
+            lattice_of_input,
+            input_of_lattice,
+        }
+    }
+
+    /// Input cell index of lattice cell `cell`, or `None` when the input has no such cell.
+    #[inline]
+    #[must_use]
+    pub fn input_cell(&self, cell: CellId) -> Option<usize> {
+        match self.input_of_lattice.get(cell.index()) {
+            Some(&i) if i != NO_CELL => Some(i as usize),
+            _ => None,
+        }
+    }
+
+    /// Lattice cell of input cell `input`, or `None` when out of range.
+    #[inline]
+    #[must_use]
+    pub fn lattice_cell(&self, input: usize) -> Option<CellId> {
+        self.lattice_of_input.get(input).copied()
+    }
+
+    /// Lattice cells in input order.
+    #[must_use]
+    pub fn lattice_cells(&self) -> &[CellId] {
+        &self.lattice_of_input
+    }
+
+    /// Number of input cells.
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.lattice_of_input.len()
+    }
+
+    /// Whether there is no cell.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.lattice_of_input.is_empty()
+    }
+}
+
+/// A mesh read from a file and recognised as a lattice body.
+#[derive(Clone, Debug)]
+pub struct LatticeMesh {
+    /// The body: lattice, active cells, displacements.
+    pub body: Body,
+    /// Input cell order ↔ lattice cells.
+    pub cells: CellMap,
+    /// Number of nodes in the input (used by cells or not).
+    pub point_count: usize,
+    /// Whether the input carried a displacement array (otherwise the body is undeformed).
+    pub has_displacement: bool,
+}
+
+impl LatticeMesh {
+    /// Input cell index of lattice cell `cell` (see [`CellMap::input_cell`]).
+    #[inline]
+    #[must_use]
+    pub fn input_cell(&self, cell: CellId) -> Option<usize> {
+        self.cells.input_cell(cell)
+    }
+
+    /// Lattice cell of input cell `input` (see [`CellMap::lattice_cell`]).
+    #[inline]
+    #[must_use]
+    pub fn lattice_cell(&self, input: usize) -> Option<CellId> {
+        self.cells.lattice_cell(input)
+    }
+}
+
+impl HexMesh {
+    /// A mesh of `body`'s active cells in ascending lattice order (undeformed coordinates, the
+    /// body's displacements), nodes in ascending lattice node order: what [`crate::write_mesh`] writes.
+    #[must_use]
+    pub fn from_body(body: &Body) -> Self {
+        let lattice = body.lattice();
+        let mut index = vec![u32::MAX; lattice.node_count()];
+        let mut points = Vec::with_capacity(body.node_count());
+        for (slot, node) in body.nodes().enumerate() {
+            index[node] = slot as u32;
+            let ijk = lattice
+                .node_ijk(node)
+                .expect("body nodes are lattice nodes");
+            points.push(lattice.node_position(ijk));
+        }
+        let cells = body
+            .active_cells()
+            .map(|cell| {
+                let ijk = lattice.cell_ijk(cell).expect("active cells are in range");
+                lattice.corner_nodes(ijk).map(|n| index[n])
+            })
+            .collect();
+        Self {
+            points,
+            cells,
+            displacement: Some(body.displacements().to_vec()),
+        }
+    }
+
+    /// Recognise the mesh as a lattice body: detect origin, spacing and counts from the nodes of the
+    /// cells, check that every cell is one lattice cube with corners in VTK order, and build the
+    /// body with its active cells and displacements.
+    ///
+    /// Nodes used by no cell are ignored (neither checked nor kept). Input nodes that coincide
+    /// (an unmerged mesh) are fine when their displacements agree.
+    pub fn to_lattice(&self) -> Result<LatticeMesh, ErrorKind> {
+        if self.cells.is_empty() {
+            return Err(ErrorKind::NoCells);
+        }
+        if let Some(u) = &self.displacement
+            && u.len() != self.points.len()
+        {
+            return Err(ErrorKind::Mismatch(format!(
+                "{} displacements for {} nodes",
+                u.len(),
+                self.points.len()
+            )));
+        }
+        let used = self.used_nodes()?;
+        let lattice = self.detect_lattice(&used)?;
+        let node_ijk = self.lattice_nodes(&lattice, &used)?;
+        let cells = self.lattice_cells(&lattice, &node_ijk)?;
+
+        let mut active = BitVec::repeat(false, lattice.cell_count());
+        for cell in &cells.lattice_of_input {
+            active.set(cell.index(), true);
+        }
+        let mut body = Body::undeformed(lattice, active)?;
+        if let Some(u) = &self.displacement {
+            let dense = self.dense_displacements(&lattice, &used, &node_ijk, u)?;
+            body.update_displacements(|node, _, v| *v = dense[node])?;
+        }
+        Ok(LatticeMesh {
+            body,
+            cells,
+            point_count: self.points.len(),
+            has_displacement: self.displacement.is_some(),
+        })
+    }
+
+    /// Which nodes some cell uses; checks indices and coordinates of those.
+    fn used_nodes(&self) -> Result<BitVec, ErrorKind> {
+        let mut used = BitVec::repeat(false, self.points.len());
+        for (c, cell) in self.cells.iter().enumerate() {
+            for &n in cell {
+                if n as usize >= self.points.len() {
+                    return Err(ErrorKind::MissingNode {
+                        cell: c,
+                        node: u64::from(n),
+                        points: self.points.len(),
+                    });
+                }
+                used.set(n as usize, true);
+            }
+        }
+        for n in used.iter_ones() {
+            let p = self.points[n];
+            if !p.is_finite() {
+                return Err(ErrorKind::NonFiniteNode {
+                    node: n,
+                    position: p.to_array(),
+                });
+            }
+        }
+        Ok(used)
+    }
+
+    /// Origin, spacing and counts from the used nodes.
+    ///
+    /// The spacing's first estimate is the median edge length per axis over the cells (robust to a
+    /// few bad cells); the extreme lattice planes are the outermost clusters of coordinates holding at
+    /// least 4 nodes (every cell puts 4 on each of its faces, so a lone stray node cannot pose as a
+    /// plane), each taken at its middle value; the spacing is then the extent over the rounded
+    /// number of cells, which is accurate to about an ulp over the whole extent.
+    fn detect_lattice(&self, used: &BitVec) -> Result<Lattice, ErrorKind> {
+        let mut origin = [0.0; 3];
+        let mut h = [0.0; 3];
+        let mut counts = [0u32; 3];
+        // Corner whose offset from corner 0 is one step along each axis, in VTK order.
+        const STEP: [usize; 3] = [1, 3, 4];
+        let axis_name = ["x", "y", "z"];
+        for axis in 0..3 {
+            let mut edges: Vec<f64> = self
+                .cells
+                .iter()
+                .map(|c| {
+                    (self.points[c[STEP[axis]] as usize][axis] - self.points[c[0] as usize][axis])
+                        .abs()
+                })
+                .collect();
+            let mid = edges.len() / 2;
+            let (_, &mut h0, _) = edges.select_nth_unstable_by(mid, f64::total_cmp);
+            if !(h0 > 0.0 && h0.is_finite()) {
+                return Err(ErrorKind::Degenerate(format!(
+                    "the typical cell edge along {} is {h0}; cells must have positive extent on every axis",
+                    axis_name[axis]
+                )));
+            }
+            let mut values: Vec<f64> = used.iter_ones().map(|n| self.points[n][axis]).collect();
+            values.sort_unstable_by(f64::total_cmp);
+            let (low, high) = extreme_planes(&values, 0.5 * h0).ok_or_else(|| {
+                ErrorKind::Degenerate(format!(
+                    "no plane of nodes along {} holds 4 nodes or more",
+                    axis_name[axis]
+                ))
+            })?;
+            let n = ((high - low) / h0).round();
+            if !(n >= 1.0) {
+                return Err(ErrorKind::Degenerate(format!(
+                    "the nodes span {} along {} for a typical edge of {h0}",
+                    high - low,
+                    axis_name[axis]
+                )));
+            }
+            if n > f64::from(u32::MAX - 1) {
+                return Err(ErrorKind::TooSparse {
+                    lattice_nodes: u64::MAX,
+                    used_nodes: used.count_ones(),
+                    message: "more cells along one axis than indices",
+                });
+            }
+            origin[axis] = low;
+            h[axis] = (high - low) / n;
+            counts[axis] = n as u32;
+        }
+        let lattice_nodes: u64 = counts.iter().map(|&n| u64::from(n) + 1).product();
+        let used_count = used.count_ones();
+        let limit = MAX_LATTICE_NODES.max(MAX_LATTICE_NODES_PER_USED_NODE * used_count as u64);
+        if lattice_nodes > limit {
+            return Err(ErrorKind::TooSparse {
+                lattice_nodes,
+                used_nodes: used_count,
+                message: "refused, the body's per-node table would dwarf the mesh (cells far apart or a \
+                          spacing detected wrong?)",
+            });
+        }
+        Ok(Lattice::new(
+            DVec3::from_array(origin),
+            DVec3::from_array(h),
+            counts,
+        )?)
+    }
+
+    /// Lattice indices of every used node (unused ones get `[u32::MAX; 3]`).
+    fn lattice_nodes(&self, lattice: &Lattice, used: &BitVec) -> Result<Vec<[u32; 3]>, ErrorKind> {
+        let origin = lattice.origin();
+        let h = lattice.h();
+        let nodes = lattice.nodes();
+        let magnitude = origin.abs().max(lattice.upper().abs());
+        let tol = LATTICE_TOLERANCE * h + ROUNDING_SLACK * magnitude;
+        let mut ijk = vec![[u32::MAX; 3]; self.points.len()];
+        for n in used.iter_ones() {
+            let p = self.points[n];
+            let t = (p - origin) / h;
+            let i = t.round();
+            let off = p - (origin + i * h);
+            let inside = (0..3).all(|a| i[a] >= 0.0 && i[a] < f64::from(nodes[a]));
+            if !inside || off.abs().cmpgt(tol).any() {
+                return Err(ErrorKind::OffLattice {
+                    node: n,
+                    position: p.to_array(),
+                    origin: origin.to_array(),
+                    h: h.to_array(),
+                    offset: (t - i).to_array(),
+                });
+            }
+            ijk[n] = [i.x as u32, i.y as u32, i.z as u32];
+        }
+        Ok(ijk)
+    }
+
+    /// Lattice cell of every input cell, checking each is one lattice cube in VTK corner order.
+    fn lattice_cells(
+        &self,
+        lattice: &Lattice,
+        node_ijk: &[[u32; 3]],
+    ) -> Result<CellMap, ErrorKind> {
+        let counts = lattice.cells();
+        let mut input_of_lattice = vec![NO_CELL; lattice.cell_count()];
+        let mut lattice_of_input = Vec::with_capacity(self.cells.len());
+        if self.cells.len() >= NO_CELL as usize {
+            return Err(ErrorKind::Topology(format!(
+                "{} cells exceed the 2^32 - 1 this library indexes",
+                self.cells.len()
+            )));
+        }
+        for (c, cell) in self.cells.iter().enumerate() {
+            let base = node_ijk[cell[0] as usize];
+            for (corner, offset) in CORNER_OFFSETS.iter().enumerate() {
+                let found = node_ijk[cell[corner] as usize];
+                let expected: [i64; 3] =
+                    std::array::from_fn(|a| i64::from(base[a]) + i64::from(offset[a]));
+                let found_i: [i64; 3] = found.map(i64::from);
+                if found_i != expected {
+                    return Err(ErrorKind::NotLatticeCell {
+                        cell: c,
+                        corner,
+                        node: cell[corner] as usize,
+                        found: found_i,
+                        expected,
+                    });
+                }
+            }
+            // Corner 6 sits at base + 1 and is a lattice node, so base < counts on every axis.
+            debug_assert!((0..3).all(|a| base[a] < counts[a]));
+            let id = lattice.cell_id(base);
+            let slot = &mut input_of_lattice[id.index()];
+            if *slot != NO_CELL {
+                return Err(ErrorKind::DuplicateCell {
+                    first: *slot as usize,
+                    second: c,
+                    ijk: base,
+                });
+            }
+            *slot = c as u32;
+            lattice_of_input.push(id);
+        }
+        Ok(CellMap {
+            lattice_of_input,
+            input_of_lattice,
+        })
+    }
+
+    /// One displacement per lattice node (zero where no used node sits), checking that coinciding
+    /// input nodes agree.
+    fn dense_displacements(
+        &self,
+        lattice: &Lattice,
+        used: &BitVec,
+        node_ijk: &[[u32; 3]],
+        u: &[DVec3],
+    ) -> Result<Vec<DVec3>, ErrorKind> {
+        let mut dense = vec![DVec3::ZERO; lattice.node_count()];
+        let mut source = vec![u32::MAX; lattice.node_count()];
+        let tol = LATTICE_TOLERANCE * lattice.h().max_element();
+        for n in used.iter_ones() {
+            let value = u[n];
+            if !value.is_finite() {
+                return Err(ErrorKind::NonFiniteDisplacement {
+                    node: n,
+                    value: value.to_array(),
+                });
+            }
+            let node = lattice.node_index(node_ijk[n]);
+            if source[node] == u32::MAX {
+                source[node] = n as u32;
+                dense[node] = value;
+            } else if (dense[node] - value).abs().max_element()
+                > tol + ROUNDING_SLACK * value.abs().max_element()
+            {
+                return Err(ErrorKind::InconsistentDisplacement {
+                    first: source[node] as usize,
+                    second: n,
+                    first_u: dense[node].to_array(),
+                    second_u: value.to_array(),
+                });
+            }
+        }
+        Ok(dense)
+    }
+}
+
+/// The middle values of the lowest and highest clusters of at least 4 sorted values, clusters being
+/// runs whose consecutive gaps are below `gap`.
+fn extreme_planes(sorted: &[f64], gap: f64) -> Option<(f64, f64)> {
+    let mut clusters = Vec::new();
+    let mut start = 0;
+    for i in 1..=sorted.len() {
+        if i == sorted.len() || sorted[i] - sorted[i - 1] >= gap {
+            clusters.push(start..i);
+            start = i;
+        }
+    }
+    let big = |r: &std::ops::Range<usize>| r.len() >= 4;
+    let low = clusters.iter().find(|r| big(r))?;
+    let high = clusters.iter().rev().find(|r| big(r))?;
+    let middle = |r: &std::ops::Range<usize>| sorted[r.start + r.len() / 2];
+    Some((middle(low), middle(high)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn block(origin: DVec3, h: DVec3, n: [u32; 3]) -> Body {
+        Body::full(Lattice::new(origin, h, n).unwrap())
+    }
+
+    #[test]
+    fn from_body_round_trips_through_detection() {
+        let mut body = block(
+            DVec3::new(-1.0, 2.0, 3.5),
+            DVec3::new(0.5, 0.25, 1.0),
+            [3, 4, 2],
+        );
+        body.update_displacements(|n, x, u| {
+            *u = DVec3::new(0.01 * x.y, -0.02 * n as f64 * 1e-3, 0.0)
+        })
+        .unwrap();
+        let mesh = HexMesh::from_body(&body);
+        let found = mesh.to_lattice().unwrap();
+        assert_eq!(found.body.lattice().cells(), body.lattice().cells());
+        assert_eq!(found.body.lattice().origin(), body.lattice().origin());
+        assert!(
+            (found.body.lattice().h() - body.lattice().h())
+                .abs()
+                .max_element()
+                < 1e-15
+        );
+        assert_eq!(found.body.displacements(), body.displacements());
+        assert_eq!(found.cells, CellMap::ascending(&body));
+    }
+
+    #[test]
+    fn extreme_planes_skip_stray_values() {
+        let v = [-5.0, 0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 2.0, 2.0, 2.0, 2.01, 7.0];
+        assert_eq!(extreme_planes(&v, 0.5), Some((0.0, 2.0)));
+        assert_eq!(extreme_planes(&[0.0, 1.0], 0.5), None);
+    }
+
+    #[test]
+    fn empty_and_out_of_range_are_errors() {
+        assert!(matches!(
+            HexMesh::default().to_lattice(),
+            Err(ErrorKind::NoCells)
+        ));
+        let mesh = HexMesh {
+            points: vec![DVec3::ZERO; 4],
+            cells: vec![[0, 1, 2, 3, 4, 5, 6, 7]],
+            displacement: None,
+        };
+        assert!(matches!(
+            mesh.to_lattice(),
+            Err(ErrorKind::MissingNode {
+                cell: 0,
+                node: 4,
+                ..
+            })
+        ));
+    }
+}

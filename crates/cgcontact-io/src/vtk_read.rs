@@ -1,0 +1,418 @@
+//! Reading VTK unstructured grids of hexahedra (legacy `.vtk` ASCII/binary, XML `.vtu`) with vtkio.
+
+use std::panic::{AssertUnwindSafe, catch_unwind};
+use std::path::Path;
+
+use glam::DVec3;
+use vtkio::model::{Attribute, CellType, DataSet, UnstructuredGridPiece, VertexNumbers, Vtk};
+
+use crate::{ErrorKind, HexMesh, IoError, LatticeMesh, raw_appended};
+
+/// The point-data array used when the caller names none.
+pub const DEFAULT_DISPLACEMENT: &str = "displacement";
+
+/// Which point-data array holds the displacement.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub enum DisplacementArray {
+    /// The array named [`DEFAULT_DISPLACEMENT`] if the file has one; otherwise the mesh is undeformed.
+    #[default]
+    Default,
+    /// The array with this name; a file without it is an error.
+    Named(String),
+    /// None: read the mesh undeformed whatever the file holds.
+    Ignore,
+}
+
+impl DisplacementArray {
+    /// `Named(name)` for `Some(name)`, `Default` for `None` (a command line's optional flag).
+    #[must_use]
+    pub fn from_option(name: Option<&str>) -> Self {
+        name.map_or(Self::Default, |n| Self::Named(n.to_owned()))
+    }
+}
+
+/// Read a VTK mesh file and recognise it as a lattice body (see [`HexMesh::to_lattice`]).
+///
+/// The format is told from the content, not the extension: a legacy file starts with
+/// `# vtk DataFile`, an XML file with `<`.
+pub fn read_mesh(
+    path: impl AsRef<Path>,
+    displacement: &DisplacementArray,
+) -> Result<LatticeMesh, IoError> {
+    let path = path.as_ref();
+    let mesh = read_hex_mesh(path, displacement)?;
+    mesh.to_lattice().map_err(|e| e.in_file(path))
+}
+
+/// Read a VTK mesh file as an explicit hexahedral mesh, without lattice detection.
+pub fn read_hex_mesh(
+    path: impl AsRef<Path>,
+    displacement: &DisplacementArray,
+) -> Result<HexMesh, IoError> {
+    let path = path.as_ref();
+    let bytes = std::fs::read(path).map_err(|e| ErrorKind::Io(e).in_file(path))?;
+    parse_hex_mesh_impl(&bytes, Some(path), displacement).map_err(|e| e.in_file(path))
+}
+
+/// Parse a VTK mesh held in memory (legacy or XML, told from the content).
+pub fn parse_hex_mesh(
+    bytes: &[u8],
+    displacement: &DisplacementArray,
+) -> Result<HexMesh, ErrorKind> {
+    parse_hex_mesh_impl(bytes, None, displacement)
+}
+
+fn parse_hex_mesh_impl(
+    bytes: &[u8],
+    source: Option<&Path>,
+    displacement: &DisplacementArray,
+) -> Result<HexMesh, ErrorKind> {
+    let vtk = parse_vtk(bytes)?;
+    hex_mesh_from_vtk(vtk, source, displacement)
+}
+
+/// Run a vtkio call, turning a panic into an error.
+///
+/// vtkio 0.7.0-rc2 indexes and unwraps freely on the data it decodes (appended-data offsets, block
+/// headers of compressed arrays, `unwrap` in its own conversions), so a truncated or malformed file
+/// can panic inside it. Our contract is an error value for any input, so we catch the unwind here;
+/// the closure only reads a byte slice and builds a fresh value, so no state is left half-updated.
+fn guarded<T>(what: &str, f: impl FnOnce() -> Result<T, vtkio::Error>) -> Result<T, ErrorKind> {
+    match catch_unwind(AssertUnwindSafe(f)) {
+        Ok(Ok(v)) => Ok(v),
+        Ok(Err(e)) => Err(ErrorKind::Vtk(format!("{what}: {}", describe(&e)))),
+        Err(panic) => {
+            let message = panic
+                .downcast_ref::<&str>()
+                .map(|s| (*s).to_owned())
+                .or_else(|| panic.downcast_ref::<String>().cloned())
+                .unwrap_or_else(|| "unknown cause".to_owned());
+            Err(ErrorKind::Vtk(format!(
+                "{what}: the VTK reader gave up on malformed data ({message})"
+            )))
+        }
+    }
+}
+
+/// vtkio's legacy parse errors carry only a nom error kind; say what that means for a user.
+fn describe(e: &vtkio::Error) -> String {
+    match e {
+        vtkio::Error::Parse(kind) => {
+            format!("does not follow the legacy VTK grammar (parser stopped at a {kind:?})")
+        }
+        vtkio::Error::Unknown => "the file ends before its data does (truncated?)".to_owned(),
+        other => other.to_string(),
+    }
+}
+
+/// Parse legacy or XML VTK, told from the first non-blank bytes.
+fn parse_vtk(bytes: &[u8]) -> Result<Vtk, ErrorKind> {
+    let start = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
+    let start = &start[start
+        .iter()
+        .position(|b| !b.is_ascii_whitespace())
+        .unwrap_or(start.len())..];
+    if start.len() >= 5 && start[..5].eq_ignore_ascii_case(b"# vtk") {
+        // Legacy binary files are big-endian by definition of the format.
+        guarded("legacy VTK", || Vtk::parse_legacy_be(bytes))
+    } else if start.first() == Some(&b'<') {
+        // vtkio cannot read raw (unencoded) appended data, ParaView's default; re-encode it as base64
+        // first (see `raw_appended`).
+        let converted = raw_appended::to_base64(bytes)?;
+        let xml = converted.as_deref().unwrap_or(bytes);
+        guarded("XML VTK", || Vtk::parse_xml(xml))
+    } else if start.is_empty() {
+        Err(ErrorKind::Format("the file is empty".to_owned()))
+    } else {
+        Err(ErrorKind::Format(
+            "neither a legacy VTK file (`# vtk DataFile ...`) nor an XML VTK file (`<VTKFile ...>`)".to_owned(),
+        ))
+    }
+}
+
+/// Extract points, hexahedra and the displacement array from a parsed file.
+fn hex_mesh_from_vtk(
+    vtk: Vtk,
+    source: Option<&Path>,
+    displacement: &DisplacementArray,
+) -> Result<HexMesh, ErrorKind> {
+    let pieces = match vtk.data {
+        DataSet::UnstructuredGrid { pieces, .. } => pieces,
+        DataSet::ImageData { .. } => {
+            return Err(ErrorKind::NotUnstructuredGrid(
+                "image data (STRUCTURED_POINTS)",
+            ));
+        }
+        DataSet::StructuredGrid { .. } => {
+            return Err(ErrorKind::NotUnstructuredGrid("structured grid"));
+        }
+        DataSet::RectilinearGrid { .. } => {
+            return Err(ErrorKind::NotUnstructuredGrid("rectilinear grid"));
+        }
+        DataSet::PolyData { .. } => {
+            return Err(ErrorKind::NotUnstructuredGrid("polygonal data (POLYDATA)"));
+        }
+        DataSet::Field { .. } => return Err(ErrorKind::NotUnstructuredGrid("field (no geometry)")),
+    };
+    let mut mesh = HexMesh::default();
+    let mut u: Option<Vec<DVec3>> = match displacement {
+        DisplacementArray::Ignore => None,
+        _ => Some(Vec::new()),
+    };
+    let mut found_any = false;
+    let mut available = Vec::new();
+    for piece in pieces {
+        let piece = guarded("piece", || {
+            piece
+                .into_loaded_piece_data(source)
+                .map_err(vtkio::Error::from)
+        })?;
+        let first_node = mesh.points.len();
+        let first_cell = mesh.cells.len();
+        let points = piece_points(&piece)?;
+        mesh.points.extend_from_slice(&points);
+        append_cells(
+            &piece,
+            first_node,
+            first_cell,
+            points.len(),
+            &mut mesh.cells,
+        )?;
+        if let Some(u) = &mut u {
+            match piece_displacement(&piece, displacement, points.len(), &mut available)? {
+                Some(values) => {
+                    found_any = true;
+                    u.extend(values);
+                }
+                None => u.extend(std::iter::repeat_n(DVec3::ZERO, points.len())),
+            }
+        }
+    }
+    if let DisplacementArray::Named(name) = displacement
+        && !found_any
+    {
+        available.sort();
+        available.dedup();
+        let available = if available.is_empty() {
+            "none".to_owned()
+        } else {
+            available.join(", ")
+        };
+        return Err(ErrorKind::MissingDisplacement {
+            name: name.clone(),
+            available,
+        });
+    }
+    mesh.displacement = if found_any { u } else { None };
+    if mesh.cells.is_empty() {
+        return Err(ErrorKind::NoCells);
+    }
+    Ok(mesh)
+}
+
+fn piece_points(piece: &UnstructuredGridPiece) -> Result<Vec<DVec3>, ErrorKind> {
+    let values: Vec<f64> = piece.points.cast_into::<f64>().ok_or_else(|| {
+        ErrorKind::Points(format!(
+            "coordinates of type {:?} are not numbers",
+            piece.points.scalar_type()
+        ))
+    })?;
+    if values.len() % 3 != 0 {
+        return Err(ErrorKind::Points(format!(
+            "{} coordinate values is not a multiple of 3",
+            values.len()
+        )));
+    }
+    if values.len() / 3 > u32::MAX as usize {
+        return Err(ErrorKind::Points(format!(
+            "{} nodes exceed the 2^32 this library indexes",
+            values.len() / 3
+        )));
+    }
+    Ok(values
+        .chunks_exact(3)
+        .map(|c| DVec3::new(c[0], c[1], c[2]))
+        .collect())
+}
+
+/// Hexahedron corner order of a VTK_VOXEL (type 11) in VTK hexahedron order: a voxel numbers its
+/// corners x fastest, then y, then z, so corners 2/3 and 6/7 swap.
+const VOXEL_TO_HEX: [usize; 8] = [0, 1, 3, 2, 4, 5, 7, 6];
+
+/// The cells of one piece, as 8 node indices each (offset by the nodes of earlier pieces).
+fn append_cells(
+    piece: &UnstructuredGridPiece,
+    first_node: usize,
+    first_cell: usize,
+    point_count: usize,
+    out: &mut Vec<[u32; 8]>,
+) -> Result<(), ErrorKind> {
+    let types = &piece.cells.types;
+    let total_points = first_node + point_count;
+    // Node lists per cell, as (start, end) into a flat list, whatever the layout.
+    let (flat, ranges): (Vec<u64>, Vec<(usize, usize)>) = match &piece.cells.cell_verts {
+        VertexNumbers::Legacy {
+            num_cells,
+            vertices,
+        } => {
+            let mut ranges = Vec::with_capacity(*num_cells as usize);
+            let mut at = 0usize;
+            for c in 0..*num_cells as usize {
+                let Some(&n) = vertices.get(at) else {
+                    return Err(ErrorKind::Topology(format!(
+                        "CELLS declares {num_cells} cells but its list ends at cell {}",
+                        first_cell + c
+                    )));
+                };
+                let end = at + 1 + n as usize;
+                if end > vertices.len() {
+                    return Err(ErrorKind::Topology(format!(
+                        "cell {}: {n} nodes run past the end of the CELLS list",
+                        first_cell + c
+                    )));
+                }
+                ranges.push((at + 1, end));
+                at = end;
+            }
+            if at != vertices.len() {
+                return Err(ErrorKind::Topology(format!(
+                    "CELLS holds {} values, {} more than its {num_cells} cells use",
+                    vertices.len(),
+                    vertices.len() - at
+                )));
+            }
+            (vertices.iter().map(|&v| u64::from(v)).collect(), ranges)
+        }
+        VertexNumbers::XML {
+            connectivity,
+            offsets,
+        } => {
+            // Offsets are cell ends; legacy 5.x files and some writers add a leading 0.
+            let ends = match offsets.split_first() {
+                Some((&0, rest)) if offsets.len() == types.len() + 1 => rest,
+                _ => offsets.as_slice(),
+            };
+            let mut ranges = Vec::with_capacity(ends.len());
+            let mut start = 0usize;
+            for (c, &end) in ends.iter().enumerate() {
+                let end = usize::try_from(end).unwrap_or(usize::MAX);
+                if end < start || end > connectivity.len() {
+                    return Err(ErrorKind::Topology(format!(
+                        "cell {}: offset {end} is outside the connectivity array (length {}, previous offset {start})",
+                        first_cell + c,
+                        connectivity.len()
+                    )));
+                }
+                ranges.push((start, end));
+                start = end;
+            }
+            (connectivity.clone(), ranges)
+        }
+    };
+    if ranges.len() != types.len() {
+        return Err(ErrorKind::Topology(format!(
+            "{} cells in the connectivity but {} cell types",
+            ranges.len(),
+            types.len()
+        )));
+    }
+    out.reserve(ranges.len());
+    for (c, (&(start, end), &kind)) in ranges.iter().zip(types).enumerate() {
+        let cell = first_cell + c;
+        let order: &[usize; 8] = match kind {
+            CellType::Hexahedron => &[0, 1, 2, 3, 4, 5, 6, 7],
+            CellType::Voxel => &VOXEL_TO_HEX,
+            other => {
+                return Err(ErrorKind::NotHexahedron {
+                    cell,
+                    vtk_type: other as u8,
+                    name: format!("{other:?}"),
+                });
+            }
+        };
+        let nodes = &flat[start..end];
+        if nodes.len() != 8 {
+            return Err(ErrorKind::Topology(format!(
+                "cell {cell}: a hexahedron with {} nodes, expected 8",
+                nodes.len()
+            )));
+        }
+        let mut hex = [0u32; 8];
+        for (corner, &from) in order.iter().enumerate() {
+            let node = nodes[from];
+            if node >= point_count as u64 {
+                return Err(ErrorKind::MissingNode {
+                    cell,
+                    node,
+                    points: total_points,
+                });
+            }
+            hex[corner] = (first_node as u64 + node) as u32;
+        }
+        out.push(hex);
+    }
+    Ok(())
+}
+
+/// The displacement array of one piece, if it has the one asked for.
+fn piece_displacement(
+    piece: &UnstructuredGridPiece,
+    which: &DisplacementArray,
+    point_count: usize,
+    available: &mut Vec<String>,
+) -> Result<Option<Vec<DVec3>>, ErrorKind> {
+    let name = match which {
+        DisplacementArray::Default => DEFAULT_DISPLACEMENT,
+        DisplacementArray::Named(n) => n.as_str(),
+        DisplacementArray::Ignore => return Ok(None),
+    };
+    // Arrays come as attributes (VECTORS, SCALARS, XML DataArray) or inside FIELD blocks.
+    let mut found = None;
+    for attribute in &piece.data.point {
+        match attribute {
+            Attribute::DataArray(array) => {
+                available.push(array.name.clone());
+                if found.is_none() && array.name == name {
+                    found = Some((array.elem.num_comp() as usize, &array.data));
+                }
+            }
+            Attribute::Field { data_array, .. } => {
+                for array in data_array {
+                    available.push(array.name.clone());
+                    if found.is_none() && array.name == name {
+                        found = Some((array.elem as usize, &array.data));
+                    }
+                }
+            }
+        }
+    }
+    let Some((components, data)) = found else {
+        return Ok(None);
+    };
+    let bad = |message: String| ErrorKind::BadDisplacement {
+        name: name.to_owned(),
+        message,
+    };
+    if components != 3 {
+        return Err(bad(format!("{components} components per node, expected 3")));
+    }
+    let values: Vec<f64> = data.cast_into::<f64>().ok_or_else(|| {
+        bad(format!(
+            "values of type {:?} are not numbers",
+            data.scalar_type()
+        ))
+    })?;
+    if values.len() != 3 * point_count {
+        return Err(bad(format!(
+            "{} values for {point_count} nodes, expected {}",
+            values.len(),
+            3 * point_count
+        )));
+    }
+    let u: Vec<DVec3> = values
+        .chunks_exact(3)
+        .map(|c| DVec3::new(c[0], c[1], c[2]))
+        .collect();
+    // Non-finite values only matter at nodes some cell uses; `HexMesh::to_lattice` checks those.
+    Ok(Some(u))
+}
