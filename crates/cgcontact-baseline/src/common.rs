@@ -160,11 +160,12 @@ pub(crate) fn try_in_order(
     collect: &mut Collect<'_>,
     mut invert: impl FnMut(CellId) -> Option<Hit>,
 ) -> Option<Hit> {
-    let mut inversions = 0u32;
-    for cell in candidates {
-        inversions += 1;
+    for (tried, cell) in (1u32..).zip(candidates) {
         if let Some(hit) = invert(cell) {
-            let hit = Hit { inversions, ..hit };
+            let hit = Hit {
+                inversions: tried,
+                ..hit
+            };
             match collect {
                 Collect::First => return Some(hit),
                 Collect::All(owners) => owners.push(hit),

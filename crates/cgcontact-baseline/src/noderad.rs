@@ -234,7 +234,8 @@ fn global_min_distance(positions: &[DVec3]) -> f64 {
         .windows(2)
         .map(|w| w[0].distance(w[1]))
         .fold(f64::INFINITY, f64::min);
-    if !(d0 > 0.0) {
+    // Coincident nodes (or a non-finite distance, which valid bodies never have) end the search.
+    if d0.is_nan() || d0 <= 0.0 {
         return d0.max(0.0);
     }
     let key = |p: DVec3| (p / d0).floor().as_i64vec3().to_array();
