@@ -248,3 +248,51 @@ fn centroid_radius_misses_a_point_near_a_stretched_corner() {
             .is_some()
     );
 }
+
+/// The node radius is the exact global minimum over all pairs of deformed nodes of active cells, and
+/// the seed-literal one is the last node's minimum distance to the others.
+#[test]
+fn node_radius_rules_on_a_distorted_body() {
+    let (_, spec) = scenes()[1];
+    let body = common::body(&spec);
+    let lattice = body.lattice();
+    let positions: Vec<DVec3> = body
+        .nodes()
+        .zip(body.displacements())
+        .map(|(node, &u)| lattice.node_position(lattice.node_ijk(node).unwrap()) + u)
+        .collect();
+    let mut global = f64::INFINITY;
+    for (i, p) in positions.iter().enumerate() {
+        for q in &positions[i + 1..] {
+            global = global.min(p.distance(*q));
+        }
+    }
+    let (last, others) = positions.split_last().unwrap();
+    let literal = others
+        .iter()
+        .map(|p| p.distance(*last))
+        .fold(f64::INFINITY, f64::min);
+    let radius = |rule| {
+        NodeRadius::with_options(
+            &body,
+            Settings::default(),
+            NodeRadiusOptions {
+                radius: rule,
+                ..Default::default()
+            },
+        )
+        .unwrap()
+        .radius()
+    };
+    // Positions here are global and the locator's are relative to the lattice origin (0 here).
+    assert_eq!(radius(RadiusRule::GlobalMin), global);
+    assert_eq!(radius(RadiusRule::SeedLiteral), literal);
+    assert_eq!(radius(RadiusRule::Fixed(0.3)), 0.3);
+    let bad = NodeRadiusOptions {
+        radius: RadiusRule::Fixed(f64::NAN),
+        ..Default::default()
+    };
+    assert!(NodeRadius::with_options(&body, Settings::default(), bad).is_err());
+    assert!(CentroidRadius::with_factor(&body, Settings::default(), 0.0).is_err());
+    assert!(CentroidRadius::with_radius(&body, Settings::default(), -1.0).is_err());
+}
