@@ -34,8 +34,11 @@ pub fn read_points(path: impl AsRef<Path>) -> Result<Vec<DVec3>, IoError> {
 }
 
 /// [`read_points`] from any reader.
-pub fn parse_points(reader: impl Read) -> Result<Vec<DVec3>, ErrorKind> {
-    let mut csv = csv_reader(reader);
+pub fn parse_points(mut reader: impl Read) -> Result<Vec<DVec3>, ErrorKind> {
+    let mut bytes = Vec::new();
+    reader.read_to_end(&mut bytes)?;
+    let mut lines = LineCounter::new(&bytes);
+    let mut csv = csv_reader(bytes.as_slice());
     let mut points = Vec::new();
     let mut record = csv::StringRecord::new();
     let mut first = true;
@@ -43,14 +46,20 @@ pub fn parse_points(reader: impl Read) -> Result<Vec<DVec3>, ErrorKind> {
         match csv.read_record(&mut record) {
             Ok(false) => break,
             Ok(true) => {}
-            Err(e) => return Err(csv_error(&e)),
+            Err(e) => return Err(csv_error(&e, &mut lines)),
         }
-        let line = record.position().map_or(0, csv::Position::line);
+        let line = lines.line_at(&record);
         let numbers: Vec<Option<f64>> = record.iter().map(|f| f.parse::<f64>().ok()).collect();
         if first {
             first = false;
             if numbers.iter().all(Option::is_none) {
-                continue; // a header
+                if record.len() != 3 {
+                    return Err(ErrorKind::Csv {
+                        line,
+                        message: format!("header with {} fields, expected 3 (x,y,z)", record.len()),
+                    });
+                }
+                continue;
             }
         }
         if record.len() != 3 {
@@ -150,15 +159,18 @@ pub fn read_results(path: impl AsRef<Path>) -> Result<Vec<ResultRow>, IoError> {
 }
 
 /// [`read_results`] from any reader.
-pub fn parse_results(reader: impl Read) -> Result<Vec<ResultRow>, ErrorKind> {
-    let mut csv = csv_reader(reader);
+pub fn parse_results(mut reader: impl Read) -> Result<Vec<ResultRow>, ErrorKind> {
+    let mut bytes = Vec::new();
+    reader.read_to_end(&mut bytes)?;
+    let mut lines = LineCounter::new(&bytes);
+    let mut csv = csv_reader(bytes.as_slice());
     let mut record = csv::StringRecord::new();
     match csv.read_record(&mut record) {
         Ok(true) => {}
         Ok(false) => return Err(ErrorKind::Empty),
-        Err(e) => return Err(csv_error(&e)),
+        Err(e) => return Err(csv_error(&e, &mut lines)),
     }
-    let header_line = record.position().map_or(1, csv::Position::line);
+    let header_line = lines.line_at(&record);
     let names: Vec<String> = record.iter().map(str::to_owned).collect();
     if names.len() < 5 || names[..5] != RESULTS_HEADER[..5] {
         return Err(ErrorKind::Csv {
@@ -180,9 +192,9 @@ pub fn parse_results(reader: impl Read) -> Result<Vec<ResultRow>, ErrorKind> {
         match csv.read_record(&mut record) {
             Ok(false) => break,
             Ok(true) => {}
-            Err(e) => return Err(csv_error(&e)),
+            Err(e) => return Err(csv_error(&e, &mut lines)),
         }
-        let line = record.position().map_or(0, csv::Position::line);
+        let line = lines.line_at(&record);
         if record.len() != names.len() {
             return Err(ErrorKind::Csv {
                 line,
@@ -234,8 +246,74 @@ fn csv_reader(reader: impl Read) -> csv::Reader<impl Read> {
         .from_reader(reader)
 }
 
-fn csv_error(e: &csv::Error) -> ErrorKind {
-    let line = e.position().map_or(0, csv::Position::line);
+/// 1-based line numbers from byte offsets.
+///
+/// The csv crate's own line count leaves out the blank and comment lines it skips, so we count
+/// newlines up to each record's byte offset ourselves (forward only: linear in the file).
+struct LineCounter<'a> {
+    bytes: &'a [u8],
+    at: usize,
+    line: u64,
+}
+
+impl<'a> LineCounter<'a> {
+    fn new(bytes: &'a [u8]) -> Self {
+        Self {
+            bytes,
+            at: 0,
+            line: 1,
+        }
+    }
+
+    fn line_of_byte(&mut self, byte: u64) -> u64 {
+        let byte = usize::try_from(byte)
+            .unwrap_or(usize::MAX)
+            .min(self.bytes.len());
+        if byte < self.at {
+            // Not expected (records come in order); count afresh.
+            self.at = 0;
+            self.line = 1;
+        }
+        self.line += self.bytes[self.at..byte]
+            .iter()
+            .filter(|&&b| b == b'\n')
+            .count() as u64;
+        self.at = byte;
+        self.line
+    }
+
+    /// The line a record starts on. Its position is where the reader stopped after the previous
+    /// record, before the blank and `#` lines it then skipped: skip those too.
+    fn line_at(&mut self, record: &csv::StringRecord) -> u64 {
+        let Some(position) = record.position() else {
+            return 0;
+        };
+        let mut at = usize::try_from(position.byte())
+            .unwrap_or(usize::MAX)
+            .min(self.bytes.len());
+        loop {
+            let rest = &self.bytes[at..];
+            let skip = match rest.first() {
+                Some(b'\n') => 1,
+                Some(b'\r') if rest.get(1) == Some(&b'\n') => 2,
+                Some(b'\r') => 1,
+                Some(b'#') => rest
+                    .iter()
+                    .position(|&b| b == b'\n')
+                    .map_or(rest.len(), |i| i + 1),
+                _ => 0,
+            };
+            if skip == 0 {
+                break;
+            }
+            at += skip;
+        }
+        self.line_of_byte(at as u64)
+    }
+}
+
+fn csv_error(e: &csv::Error, lines: &mut LineCounter<'_>) -> ErrorKind {
+    let line = e.position().map_or(0, |p| lines.line_of_byte(p.byte()));
     match e.kind() {
         csv::ErrorKind::Utf8 { .. } => ErrorKind::Csv {
             line,

@@ -6,12 +6,20 @@ mod common;
 use cgcontact::glam::DVec3;
 use cgcontact::{Body, LatticeLocator, Locator, Settings};
 use cgcontact_io::{
-    CellMap, DisplacementArray, HexMesh, LatticeMesh, MeshFormat, read_mesh, write_deformed_vtu, write_mesh,
-    write_points_vtu,
+    CellMap, DisplacementArray, HexMesh, LatticeMesh, MeshFormat, read_mesh, write_deformed_vtu,
+    write_mesh, write_points_vtu,
 };
-use common::{LegacyData, body_with_holes, expected_cells, legacy_ascii, shuffled, vtu_ascii, vtu_raw_appended};
+use common::{
+    LegacyData, body_with_holes, expected_cells, legacy_ascii, shuffled, vtu_ascii,
+    vtu_raw_appended,
+};
 
-const FORMATS: [MeshFormat; 4] = [MeshFormat::LegacyAscii, MeshFormat::LegacyBinary, MeshFormat::Xml, MeshFormat::XmlZlib];
+const FORMATS: [MeshFormat; 4] = [
+    MeshFormat::LegacyAscii,
+    MeshFormat::LegacyBinary,
+    MeshFormat::Xml,
+    MeshFormat::XmlZlib,
+];
 
 fn assert_same_body(found: &LatticeMesh, body: &Body) {
     let (a, b) = (found.body.lattice(), body.lattice());
@@ -22,21 +30,42 @@ fn assert_same_body(found: &LatticeMesh, body: &Body) {
     let n = DVec3::from_array(b.cells().map(f64::from));
     let magnitude = b.origin().abs().max(b.upper().abs());
     let bound = 4.0 * f64::EPSILON * (magnitude / n + b.h());
-    assert!((a.h() - b.h()).abs().cmple(bound).all(), "spacing {} vs {}", a.h(), b.h());
+    assert!(
+        (a.h() - b.h()).abs().cmple(bound).all(),
+        "spacing {} vs {}",
+        a.h(),
+        b.h()
+    );
     assert_eq!(found.body.active(), body.active());
-    assert_eq!(found.body.displacements(), body.displacements(), "displacements bitwise");
+    assert_eq!(
+        found.body.displacements(),
+        body.displacements(),
+        "displacements bitwise"
+    );
 }
 
 #[test]
 fn every_format_round_trips_a_body_with_holes() {
     let dir = tempfile::tempdir().unwrap();
-    let body = body_with_holes(DVec3::new(-3.0, 1e6, 0.125), DVec3::new(0.5, 0.25, 1.5), [5, 4, 3], 7);
+    let body = body_with_holes(
+        DVec3::new(-3.0, 1e6, 0.125),
+        DVec3::new(0.5, 0.25, 1.5),
+        [5, 4, 3],
+        7,
+    );
     for format in FORMATS {
-        let path = dir.path().join(format!("body-{format:?}.{}", format.extension()));
+        let path = dir
+            .path()
+            .join(format!("body-{format:?}.{}", format.extension()));
         write_mesh(&path, &body, format).unwrap();
-        let found = read_mesh(&path, &DisplacementArray::Default).unwrap_or_else(|e| panic!("{format:?}: {e}"));
+        let found = read_mesh(&path, &DisplacementArray::Default)
+            .unwrap_or_else(|e| panic!("{format:?}: {e}"));
         assert_same_body(&found, &body);
-        assert_eq!(found.cells, CellMap::ascending(&body), "{format:?}: cell order is the written order");
+        assert_eq!(
+            found.cells,
+            CellMap::ascending(&body),
+            "{format:?}: cell order is the written order"
+        );
         assert!(found.has_displacement);
         assert_eq!(found.point_count, body.node_count());
     }
@@ -55,7 +84,8 @@ fn extreme_scales_round_trip() {
         for format in FORMATS {
             let path = dir.path().join(format!("scale.{}", format.extension()));
             write_mesh(&path, &body, format).unwrap();
-            let found = read_mesh(&path, &DisplacementArray::Default).unwrap_or_else(|e| panic!("{format:?} h={h}: {e}"));
+            let found = read_mesh(&path, &DisplacementArray::Default)
+                .unwrap_or_else(|e| panic!("{format:?} h={h}: {e}"));
             assert_same_body(&found, &body);
         }
     }
@@ -65,25 +95,46 @@ fn extreme_scales_round_trip() {
 #[test]
 fn shuffled_meshes_as_vtk_and_paraview_write_them() {
     let dir = tempfile::tempdir().unwrap();
-    let body = body_with_holes(DVec3::new(10.0, -20.0, 1e6), DVec3::new(0.25, 0.5, 0.125), [6, 5, 4], 11);
+    let body = body_with_holes(
+        DVec3::new(10.0, -20.0, 1e6),
+        DVec3::new(0.25, 0.5, 0.125),
+        [6, 5, 4],
+        11,
+    );
     let (mesh, perm) = shuffled(&HexMesh::from_body(&body), 5);
     let expected = expected_cells(&body, &perm);
     let files: Vec<(&str, Vec<u8>)> = vec![
-        ("vectors.vtk", legacy_ascii(&mesh, LegacyData::Vectors, false).into_bytes()),
-        ("field.vtk", legacy_ascii(&mesh, LegacyData::Field, false).into_bytes()),
-        ("v51.vtk", legacy_ascii(&mesh, LegacyData::Vectors, true).into_bytes()),
-        ("v51-field.vtk", legacy_ascii(&mesh, LegacyData::Field, true).into_bytes()),
+        (
+            "vectors.vtk",
+            legacy_ascii(&mesh, LegacyData::Vectors, false).into_bytes(),
+        ),
+        (
+            "field.vtk",
+            legacy_ascii(&mesh, LegacyData::Field, false).into_bytes(),
+        ),
+        (
+            "v51.vtk",
+            legacy_ascii(&mesh, LegacyData::Vectors, true).into_bytes(),
+        ),
+        (
+            "v51-field.vtk",
+            legacy_ascii(&mesh, LegacyData::Field, true).into_bytes(),
+        ),
         ("ascii.vtu", vtu_ascii(&mesh).into_bytes()),
         ("raw64.vtu", vtu_raw_appended(&mesh, false, true, 0)),
         ("raw32.vtu", vtu_raw_appended(&mesh, false, false, 0)),
         ("zlib64.vtu", vtu_raw_appended(&mesh, true, true, 1000)),
         ("zlib32.vtu", vtu_raw_appended(&mesh, true, false, 256)),
-        ("zlib-one-block.vtu", vtu_raw_appended(&mesh, true, true, 1 << 20)),
+        (
+            "zlib-one-block.vtu",
+            vtu_raw_appended(&mesh, true, true, 1 << 20),
+        ),
     ];
     for (name, bytes) in files {
         let path = dir.path().join(name);
         std::fs::write(&path, bytes).unwrap();
-        let found = read_mesh(&path, &DisplacementArray::Default).unwrap_or_else(|e| panic!("{name}: {e}"));
+        let found =
+            read_mesh(&path, &DisplacementArray::Default).unwrap_or_else(|e| panic!("{name}: {e}"));
         assert_same_body(&found, &body);
         assert_eq!(found.cells.lattice_cells(), expected.as_slice(), "{name}");
         for (input, &cell) in expected.iter().enumerate() {
@@ -110,14 +161,24 @@ fn undeformed_files_and_chosen_displacement_names() {
     assert!(found.body.displacements().iter().all(|u| *u == DVec3::ZERO));
 
     // Renamed array: found when asked by name, ignored by default, an error when asked and missing.
-    let renamed = legacy_ascii(&mesh, LegacyData::Vectors, false).replace("VECTORS displacement", "VECTORS u_total");
+    let renamed = legacy_ascii(&mesh, LegacyData::Vectors, false)
+        .replace("VECTORS displacement", "VECTORS u_total");
     std::fs::write(&path, renamed).unwrap();
     let by_name = read_mesh(&path, &DisplacementArray::Named("u_total".into())).unwrap();
     assert_eq!(by_name.body.displacements(), body.displacements());
-    assert!(!read_mesh(&path, &DisplacementArray::Default).unwrap().has_displacement);
+    assert!(
+        !read_mesh(&path, &DisplacementArray::Default)
+            .unwrap()
+            .has_displacement
+    );
     let err = read_mesh(&path, &DisplacementArray::Named("displacement".into())).unwrap_err();
     let message = err.to_string();
-    assert!(message.contains("plain.vtk") && message.contains("displacement") && message.contains("u_total"), "{message}");
+    assert!(
+        message.contains("plain.vtk")
+            && message.contains("displacement")
+            && message.contains("u_total"),
+        "{message}"
+    );
     let ignored = read_mesh(&path, &DisplacementArray::Ignore).unwrap();
     assert!(!ignored.has_displacement);
 }
@@ -128,7 +189,12 @@ fn paraview_outputs_are_readable_and_carry_the_answers() {
     let body = body_with_holes(DVec3::ZERO, DVec3::splat(0.5), [4, 4, 4], 2);
     let cells = CellMap::ascending(&body);
     let locator = LatticeLocator::new(&body, Settings::default()).unwrap();
-    let points = vec![DVec3::splat(0.2), DVec3::new(1.1, 0.9, 1.3), DVec3::splat(-3.0), DVec3::new(f64::NAN, 0.0, 0.0)];
+    let points = vec![
+        DVec3::splat(0.2),
+        DVec3::new(1.1, 0.9, 1.3),
+        DVec3::splat(-3.0),
+        DVec3::new(f64::NAN, 0.0, 0.0),
+    ];
     let answers = locator.locate_all(&points);
     let mesh_path = dir.path().join("deformed.vtu");
     write_deformed_vtu(&mesh_path, &body, &cells, &answers, true).unwrap();
@@ -136,14 +202,23 @@ fn paraview_outputs_are_readable_and_carry_the_answers() {
     let deformed = cgcontact_io::read_hex_mesh(&mesh_path, &DisplacementArray::Default).unwrap();
     assert_eq!(deformed.cells.len(), body.lattice().cell_count());
     let vtk = vtkio::Vtk::import(&mesh_path).unwrap();
-    let vtkio::model::DataSet::UnstructuredGrid { pieces, .. } = vtk.data else { panic!("not a grid") };
-    let piece = pieces.into_iter().next().unwrap().into_loaded_piece_data(None).unwrap();
+    let vtkio::model::DataSet::UnstructuredGrid { pieces, .. } = vtk.data else {
+        panic!("not a grid")
+    };
+    let piece = pieces
+        .into_iter()
+        .next()
+        .unwrap()
+        .into_loaded_piece_data(None)
+        .unwrap();
     let held = piece
         .data
         .cell
         .iter()
         .find_map(|a| match a {
-            vtkio::model::Attribute::DataArray(d) if d.name == "points_held" => d.data.cast_into::<i64>(),
+            vtkio::model::Attribute::DataArray(d) if d.name == "points_held" => {
+                d.data.cast_into::<i64>()
+            }
             _ => None,
         })
         .unwrap();
@@ -153,8 +228,15 @@ fn paraview_outputs_are_readable_and_carry_the_answers() {
     let points_path = dir.path().join("points.vtu");
     write_points_vtu(&points_path, &points, &answers, &cells).unwrap();
     let vtk = vtkio::Vtk::import(&points_path).unwrap();
-    let vtkio::model::DataSet::UnstructuredGrid { pieces, .. } = vtk.data else { panic!("not a grid") };
-    let piece = pieces.into_iter().next().unwrap().into_loaded_piece_data(None).unwrap();
+    let vtkio::model::DataSet::UnstructuredGrid { pieces, .. } = vtk.data else {
+        panic!("not a grid")
+    };
+    let piece = pieces
+        .into_iter()
+        .next()
+        .unwrap()
+        .into_loaded_piece_data(None)
+        .unwrap();
     let cell = piece
         .data
         .point

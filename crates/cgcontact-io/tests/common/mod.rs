@@ -24,7 +24,13 @@ pub fn body_with_holes(origin: DVec3, h: DVec3, n: [u32; 3], seed: u64) -> Body 
     let mut body = Body::undeformed(lattice, active).unwrap();
     body.update_displacements(|_, x, u| {
         let t = (x - origin) / h;
-        *u = 0.1 * h * DVec3::new((t.y * 0.7).sin(), (t.z * 0.3 + t.x).cos(), (t.x * 0.5).sin() * 0.5);
+        *u = 0.1
+            * h
+            * DVec3::new(
+                (t.y * 0.7).sin(),
+                (t.z * 0.3 + t.x).cos(),
+                (t.x * 0.5).sin() * 0.5,
+            );
     })
     .unwrap();
     body
@@ -43,9 +49,22 @@ pub fn shuffled(mesh: &HexMesh, seed: u64) -> (HexMesh, Vec<usize>) {
         new_of_old[old] = new as u32;
     }
     let points = node_perm.iter().map(|&o| mesh.points[o]).collect();
-    let displacement = mesh.displacement.as_ref().map(|u| node_perm.iter().map(|&o| u[o]).collect());
-    let cells = cell_perm.iter().map(|&c| mesh.cells[c].map(|n| new_of_old[n as usize])).collect();
-    (HexMesh { points, cells, displacement }, cell_perm)
+    let displacement = mesh
+        .displacement
+        .as_ref()
+        .map(|u| node_perm.iter().map(|&o| u[o]).collect());
+    let cells = cell_perm
+        .iter()
+        .map(|&c| mesh.cells[c].map(|n| new_of_old[n as usize]))
+        .collect();
+    (
+        HexMesh {
+            points,
+            cells,
+            displacement,
+        },
+        cell_perm,
+    )
 }
 
 /// How a hand-written legacy file carries the displacement.
@@ -60,7 +79,11 @@ pub enum LegacyData {
 /// A legacy ASCII file as VTK writes it (version 4.2 `CELLS n size` or 5.1 `OFFSETS`/`CONNECTIVITY`).
 pub fn legacy_ascii(mesh: &HexMesh, data: LegacyData, v51: bool) -> String {
     let mut s = String::new();
-    s += if v51 { "# vtk DataFile Version 5.1\n" } else { "# vtk DataFile Version 4.2\n" };
+    s += if v51 {
+        "# vtk DataFile Version 5.1\n"
+    } else {
+        "# vtk DataFile Version 4.2\n"
+    };
     s += "vtk output\nASCII\nDATASET UNSTRUCTURED_GRID\n";
     s += &format!("POINTS {} double\n", mesh.points.len());
     for p in &mesh.points {
@@ -69,7 +92,10 @@ pub fn legacy_ascii(mesh: &HexMesh, data: LegacyData, v51: bool) -> String {
     let n = mesh.cells.len();
     if v51 {
         s += &format!("CELLS {} {}\nOFFSETS vtktypeint64\n", n + 1, 8 * n);
-        s += &(0..=n).map(|c| (8 * c).to_string()).collect::<Vec<_>>().join(" ");
+        s += &(0..=n)
+            .map(|c| (8 * c).to_string())
+            .collect::<Vec<_>>()
+            .join(" ");
         s += "\nCONNECTIVITY vtktypeint64\n";
         for c in &mesh.cells {
             s += &c.map(|v| v.to_string()).join(" ");
@@ -100,7 +126,11 @@ pub fn legacy_ascii(mesh: &HexMesh, data: LegacyData, v51: bool) -> String {
 }
 
 fn join<T: std::fmt::Display>(values: impl IntoIterator<Item = T>) -> String {
-    values.into_iter().map(|v| v.to_string()).collect::<Vec<_>>().join(" ")
+    values
+        .into_iter()
+        .map(|v| v.to_string())
+        .collect::<Vec<_>>()
+        .join(" ")
 }
 
 /// A `.vtu` with ascii arrays, as ParaView writes it (Int64 connectivity/offsets, UInt8 types).
@@ -108,7 +138,10 @@ pub fn vtu_ascii(mesh: &HexMesh) -> String {
     let n = mesh.cells.len();
     let mut s = String::new();
     s += "<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" header_type=\"UInt64\">\n";
-    s += &format!("  <UnstructuredGrid>\n    <Piece NumberOfPoints=\"{}\" NumberOfCells=\"{n}\">\n", mesh.points.len());
+    s += &format!(
+        "  <UnstructuredGrid>\n    <Piece NumberOfPoints=\"{}\" NumberOfCells=\"{n}\">\n",
+        mesh.points.len()
+    );
     s += "      <PointData Vectors=\"displacement\">\n";
     if let Some(u) = &mesh.displacement {
         s += "        <DataArray type=\"Float64\" Name=\"displacement\" NumberOfComponents=\"3\" format=\"ascii\">\n";
@@ -125,7 +158,8 @@ pub fn vtu_ascii(mesh: &HexMesh) -> String {
     s += &join((1..=n).map(|c| 8 * c));
     s += "\n        </DataArray>\n        <DataArray type=\"UInt8\" Name=\"types\" format=\"ascii\">\n";
     s += &join(std::iter::repeat_n(12, n));
-    s += "\n        </DataArray>\n      </Cells>\n    </Piece>\n  </UnstructuredGrid>\n</VTKFile>\n";
+    s +=
+        "\n        </DataArray>\n      </Cells>\n    </Piece>\n  </UnstructuredGrid>\n</VTKFile>\n";
     s
 }
 
@@ -133,7 +167,11 @@ pub fn vtu_ascii(mesh: &HexMesh) -> String {
 /// compression library needed in the tests.
 fn zlib_stored(data: &[u8]) -> Vec<u8> {
     let mut out = vec![0x78, 0x01];
-    let chunks: Vec<&[u8]> = if data.is_empty() { vec![&[]] } else { data.chunks(65535).collect() };
+    let chunks: Vec<&[u8]> = if data.is_empty() {
+        vec![&[]]
+    } else {
+        data.chunks(65535).collect()
+    };
     for (i, chunk) in chunks.iter().enumerate() {
         out.push(u8::from(i + 1 == chunks.len()));
         let len = chunk.len() as u16;
@@ -155,7 +193,11 @@ fn zlib_stored(data: &[u8]) -> Vec<u8> {
 pub fn vtu_raw_appended(mesh: &HexMesh, compressed: bool, header64: bool, block: usize) -> Vec<u8> {
     let n = mesh.cells.len();
     let header = |v: usize| -> Vec<u8> {
-        if header64 { (v as u64).to_le_bytes().to_vec() } else { (v as u32).to_le_bytes().to_vec() }
+        if header64 {
+            (v as u64).to_le_bytes().to_vec()
+        } else {
+            (v as u32).to_le_bytes().to_vec()
+        }
     };
     let encode = |bytes: Vec<u8>| -> Vec<u8> {
         if !compressed {
@@ -177,8 +219,16 @@ pub fn vtu_raw_appended(mesh: &HexMesh, compressed: bool, header64: bool, block:
         }
         out
     };
-    let f64s = |v: Vec<f64>| v.into_iter().flat_map(f64::to_le_bytes).collect::<Vec<u8>>();
-    let i64s = |v: Vec<i64>| v.into_iter().flat_map(i64::to_le_bytes).collect::<Vec<u8>>();
+    let f64s = |v: Vec<f64>| {
+        v.into_iter()
+            .flat_map(f64::to_le_bytes)
+            .collect::<Vec<u8>>()
+    };
+    let i64s = |v: Vec<i64>| {
+        v.into_iter()
+            .flat_map(i64::to_le_bytes)
+            .collect::<Vec<u8>>()
+    };
     let mut arrays: Vec<(String, Vec<u8>)> = Vec::new();
     if let Some(u) = &mesh.displacement {
         arrays.push((
@@ -191,8 +241,11 @@ pub fn vtu_raw_appended(mesh: &HexMesh, compressed: bool, header64: bool, block:
         encode(f64s(mesh.points.iter().flat_map(|v| v.to_array()).collect())),
     ));
     arrays.push((
-        "<DataArray type=\"Int64\" Name=\"connectivity\" format=\"appended\" offset=\"{}\"/>".into(),
-        encode(i64s(mesh.cells.iter().flatten().map(|&v| i64::from(v)).collect())),
+        "<DataArray type=\"Int64\" Name=\"connectivity\" format=\"appended\" offset=\"{}\"/>"
+            .into(),
+        encode(i64s(
+            mesh.cells.iter().flatten().map(|&v| i64::from(v)).collect(),
+        )),
     ));
     arrays.push((
         "<DataArray type=\"Int64\" Name=\"offsets\" format=\"appended\" offset=\"{}\"/>".into(),
@@ -210,15 +263,30 @@ pub fn vtu_raw_appended(mesh: &HexMesh, compressed: bool, header64: bool, block:
         offset += bytes.len();
         blob.extend_from_slice(bytes);
     }
-    let (first_point_array, rest) = if mesh.displacement.is_some() { (Some(&tags[0]), &tags[1..]) } else { (None, &tags[..]) };
+    let (first_point_array, rest) = if mesh.displacement.is_some() {
+        (Some(&tags[0]), &tags[1..])
+    } else {
+        (None, &tags[..])
+    };
     let mut s = String::new();
     s += &format!(
         "<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" version=\"{}\" byte_order=\"LittleEndian\"{}{}>\n",
         if header64 { "1.0" } else { "0.1" },
-        if header64 { " header_type=\"UInt64\"" } else { "" },
-        if compressed { " compressor=\"vtkZLibDataCompressor\"" } else { "" }
+        if header64 {
+            " header_type=\"UInt64\""
+        } else {
+            ""
+        },
+        if compressed {
+            " compressor=\"vtkZLibDataCompressor\""
+        } else {
+            ""
+        }
     );
-    s += &format!("  <UnstructuredGrid>\n    <Piece NumberOfPoints=\"{}\" NumberOfCells=\"{n}\">\n", mesh.points.len());
+    s += &format!(
+        "  <UnstructuredGrid>\n    <Piece NumberOfPoints=\"{}\" NumberOfCells=\"{n}\">\n",
+        mesh.points.len()
+    );
     s += "      <PointData Vectors=\"displacement\">\n";
     if let Some(t) = first_point_array {
         s += &format!("        {t}\n");

@@ -1,0 +1,135 @@
+//! CSV points and results: good files, every bad row named by its line, round trips.
+
+use cgcontact::glam::DVec3;
+use cgcontact::{Body, Lattice, LatticeLocator, Locator, Settings};
+use cgcontact_io::{
+    CellMap, ErrorKind, RESULTS_HEADER, parse_points, read_points, read_results, write_points,
+    write_results,
+};
+
+fn points(text: &str) -> Result<Vec<DVec3>, ErrorKind> {
+    parse_points(text.as_bytes())
+}
+
+fn line_of(text: &str) -> u64 {
+    match points(text) {
+        Err(ErrorKind::Csv { line, .. }) => line,
+        other => panic!("expected a CSV error for {text:?}, got {other:?}"),
+    }
+}
+
+#[test]
+fn good_files_with_and_without_header() {
+    let expected = vec![DVec3::new(1.0, 2.0, 3.0), DVec3::new(-0.5, 1e-300, 4e6)];
+    assert_eq!(points("x,y,z\n1,2,3\n-0.5,1e-300,4e6\n").unwrap(), expected);
+    assert_eq!(points("1,2,3\n-0.5,1e-300,4e6").unwrap(), expected);
+    assert_eq!(
+        points("# contact points\n X , Y , Z \n\n 1 , 2 ,3\r\n-0.5,1e-300,4e6\r\n").unwrap(),
+        expected
+    );
+    let odd = points("nan,inf,-inf\n1,2,3\n").unwrap();
+    assert!(odd[0].x.is_nan() && odd[0].y == f64::INFINITY && odd[0].z == f64::NEG_INFINITY);
+}
+
+#[test]
+fn bad_rows_name_their_line() {
+    assert_eq!(line_of("x,y,z\n1,2,3\n1,2\n"), 3);
+    assert_eq!(line_of("x,y,z\n1,2,3\n1,2,3,4\n"), 3);
+    assert_eq!(line_of("1,2,3\n4,five,6\n"), 2);
+    assert_eq!(line_of("1,2,3\n\n# note\n4,5,\n"), 4);
+    // A first row with some numbers is data, not a header: its bad field is an error.
+    assert_eq!(line_of("1,y,3\n4,5,6\n"), 1);
+    assert_eq!(line_of("x,y\n1,2,3\n"), 1);
+    assert!(matches!(points(""), Err(ErrorKind::Empty)));
+    assert!(matches!(points("x,y,z\n"), Err(ErrorKind::Empty)));
+    let raw: &[u8] = b"1,2,3\n\xff,1,2\n";
+    assert!(matches!(
+        parse_points(raw),
+        Err(ErrorKind::Csv { line: 2, .. })
+    ));
+}
+
+#[test]
+fn errors_from_files_name_file_and_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("pts.csv");
+    std::fs::write(&path, "x,y,z\n0,0,0\n0,zero,0\n").unwrap();
+    let message = read_points(&path).unwrap_err().to_string();
+    assert!(
+        message.contains("pts.csv") && message.contains("line 3") && message.contains("zero"),
+        "{message}"
+    );
+    let missing = read_points(dir.path().join("nope.csv"))
+        .unwrap_err()
+        .to_string();
+    assert!(missing.contains("nope.csv"), "{missing}");
+}
+
+#[test]
+fn points_and_results_round_trip() {
+    let dir = tempfile::tempdir().unwrap();
+    let pts = vec![
+        DVec3::new(0.1, 0.2, 0.3),
+        DVec3::new(1.0 / 3.0, 2.0f64.sqrt(), 1e-17),
+        DVec3::splat(9.0),
+        DVec3::new(f64::NAN, 0.0, 0.0),
+    ];
+    let path = dir.path().join("points.csv");
+    write_points(&path, &pts).unwrap();
+    let back = read_points(&path).unwrap();
+    assert_eq!(back[..3], pts[..3]);
+    assert!(back[3].x.is_nan());
+
+    let lattice = Lattice::new(DVec3::ZERO, DVec3::splat(0.5), [2, 2, 2]).unwrap();
+    let mut body = Body::full(lattice);
+    body.update_displacements(|_, x, u| *u = DVec3::new(0.0, 0.0, 0.05 * x.x))
+        .unwrap();
+    let answers = LatticeLocator::new(&body, Settings::default())
+        .unwrap()
+        .locate_all(&pts);
+    let results = dir.path().join("results.csv");
+    let cells = CellMap::ascending(&body);
+    write_results(&results, &answers, &cells).unwrap();
+    let text = std::fs::read_to_string(&results).unwrap();
+    assert!(text.starts_with("point,cell,xi,eta,zeta,"), "{text}");
+    assert_eq!(text.lines().next().unwrap(), RESULTS_HEADER.join(","));
+    let rows = read_results(&results).unwrap();
+    assert_eq!(rows.len(), answers.len());
+    for (row, answer) in rows.iter().zip(&answers) {
+        match answer {
+            Ok(Some(hit)) => {
+                assert_eq!(row.cell, cells.input_cell(hit.cell));
+                assert_eq!(row.xi, hit.xi, "bitwise");
+                assert_eq!(row.iterations, hit.iterations);
+                assert_eq!(row.residual, hit.residual);
+            }
+            _ => {
+                assert_eq!(row.cell, None);
+                assert!(row.xi.is_nan());
+            }
+        }
+    }
+    assert!(rows[0].cell.is_some() && rows[2].cell.is_none() && rows[3].cell.is_none());
+    assert_eq!(
+        rows.iter().map(|r| r.point).collect::<Vec<_>>(),
+        vec![0, 1, 2, 3]
+    );
+
+    std::fs::write(
+        &results,
+        "point,cell,xi,eta,zeta\n0,3,0.5,0,0\n1,-2,0,0,0\n",
+    )
+    .unwrap();
+    let message = read_results(&results).unwrap_err().to_string();
+    assert!(
+        message.contains("line 3") && message.contains("cell"),
+        "{message}"
+    );
+    std::fs::write(&results, "pt,cell,xi\n").unwrap();
+    assert!(
+        read_results(&results)
+            .unwrap_err()
+            .to_string()
+            .contains("line 1")
+    );
+}
