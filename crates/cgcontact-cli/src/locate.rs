@@ -1,0 +1,65 @@
+//! `cgcontact locate`: user points in a user mesh.
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result};
+use cgcontact_io::{
+    DisplacementArray, read_mesh, read_points, write_deformed_vtu, write_points_vtu, write_results,
+};
+use clap::Args;
+
+use crate::run::{SearchArgs, search};
+
+/// Locate the points of a CSV file in a VTK mesh of hexahedra on a cartesian lattice.
+#[derive(Args, Debug)]
+#[command(after_help = "Example:
+  cgcontact locate --mesh block.vtu --points contact.csv --out results.csv --strategy lattice --json
+
+The mesh is a VTK unstructured grid of hexahedra (legacy .vtk ASCII/binary or XML .vtu) whose nodes lie on
+a cartesian lattice; the displacement is the point-data vector `displacement` (or --displacement NAME).
+The points file has three columns x,y,z and an optional header line. Results: CSV with header
+point,cell,xi,eta,zeta,... where cell is the 0-based input cell index, or -1 when not found.")]
+pub struct LocateArgs {
+    /// The mesh (.vtk or .vtu).
+    #[arg(long, value_name = "FILE")]
+    mesh: PathBuf,
+    /// The points (CSV x,y,z).
+    #[arg(long, value_name = "FILE")]
+    points: PathBuf,
+    /// Where to write the results CSV [default: none, only the summary].
+    #[arg(long, value_name = "FILE")]
+    out: Option<PathBuf>,
+    /// Name of the point-data displacement array [default: `displacement` if present, else undeformed].
+    #[arg(long, value_name = "NAME")]
+    displacement: Option<String>,
+    /// Also write `mesh.vtu` (deformed, with points held per cell) and `points.vtu` for ParaView to DIR.
+    #[arg(long, value_name = "DIR")]
+    vtk: Option<PathBuf>,
+    #[command(flatten)]
+    search: SearchArgs,
+}
+
+pub fn run(args: &LocateArgs) -> Result<()> {
+    let pool = args.search.pool()?;
+    let mesh = read_mesh(
+        &args.mesh,
+        &DisplacementArray::from_option(args.displacement.as_deref()),
+    )?;
+    let points = read_points(&args.points)?;
+    let (answers, mut summary) = search(&mesh.body, &points, &args.search, &pool)?;
+    if let Some(out) = &args.out {
+        write_results(out, &answers, &mesh.cells)?;
+        summary.files.push(out.display().to_string());
+    }
+    if let Some(dir) = &args.vtk {
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("{}: cannot create the folder", dir.display()))?;
+        let mesh_path = dir.join("mesh.vtu");
+        write_deformed_vtu(&mesh_path, &mesh.body, &mesh.cells, &answers, false)?;
+        let points_path = dir.join("points.vtu");
+        write_points_vtu(&points_path, &points, &answers, &mesh.cells)?;
+        summary.files.push(mesh_path.display().to_string());
+        summary.files.push(points_path.display().to_string());
+    }
+    summary.print(&args.search)
+}

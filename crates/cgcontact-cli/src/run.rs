@@ -1,0 +1,266 @@
+//! What every command shares: strategy and settings flags, running a search with a progress bar and
+//! timing, and the summary (plain or `--json`).
+
+use std::io::IsTerminal;
+use std::time::Instant;
+
+use anyhow::{Context, Result, bail};
+use cgcontact::glam::DVec3;
+use cgcontact::{Answer, Body, LatticeLocator, Locator, Precision, Settings};
+use cgcontact_baseline::{
+    BruteForce, CentroidRadius, Inversion, NodeRadius, NodeRadiusOptions, RTree,
+};
+use clap::{Args, ValueEnum};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use serde::Serialize;
+
+/// Search strategy.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum StrategyName {
+    /// The lattice locator (this project): complete, about one inversion per point.
+    Lattice,
+    /// FEAVOX's original centroid-radius filter.
+    Centroid,
+    /// The seed's node-radius filter (`whereami`) with the exact Newton.
+    Noderad,
+    /// The seed's node-radius filter with the seed's own Newton (0.1 absolute residual).
+    NoderadSeed,
+    /// An R-tree (rstar) over deformed cell bounding boxes.
+    Rtree,
+    /// Every cell: the oracle.
+    Brute,
+}
+
+/// Kernel precision.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum PrecisionName {
+    /// Double precision (default).
+    F64,
+    /// Single precision, SIMD, in each cell's local frame.
+    F32,
+}
+
+/// Flags shared by the commands that search.
+#[derive(Args, Debug, Clone)]
+pub struct SearchArgs {
+    /// Search strategy.
+    #[arg(long, value_enum, default_value_t = StrategyName::Lattice)]
+    pub strategy: StrategyName,
+    /// Kernel precision.
+    #[arg(long, value_enum, default_value_t = PrecisionName::F64)]
+    pub precision: PrecisionName,
+    /// Newton tolerance on the step, in ξ units [default: 1e-10 in f64, 1e-5 in f32].
+    #[arg(long, value_name = "T")]
+    pub tol: Option<f64>,
+    /// Newton iteration limit per candidate cell.
+    #[arg(long, value_name = "N", default_value_t = 20)]
+    pub max_iter: u32,
+    /// Worker threads [default: all cores].
+    #[arg(long, value_name = "N")]
+    pub threads: Option<usize>,
+    /// Print one JSON object on stdout instead of the text summary.
+    #[arg(long)]
+    pub json: bool,
+    /// Print nothing but errors (and the JSON object with --json).
+    #[arg(long, short)]
+    pub quiet: bool,
+}
+
+impl SearchArgs {
+    /// The library settings these flags ask for.
+    pub fn settings(&self) -> Result<Settings> {
+        let mut settings = match self.precision {
+            PrecisionName::F64 => Settings::default(),
+            PrecisionName::F32 => Settings::f32(),
+        };
+        if let Some(tol) = self.tol {
+            settings.newton_tol = tol;
+        }
+        settings.max_iter = self.max_iter;
+        settings.validate().context("bad --tol or --max-iter")?;
+        Ok(settings)
+    }
+
+    /// A rayon pool with `--threads` workers.
+    pub fn pool(&self) -> Result<rayon::ThreadPool> {
+        let mut builder = rayon::ThreadPoolBuilder::new();
+        if let Some(n) = self.threads {
+            if n == 0 {
+                bail!("--threads must be at least 1");
+            }
+            builder = builder.num_threads(n);
+        }
+        builder.build().context("cannot start the worker threads")
+    }
+}
+
+/// The outcome of a search: answers, timings, and what the summary prints.
+#[derive(Serialize, Debug)]
+pub struct Summary {
+    pub points: usize,
+    pub located: usize,
+    pub not_located: usize,
+    pub invalid_points: usize,
+    pub setup_seconds: f64,
+    pub query_seconds: f64,
+    pub points_per_second: f64,
+    pub inversions_per_point: f64,
+    pub strategy: String,
+    pub precision: String,
+    pub threads: usize,
+    pub cells: usize,
+    pub active_cells: usize,
+    pub nodes: usize,
+    pub max_displacement: [f64; 3],
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub files: Vec<String>,
+}
+
+impl Summary {
+    /// Print the summary: JSON on stdout, or a few lines of text unless quiet.
+    pub fn print(&self, args: &SearchArgs) -> Result<()> {
+        if args.json {
+            println!(
+                "{}",
+                serde_json::to_string_pretty(self).context("cannot format the summary")?
+            );
+        } else if !args.quiet {
+            println!(
+                "{} points: {} located, {} not located{}",
+                self.points,
+                self.located,
+                self.not_located,
+                if self.invalid_points > 0 {
+                    format!(", {} with NaN/inf coordinates", self.invalid_points)
+                } else {
+                    String::new()
+                }
+            );
+            println!(
+                "body: {} active of {} lattice cells, {} nodes, max displacement {:.4e}",
+                self.active_cells,
+                self.cells,
+                self.nodes,
+                DVec3::from_array(self.max_displacement).max_element()
+            );
+            println!(
+                "{} ({}, {} thread{}): setup {:.3} ms, query {:.3} ms, {:.3e} points/s, {:.3} inversions per located point",
+                self.strategy,
+                self.precision,
+                self.threads,
+                if self.threads == 1 { "" } else { "s" },
+                self.setup_seconds * 1e3,
+                self.query_seconds * 1e3,
+                self.points_per_second,
+                self.inversions_per_point
+            );
+            for file in &self.files {
+                println!("wrote {file}");
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Build the strategy, locate every point on `pool` with a progress bar (on a terminal, for long
+/// work), and time both steps.
+pub fn search(
+    body: &Body,
+    points: &[DVec3],
+    args: &SearchArgs,
+    pool: &rayon::ThreadPool,
+) -> Result<(Vec<Answer>, Summary)> {
+    let settings = args.settings()?;
+    let setup = Instant::now();
+    let locator: Box<dyn Locator + '_> = match args.strategy {
+        StrategyName::Lattice => Box::new(LatticeLocator::new(body, settings)?),
+        StrategyName::Brute => Box::new(BruteForce::new(body, settings)?),
+        StrategyName::Centroid => Box::new(CentroidRadius::new(body, settings)?),
+        StrategyName::Noderad => Box::new(NodeRadius::new(body, settings)?),
+        StrategyName::NoderadSeed => Box::new(NodeRadius::with_options(
+            body,
+            settings,
+            NodeRadiusOptions {
+                inversion: Inversion::SeedFaithful,
+                ..Default::default()
+            },
+        )?),
+        StrategyName::Rtree => Box::new(RTree::new(body, settings)?),
+    };
+    let setup_seconds = setup.elapsed().as_secs_f64();
+
+    // Chunks keep the progress bar moving; each chunk is split over the pool, answers stay in order.
+    let chunk = match args.strategy {
+        StrategyName::Lattice | StrategyName::Rtree => 1 << 18,
+        _ => 1 << 10,
+    };
+    let progress = progress_bar(points.len() as u64, args.quiet || args.json);
+    let query = Instant::now();
+    let mut answers = Vec::with_capacity(points.len());
+    let mut buffer = Vec::with_capacity(chunk.min(points.len()));
+    pool.install(|| {
+        for part in points.chunks(chunk) {
+            locator.locate_all_into(part, &mut buffer);
+            answers.extend_from_slice(&buffer);
+            if let Some(bar) = &progress {
+                bar.inc(part.len() as u64);
+                // Shown only once the work has lasted about a second.
+                if query.elapsed().as_secs_f64() > 1.0 && bar.is_hidden() {
+                    bar.set_draw_target(ProgressDrawTarget::stderr());
+                }
+            }
+        }
+    });
+    let query_seconds = query.elapsed().as_secs_f64();
+    if let Some(bar) = progress {
+        bar.finish_and_clear();
+    }
+
+    let located: Vec<_> = answers.iter().filter_map(|a| a.ok().flatten()).collect();
+    let invalid_points = answers.iter().filter(|a| a.is_err()).count();
+    let inversions: u64 = located.iter().map(|h| u64::from(h.inversions)).sum();
+    let summary = Summary {
+        points: points.len(),
+        located: located.len(),
+        not_located: points.len() - located.len() - invalid_points,
+        invalid_points,
+        setup_seconds,
+        query_seconds,
+        points_per_second: points.len() as f64 / query_seconds.max(1e-12),
+        inversions_per_point: if located.is_empty() {
+            0.0
+        } else {
+            inversions as f64 / located.len() as f64
+        },
+        strategy: locator.name().to_owned(),
+        precision: match settings.precision {
+            Precision::F64 => "f64",
+            Precision::F32 => "f32",
+        }
+        .to_owned(),
+        threads: pool.current_num_threads(),
+        cells: body.lattice().cell_count(),
+        active_cells: body.active_count(),
+        nodes: body.node_count(),
+        max_displacement: body.max_displacement().to_array(),
+        files: Vec::new(),
+    };
+    Ok((answers, summary))
+}
+
+/// A progress bar on stderr, hidden until shown (by the caller, after a second) and never shown
+/// when stderr is not a terminal or the user asked for quiet.
+fn progress_bar(len: u64, quiet: bool) -> Option<ProgressBar> {
+    if quiet || !std::io::stderr().is_terminal() {
+        return None;
+    }
+    let bar = ProgressBar::with_draw_target(Some(len), ProgressDrawTarget::hidden());
+    bar.set_style(
+        ProgressStyle::with_template(
+            "{spinner} locating [{bar:40}] {pos}/{len} points ({per_sec}, {eta} left)",
+        )
+        .expect("the template is valid")
+        .progress_chars("=> "),
+    );
+    Some(bar)
+}

@@ -1,0 +1,178 @@
+//! `cgcontact scene`: write a generated scene (mesh, points, known answers).
+
+use std::io::Write;
+use std::path::PathBuf;
+
+use anyhow::{Context, Result, bail};
+use cgcontact::glam::DVec3;
+use cgcontact_io::{CellMap, MeshFormat, write_mesh, write_points};
+use cgcontact_scenes::SphereOnBlock;
+use clap::{Args, ValueEnum};
+
+/// Scene names.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum SceneName {
+    /// The seed's fine mesh: 5 × 10 × 5 mm block, h = 0.25 mm, 1 mm sphere, 6,700 contact points.
+    SphereFine,
+    /// The seed's coarse mesh: the same with h = 0.5 mm.
+    SphereCoarse,
+    /// An indented block of --cells cells (default 40 × 80 × 40 = 128,000) of spacing --h, known points only.
+    Block,
+}
+
+/// Mesh file flavour.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum FormatName {
+    /// XML `.vtu` (base64 binary).
+    Vtu,
+    /// Legacy `.vtk`, ASCII.
+    Vtk,
+    /// Legacy `.vtk`, binary.
+    VtkBinary,
+}
+
+/// Write a generated scene: `mesh.vtu` (or `.vtk`), `points.csv` (the contact points, then the
+/// points made from known (cell, ξ)), and `known.csv` (the known answers of those points).
+#[derive(Args, Debug)]
+#[command(after_help = "Example:
+  cgcontact scene sphere-fine --out fine
+  cgcontact locate --mesh fine/mesh.vtu --points fine/points.csv --out fine/results.csv
+  cgcontact scene block --cells 40,80,40 --known 1000000 --out big
+
+known.csv has the header point,cell,xi,eta,zeta: `point` is the row in points.csv, `cell` the 0-based
+cell index in the mesh file, so it compares directly with `cgcontact locate`'s results.")]
+pub struct SceneArgs {
+    /// Which scene.
+    #[arg(value_enum)]
+    name: SceneName,
+    /// Output folder.
+    #[arg(long, value_name = "DIR")]
+    out: PathBuf,
+    /// Mesh file flavour.
+    #[arg(long, value_enum, default_value_t = FormatName::Vtu)]
+    format: FormatName,
+    /// Cells per axis of the `block` scene.
+    #[arg(long, value_name = "NX,NY,NZ", value_delimiter = ',', num_args = 3, default_values_t = [40u32, 80, 40])]
+    cells: Vec<u32>,
+    /// Lattice spacing: one value, or three for anisotropic cells [default: the scene's].
+    #[arg(long, value_name = "H", value_delimiter = ',', num_args = 1..=3)]
+    h: Option<Vec<f64>>,
+    /// Largest sink of the indented top face, in units of h (up to several h).
+    #[arg(long, value_name = "H")]
+    sink: Option<f64>,
+    /// Random nodal jitter in units of h (kept to det J > 0 unless --allow-inverted).
+    #[arg(long, value_name = "H", default_value_t = 0.0)]
+    jitter: f64,
+    /// Keep cells the jitter inverts.
+    #[arg(long)]
+    allow_inverted: bool,
+    /// Offset added to every coordinate (one value for all axes, or three).
+    #[arg(long, value_name = "X", value_delimiter = ',', num_args = 1..=3, allow_hyphen_values = true)]
+    offset: Option<Vec<f64>>,
+    /// Factor on every length.
+    #[arg(long, value_name = "S", default_value_t = 1.0)]
+    scale: f64,
+    /// Number of points made from known (cell, ξ) [default: 10,000; 1,000,000 for `block`].
+    #[arg(long, value_name = "N")]
+    known: Option<usize>,
+    /// Seed of the jitter and the known points.
+    #[arg(long, default_value_t = 2019)]
+    seed: u64,
+}
+
+fn vector(values: &[f64], flag: &str) -> Result<DVec3> {
+    match values {
+        [v] => Ok(DVec3::splat(*v)),
+        [x, y, z] => Ok(DVec3::new(*x, *y, *z)),
+        _ => bail!("--{flag} takes one value or three"),
+    }
+}
+
+pub fn run(args: &SceneArgs) -> Result<()> {
+    let mut knobs = match args.name {
+        SceneName::SphereFine => SphereOnBlock::fine(),
+        SceneName::SphereCoarse => SphereOnBlock::coarse(),
+        SceneName::Block => {
+            let h = DVec3::splat(0.125);
+            let cells = DVec3::new(
+                args.cells[0] as f64,
+                args.cells[1] as f64,
+                args.cells[2] as f64,
+            );
+            SphereOnBlock {
+                block: h * cells,
+                h,
+                radius: 0.2 * (h * cells).min_element(),
+                contact_points: 0,
+                known_points: 1_000_000,
+                ..SphereOnBlock::fine()
+            }
+        }
+    };
+    if let Some(h) = &args.h {
+        let h = vector(h, "h")?;
+        if args.name == SceneName::Block {
+            knobs.block = knobs.block / knobs.h * h;
+        }
+        knobs.h = h;
+    }
+    if let Some(sink) = args.sink {
+        knobs.sink_in_h = sink;
+    }
+    if let Some(offset) = &args.offset {
+        knobs.offset = vector(offset, "offset")?;
+    }
+    if let Some(known) = args.known {
+        knobs.known_points = known;
+    }
+    knobs.jitter = args.jitter;
+    knobs.allow_inverted = args.allow_inverted;
+    knobs.scale = args.scale;
+    knobs.seed = args.seed;
+    let scene = knobs.build(&format!("{:?}", args.name).to_lowercase())?;
+
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("{}: cannot create the folder", args.out.display()))?;
+    let format = match args.format {
+        FormatName::Vtu => MeshFormat::Xml,
+        FormatName::Vtk => MeshFormat::LegacyAscii,
+        FormatName::VtkBinary => MeshFormat::LegacyBinary,
+    };
+    let mesh = args.out.join(format!("mesh.{}", format.extension()));
+    write_mesh(&mesh, &scene.body, format)?;
+    let points = args.out.join("points.csv");
+    write_points(&points, &scene.all_points())?;
+    let known = args.out.join("known.csv");
+    let cells = CellMap::ascending(&scene.body);
+    let io = |e: std::io::Error| anyhow::anyhow!("{}: {e}", known.display());
+    let mut out = std::io::BufWriter::new(std::fs::File::create(&known).map_err(io)?);
+    writeln!(out, "point,cell,xi,eta,zeta").map_err(io)?;
+    for (row, k) in scene.known.iter().enumerate() {
+        let cell = cells
+            .input_cell(k.cell)
+            .expect("known points lie in active cells");
+        writeln!(
+            out,
+            "{},{},{},{},{}",
+            scene.contact_points.len() + row,
+            cell,
+            k.xi.x,
+            k.xi.y,
+            k.xi.z
+        )
+        .map_err(io)?;
+    }
+    out.flush().map_err(io)?;
+    println!(
+        "scene {}: {} cells ({} active), {} contact points, {} known points",
+        scene.name,
+        scene.body.lattice().cell_count(),
+        scene.body.active_count(),
+        scene.contact_points.len(),
+        scene.known.len()
+    );
+    for file in [&mesh, &points, &known] {
+        println!("wrote {}", file.display());
+    }
+    Ok(())
+}
