@@ -238,6 +238,16 @@ impl Body {
         self.u.iter().fold(DVec3::ZERO, |m, v| m.max(v.abs()))
     }
 
+    /// Displacements of the 8 corners of `cell` (VTK order), or `None` when it is inactive or out of range.
+    #[inline]
+    #[must_use]
+    pub fn cell_displacements(&self, cell: CellId) -> Option<[DVec3; 8]> {
+        if !self.is_active(cell) {
+            return None;
+        }
+        Some(self.corner_displacements(self.lattice.cell_ijk(cell)?))
+    }
+
     /// Corner displacements of active cell `ijk`, in VTK order. The caller guarantees the cell is active.
     #[inline]
     pub(crate) fn corner_displacements(&self, ijk: [u32; 3]) -> [DVec3; 8] {
@@ -293,8 +303,8 @@ impl Body {
                     .cell_ijk(cell)
                     .expect("active cells are in range");
                 let ratio = hex8::min_corner_det(&self.local_corners(ijk)) / undeformed;
-                // `!(ratio > 0)` also catches NaN.
-                (!(ratio > 0.0)).then_some((cell, ratio))
+                // NaN counts as inverted: only a ratio known to be positive is valid.
+                (ratio.is_nan() || ratio <= 0.0).then_some((cell, ratio))
             })
             .collect()
     }

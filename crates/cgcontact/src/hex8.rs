@@ -195,8 +195,8 @@ macro_rules! stamp_hex8 {
                     let [c0, c1, c2] = jac;
                     let k0 = c1.cross(c2);
                     let det = c0.dot(k0);
-                    // `!(det > floor)` also catches NaN.
-                    if !(det > det_floor) {
+                    // NaN fails too: only a determinant known to exceed the floor is usable.
+                    if det.is_nan() || det <= det_floor {
                         return finish(Status::Singular, xi, iteration - 1, rr);
                     }
                     let delta = <$V>::new(k0.dot(r), c2.cross(c0).dot(r), c0.cross(c1).dot(r)) / det;

@@ -173,6 +173,20 @@ impl<'a> LatticeLocator<'a> {
         map.invert_f64(x - lattice.node_position(ijk), xi0, options)
     }
 
+    /// Two steps of the fixed point X ← x − ũ(X) in lattice coordinates (ũ interpolated on the
+    /// undeformed lattice, inactive corners as zero), from `t_guess`.
+    fn refine_guess(&self, t_x: DVec3, mut t_guess: DVec3) -> DVec3 {
+        let lattice = self.body.lattice();
+        for _ in 0..2 {
+            let cell = lattice.clamped_cell(t_guess);
+            let u_map = Hex8Map::new(&self.body.corner_displacements_or_zero(cell));
+            let xi = (2.0 * (t_guess - DVec3::from_array(cell.map(f64::from))) - 1.0)
+                .clamp(DVec3::NEG_ONE, DVec3::ONE);
+            t_guess = t_x - u_map.map(xi) * self.inv_h;
+        }
+        t_guess
+    }
+
     fn search_with<K: Kernel>(
         &self,
         x: DVec3,
@@ -196,7 +210,11 @@ impl<'a> LatticeLocator<'a> {
         let first = lattice.clamped_cell(t_guess);
         let mut inversions = 0u32;
         let mut found = None;
-        let mut visit = |ijk: [u32; 3], u_map: Option<&Hex8Map>, found: &mut Option<Hit>| -> bool {
+        let mut visit = |ijk: [u32; 3],
+                         u_map: Option<&Hex8Map>,
+                         t_guess: DVec3,
+                         found: &mut Option<Hit>|
+         -> bool {
             let cell = lattice.cell_id(ijk);
             if !self.body.is_active(cell) {
                 return false;
@@ -231,15 +249,22 @@ impl<'a> LatticeLocator<'a> {
         } else {
             None
         };
-        if visit(first, reuse, &mut found) {
+        if visit(first, reuse, t_guess, &mut found) {
             return found;
         }
+        // A miss: where the displacement varies fast, ũ(x) is a poor estimate of u at the undeformed
+        // point. Refine the guess by the fixed point X ← x − ũ(X) before ordering the rings around it.
+        let t_guess = match self.settings.order {
+            CandidateOrder::Predicted => self.refine_guess(t_x, t_guess),
+            CandidateOrder::Undeformed => t_guess,
+        };
+        let center = lattice.clamped_cell(t_guess);
         // Then every other cell meeting [x − u_max, x + u_max] (widened by the inside tolerance), in rings
         // of growing Chebyshev distance around the predicted cell.
         let widen = options.inside_tol;
         let low = lattice.clamped_cell(t_x - self.u_max * self.inv_h - widen);
         let high = lattice.clamped_cell(t_x + self.u_max * self.inv_h + widen);
-        let s = [0, 1, 2].map(|a| i64::from(first[a].clamp(low[a], high[a])));
+        let s = [0, 1, 2].map(|a| i64::from(center[a].clamp(low[a], high[a])));
         let (lo, hi) = (low.map(i64::from), high.map(i64::from));
         let radius = (0..3)
             .map(|a| (s[a] - lo[a]).max(hi[a] - s[a]))
@@ -262,7 +287,7 @@ impl<'a> LatticeLocator<'a> {
                         if i < from || i > to || ijk == first {
                             continue;
                         }
-                        if visit(ijk, None, &mut found) {
+                        if visit(ijk, None, t_guess, &mut found) {
                             return found;
                         }
                     }
