@@ -10,7 +10,8 @@ use std::path::{Path, PathBuf};
 #[error("{}: {kind}", path.display())]
 pub struct IoError {
     path: PathBuf,
-    kind: ErrorKind,
+    // Boxed: the kinds carry coordinates, and a small `Err` keeps every `Result` cheap to return.
+    kind: Box<ErrorKind>,
 }
 
 impl IoError {
@@ -19,7 +20,7 @@ impl IoError {
     pub fn new(path: impl Into<PathBuf>, kind: ErrorKind) -> Self {
         Self {
             path: path.into(),
-            kind,
+            kind: Box::new(kind),
         }
     }
 
@@ -38,7 +39,7 @@ impl IoError {
     /// What went wrong, by value.
     #[must_use]
     pub fn into_kind(self) -> ErrorKind {
-        self.kind
+        *self.kind
     }
 }
 

@@ -263,7 +263,7 @@ impl HexMesh {
                 ))
             })?;
             let n = ((high - low) / h0).round();
-            if !(n >= 1.0) {
+            if n.is_nan() || n < 1.0 {
                 return Err(ErrorKind::Degenerate(format!(
                     "the nodes span {} along {} for a typical edge of {h0}",
                     high - low,

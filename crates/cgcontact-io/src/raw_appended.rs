@@ -107,6 +107,19 @@ pub(crate) fn to_base64(xml: &[u8]) -> Result<Option<Vec<u8>>, ErrorKind> {
                     .checked_add(read(at + header_bytes * (3 + b))?)
                     .ok_or_else(|| bad("sizes overflow".into()))?;
             }
+            // vtkio allocates the decompressed size from this header before decompressing: refuse
+            // sizes that no zlib/LZ4 stream of this length can produce (both expand at most about
+            // 1032:1), so that a corrupt header is an error, not an allocation failure.
+            let block_size = read(at + header_bytes)?;
+            let last_size = read(at + 2 * header_bytes)?;
+            let claimed = block_size
+                .saturating_mul(blocks.saturating_sub(1))
+                .saturating_add(last_size);
+            if blocks == 0 || claimed > total.saturating_mul(1100).saturating_add(1 << 16) {
+                return Err(bad(format!(
+                    "block at byte {at} claims {claimed} bytes from {total} compressed in {blocks} blocks"
+                )));
+            }
             let header = data
                 .get(at..at + full)
                 .ok_or_else(|| bad(format!("block header at byte {at} is cut")))?;

@@ -77,10 +77,9 @@ fn parse_hex_mesh_impl(
 /// headers of compressed arrays, `unwrap` in its own conversions), so a truncated or malformed file
 /// can panic inside it. Our contract is an error value for any input, so we catch the unwind here;
 /// the closure only reads a byte slice and builds a fresh value, so no state is left half-updated.
-fn guarded<T>(what: &str, f: impl FnOnce() -> Result<T, vtkio::Error>) -> Result<T, ErrorKind> {
+fn guarded<T>(what: &str, f: impl FnOnce() -> Result<T, ErrorKind>) -> Result<T, ErrorKind> {
     match catch_unwind(AssertUnwindSafe(f)) {
-        Ok(Ok(v)) => Ok(v),
-        Ok(Err(e)) => Err(ErrorKind::Vtk(format!("{what}: {}", describe(&e)))),
+        Ok(result) => result,
         Err(panic) => {
             let message = panic
                 .downcast_ref::<&str>()
@@ -94,15 +93,9 @@ fn guarded<T>(what: &str, f: impl FnOnce() -> Result<T, vtkio::Error>) -> Result
     }
 }
 
-/// vtkio's legacy parse errors carry only a nom error kind; say what that means for a user.
-fn describe(e: &vtkio::Error) -> String {
-    match e {
-        vtkio::Error::Parse(kind) => {
-            format!("does not follow the legacy VTK grammar (parser stopped at a {kind:?})")
-        }
-        vtkio::Error::Unknown => "the file ends before its data does (truncated?)".to_owned(),
-        other => other.to_string(),
-    }
+/// A vtkio error as ours.
+fn vtk_error(what: &str) -> impl FnOnce(vtkio::Error) -> ErrorKind + '_ {
+    move |e| ErrorKind::Vtk(format!("{what}: {e}"))
 }
 
 /// Parse legacy or XML VTK, told from the first non-blank bytes.
@@ -114,19 +107,61 @@ fn parse_vtk(bytes: &[u8]) -> Result<Vtk, ErrorKind> {
         .unwrap_or(start.len())..];
     if start.len() >= 5 && start[..5].eq_ignore_ascii_case(b"# vtk") {
         // Legacy binary files are big-endian by definition of the format.
-        guarded("legacy VTK", || Vtk::parse_legacy_be(bytes))
+        guarded("legacy VTK", || parse_legacy_whole(bytes))
     } else if start.first() == Some(&b'<') {
         // vtkio cannot read raw (unencoded) appended data, ParaView's default; re-encode it as base64
         // first (see `raw_appended`).
         let converted = raw_appended::to_base64(bytes)?;
         let xml = converted.as_deref().unwrap_or(bytes);
-        guarded("XML VTK", || Vtk::parse_xml(xml))
+        guarded("XML VTK", || {
+            Vtk::parse_xml(xml).map_err(vtk_error("XML VTK"))
+        })
     } else if start.is_empty() {
         Err(ErrorKind::Format("the file is empty".to_owned()))
     } else {
         Err(ErrorKind::Format(
             "neither a legacy VTK file (`# vtk DataFile ...`) nor an XML VTK file (`<VTKFile ...>`)".to_owned(),
         ))
+    }
+}
+
+/// Parse a legacy file with vtkio's parser, refusing input left over after it, and saying on which
+/// line the parser stopped.
+///
+/// `Vtk::parse_legacy_be` drops whatever follows the last section it recognises, so a file cut
+/// inside `POINT_DATA` would read as an undeformed mesh, and its errors carry no position; we call
+/// the parser it wraps and check both.
+fn parse_legacy_whole(bytes: &[u8]) -> Result<Vtk, ErrorKind> {
+    let at_line = |rest: &[u8]| {
+        let at = bytes.len() - rest.len();
+        let line = 1 + bytes[..at].iter().filter(|&&b| b == b'\n').count();
+        let excerpt: String = String::from_utf8_lossy(&rest[..rest.len().min(40)])
+            .chars()
+            .take_while(|c| *c != '\n' && *c != '\r')
+            .collect();
+        (line, excerpt)
+    };
+    match vtkio::parser::parse_be(bytes) {
+        Ok((rest, vtk)) => match rest.iter().position(|b| !b.is_ascii_whitespace()) {
+            None => Ok(vtk),
+            Some(i) => {
+                let (line, excerpt) = at_line(&rest[i..]);
+                Err(ErrorKind::Vtk(format!(
+                    "legacy VTK: line {line}: unexpected `{excerpt}` after the last complete section (truncated or \
+                     malformed section?)"
+                )))
+            }
+        },
+        Err(nom::Err::Incomplete(_)) => Err(ErrorKind::Vtk(
+            "legacy VTK: the file ends before its data does (truncated?)".to_owned(),
+        )),
+        Err(nom::Err::Error(e) | nom::Err::Failure(e)) => {
+            let (line, excerpt) = at_line(e.input);
+            Err(ErrorKind::Vtk(format!(
+                "legacy VTK: line {line}: cannot parse `{excerpt}` (expected {:?}; truncated or malformed?)",
+                e.code
+            )))
+        }
     }
 }
 
@@ -165,7 +200,7 @@ fn hex_mesh_from_vtk(
         let piece = guarded("piece", || {
             piece
                 .into_loaded_piece_data(source)
-                .map_err(vtkio::Error::from)
+                .map_err(|e| vtk_error("piece")(e.into()))
         })?;
         let first_node = mesh.points.len();
         let first_cell = mesh.cells.len();
@@ -255,7 +290,8 @@ fn append_cells(
             num_cells,
             vertices,
         } => {
-            let mut ranges = Vec::with_capacity(*num_cells as usize);
+            // The count comes from the file: reserve no more than the list can hold.
+            let mut ranges = Vec::with_capacity((*num_cells as usize).min(vertices.len()));
             let mut at = 0usize;
             for c in 0..*num_cells as usize {
                 let Some(&n) = vertices.get(at) else {
