@@ -130,7 +130,6 @@ fn wrong_counts_and_missing_nodes_name_the_cell() {
     let body = body_with_holes(DVec3::ZERO, DVec3::ONE, [2, 2, 1], 3);
     let mesh = HexMesh::from_body(&body);
     let text = legacy_ascii(&mesh, LegacyData::Vectors, false);
-    let _ = &text;
     // Cell 1 references a node past the end.
     let mut broken = mesh.clone();
     broken.cells[1][2] = 999;

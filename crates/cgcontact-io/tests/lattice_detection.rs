@@ -325,3 +325,26 @@ fn errors_from_files_name_the_file_and_the_cell() {
         "{err}"
     );
 }
+
+#[test]
+fn voxels_are_read_as_hexahedra() {
+    let body = body_with_holes(DVec3::ZERO, DVec3::splat(0.5), [3, 2, 2], 12);
+    let mut mesh = HexMesh::from_body(&body);
+    // VTK_VOXEL numbers corners x fastest: swap 2/3 and 6/7 and mark the cells type 11.
+    for c in &mut mesh.cells {
+        c.swap(2, 3);
+        c.swap(6, 7);
+    }
+    let text = legacy_ascii(&mesh, LegacyData::Vectors, false);
+    let text = text
+        .lines()
+        .map(|l| if l == "12" { "11" } else { l })
+        .collect::<Vec<_>>()
+        .join("\n");
+    let found = cgcontact_io::parse_hex_mesh(text.as_bytes(), &DisplacementArray::Default)
+        .unwrap()
+        .to_lattice()
+        .unwrap();
+    assert_eq!(found.cells, cgcontact_io::CellMap::ascending(&body));
+    assert_eq!(found.body.displacements(), body.displacements());
+}
