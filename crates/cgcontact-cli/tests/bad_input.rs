@@ -356,11 +356,10 @@ fn bad_flag_values_rejected_by_the_parser_are_one_line() {
     assert_one_line_error("--strategy bogus", result, &["--strategy", "bogus"]);
 }
 
-/// BUG (cli): `cgcontact scene block --cells 40,80,40`, the form the command's own help shows, is
-/// refused ("3 values required ... but 1 was provided"): `num_args = 3` is checked before the value
-/// is split on commas. `--cells 40 80 40` works.
+/// Regression: `cgcontact scene block --cells 40,80,40`, the form the command's own help shows, was
+/// refused ("3 values required ... but 1 was provided": `num_args = 3` was checked before the value
+/// was split on commas).
 #[test]
-#[ignore = "bug: scene --cells NX,NY,NZ (the documented form) is refused"]
 fn scene_cells_comma_form_from_the_help_is_accepted() {
     let dir = tempfile::tempdir().unwrap();
     let output = Command::new(env!("CARGO_BIN_EXE_cgcontact"))
