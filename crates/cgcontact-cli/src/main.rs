@@ -9,6 +9,7 @@ mod locate;
 mod picture;
 mod run;
 mod scene;
+mod tradeoff;
 
 use std::process::ExitCode;
 
@@ -36,6 +37,7 @@ enum Command {
     Demo(demo::DemoArgs),
     Locate(locate::LocateArgs),
     Scene(scene::SceneArgs),
+    Tradeoff(tradeoff::TradeoffArgs),
 }
 
 fn main() -> ExitCode {
@@ -48,6 +50,7 @@ fn main() -> ExitCode {
         Command::Demo(args) => demo::run(&args),
         Command::Locate(args) => locate::run(&args),
         Command::Scene(args) => scene::run(&args),
+        Command::Tradeoff(args) => tradeoff::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
