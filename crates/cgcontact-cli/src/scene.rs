@@ -52,10 +52,10 @@ pub struct SceneArgs {
     #[arg(long, value_enum, default_value_t = FormatName::Vtu)]
     format: FormatName,
     /// Cells per axis of the `block` scene.
-    #[arg(long, value_name = "NX,NY,NZ", value_delimiter = ',', num_args = 3, default_values_t = [40u32, 80, 40])]
+    #[arg(long, value_name = "NX,NY,NZ", value_delimiter = ',', default_values_t = [40u32, 80, 40])]
     cells: Vec<u32>,
     /// Lattice spacing: one value, or three for anisotropic cells [default: the scene's].
-    #[arg(long, value_name = "H", value_delimiter = ',', num_args = 1..=3)]
+    #[arg(long, value_name = "H[,HY,HZ]", value_delimiter = ',')]
     h: Option<Vec<f64>>,
     /// Largest sink of the indented top face, in units of h (up to several h).
     #[arg(long, value_name = "H")]
@@ -67,7 +67,12 @@ pub struct SceneArgs {
     #[arg(long)]
     allow_inverted: bool,
     /// Offset added to every coordinate (one value for all axes, or three).
-    #[arg(long, value_name = "X", value_delimiter = ',', num_args = 1..=3, allow_hyphen_values = true)]
+    #[arg(
+        long,
+        value_name = "X[,Y,Z]",
+        value_delimiter = ',',
+        allow_negative_numbers = true
+    )]
     offset: Option<Vec<f64>>,
     /// Factor on every length.
     #[arg(long, value_name = "S", default_value_t = 1.0)]
@@ -93,6 +98,9 @@ pub fn run(args: &SceneArgs) -> Result<()> {
         SceneName::SphereFine => SphereOnBlock::fine(),
         SceneName::SphereCoarse => SphereOnBlock::coarse(),
         SceneName::Block => {
+            if args.cells.len() != 3 || args.cells.contains(&0) {
+                bail!("--cells takes three positive counts, e.g. --cells 40,80,40");
+            }
             let h = DVec3::splat(0.125);
             let cells = DVec3::new(
                 args.cells[0] as f64,

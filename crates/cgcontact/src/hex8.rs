@@ -199,7 +199,9 @@ macro_rules! stamp_hex8 {
                     if det.is_nan() || det <= det_floor {
                         return finish(Status::Singular, xi, iteration - 1, rr);
                     }
-                    let delta = <$V>::new(k0.dot(r), c2.cross(c0).dot(r), c0.cross(c1).dot(r)) / det;
+                    // One division, three multiplications: J⁻¹ r by the adjugate (rows are the
+                    // columns' cross products).
+                    let delta = <$V>::new(k0.dot(r), c2.cross(c0).dot(r), c0.cross(c1).dot(r)) * det.recip();
                     let size = delta.abs().max_element();
                     if size <= tol {
                         // Converged: the step is below tolerance, and convergence is quadratic, so the

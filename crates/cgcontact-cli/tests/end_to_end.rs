@@ -1,0 +1,176 @@
+//! The command line end to end, as a user runs it: write a scene, locate its points, compare the
+//! results with the scene's known answers (cell in the mesh file's numbering, ξ).
+
+use std::path::Path;
+use std::process::Command;
+
+use cgcontact_io::read_results;
+
+fn cgcontact(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_cgcontact"))
+        .args(args)
+        .output()
+        .expect("the binary runs")
+}
+
+/// known.csv: point,cell,xi,eta,zeta.
+fn known(path: &Path) -> Vec<(usize, usize, [f64; 3])> {
+    std::fs::read_to_string(path)
+        .unwrap()
+        .lines()
+        .skip(1)
+        .map(|line| {
+            let f: Vec<&str> = line.split(',').collect();
+            let xi = [
+                f[2].parse().unwrap(),
+                f[3].parse().unwrap(),
+                f[4].parse().unwrap(),
+            ];
+            (f[0].parse().unwrap(), f[1].parse().unwrap(), xi)
+        })
+        .collect()
+}
+
+fn scene_then_locate(scene_args: &[&str], locate_args: &[&str], xi_bound: f64) {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().to_str().unwrap();
+    let scene = cgcontact(&[&["scene"], scene_args, &["--out", out]].concat());
+    assert!(
+        scene.status.success(),
+        "{}",
+        String::from_utf8_lossy(&scene.stderr)
+    );
+    let mesh = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .find(|p| p.file_stem().is_some_and(|s| s == "mesh"))
+        .unwrap();
+    let results = dir.path().join("results.csv");
+    let points = format!("{out}/points.csv");
+    let vtk = dir.path().join("vtk");
+    let run = cgcontact(
+        &[
+            &[
+                "locate",
+                "--mesh",
+                mesh.to_str().unwrap(),
+                "--points",
+                &points,
+            ][..],
+            &[
+                "--out",
+                results.to_str().unwrap(),
+                "--json",
+                "--vtk",
+                vtk.to_str().unwrap(),
+            ],
+            locate_args,
+        ]
+        .concat(),
+    );
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let summary: serde_json::Value =
+        serde_json::from_slice(&run.stdout).expect("--json prints one JSON object");
+    for key in [
+        "points",
+        "located",
+        "setup_seconds",
+        "query_seconds",
+        "points_per_second",
+        "strategy",
+        "precision",
+        "threads",
+    ] {
+        assert!(summary.get(key).is_some(), "summary lacks {key}");
+    }
+    let rows = read_results(&results).unwrap();
+    let known = known(&dir.path().join("known.csv"));
+    assert!(!known.is_empty());
+    for (point, cell, xi) in known {
+        let row = &rows[point];
+        assert_eq!(row.point, point);
+        assert_eq!(row.cell, Some(cell), "point {point}");
+        for a in 0..3 {
+            assert!(
+                (row.xi[a] - xi[a]).abs() < xi_bound,
+                "point {point}: {} vs {}",
+                row.xi[a],
+                xi[a]
+            );
+        }
+    }
+    assert_eq!(summary["points"].as_u64().unwrap() as usize, rows.len());
+    assert!(vtk.join("mesh.vtu").exists() && vtk.join("points.vtu").exists());
+}
+
+#[test]
+fn coarse_sphere_scene_located_as_known() {
+    scene_then_locate(&["sphere-coarse", "--known", "2000"], &[], 1e-10);
+}
+
+#[test]
+fn legacy_binary_jittered_anisotropic_offset_scene() {
+    scene_then_locate(
+        &[
+            "sphere-coarse",
+            "--known",
+            "1000",
+            "--format",
+            "vtk-binary",
+            "--jitter",
+            "0.3",
+            "--h",
+            "0.5,0.25,0.125",
+            "--offset",
+            "1000",
+        ],
+        &["--threads", "1"],
+        1e-8,
+    );
+}
+
+#[test]
+fn every_strategy_and_f32_on_a_small_scene() {
+    for strategy in ["lattice", "rtree", "brute", "centroid", "noderad"] {
+        scene_then_locate(
+            &["sphere-coarse", "--known", "300", "--format", "vtk"],
+            &["--strategy", strategy],
+            1e-10,
+        );
+    }
+    scene_then_locate(
+        &["sphere-coarse", "--known", "300"],
+        &["--precision", "f32"],
+        1e-4,
+    );
+}
+
+#[test]
+fn demo_writes_its_files_and_summary() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("demo");
+    let run = cgcontact(&["demo", "--out", out.to_str().unwrap(), "--json"]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let summary: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    assert_eq!(summary["points"], 6700);
+    let located = summary["located"].as_u64().unwrap();
+    assert!((100..1000).contains(&located), "{located}");
+    for file in ["results.csv", "block.vtu", "points.vtu", "contact.svg"] {
+        assert!(out.join(file).exists(), "{file}");
+    }
+    let svg = std::fs::read_to_string(out.join("contact.svg")).unwrap();
+    assert!(svg.contains("<polygon") && svg.contains("<circle"));
+    let rows = read_results(out.join("results.csv")).unwrap();
+    assert_eq!(
+        rows.iter().filter(|r| r.cell.is_some()).count() as u64,
+        located
+    );
+}
