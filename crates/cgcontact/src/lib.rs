@@ -49,3 +49,8 @@ pub use glam;
 pub use lattice::{CORNER_OFFSETS, CellId, Lattice};
 pub use locate::{Answer, Hit, LatticeLocator, Locator, Owners};
 pub use settings::{CandidateOrder, Precision, Settings};
+
+/// The README's examples, compiled and run as doctests so that it cannot drift from the code.
+#[cfg(doctest)]
+#[doc = include_str!("../../../README.md")]
+struct ReadmeDoctests;
