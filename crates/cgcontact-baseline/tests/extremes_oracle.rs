@@ -1,0 +1,273 @@
+//! The lattice locator against the brute-force oracle on the numerical extremes: far offsets, tiny and
+//! huge cells, 1:100 anisotropy, a corner crushed to det J ratio 1e-3, displacements of 3 h, and a
+//! body with folded (inverted) cells. Points are random in and around each body, on its nodes and
+//! just off its outer faces. Every test prints a `MEASURED` line (docs/numerics.md).
+
+use cgcontact::glam::DVec3;
+use cgcontact::hex8::min_corner_det;
+use cgcontact::{Body, CellId, Lattice, LatticeLocator, Locator, Settings};
+use cgcontact_baseline::BruteForce;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+fn precisions() -> [(&'static str, Settings); 2] {
+    [("f64", Settings::default()), ("f32", Settings::f32())]
+}
+
+/// A body on `lattice`: a smooth field of `amplitude` h, a rigid `shift` (units of h), nodal jitter of
+/// `jitter` h; must be valid.
+fn body(lattice: Lattice, amplitude: f64, shift: DVec3, jitter: f64, seed: u64) -> Body {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let mut body = Body::full(lattice);
+    let h = lattice.h();
+    let size = lattice.upper() - lattice.origin();
+    body.update_displacements(|_, x, u| {
+        let t = (x - lattice.origin()) / size * std::f64::consts::TAU;
+        let smooth = DVec3::new(t.y.sin(), (t.z + 1.0).sin(), (t.x + 2.0).sin());
+        let noise = DVec3::new(
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+        );
+        *u = h * (shift + amplitude * smooth + jitter * noise);
+    })
+    .unwrap();
+    body.validate().expect("a valid body");
+    body
+}
+
+/// Random points in the body's deformed box widened by 10 %, its deformed nodes, and points 1e-9 h
+/// and 1e-3 h off the deformed corners of its boundary cells.
+fn probe_points(body: &Body, n: usize, seed: u64) -> Vec<DVec3> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let (mut low, mut high) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+    let mut nodes = Vec::new();
+    for cell in body.active_cells() {
+        for corner in body.corners(cell).unwrap() {
+            low = low.min(corner);
+            high = high.max(corner);
+            nodes.push(corner);
+        }
+    }
+    let pad = (high - low) * 0.1;
+    let h = body.lattice().h();
+    let mut points: Vec<DVec3> = (0..n)
+        .map(|_| {
+            let t = DVec3::new(rng.random(), rng.random(), rng.random());
+            low - pad + (high - low + 2.0 * pad) * t
+        })
+        .collect();
+    for (i, node) in nodes.iter().enumerate().step_by(3) {
+        points.push(*node);
+        let step = if i % 2 == 0 { 1e-9 } else { 1e-3 };
+        let sign = DVec3::new(
+            if rng.random() { 1.0 } else { -1.0 },
+            if rng.random() { 1.0 } else { -1.0 },
+            if rng.random() { 1.0 } else { -1.0 },
+        );
+        points.push(*node + sign * h * step);
+    }
+    points
+}
+
+/// Lattice locator vs brute force, same settings: the same owners (sorted cell lists) for every point,
+/// `locate` answers one of them (or none exactly when there are none), and the largest ξ difference.
+/// `skip(x)` excludes points from the comparison (counted apart).
+fn agree(test: &str, case: &str, body: &Body, points: &[DVec3], skip: impl Fn(DVec3) -> bool) {
+    for (name, settings) in precisions() {
+        let lattice = LatticeLocator::new(body, settings).unwrap();
+        let brute = BruteForce::new(body, settings).unwrap();
+        let (mut compared, mut located, mut worst) = (0, 0, 0.0f64);
+        for &x in points.iter().filter(|&&x| !skip(x)) {
+            let want = brute.locate_owners(x).unwrap();
+            let got = lattice.locate_owners(x).unwrap();
+            let cells = |o: &cgcontact::Owners| o.iter().map(|h| h.cell).collect::<Vec<CellId>>();
+            assert_eq!(cells(&got), cells(&want), "{case} {name}: owners of {x}");
+            for (a, b) in got.iter().zip(&want) {
+                worst = worst.max((a.xi - b.xi).abs().max_element());
+            }
+            match lattice.locate(x).unwrap() {
+                Some(hit) => {
+                    assert!(cells(&want).contains(&hit.cell), "{case} {name}: {x}");
+                    located += 1;
+                }
+                None => assert!(want.is_empty(), "{case} {name}: {x} missed"),
+            }
+            compared += 1;
+        }
+        println!(
+            "MEASURED {test} | {case} | {name} | points {compared} (located {located}) | owners identical | max |ξ_lattice − ξ_brute| {worst:.2e}"
+        );
+    }
+}
+
+fn block(origin: DVec3, h: DVec3, seed: u64) -> Body {
+    body(
+        Lattice::new(origin, h, [5, 4, 3]).unwrap(),
+        0.1,
+        DVec3::ZERO,
+        0.05,
+        seed,
+    )
+}
+
+#[test]
+fn far_offsets_agree_with_brute_force() {
+    for exponent in [3i32, 6, 9] {
+        let h = DVec3::splat(0.25);
+        let origin = DVec3::new(-1.0, 1.0, 0.5) * 10f64.powi(exponent) * h.x;
+        let body = block(origin, h, exponent as u64);
+        let points = probe_points(&body, 1500, exponent as u64);
+        agree(
+            "far_offsets_agree_with_brute_force",
+            &format!("offset 1e{exponent} h"),
+            &body,
+            &points,
+            |_| false,
+        );
+    }
+}
+
+#[test]
+fn cell_sizes_and_anisotropy_agree_with_brute_force() {
+    for (case, origin, h) in [
+        ("h = 1e-9", DVec3::splat(-2e-9), DVec3::splat(1e-9)),
+        ("h = 1e6", DVec3::splat(3e6), DVec3::splat(1e6)),
+        (
+            "1 : 10 : 100",
+            DVec3::new(1.0, 2.0, 3.0),
+            DVec3::new(1.0, 0.1, 0.01),
+        ),
+        ("100 : 1 : 1", DVec3::ZERO, DVec3::new(0.01, 1.0, 1.0)),
+    ] {
+        let body = block(origin, h, 4);
+        let points = probe_points(&body, 1500, 5);
+        agree(
+            "cell_sizes_and_anisotropy_agree_with_brute_force",
+            case,
+            &body,
+            &points,
+            |_| false,
+        );
+    }
+}
+
+#[test]
+fn crushed_corner_det_ratio_1e_3_agrees_with_brute_force() {
+    // Corner 6 of the top cell of a 2 × 2 × 2 block pushed along the diagonal into its cell.
+    let lattice = Lattice::new(DVec3::new(10.0, -4.0, 2.0), DVec3::ONE, [2, 2, 2]).unwrap();
+    let top = lattice.node_index([2, 2, 2]);
+    let ratio_for = |d: f64| {
+        let mut corners: [DVec3; 8] =
+            std::array::from_fn(|c| DVec3::from_array(cgcontact::CORNER_OFFSETS[c].map(f64::from)));
+        corners[6] -= DVec3::splat(d);
+        min_corner_det(&corners) * 8.0
+    };
+    let (mut lo, mut hi) = (0.0, 1.0 / 3.0);
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if ratio_for(mid) > 1e-3 {
+            lo = mid
+        } else {
+            hi = mid
+        }
+    }
+    let mut body = Body::full(lattice);
+    body.update_displacements(|n, _, u| {
+        if n == top {
+            *u = DVec3::splat(-lo);
+        }
+    })
+    .unwrap();
+    assert!(body.validate().is_ok());
+    let mut points = probe_points(&body, 2000, 6);
+    // Dense near the crushed corner.
+    let corner = body.corners(lattice.cell_id([1, 1, 1])).unwrap()[6];
+    let mut rng = ChaCha8Rng::seed_from_u64(8);
+    for _ in 0..1000 {
+        let t = DVec3::new(rng.random(), rng.random(), rng.random());
+        points.push(corner - t * 0.2);
+    }
+    agree(
+        "crushed_corner_det_ratio_1e_3_agrees_with_brute_force",
+        "min det ratio 1e-3",
+        &body,
+        &points,
+        |_| false,
+    );
+}
+
+#[test]
+fn displacements_of_3h_agree_with_brute_force() {
+    let lattice = Lattice::new(
+        DVec3::new(-7.0, 3.0, 1e4),
+        DVec3::new(0.5, 0.3, 0.4),
+        [6, 5, 4],
+    )
+    .unwrap();
+    let body = body(lattice, 0.3, DVec3::new(2.8, -2.8, 2.8), 0.05, 9);
+    assert!((body.max_displacement() / lattice.h()).max_element() > 3.0);
+    let points = probe_points(&body, 2000, 10);
+    agree(
+        "displacements_of_3h_agree_with_brute_force",
+        "u_max > 3 h",
+        &body,
+        &points,
+        |_| false,
+    );
+}
+
+/// Folded cells: node (1, 1, 1) of a 4 × 4 × 4 block moved 1.3 h along x. Away from the fold the
+/// lattice locator and brute force agree on every point; near it (inside the box of the cells that
+/// touch the moved node, widened by one cell) overlapping cells make owners ambiguous: counted only.
+#[test]
+fn folded_cells_agree_with_brute_force_away_from_the_fold() {
+    let lattice = Lattice::new(DVec3::new(-2.0, 7.0, 1e3), DVec3::ONE, [4, 4, 4]).unwrap();
+    let moved = lattice.node_index([1, 1, 1]);
+    let mut body = Body::full(lattice);
+    body.update_displacements(|n, _, u| {
+        if n == moved {
+            u.x = 1.3;
+        }
+    })
+    .unwrap();
+    assert_eq!(body.inverted_cells().len(), 4);
+    let fold_low = lattice.node_position([0, 0, 0]) - 1.0;
+    let fold_high = lattice.node_position([3, 2, 2]) + 1.0;
+    let near = |x: DVec3| x.cmpge(fold_low).all() && x.cmple(fold_high).all();
+    let points = probe_points(&body, 3000, 11);
+    agree(
+        "folded_cells_agree_with_brute_force_away_from_the_fold",
+        "away from the fold",
+        &body,
+        &points,
+        near,
+    );
+    // Near the fold: how often the two disagree (different starting ξ in folded cells).
+    for (name, settings) in precisions() {
+        let lattice_locator = LatticeLocator::new(&body, settings).unwrap();
+        let brute = BruteForce::new(&body, settings).unwrap();
+        let (mut total, mut differ) = (0, 0);
+        for &x in points.iter().filter(|&&x| near(x)) {
+            total += 1;
+            let a: Vec<CellId> = lattice_locator
+                .locate_owners(x)
+                .unwrap()
+                .iter()
+                .map(|h| h.cell)
+                .collect();
+            let b: Vec<CellId> = brute
+                .locate_owners(x)
+                .unwrap()
+                .iter()
+                .map(|h| h.cell)
+                .collect();
+            if a != b {
+                differ += 1;
+            }
+        }
+        println!(
+            "MEASURED folded_cells_agree_with_brute_force_away_from_the_fold | near the fold | {name} | points {total} | owner lists differing from brute force {differ}"
+        );
+    }
+}
