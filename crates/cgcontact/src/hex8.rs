@@ -25,9 +25,6 @@ pub const CORNER_XI: [[f64; 3]; 8] = [
     [-1.0, 1.0, 1.0],
 ];
 
-/// VTK corner index of the corner whose binary code is `b` (bit 0: +ξ, bit 1: +η, bit 2: +ζ).
-const VTK_OF_BINARY: [usize; 8] = [0, 1, 3, 2, 4, 5, 7, 6];
-
 /// Trilinear shape functions at `xi`, VTK corner order.
 #[inline]
 #[must_use]
@@ -113,20 +110,29 @@ macro_rules! stamp_hex8 {
 
         impl $name {
             /// The map of a hexahedron with corners `corners` (VTK order).
-            #[inline]
+            #[inline(always)]
             #[must_use]
             pub fn new(corners: &[$V; 8]) -> Self {
-                let mut a: [$V; 8] = std::array::from_fn(|b| corners[VTK_OF_BINARY[b]]);
-                // Haar butterfly along each axis: (lo, hi) -> ((hi + lo) / 2, (hi - lo) / 2).
-                for bit in [1usize, 2, 4] {
-                    for b in 0..8 {
-                        if b & bit == 0 {
-                            let (lo, hi) = (a[b], a[b | bit]);
-                            a[b] = (hi + lo) * 0.5;
-                            a[b | bit] = (hi - lo) * 0.5;
-                        }
-                    }
-                }
+                // Haar butterfly along ξ, η, ζ in turn: (lo, hi) -> (hi + lo, hi - lo), written out
+                // (binary corner b = VTK corner with bit 0: +ξ, bit 1: +η, bit 2: +ζ) so that it
+                // inlines without copies; the three halvings are one scaling by 1/8 at the end.
+                let c = corners;
+                let (s01, d01) = (c[1] + c[0], c[1] - c[0]);
+                let (s32, d32) = (c[2] + c[3], c[2] - c[3]);
+                let (s45, d45) = (c[5] + c[4], c[5] - c[4]);
+                let (s76, d76) = (c[6] + c[7], c[6] - c[7]);
+                let (lo0, lo1, lo2, lo3) = (s32 + s01, d32 + d01, s32 - s01, d32 - d01);
+                let (hi0, hi1, hi2, hi3) = (s76 + s45, d76 + d45, s76 - s45, d76 - d45);
+                let a = [
+                    (hi0 + lo0) * 0.125,
+                    (hi1 + lo1) * 0.125,
+                    (hi2 + lo2) * 0.125,
+                    (hi3 + lo3) * 0.125,
+                    (hi0 - lo0) * 0.125,
+                    (hi1 - lo1) * 0.125,
+                    (hi2 - lo2) * 0.125,
+                    (hi3 - lo3) * 0.125,
+                ];
                 Self { a }
             }
 
@@ -169,6 +175,7 @@ macro_rules! stamp_hex8 {
             /// nothing when the full step already reduces the residual; and an early `Outside` once the
             /// iterate is converging (step < 1e-3) to a point clearly (1e-2) outside the cell.
             #[must_use]
+            #[inline]
             pub fn invert(&self, x: $V, xi0: $V, options: &NewtonOptions) -> Inversion {
                 const BOX: $S = 4.0;
                 const LINE_SEARCH_ABOVE: $S = 1e-3;
@@ -256,7 +263,12 @@ macro_rules! stamp_hex8 {
 
             #[inline]
             fn lattice_cell_from_displacement_map(h: DVec3, u: &Hex8Map) -> Self {
-                let mut map = Self { a: u.a.map($to_v) };
+                // A loop, not `array::map`, which costs a copy through MaybeUninit on the hot path.
+                let mut a = [<$V>::ZERO; 8];
+                for (a, &u) in a.iter_mut().zip(&u.a) {
+                    *a = $to_v(u);
+                }
+                let mut map = Self { a };
                 // The undeformed part of the map is h (1 + ξ) / 2 per axis: add it to the coefficients.
                 let half = $to_v(h * 0.5);
                 map.a[0] += half;

@@ -48,7 +48,7 @@ pub use error::{Error, PointError};
 pub use glam;
 pub use lattice::{CORNER_OFFSETS, CellId, Lattice};
 pub use locate::{Answer, Hit, LatticeLocator, Locator, Owners};
-pub use settings::{CandidateOrder, Precision, Settings};
+pub use settings::{CandidateOrder, InsideTolerance, Precision, Settings};
 
 /// The README's examples, compiled and run as doctests so that it cannot drift from the code.
 #[cfg(doctest)]

@@ -107,14 +107,7 @@ impl Settings {
     /// offset, and no more. Every strategy uses this, so that they agree on what "inside" means.
     #[must_use]
     pub fn inside_tolerance(&self, lattice: &Lattice, u_max: f64, x: DVec3) -> f64 {
-        let h_min = lattice.h().min_element();
-        let magnitude = x
-            .abs()
-            .max_element()
-            .max(lattice.origin().abs().max_element());
-        self.inside_tol
-            + 8.0 * self.epsilon() * (2.0 + u_max / h_min)
-            + 8.0 * f64::EPSILON * magnitude / h_min
+        InsideTolerance::new(self, lattice, u_max).at(x)
     }
 
     /// Machine epsilon of the kernel's precision.
@@ -124,5 +117,37 @@ impl Settings {
             Precision::F64 => f64::EPSILON,
             Precision::F32 => f32::EPSILON as f64,
         }
+    }
+}
+
+/// [`Settings::inside_tolerance`] with its per-body constants computed once, so that a query costs
+/// one multiply-add and no division.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct InsideTolerance {
+    /// The setting plus the kernel's allowance.
+    base: f64,
+    /// 8 ε₆₄ / h_min.
+    per_magnitude: f64,
+    /// |origin|∞ of the lattice.
+    origin_magnitude: f64,
+}
+
+impl InsideTolerance {
+    /// The constants of [`Settings::inside_tolerance`] for a body on `lattice` with `u_max`.
+    #[must_use]
+    pub fn new(settings: &Settings, lattice: &Lattice, u_max: f64) -> Self {
+        let h_min = lattice.h().min_element();
+        Self {
+            base: settings.inside_tol + 8.0 * settings.epsilon() * (2.0 + u_max / h_min),
+            per_magnitude: 8.0 * f64::EPSILON / h_min,
+            origin_magnitude: lattice.origin().abs().max_element(),
+        }
+    }
+
+    /// The inside tolerance (ξ units) for a query at `x`.
+    #[inline]
+    #[must_use]
+    pub fn at(&self, x: DVec3) -> f64 {
+        self.base + self.per_magnitude * x.abs().max_element().max(self.origin_magnitude)
     }
 }

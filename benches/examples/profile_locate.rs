@@ -1,0 +1,45 @@
+//! A fixed amount of single-threaded locating, for profilers (perf, callgrind).
+//!
+//! Run: `cargo run --release -p cgcontact-benches --example profile_locate [repeats]`
+
+use std::time::Instant;
+
+use cgcontact::glam::DVec3;
+use cgcontact::{LatticeLocator, Locator, Precision, Settings};
+use cgcontact_scenes::indented_block;
+
+fn main() -> Result<(), cgcontact::Error> {
+    let repeats: usize = std::env::args()
+        .nth(1)
+        .and_then(|a| a.parse().ok())
+        .unwrap_or(20);
+    let precision = if std::env::args().any(|a| a == "f32") {
+        Precision::F32
+    } else {
+        Precision::F64
+    };
+    let scene = indented_block([20, 40, 20], DVec3::splat(0.25), 100_000, 7)?;
+    let points: Vec<DVec3> = scene.known.iter().map(|k| k.x).collect();
+    let settings = if precision == Precision::F32 {
+        Settings::f32()
+    } else {
+        Settings::default()
+    };
+    let locator = LatticeLocator::new(&scene.body, settings)?;
+    let start = Instant::now();
+    let mut located = 0usize;
+    for _ in 0..repeats {
+        for &x in &points {
+            located += usize::from(matches!(
+                locator.locate(std::hint::black_box(x)),
+                Ok(Some(_))
+            ));
+        }
+    }
+    let seconds = start.elapsed().as_secs_f64();
+    println!(
+        "{precision:?}: {located} located in {seconds:.3} s: {:.3} M points/s on one thread",
+        (repeats * points.len()) as f64 / seconds / 1e6
+    );
+    Ok(())
+}
