@@ -159,6 +159,20 @@ macro_rules! stamp_hex8 {
                 (lower + upper * z, [d_xi, d_eta, upper])
             }
 
+            /// The rounding noise of a Newton step: 16 ε ‖J⁻¹‖∞ times the magnitude of the numbers the
+            /// residual is computed from. A step this small carries no information: stopping there is
+            /// what keeps an ill-conditioned cell (a crushed corner) from ending `NotConverged` at the
+            /// right answer. `adjugate` holds the rows of adj(J), `inv_det` is 1 / det J.
+            #[inline]
+            fn step_noise(&self, x: $V, adjugate: [$V; 3], inv_det: $S) -> $S {
+                let a = &self.a;
+                let magnitude = x.abs().max_element()
+                    + a[0].abs().max_element()
+                    + (a[1].abs() + a[2].abs() + a[4].abs()).max_element();
+                let inverse_norm = adjugate.iter().map(|row| row.abs().element_sum()).fold(0.0, <$S>::max) * inv_det.abs();
+                16.0 * <$S>::EPSILON * magnitude * inverse_norm
+            }
+
             /// det J at ξ = 0, the scale of the cell's volume (volume / 8).
             #[inline]
             #[must_use]
@@ -208,11 +222,15 @@ macro_rules! stamp_hex8 {
                     }
                     // One division, three multiplications: J⁻¹ r by the adjugate (rows are the
                     // columns' cross products).
-                    let delta = <$V>::new(k0.dot(r), c2.cross(c0).dot(r), c0.cross(c1).dot(r)) * det.recip();
+                    let (k1, k2) = (c2.cross(c0), c0.cross(c1));
+                    let inv_det = det.recip();
+                    let delta = <$V>::new(k0.dot(r), k1.dot(r), k2.dot(r)) * inv_det;
                     let size = delta.abs().max_element();
-                    if size <= tol {
+                    if size <= tol || size <= self.step_noise(x, [k0, k1, k2], inv_det) {
                         // Converged: the step is below tolerance, and convergence is quadratic, so the
-                        // error after it is of order size². Only the residual is evaluated (no Jacobian).
+                        // error after it is of order size²; or the step is down to the rounding noise
+                        // of this precision (ill-conditioned J), below which no iteration can go.
+                        // Only the residual is evaluated (no Jacobian).
                         xi += delta;
                         r = x - self.map(xi);
                         rr = r.dot(r);

@@ -770,7 +770,7 @@ fn f32_kernel_error_in_the_local_frame() {
 /// rounding noise × cond(J) ≈ 1e3 · 6e-8 keeps it above, so the inversion ends `NotConverged` after
 /// 20 iterations and the point is reported as in no cell. f64 finds it (11 iterations, error 2e-14).
 #[test]
-#[ignore = "bug: f32 Newton never converges near a det-ratio-1e-3 corner, point in a valid cell not found"]
+
 fn f32_misses_points_near_a_corner_with_det_ratio_1e_3() {
     let (body, _) = pushed_corner_block(1e-3, DVec3::ZERO, 1.0);
     let cell = body.lattice().cell_id([1, 1, 1]);
