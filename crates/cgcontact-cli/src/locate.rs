@@ -47,6 +47,13 @@ pub fn run(args: &LocateArgs) -> Result<()> {
     )?;
     let points = read_points(&args.points)?;
     let (answers, mut summary) = search(&mesh.body, &points, &args.search, &pool)?;
+    // Name inverted cells as the user knows them: by their index in the input mesh.
+    for cell in &mut summary.inverted_cells {
+        *cell = mesh
+            .cells
+            .input_cell(cgcontact::CellId(*cell as u32))
+            .unwrap_or(*cell);
+    }
     if let Some(out) = &args.out {
         write_results(out, &answers, &mesh.cells)?;
         summary.files.push(out.display().to_string());

@@ -41,23 +41,69 @@ enum Command {
 }
 
 fn main() -> ExitCode {
-    // A bug must still end in one line, not a trace: say where, and exit like other errors.
-    std::panic::set_hook(Box::new(|info| {
-        eprintln!("cgcontact: internal error (please report): {info}");
-    }));
-    let cli = Cli::parse();
-    let result = match cli.command {
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(error) => return parse_error(&error),
+    };
+    // Panics print nothing by themselves: the I/O crate catches the VTK parser's panics on malformed
+    // files and turns them into errors, and a bug of ours must still end in one line, not a trace.
+    std::panic::set_hook(Box::new(|_| {}));
+    let result = std::panic::catch_unwind(|| match cli.command {
         Command::Demo(args) => demo::run(&args),
         Command::Locate(args) => locate::run(&args),
         Command::Scene(args) => scene::run(&args),
         Command::Tradeoff(args) => tradeoff::run(&args),
-    };
+    });
     match result {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(error) => {
+        Ok(Ok(())) => ExitCode::SUCCESS,
+        Ok(Err(error)) => {
             // One line: the chain of causes joined, the file and line/cell named by the innermost.
             eprintln!("cgcontact: error: {error:#}");
             ExitCode::from(2)
         }
+        Err(payload) => {
+            let message = payload
+                .downcast_ref::<String>()
+                .map(String::as_str)
+                .or_else(|| payload.downcast_ref::<&str>().copied())
+                .unwrap_or("unknown panic");
+            eprintln!("cgcontact: internal error (please report it): {message}");
+            ExitCode::from(2)
+        }
     }
+}
+
+/// `--help` and `--version` print as clap writes them; a usage error becomes one line (clap's
+/// message, the possible values, no blank line or hint) and exit code 2.
+fn parse_error(error: &clap::Error) -> ExitCode {
+    use clap::error::ErrorKind;
+    if matches!(
+        error.kind(),
+        ErrorKind::DisplayHelp
+            | ErrorKind::DisplayVersion
+            | ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand
+    ) {
+        // Printing help can only fail on a closed stdout, where there is no one left to tell.
+        let _ = error.print();
+        return if error.kind() == ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand {
+            ExitCode::from(2)
+        } else {
+            ExitCode::SUCCESS
+        };
+    }
+    let rendered = error.render().to_string();
+    let line: Vec<&str> = rendered
+        .lines()
+        .map(str::trim)
+        .filter(|l| {
+            !l.is_empty() && !l.starts_with("For more information") && !l.starts_with("Usage:")
+        })
+        .collect();
+    let line = line.join(" ");
+    eprintln!(
+        "cgcontact: {}",
+        line.strip_prefix("error: ")
+            .map_or(line.clone(), |l| format!("error: {l}"))
+    );
+    ExitCode::from(2)
 }

@@ -112,6 +112,9 @@ pub struct Summary {
     pub active_cells: usize,
     pub nodes: usize,
     pub max_displacement: [f64; 3],
+    /// Cells whose det J ≤ 0 at a corner (inverted or degenerate): answers in or near them are not
+    /// to be trusted. Input cell indices where the caller knows them, else lattice cell ids.
+    pub inverted_cells: Vec<usize>,
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub files: Vec<String>,
 }
@@ -157,6 +160,24 @@ impl Summary {
             for file in &self.files {
                 println!("wrote {file}");
             }
+        }
+        if !self.inverted_cells.is_empty() && !args.quiet {
+            let first: Vec<String> = self
+                .inverted_cells
+                .iter()
+                .take(10)
+                .map(usize::to_string)
+                .collect();
+            eprintln!(
+                "cgcontact: warning: {} inverted or degenerate cell(s) (det J <= 0 at a corner), answers in or near them are not trusted: {}{}",
+                self.inverted_cells.len(),
+                first.join(", "),
+                if self.inverted_cells.len() > 10 {
+                    ", ..."
+                } else {
+                    ""
+                }
+            );
         }
         Ok(())
     }
@@ -243,6 +264,11 @@ pub fn search(
         active_cells: body.active_count(),
         nodes: body.node_count(),
         max_displacement: body.max_displacement().to_array(),
+        inverted_cells: body
+            .inverted_cells()
+            .iter()
+            .map(|(cell, _)| cell.index())
+            .collect(),
         files: Vec::new(),
     };
     Ok((answers, summary))

@@ -348,7 +348,7 @@ fn bad_flag_values_rejected_by_the_parser_exit_2() {
 /// (the error, the possible values, a blank line, a `--help` hint) instead of the one line the design
 /// promises for every error.
 #[test]
-#[ignore = "bug: clap parse errors print several lines on stderr, not one"]
+
 fn bad_flag_values_rejected_by_the_parser_are_one_line() {
     let files = Files::new();
     let (mesh, points) = (files.path("good.vtk"), files.path("good.csv"));
