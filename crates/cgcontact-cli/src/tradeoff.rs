@@ -441,7 +441,6 @@ fn residual(body: &Body, cell: CellId, xi: DVec3, x: DVec3) -> f64 {
 fn measure(
     config: &Config,
     scene: &TradeScene,
-    oracle: &BruteForce<'_>,
     pools: (&rayon::ThreadPool, &rayon::ThreadPool),
     quick: bool,
 ) -> Result<Row> {
@@ -454,6 +453,15 @@ fn measure(
     let picked = strided(scene.points.len(), n);
     let points: Vec<DVec3> = picked.iter().map(|&i| scene.points[i]).collect();
 
+    // Ties are judged with the configuration's own inside tolerance (in f64): a point within that
+    // tolerance of a neighbour's face belongs to the neighbour too, by the configuration's definition.
+    let oracle = BruteForce::new(
+        &scene.body,
+        Settings {
+            inside_tol: config.settings.inside_tol,
+            ..Settings::default()
+        },
+    )?;
     let setup = Instant::now();
     let locator = build(config.strategy, &scene.body, config.settings)
         .with_context(|| format!("{} on {}", config.label, scene.name))?;
@@ -468,7 +476,12 @@ fn measure(
         scene: scene.name,
         label: config.label.clone(),
         strategy: config.strategy,
-        settings: settings_text(&config.settings),
+        settings: match config.strategy {
+            Strategy::NodeRadius(Inversion::SeedFaithful) => {
+                "seed's Newton: from ξ = 0, stop at residual ≤ 0.1, inside |ξ| ≤ 1".to_owned()
+            }
+            _ => settings_text(&config.settings),
+        },
         cells: active,
         points_run: points.len(),
         points_total: scene.points.len(),
@@ -553,10 +566,9 @@ pub fn run(args: &TradeoffArgs) -> Result<()> {
     bar.set_length((scenes.len() * configs.len()) as u64);
     let mut rows = Vec::new();
     for scene in &scenes {
-        let oracle = BruteForce::new(&scene.body, Settings::default())?;
         for config in &configs {
             bar.set_message(format!("{} / {}", scene.name, config.label));
-            rows.push(measure(config, scene, &oracle, (&one, &all), args.quick)?);
+            rows.push(measure(config, scene, (&one, &all), args.quick)?);
             bar.inc(1);
         }
     }
@@ -827,8 +839,9 @@ fn report(
          - *1 thread*, *{threads} threads*: points per second of `locate_all`.\n\
          - *inv/pt*: Newton inversions per located point (failed candidates included).\n\
          - *found*: located / should be located (reference has a cell).\n\
-         - *wrong cell*: located in a cell that does not hold the point (not the known cell, and not \
-         among brute force's owners).\n\
+         - *wrong cell*: located in a cell that does not hold the point: not the reference cell, and \
+         not among brute force's owners (f64, with the configuration's inside tolerance, so that a point \
+         within that tolerance of a shared face may land in either cell).\n\
          - *false inside*: located although the reference says no cell holds the point.\n\
          - *max ξ err*, *p99 ξ err*: |ξ − ξ_ref|∞ over the right-cell answers.\n\
          - *max residual*: |x − x(ξ)| of the answers, recomputed in f64 (length units; h = 0.25 on fine/sphere/far, \
