@@ -252,17 +252,6 @@ fn distortion_min_det_ratio_1e_3_known_cell_and_xi() {
             // The other (undistorted but neighbouring) cells.
             known.extend(random_known(&body, 500, 0.999, 4));
             for (name, settings) in precisions() {
-                // f32 at ratio 1e-3 misses a few points of the corner cluster: pinned by the ignored
-                // `f32_misses_points_near_a_corner_with_det_ratio_1e_3`; here it gets the rest.
-                let known: Vec<(CellId, DVec3)> = if name == "f32" && target < 2e-3 {
-                    known[..2000]
-                        .iter()
-                        .chain(&known[3000..])
-                        .copied()
-                        .collect()
-                } else {
-                    known.clone()
-                };
                 // Newton's error grows like cond(J) ~ 1 / ratio near the crushed corner.
                 let condition = 1.0 / ratio;
                 let case = format!("min det ratio {target:.0e}, {case_offset}");
@@ -765,13 +754,13 @@ fn f32_kernel_error_in_the_local_frame() {
     );
 }
 
-/// BUG (f32 kernel): near the crushed corner of a valid cell with min det J ratio 1e-3, the f32 Newton
-/// sits at the right ξ (error ~2e-6) but its step never falls below the f32 Newton tolerance (1e-5):
-/// rounding noise × cond(J) ≈ 1e3 · 6e-8 keeps it above, so the inversion ends `NotConverged` after
-/// 20 iterations and the point is reported as in no cell. f64 finds it (11 iterations, error 2e-14).
+/// Regression (f32 kernel): near the crushed corner of a valid cell with min det J ratio 1e-3, the f32
+/// Newton sat at the right ξ (error ~2e-6) but its step never fell below the f32 Newton tolerance
+/// (1e-5): rounding noise × cond(J) ≈ 1e3 · 6e-8 kept it above, so the inversion ended `NotConverged`
+/// and the point was reported in no cell. Fixed: Newton also stops at the step's rounding noise.
 #[test]
 
-fn f32_misses_points_near_a_corner_with_det_ratio_1e_3() {
+fn f32_finds_points_near_a_corner_with_det_ratio_1e_3() {
     let (body, _) = pushed_corner_block(1e-3, DVec3::ZERO, 1.0);
     let cell = body.lattice().cell_id([1, 1, 1]);
     let xi = DVec3::new(0.9974346683088426, 0.9878844622358395, 0.9943298347442555);
