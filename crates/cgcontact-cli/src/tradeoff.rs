@@ -453,12 +453,16 @@ fn measure(
     let picked = strided(scene.points.len(), n);
     let points: Vec<DVec3> = picked.iter().map(|&i| scene.points[i]).collect();
 
-    // Ties are judged with the configuration's own inside tolerance (in f64): a point within that
-    // tolerance of a neighbour's face belongs to the neighbour too, by the configuration's definition.
+    // Ties are judged with the configuration's own definition of inside, in f64: its inside tolerance
+    // plus its kernel's rounding allowance (Settings::inside_tolerance), so that a point that close to
+    // a neighbour's face belongs to the neighbour too.
+    let h_min = scene.body.lattice().h().min_element();
+    let u_max = scene.body.max_displacement().max_element();
     let oracle = BruteForce::new(
         &scene.body,
         Settings {
-            inside_tol: config.settings.inside_tol,
+            inside_tol: config.settings.inside_tol
+                + 8.0 * (config.settings.epsilon() - f64::EPSILON) * (2.0 + u_max / h_min),
             ..Settings::default()
         },
     )?;
@@ -478,7 +482,7 @@ fn measure(
         strategy: config.strategy,
         settings: match config.strategy {
             Strategy::NodeRadius(Inversion::SeedFaithful) => {
-                "seed's Newton: from ξ = 0, stop at residual ≤ 0.1, inside |ξ| ≤ 1".to_owned()
+                "seed's Newton: from ξ = 0, stop at residual ≤ 0.1, inside ξ ∈ [−1, 1]³".to_owned()
             }
             _ => settings_text(&config.settings),
         },
@@ -840,8 +844,8 @@ fn report(
          - *inv/pt*: Newton inversions per located point (failed candidates included).\n\
          - *found*: located / should be located (reference has a cell).\n\
          - *wrong cell*: located in a cell that does not hold the point: not the reference cell, and \
-         not among brute force's owners (f64, with the configuration's inside tolerance, so that a point \
-         within that tolerance of a shared face may land in either cell).\n\
+         not among brute force's owners (f64, with the configuration's inside tolerance and rounding \
+         allowance, so that a point that close to a shared face may land in either cell).\n\
          - *false inside*: located although the reference says no cell holds the point.\n\
          - *max ξ err*, *p99 ξ err*: |ξ − ξ_ref|∞ over the right-cell answers.\n\
          - *max residual*: |x − x(ξ)| of the answers, recomputed in f64 (length units; h = 0.25 on fine/sphere/far, \
@@ -867,8 +871,8 @@ fn report(
             s,
             "| {} | {} | {} | {}/{}{sub} | {:.2} | {} | {} | {:.2} | {}/{} | {} | {} | {} | {} | {} |",
             r.scene,
-            r.label,
-            r.settings,
+            r.label.replace('|', "\\|"),
+            r.settings.replace('|', "\\|"),
             r.points_run,
             r.points_total,
             r.setup_seconds * 1e3,

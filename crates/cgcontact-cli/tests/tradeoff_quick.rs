@@ -74,6 +74,9 @@ fn quick_tradeoff_writes_a_row_per_configuration_and_lattice_f64_is_exact() {
         }
     }
     assert_eq!(rows.len(), SCENES.len() * CONFIGS.len());
+    for row in &rows {
+        assert_eq!(row.len(), 14, "a cell holds a stray '|': {row:?}");
+    }
 
     for row in rows.iter().filter(|r| r[CONFIG] == "lattice f64 (default)") {
         let scene = row[SCENE];
