@@ -90,9 +90,14 @@ pub trait Kernel: Copy + Send + Sync {
     /// The map of a lattice cell of spacing `h` whose corners are displaced by `u` (VTK order),
     /// in the cell's local frame (lowest undeformed node at the origin).
     fn lattice_cell(h: DVec3, u: &[DVec3; 8]) -> Self;
-    /// [`Kernel::lattice_cell`] from the displacement map `u` (the trilinear interpolation of the corner
-    /// displacements, built once in f64): lets a caller that already interpolated u in a cell reuse it.
-    fn lattice_cell_from_displacement_map(h: DVec3, u: &Hex8Map) -> Self;
+    /// The trilinear interpolation of corner displacements `u` alone (no lattice part): evaluate it
+    /// with [`Kernel::map_f64`], then turn it into the cell's map with [`Kernel::add_lattice`], so a
+    /// caller that interpolated u in a cell reuses the work.
+    fn displacement_map(u: &[DVec3; 8]) -> Self;
+    /// Add the undeformed part of a lattice cell of spacing `h`, h (1 + ξ) / 2 per axis.
+    fn add_lattice(&mut self, h: DVec3);
+    /// x(ξ), in f64 at the boundary.
+    fn map_f64(&self, xi: DVec3) -> DVec3;
     /// The map of a hexahedron with arbitrary corners (VTK order), already in a local frame.
     fn from_corners(corners: &[DVec3; 8]) -> Self;
     /// Newton inversion of `x` (same frame as the corners) starting from `xi0` (clamped to [−1, 1]³).
@@ -276,24 +281,33 @@ macro_rules! stamp_hex8 {
 
             #[inline]
             fn lattice_cell(h: DVec3, u: &[DVec3; 8]) -> Self {
-                Self::lattice_cell_from_displacement_map(h, &Hex8Map::new(u))
+                let mut map = Self::displacement_map(u);
+                map.add_lattice(h);
+                map
             }
 
             #[inline]
-            fn lattice_cell_from_displacement_map(h: DVec3, u: &Hex8Map) -> Self {
+            fn displacement_map(u: &[DVec3; 8]) -> Self {
                 // A loop, not `array::map`, which costs a copy through MaybeUninit on the hot path.
-                let mut a = [<$V>::ZERO; 8];
-                for (a, &u) in a.iter_mut().zip(&u.a) {
-                    *a = $to_v(u);
+                let mut corners = [<$V>::ZERO; 8];
+                for (c, &u) in corners.iter_mut().zip(u) {
+                    *c = $to_v(u);
                 }
-                let mut map = Self { a };
-                // The undeformed part of the map is h (1 + ξ) / 2 per axis: add it to the coefficients.
+                Self::new(&corners)
+            }
+
+            #[inline]
+            fn add_lattice(&mut self, h: DVec3) {
                 let half = $to_v(h * 0.5);
-                map.a[0] += half;
-                map.a[1] += <$V>::new(half.x, 0.0, 0.0);
-                map.a[2] += <$V>::new(0.0, half.y, 0.0);
-                map.a[4] += <$V>::new(0.0, 0.0, half.z);
-                map
+                self.a[0] += half;
+                self.a[1] += <$V>::new(half.x, 0.0, 0.0);
+                self.a[2] += <$V>::new(0.0, half.y, 0.0);
+                self.a[4] += <$V>::new(0.0, 0.0, half.z);
+            }
+
+            #[inline]
+            fn map_f64(&self, xi: DVec3) -> DVec3 {
+                $from_v(self.map($to_v(xi)))
             }
 
             #[inline]

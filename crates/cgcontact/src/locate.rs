@@ -171,12 +171,15 @@ impl<'a> LatticeLocator<'a> {
         x: DVec3,
         ijk: [u32; 3],
         t_guess: DVec3,
-        u_map: Option<&Hex8Map>,
+        u_map: Option<K>,
         options: &NewtonOptions,
     ) -> Inversion {
         let lattice = self.body.lattice();
         let map = match u_map {
-            Some(u_map) => K::lattice_cell_from_displacement_map(lattice.h(), u_map),
+            Some(mut map) => {
+                map.add_lattice(lattice.h());
+                map
+            }
             None => K::lattice_cell(lattice.h(), &self.body.corner_displacements(ijk)),
         };
         let xi0 = 2.0 * (t_guess - lattice_point(ijk)) - 1.0;
@@ -209,53 +212,50 @@ impl<'a> LatticeLocator<'a> {
         // The displacement map of the cell holding x (corners of inactive cells count as undisplaced:
         // it only serves the guess), and the predicted undeformed position x − ũ, ũ interpolated at x.
         // Kept in one place, never moved: it is 192 bytes, and moves cost a memcpy call each.
-        let u_map_x = Hex8Map::new(&self.body.corner_displacements_or_zero(cell_x));
+        let u_map_x = K::displacement_map(&self.body.corner_displacements_or_zero(cell_x));
         let t_guess = match self.settings.order {
             CandidateOrder::Predicted => {
                 let xi_x =
                     (2.0 * (t_x - lattice_point(cell_x)) - 1.0).clamp(DVec3::NEG_ONE, DVec3::ONE);
-                t_x - u_map_x.map(xi_x) * self.inv_h
+                t_x - u_map_x.map_f64(xi_x) * self.inv_h
             }
             CandidateOrder::Undeformed => t_x,
         };
         let first = lattice.clamped_cell(t_guess);
         let mut inversions = 0u32;
         let mut found = None;
-        let mut visit = |ijk: [u32; 3],
-                         u_map: Option<&Hex8Map>,
-                         t_guess: DVec3,
-                         found: &mut Option<Hit>|
-         -> bool {
-            let cell = lattice.cell_id(ijk);
-            if !self.body.is_active(cell) {
-                return false;
-            }
-            let inversion = self.try_cell::<K>(x, ijk, t_guess, u_map, options);
-            inversions += 1;
-            if inversion.status != Status::Inside {
-                return false;
-            }
-            let hit = Hit {
-                cell,
-                xi: inversion.xi.clamp(DVec3::NEG_ONE, DVec3::ONE),
-                iterations: inversion.iterations,
-                residual: inversion.residual,
-                inversions,
+        let mut visit =
+            |ijk: [u32; 3], u_map: Option<K>, t_guess: DVec3, found: &mut Option<Hit>| -> bool {
+                let cell = lattice.cell_id(ijk);
+                if !self.body.is_active(cell) {
+                    return false;
+                }
+                let inversion = self.try_cell::<K>(x, ijk, t_guess, u_map, options);
+                inversions += 1;
+                if inversion.status != Status::Inside {
+                    return false;
+                }
+                let hit = Hit {
+                    cell,
+                    xi: inversion.xi.clamp(DVec3::NEG_ONE, DVec3::ONE),
+                    iterations: inversion.iterations,
+                    residual: inversion.residual,
+                    inversions,
+                };
+                match collect {
+                    Collect::First => {
+                        *found = Some(hit);
+                        true
+                    }
+                    Collect::All(owners) => {
+                        owners.push(hit);
+                        false
+                    }
+                }
             };
-            match collect {
-                Collect::First => {
-                    *found = Some(hit);
-                    true
-                }
-                Collect::All(owners) => {
-                    owners.push(hit);
-                    false
-                }
-            }
-        };
         // The predicted cell first: it holds the point almost always, and when it is the cell holding
         // x its displacement map is already built.
-        let reuse = (first == cell_x).then_some(&u_map_x);
+        let reuse = (first == cell_x).then_some(u_map_x);
         if visit(first, reuse, t_guess, &mut found) {
             return found;
         }
