@@ -80,11 +80,10 @@ impl<'a> Cells<'a> {
         let ijk = lattice
             .cell_ijk(cell)
             .expect("candidate cells come from the body's active cells");
-        let u = lattice.corner_nodes(ijk).map(|node| {
-            self.body
-                .displacement(node)
-                .expect("every node of an active cell has a displacement")
-        });
+        let u = self
+            .body
+            .cell_displacements(cell)
+            .expect("candidate cells are active cells");
         (ijk, lattice.node_position(ijk), u)
     }
 
