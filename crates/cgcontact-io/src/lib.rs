@@ -44,6 +44,7 @@
 #![deny(missing_docs)]
 #![forbid(unsafe_code)]
 
+mod block_headers;
 mod csv_io;
 mod error;
 mod mesh;

@@ -7,8 +7,6 @@
 //! mode lays it out, and rewrite the `offset` attributes to point into the encoded text. Everything
 //! else, decompression included, stays vtkio's job.
 
-use base64_lite::encode;
-
 use crate::ErrorKind;
 
 /// The file re-encoded with base64 appended data, or `None` when it has no raw appended data.
@@ -204,7 +202,7 @@ fn offset_attributes(head: &[u8]) -> Result<Vec<Offset>, String> {
 }
 
 /// The value of attribute `name` in a start tag.
-fn attribute(tag: &[u8], name: &[u8]) -> Option<Vec<u8>> {
+pub(crate) fn attribute(tag: &[u8], name: &[u8]) -> Option<Vec<u8>> {
     let mut at = 0;
     while let Some(i) = find(tag, name, at) {
         at = i + name.len();
@@ -225,7 +223,7 @@ fn attribute(tag: &[u8], name: &[u8]) -> Option<Vec<u8>> {
     None
 }
 
-fn find(hay: &[u8], needle: &[u8], from: usize) -> Option<usize> {
+pub(crate) fn find(hay: &[u8], needle: &[u8], from: usize) -> Option<usize> {
     hay.get(from..)?
         .windows(needle.len())
         .position(|w| w == needle)
@@ -236,44 +234,10 @@ fn rfind(hay: &[u8], needle: &[u8]) -> Option<usize> {
     hay.windows(needle.len()).rposition(|w| w == needle)
 }
 
-/// Standard padded base64, enough for this one use (a dependency for 20 lines is not worth it).
-mod base64_lite {
-    const ALPHABET: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-
-    pub(super) fn encode(bytes: &[u8]) -> Vec<u8> {
-        let mut out = Vec::with_capacity(bytes.len().div_ceil(3) * 4);
-        for chunk in bytes.chunks(3) {
-            let b = [
-                chunk[0],
-                *chunk.get(1).unwrap_or(&0),
-                *chunk.get(2).unwrap_or(&0),
-            ];
-            let n = (u32::from(b[0]) << 16) | (u32::from(b[1]) << 8) | u32::from(b[2]);
-            out.push(ALPHABET[(n >> 18) as usize & 63]);
-            out.push(ALPHABET[(n >> 12) as usize & 63]);
-            out.push(if chunk.len() > 1 {
-                ALPHABET[(n >> 6) as usize & 63]
-            } else {
-                b'='
-            });
-            out.push(if chunk.len() > 2 {
-                ALPHABET[n as usize & 63]
-            } else {
-                b'='
-            });
-        }
-        out
-    }
-
-    #[cfg(test)]
-    mod tests {
-        #[test]
-        fn known_vectors() {
-            assert_eq!(super::encode(b""), b"");
-            assert_eq!(super::encode(b"f"), b"Zg==");
-            assert_eq!(super::encode(b"fo"), b"Zm8=");
-            assert_eq!(super::encode(b"foo"), b"Zm9v");
-            assert_eq!(super::encode(b"foobar"), b"Zm9vYmFy");
-        }
-    }
+/// Standard padded base64, as VTK writes it.
+fn encode(bytes: &[u8]) -> Vec<u8> {
+    use base64::Engine as _;
+    base64::engine::general_purpose::STANDARD
+        .encode(bytes)
+        .into_bytes()
 }

@@ -6,7 +6,7 @@ use std::path::Path;
 use glam::DVec3;
 use vtkio::model::{Attribute, CellType, DataSet, UnstructuredGridPiece, VertexNumbers, Vtk};
 
-use crate::{ErrorKind, HexMesh, IoError, LatticeMesh, raw_appended};
+use crate::{ErrorKind, HexMesh, IoError, LatticeMesh, block_headers, raw_appended};
 
 /// The point-data array used when the caller names none.
 pub const DEFAULT_DISPLACEMENT: &str = "displacement";
@@ -113,6 +113,8 @@ fn parse_vtk(bytes: &[u8]) -> Result<Vtk, ErrorKind> {
         // first (see `raw_appended`).
         let converted = raw_appended::to_base64(bytes)?;
         let xml = converted.as_deref().unwrap_or(bytes);
+        // A corrupt compressed-block header would make vtkio's allocation abort the process.
+        block_headers::check(xml)?;
         guarded("XML VTK", || {
             Vtk::parse_xml(xml).map_err(vtk_error("XML VTK"))
         })

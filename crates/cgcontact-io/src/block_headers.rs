@@ -1,0 +1,151 @@
+//! Checking the block headers of compressed XML VTK arrays before vtkio sees them.
+//!
+//! A compressed array starts with a header `[blocks, block size, last block size, compressed sizes...]`
+//! and vtkio 0.7.0-rc2 allocates `block size × (blocks − 1) + last block size` bytes from it before it
+//! decompresses anything. A corrupt header therefore asks for petabytes, and a failed allocation aborts
+//! the process: no `catch_unwind` can turn that into an error. So we read each compressed array's
+//! header first (inline `format="binary"` arrays and base64 appended data; raw appended data is checked
+//! by `raw_appended`) and refuse sizes no real file can have: deflate expands at most 1032 : 1 and LZ4
+//! 255 : 1, so an array may not decompress to more than 1100 times the text that holds it.
+
+use base64::Engine as _;
+
+use crate::ErrorKind;
+use crate::raw_appended::{attribute, find};
+
+/// Largest ratio of decompressed bytes to the base64 text holding them that a valid array can have.
+const MAX_EXPANSION: u128 = 1100;
+
+/// Refuse a compressed array whose header asks for more memory than its text could ever decompress to.
+pub(crate) fn check(xml: &[u8]) -> Result<(), ErrorKind> {
+    let Some(vtkfile_start) = find(xml, b"<VTKFile", 0) else {
+        return Ok(());
+    };
+    let Some(vtkfile_end) = find(xml, b">", vtkfile_start) else {
+        return Ok(());
+    };
+    let vtkfile = &xml[vtkfile_start..vtkfile_end];
+    if !attribute(vtkfile, b"compressor").is_some_and(|c| !c.is_empty()) {
+        return Ok(());
+    }
+    let little = attribute(vtkfile, b"byte_order").as_deref() == Some(b"LittleEndian".as_slice());
+    let header_bytes =
+        if attribute(vtkfile, b"header_type").as_deref() == Some(b"UInt64".as_slice()) {
+            8
+        } else {
+            4
+        };
+    let appended = find(xml, b"<AppendedData", 0).and_then(|tag| {
+        let end = find(xml, b">", tag)?;
+        let encoding = attribute(&xml[tag..end], b"encoding");
+        (encoding.as_deref() == Some(b"base64".as_slice()))
+            .then(|| find(xml, b"_", end).map(|u| u + 1))
+            .flatten()
+    });
+
+    let mut at = 0;
+    while let Some(tag_start) = find(xml, b"<DataArray", at) {
+        let Some(tag_end) = find(xml, b">", tag_start) else {
+            return Ok(());
+        };
+        at = tag_end;
+        let tag = &xml[tag_start..tag_end];
+        let text = match attribute(tag, b"format").as_deref() {
+            Some(b"binary") => &xml[tag_end + 1..],
+            Some(b"appended") => {
+                let (Some(data), Some(offset)) = (appended, attribute(tag, b"offset")) else {
+                    continue;
+                };
+                let offset = std::str::from_utf8(&offset)
+                    .ok()
+                    .and_then(|o| o.trim().parse::<usize>().ok());
+                match offset.and_then(|o| xml.get(data + o..)) {
+                    Some(text) => text,
+                    None => continue,
+                }
+            }
+            _ => continue,
+        };
+        let text = text.trim_ascii_start();
+        let length = text.iter().position(|&b| b == b'<').unwrap_or(text.len());
+        check_header(&text[..length], header_bytes, little).map_err(|message| {
+            let name = attribute(tag, b"Name").map(|n| String::from_utf8_lossy(&n).into_owned());
+            ErrorKind::Vtk(format!(
+                "compressed array {}: {message}",
+                name.map_or_else(|| "(unnamed)".to_owned(), |n| format!("`{n}`"))
+            ))
+        })?;
+    }
+    Ok(())
+}
+
+/// Check the first three header values of one compressed array held in base64 `text`.
+fn check_header(text: &[u8], header_bytes: usize, little: bool) -> Result<(), String> {
+    // The header is base64-encoded on its own, from the start of the text: the first three values
+    // (3 × 4 or 3 × 8 bytes, a multiple of 3) decode from exactly the first 16 or 32 characters.
+    let chars = header_bytes * 4;
+    let Some(head) = text.get(..chars) else {
+        // Too short to hold a header: vtkio reports that itself, without a large allocation.
+        return Ok(());
+    };
+    // Undecodable or padded short: not a header vtkio could read either; it reports that itself.
+    let bytes = match base64::engine::general_purpose::STANDARD.decode(head) {
+        Ok(bytes) if bytes.len() >= 3 * header_bytes => bytes,
+        _ => return Ok(()),
+    };
+    let value = |k: usize| -> u128 {
+        let word = &bytes[k * header_bytes..(k + 1) * header_bytes];
+        let mut v = 0u128;
+        for i in 0..header_bytes {
+            let b = if little {
+                word[header_bytes - 1 - i]
+            } else {
+                word[i]
+            };
+            v = (v << 8) | u128::from(b);
+        }
+        v
+    };
+    let (blocks, block_size, last) = (value(0), value(1), value(2));
+    if blocks == 0 {
+        // vtkio computes `block size × (blocks − 1)` in usize: with no block, any block size wraps.
+        return if block_size == 0 && last == 0 {
+            Ok(())
+        } else {
+            Err(format!("its header says 0 blocks of {block_size} bytes"))
+        };
+    }
+    let total = block_size.saturating_mul(blocks - 1).saturating_add(last);
+    let limit = MAX_EXPANSION * text.len() as u128;
+    if total > limit || blocks > text.len() as u128 {
+        return Err(format!(
+            "its header says {blocks} block(s) of {block_size} bytes ({total} bytes in all), more than \
+             the {} bytes of text holding it could decompress to",
+            text.len()
+        ));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn header(values: [u64; 4]) -> Vec<u8> {
+        let bytes: Vec<u8> = values.iter().flat_map(|v| v.to_le_bytes()).collect();
+        base64::engine::general_purpose::STANDARD
+            .encode(bytes)
+            .into_bytes()
+    }
+
+    #[test]
+    fn plausible_headers_pass_absurd_ones_are_refused() {
+        let mut text = header([1, 96, 96, 40]);
+        text.extend_from_slice(&[b'A'; 60]);
+        assert!(check_header(&text, 8, true).is_ok());
+        let mut huge = header([1 << 20, 1 << 30, 5, 40]);
+        huge.extend_from_slice(&[b'A'; 60]);
+        let message = check_header(&huge, 8, true).unwrap_err();
+        assert!(message.contains("1048576 block(s)"), "{message}");
+    }
+}
