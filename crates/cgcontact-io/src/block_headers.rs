@@ -25,7 +25,7 @@ pub(crate) fn check(xml: &[u8]) -> Result<(), ErrorKind> {
         return Ok(());
     };
     let vtkfile = &xml[vtkfile_start..vtkfile_end];
-    if !attribute(vtkfile, b"compressor").is_some_and(|c| !c.is_empty()) {
+    if attribute(vtkfile, b"compressor").is_none_or(|c| c.is_empty()) {
         return Ok(());
     }
     let little = attribute(vtkfile, b"byte_order").as_deref() == Some(b"LittleEndian".as_slice());
