@@ -974,11 +974,15 @@ fn plot(path: &Path, rows: &[Row], scene: &str) -> Result<usize> {
         .y_label_formatter(&|v| format!("{v:.0e}"))
         .draw()
         .map_err(|e| fail(&e))?;
-    for (k, r) in marks.iter().enumerate() {
-        let settings = configs
+    // The settings of a configuration, by its label (for its colour).
+    let settings_of = |label: &str| {
+        configs
             .iter()
-            .find(|c| c.0 == r.label)
-            .map_or(Settings::default(), |c| c.2);
+            .find(|c| c.0 == label)
+            .map_or(Settings::default(), |c| c.2)
+    };
+    for (k, r) in marks.iter().enumerate() {
+        let settings = settings_of(&r.label);
         let c = colour(r.strategy, &settings);
         let at = (r.pps_one, y(r));
         chart
@@ -995,10 +999,7 @@ fn plot(path: &Path, rows: &[Row], scene: &str) -> Result<usize> {
             .map_err(|e| fail(&e))?;
     }
     for (k, r) in marks.iter().enumerate() {
-        let settings = configs
-            .iter()
-            .find(|c| c.0 == r.label)
-            .map_or(Settings::default(), |c| c.2);
+        let settings = settings_of(&r.label);
         let top = 40 + 22 * k as i32;
         legend
             .draw(&Circle::new(

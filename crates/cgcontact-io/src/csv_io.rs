@@ -28,9 +28,16 @@ pub const RESULTS_HEADER: [&str; 8] = [
 /// number, or a row without exactly 3 fields, is an error naming its 1-based line. A file without
 /// data rows is an error.
 pub fn read_points(path: impl AsRef<Path>) -> Result<Vec<DVec3>, IoError> {
-    let path = path.as_ref();
+    read_with(path.as_ref(), parse_points)
+}
+
+/// Open `path` and parse it with `parse`, naming the file in any error.
+fn read_with<T>(
+    path: &Path,
+    parse: impl FnOnce(std::fs::File) -> Result<T, ErrorKind>,
+) -> Result<T, IoError> {
     let file = std::fs::File::open(path).map_err(|e| ErrorKind::Io(e).in_file(path))?;
-    parse_points(file).map_err(|e| e.in_file(path))
+    parse(file).map_err(|e| e.in_file(path))
 }
 
 /// [`read_points`] from any reader.
@@ -153,9 +160,7 @@ pub fn write_results_to(
 
 /// Read a results file (header first; the columns after `zeta` are optional).
 pub fn read_results(path: impl AsRef<Path>) -> Result<Vec<ResultRow>, IoError> {
-    let path = path.as_ref();
-    let file = std::fs::File::open(path).map_err(|e| ErrorKind::Io(e).in_file(path))?;
-    parse_results(file).map_err(|e| e.in_file(path))
+    read_with(path.as_ref(), parse_results)
 }
 
 /// [`read_results`] from any reader.
