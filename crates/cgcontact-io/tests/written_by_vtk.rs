@@ -1,0 +1,101 @@
+//! Meshes written by VTK 9.7.2 itself (fixtures/vtk-written, made by its make.py): legacy ASCII
+//! (VTK 5.1 layout) and binary; XML ascii, inline binary with zlib, raw appended, raw appended with
+//! zlib, base64 appended with LZ4. The same body in each: anisotropic cells 1e3 from the origin, a
+//! quarter of the cells missing, nodes and cells shuffled. Points made by VTK's side at known (cell, ξ)
+//! must be located in that cell (the file's numbering) at that ξ.
+
+use std::path::{Path, PathBuf};
+
+use cgcontact::glam::DVec3;
+use cgcontact::{LatticeLocator, Locator, Settings};
+use cgcontact_io::{DisplacementArray, read_mesh};
+
+fn folder() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/vtk-written")
+}
+
+/// known.csv: x,y,z,cell,xi,eta,zeta.
+fn known() -> Vec<(DVec3, usize, DVec3)> {
+    let text = std::fs::read_to_string(folder().join("known.csv")).unwrap();
+    text.lines()
+        .skip(1)
+        .map(|line| {
+            let f: Vec<f64> = line.split(',').map(|v| v.parse().unwrap()).collect();
+            (
+                DVec3::new(f[0], f[1], f[2]),
+                f[3] as usize,
+                DVec3::new(f[4], f[5], f[6]),
+            )
+        })
+        .collect()
+}
+
+#[test]
+fn every_flavour_vtk_writes_is_read_and_located_as_known() {
+    let known = known();
+    assert!(known.len() > 200);
+    let files = [
+        "legacy-ascii.vtk",
+        "legacy-binary.vtk",
+        "xml-ascii.vtu",
+        "xml-binary-zlib.vtu",
+        "xml-appended-raw.vtu",
+        "xml-appended-raw-zlib.vtu",
+        "xml-appended-base64-lz4.vtu",
+    ];
+    // VTK writes ASCII values to 11 significant digits (legacy) or its own precision (XML ascii):
+    // binary flavours must agree bit for bit, ASCII ones to that rounding.
+    let reference = read_mesh(
+        folder().join("legacy-binary.vtk"),
+        &DisplacementArray::Default,
+    )
+    .unwrap()
+    .body
+    .displacements()
+    .to_vec();
+    for file in files {
+        let mesh = read_mesh(folder().join(file), &DisplacementArray::Default)
+            .unwrap_or_else(|e| panic!("{file}: {e}"));
+        assert!(mesh.has_displacement, "{file}");
+        assert_eq!(mesh.cells.len(), 99, "{file}");
+        let lattice = mesh.body.lattice();
+        assert!(
+            (lattice.h() - DVec3::new(0.5, 0.25, 0.125))
+                .abs()
+                .max_element()
+                < 1e-12,
+            "{file}"
+        );
+        let displacements = mesh.body.displacements();
+        if file.contains("ascii") {
+            for (a, b) in displacements.iter().zip(&reference) {
+                assert!(
+                    (*a - *b).abs().max_element() <= 1e-10 * b.abs().max_element(),
+                    "{file}: {a} vs {b}"
+                );
+            }
+        } else {
+            assert_eq!(displacements, reference.as_slice(), "{file}");
+        }
+        for settings in [Settings::default(), Settings::f32()] {
+            let locator = LatticeLocator::new(&mesh.body, settings).unwrap();
+            let bound = if settings == Settings::default() {
+                1e-9
+            } else {
+                1e-4
+            };
+            for (x, cell, xi) in &known {
+                let hit = locator
+                    .locate(*x)
+                    .unwrap()
+                    .unwrap_or_else(|| panic!("{file}: {x} not found"));
+                assert_eq!(mesh.input_cell(hit.cell), Some(*cell), "{file}: point {x}");
+                assert!(
+                    (hit.xi - *xi).abs().max_element() < bound,
+                    "{file}: xi {} vs {xi}",
+                    hit.xi
+                );
+            }
+        }
+    }
+}
