@@ -283,9 +283,16 @@ fn progress_bar(len: u64, quiet: bool) -> Option<ProgressBar> {
     let bar = ProgressBar::with_draw_target(Some(len), ProgressDrawTarget::hidden());
     bar.set_style(
         ProgressStyle::with_template(
-            "{spinner} locating [{bar:40}] {pos}/{len} points ({per_sec}, {eta} left)",
+            "{spinner} locating [{bar:40}] {pos}/{len} points ({rate}, {eta} left)",
         )
         .expect("the template is valid")
+        // Whole points per second: indicatif's own {per_sec} prints four decimals.
+        .with_key(
+            "rate",
+            |state: &indicatif::ProgressState, w: &mut dyn std::fmt::Write| {
+                let _ = write!(w, "{:.0} points/s", state.per_sec());
+            },
+        )
         .progress_chars("=> "),
     );
     Some(bar)
