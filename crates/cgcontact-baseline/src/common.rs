@@ -3,7 +3,9 @@
 
 use cgcontact::glam::DVec3;
 use cgcontact::hex8::{Hex8Map, Hex8Map32, Kernel, NewtonOptions, Status};
-use cgcontact::{Body, CellId, Error, Hit, Lattice, Owners, PointError, Precision, Settings};
+use cgcontact::{
+    Body, CellId, Error, Hit, InsideTolerance, Lattice, Owners, PointError, Precision, Settings,
+};
 
 /// What a candidate search does with each inside hit.
 pub(crate) enum Collect<'o> {
@@ -19,8 +21,8 @@ pub(crate) struct Cells<'a> {
     body: &'a Body,
     settings: Settings,
     newton: NewtonOptions,
-    /// Largest displacement component over all nodes and axes.
-    u_max: f64,
+    /// The inside tolerance's per-body constants (shared definition with the lattice locator).
+    inside: InsideTolerance,
 }
 
 impl<'a> Cells<'a> {
@@ -35,7 +37,7 @@ impl<'a> Cells<'a> {
             body,
             settings,
             newton: settings.newton(),
-            u_max: u_max.max_element(),
+            inside: InsideTolerance::new(&settings, body.lattice(), u_max.max_element()),
         })
     }
 
@@ -57,8 +59,7 @@ impl<'a> Cells<'a> {
     /// Inside tolerance (ξ units) for a query at `x`: the one definition every strategy shares.
     #[inline]
     pub(crate) fn inside_tolerance(&self, x: DVec3) -> f64 {
-        self.settings
-            .inside_tolerance(self.lattice(), self.u_max, x)
+        self.inside.at(x)
     }
 
     /// Newton options for a query at `x`, or the point's error when it is not finite.

@@ -201,51 +201,13 @@ fn paraview_outputs_are_readable_and_carry_the_answers() {
     // Read back through vtkio: the deformed mesh is a valid .vtu whose node coordinates moved.
     let deformed = cgcontact_io::read_hex_mesh(&mesh_path, &DisplacementArray::Default).unwrap();
     assert_eq!(deformed.cells.len(), body.lattice().cell_count());
-    let vtk = vtkio::Vtk::import(&mesh_path).unwrap();
-    let vtkio::model::DataSet::UnstructuredGrid { pieces, .. } = vtk.data else {
-        panic!("not a grid")
-    };
-    let piece = pieces
-        .into_iter()
-        .next()
-        .unwrap()
-        .into_loaded_piece_data(None)
-        .unwrap();
-    let held = piece
-        .data
-        .cell
-        .iter()
-        .find_map(|a| match a {
-            vtkio::model::Attribute::DataArray(d) if d.name == "points_held" => {
-                d.data.cast_into::<i64>()
-            }
-            _ => None,
-        })
-        .unwrap();
+    let held = int_array(&mesh_path, "points_held", Data::Cell);
     let located = answers.iter().filter(|a| matches!(a, Ok(Some(_)))).count() as i64;
     assert_eq!(held.iter().sum::<i64>(), located);
 
     let points_path = dir.path().join("points.vtu");
     write_points_vtu(&points_path, &points, &answers, &cells).unwrap();
-    let vtk = vtkio::Vtk::import(&points_path).unwrap();
-    let vtkio::model::DataSet::UnstructuredGrid { pieces, .. } = vtk.data else {
-        panic!("not a grid")
-    };
-    let piece = pieces
-        .into_iter()
-        .next()
-        .unwrap()
-        .into_loaded_piece_data(None)
-        .unwrap();
-    let cell = piece
-        .data
-        .point
-        .iter()
-        .find_map(|a| match a {
-            vtkio::model::Attribute::DataArray(d) if d.name == "cell" => d.data.cast_into::<i64>(),
-            _ => None,
-        })
-        .unwrap();
+    let cell = int_array(&points_path, "cell", Data::Point);
     let expected: Vec<i64> = answers
         .iter()
         .map(|a| match a {
@@ -256,4 +218,37 @@ fn paraview_outputs_are_readable_and_carry_the_answers() {
     assert_eq!(cell, expected);
     assert_eq!(cell[2], -1);
     assert!(cell[0] >= 0);
+}
+
+/// Which attributes of a piece to look in.
+enum Data {
+    Point,
+    Cell,
+}
+
+/// The integer data array `name` of the first piece of `path`, read back through vtkio.
+fn int_array(path: &std::path::Path, name: &str, data: Data) -> Vec<i64> {
+    let vtk = vtkio::Vtk::import(path).unwrap();
+    let vtkio::model::DataSet::UnstructuredGrid { pieces, .. } = vtk.data else {
+        panic!("not a grid")
+    };
+    let piece = pieces
+        .into_iter()
+        .next()
+        .unwrap()
+        .into_loaded_piece_data(None)
+        .unwrap();
+    let attributes = match data {
+        Data::Point => &piece.data.point,
+        Data::Cell => &piece.data.cell,
+    };
+    attributes
+        .iter()
+        .find_map(|a| match a {
+            vtkio::model::Attribute::DataArray(d) if d.name == name => {
+                d.data.clone().cast_into::<i64>()
+            }
+            _ => None,
+        })
+        .unwrap_or_else(|| panic!("{}: no array {name}", path.display()))
 }
