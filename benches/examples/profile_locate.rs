@@ -1,6 +1,7 @@
 //! A fixed amount of single-threaded locating, for profilers (perf, callgrind).
 //!
-//! Run: `cargo run --release -p cgcontact-benches --example profile_locate [repeats]`
+//! Run: `cargo run --release -p cgcontact-benches --example profile_locate [repeats] [f32] [each] [big]`
+//! (`each`: one `locate` call per point instead of the batched `locate_all_into`).
 
 use std::time::Instant;
 
@@ -18,27 +19,44 @@ fn main() -> Result<(), cgcontact::Error> {
     } else {
         Precision::F64
     };
-    let scene = indented_block([20, 40, 20], DVec3::splat(0.25), 100_000, 7)?;
+    // `big`: the 128,000-cell block with 1 M points of the `precision` bench.
+    let scene = if std::env::args().any(|a| a == "big") {
+        indented_block([40, 80, 40], DVec3::splat(0.125), 1_000_000, 7)?
+    } else {
+        indented_block([20, 40, 20], DVec3::splat(0.25), 100_000, 7)?
+    };
     let points: Vec<DVec3> = scene.known.iter().map(|k| k.x).collect();
     let settings = if precision == Precision::F32 {
         Settings::f32()
     } else {
         Settings::default()
     };
+    let each = std::env::args().any(|a| a == "each");
     let locator = LatticeLocator::new(&scene.body, settings)?;
+    let one = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .expect("a one-thread pool");
+    let mut out = Vec::with_capacity(points.len());
     let start = Instant::now();
     let mut located = 0usize;
     for _ in 0..repeats {
-        for &x in &points {
-            located += usize::from(matches!(
-                locator.locate(std::hint::black_box(x)),
-                Ok(Some(_))
-            ));
+        if each {
+            for &x in &points {
+                located += usize::from(matches!(
+                    locator.locate(std::hint::black_box(x)),
+                    Ok(Some(_))
+                ));
+            }
+        } else {
+            one.install(|| locator.locate_all_into(std::hint::black_box(&points), &mut out));
+            located += out.iter().filter(|a| matches!(a, Ok(Some(_)))).count();
         }
     }
     let seconds = start.elapsed().as_secs_f64();
+    let how = if each { "locate" } else { "locate_all" };
     println!(
-        "{precision:?}: {located} located in {seconds:.3} s: {:.3} M points/s on one thread",
+        "{precision:?} {how}: {located} located in {seconds:.3} s: {:.3} M points/s on one thread",
         (repeats * points.len()) as f64 / seconds / 1e6
     );
     Ok(())

@@ -264,15 +264,23 @@ impl Body {
     /// Corner displacements where they exist, zero elsewhere (for cells that may be inactive).
     #[inline(always)]
     pub(crate) fn corner_displacements_or_zero(&self, ijk: [u32; 3]) -> [DVec3; 8] {
-        let base = self.lattice.node_index(ijk);
         let mut u = [DVec3::ZERO; 8];
-        for (u, &o) in u.iter_mut().zip(&self.corner_offsets) {
-            if let Some(&value) = self.u.get(self.slot[base + o] as usize) {
-                // NO_SLOT is u32::MAX, never a valid slot: `get` answers None for it.
-                *u = value;
-            }
-        }
+        self.corner_displacements_or_zero_into(ijk, &mut u);
         u
+    }
+
+    /// [`Body::corner_displacements_or_zero`] written into `u`.
+    #[inline(always)]
+    pub(crate) fn corner_displacements_or_zero_into(&self, ijk: [u32; 3], u: &mut [DVec3; 8]) {
+        let base = self.lattice.node_index(ijk);
+        for (u, &o) in u.iter_mut().zip(&self.corner_offsets) {
+            // NO_SLOT is u32::MAX, never a valid slot: `get` answers None for it.
+            *u = self
+                .u
+                .get(self.slot[base + o] as usize)
+                .copied()
+                .unwrap_or(DVec3::ZERO);
+        }
     }
 
     /// Corner positions of a deformed cell relative to its lowest undeformed node, VTK order.

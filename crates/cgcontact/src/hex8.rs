@@ -164,16 +164,22 @@ macro_rules! stamp_hex8 {
                 (lower + upper * z, [d_xi, d_eta, upper])
             }
 
-            /// The rounding noise of a Newton step: 16 ε ‖J⁻¹‖∞ times the magnitude of the numbers the
+            /// The magnitude of the numbers the residual x − x(ξ) is computed from (same for every
+            /// iterate, so computed once per inversion).
+            #[inline]
+            fn magnitude(&self, x: $V) -> $S {
+                let a = &self.a;
+                x.abs().max_element()
+                    + a[0].abs().max_element()
+                    + (a[1].abs() + a[2].abs() + a[4].abs()).max_element()
+            }
+
+            /// The rounding noise of a Newton step: 16 ε ‖J⁻¹‖∞ times `magnitude`, that of the numbers the
             /// residual is computed from. A step this small carries no information: stopping there is
             /// what keeps an ill-conditioned cell (a crushed corner) from ending `NotConverged` at the
             /// right answer. `adjugate` holds the rows of adj(J), `inv_det` is 1 / det J.
             #[inline]
-            fn step_noise(&self, x: $V, adjugate: [$V; 3], inv_det: $S) -> $S {
-                let a = &self.a;
-                let magnitude = x.abs().max_element()
-                    + a[0].abs().max_element()
-                    + (a[1].abs() + a[2].abs() + a[4].abs()).max_element();
+            fn step_noise(magnitude: $S, adjugate: [$V; 3], inv_det: $S) -> $S {
                 let inverse_norm = adjugate.iter().map(|row| row.abs().element_sum()).fold(0.0, <$S>::max) * inv_det.abs();
                 16.0 * <$S>::EPSILON * magnitude * inverse_norm
             }
@@ -203,6 +209,7 @@ macro_rules! stamp_hex8 {
                 let tol = options.tol as $S;
                 let inside = 1.0 + options.inside_tol as $S;
                 let det_floor = options.det_ratio_min as $S * self.det_at_center().abs();
+                let magnitude = self.magnitude(x);
                 let mut xi = xi0.clamp(<$V>::splat(-1.0), <$V>::splat(1.0));
                 // Residual and Jacobian at an iterate.
                 let evaluate = |xi: $V| {
@@ -231,7 +238,7 @@ macro_rules! stamp_hex8 {
                     let inv_det = det.recip();
                     let delta = <$V>::new(k0.dot(r), k1.dot(r), k2.dot(r)) * inv_det;
                     let size = delta.abs().max_element();
-                    if size <= tol || size <= self.step_noise(x, [k0, k1, k2], inv_det) {
+                    if size <= tol || size <= Self::step_noise(magnitude, [k0, k1, k2], inv_det) {
                         // Converged: the step is below tolerance, and convergence is quadratic, so the
                         // error after it is of order size²; or the step is down to the rounding noise
                         // of this precision (ill-conditioned J), below which no iteration can go.

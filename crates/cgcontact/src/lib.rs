@@ -34,8 +34,9 @@
 //! # Ok::<(), cgcontact::Error>(())
 //! ```
 #![deny(missing_docs)]
-#![forbid(unsafe_code)]
+#![deny(unsafe_code)]
 
+mod batch;
 mod body;
 mod error;
 pub mod hex8;

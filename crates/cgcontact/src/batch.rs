@@ -1,0 +1,659 @@
+//! Batched location: the lattice locator's common case, W points at a time, one SIMD lane per point.
+//!
+//! Almost every point is found by one Newton inversion in its predicted cell (inversions per located
+//! point are 1.0001–1.09 on the seed's scenes). That path is branch-light arithmetic, so it is run
+//! here across W points at once, structure-of-arrays: `[S; W]` per quantity, which the compiler turns
+//! into SIMD instructions (2 × f64 per instruction on the baseline x86-64 target, 4 × f64 or 8 × f32
+//! with AVX2, see [`crate::locate`]'s dispatch).
+//!
+//! The lanes compute *exactly* what [`crate::hex8`]'s scalar kernel computes, the same IEEE operations
+//! in the same order (Rust never fuses a multiply and an add on its own), so a batched answer is
+//! bitwise the scalar answer. Every lane that leaves the common path (inactive predicted cell, a
+//! singular Jacobian, a line search, an early or late `Outside`, a non-finite value, the iteration
+//! limit) is marked, and its point is answered by the scalar search from scratch. Tests check the
+//! identity point by point.
+
+use std::ops::{Add, BitAnd, BitOr, Mul, Not, Sub};
+
+use glam::DVec3;
+
+use crate::hex8::NewtonOptions;
+
+/// A float type the lanes compute in: f64 or f32.
+pub(crate) trait Real:
+    Copy + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self>
+{
+    fn of(v: f64) -> Self;
+    fn wide(self) -> f64;
+}
+
+impl Real for f64 {
+    #[inline(always)]
+    fn of(v: f64) -> Self {
+        v
+    }
+    #[inline(always)]
+    fn wide(self) -> f64 {
+        self
+    }
+}
+
+impl Real for f32 {
+    #[inline(always)]
+    fn of(v: f64) -> Self {
+        v as f32
+    }
+    #[inline(always)]
+    fn wide(self) -> f64 {
+        f64::from(self)
+    }
+}
+
+/// Number of lanes (points) per batch.
+pub(crate) const W: usize = 4;
+
+/// Four lanes of one precision, with the operations the kernel uses: glam's `DVec4` (f64) and its
+/// SIMD `Vec4` (f32), whose per-component operations are those of `DVec3` and `Vec3A`.
+pub(crate) trait Lanes:
+    Copy + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self>
+{
+    type S: Real;
+    type Mask: Copy
+        + BitAnd<Output = Self::Mask>
+        + BitOr<Output = Self::Mask>
+        + Not<Output = Self::Mask>;
+    const EPSILON: Self::S;
+    fn splat(v: Self::S) -> Self;
+    fn abs(self) -> Self;
+    fn max(self, other: Self) -> Self;
+    fn min(self, other: Self) -> Self;
+    fn recip(self) -> Self;
+    fn le(self, other: Self) -> Self::Mask;
+    fn gt(self, other: Self) -> Self::Mask;
+    fn lt(self, other: Self) -> Self::Mask;
+    fn is_nan(self) -> Self::Mask;
+    fn is_finite(self) -> Self::Mask;
+    /// `if mask { a } else { b }` per lane.
+    fn select(mask: Self::Mask, a: Self, b: Self) -> Self;
+    fn lane(self, l: usize) -> Self::S;
+    fn from_lanes(lanes: [Self::S; W]) -> Self;
+    fn mask(mask: Self::Mask) -> [bool; W];
+    fn any(mask: Self::Mask) -> bool;
+    fn mask_of(lanes: [bool; W]) -> Self::Mask;
+}
+
+macro_rules! lanes {
+    ($V:ty, $S:ty, $M:ty) => {
+        impl Lanes for $V {
+            type S = $S;
+            type Mask = $M;
+            const EPSILON: $S = <$S>::EPSILON;
+            #[inline(always)]
+            fn splat(v: $S) -> Self {
+                <$V>::splat(v)
+            }
+            #[inline(always)]
+            fn abs(self) -> Self {
+                <$V>::abs(self)
+            }
+            #[inline(always)]
+            fn max(self, other: Self) -> Self {
+                <$V>::max(self, other)
+            }
+            #[inline(always)]
+            fn min(self, other: Self) -> Self {
+                <$V>::min(self, other)
+            }
+            #[inline(always)]
+            fn recip(self) -> Self {
+                <$V>::recip(self)
+            }
+            #[inline(always)]
+            fn le(self, other: Self) -> $M {
+                self.cmple(other)
+            }
+            #[inline(always)]
+            fn gt(self, other: Self) -> $M {
+                self.cmpgt(other)
+            }
+            #[inline(always)]
+            fn lt(self, other: Self) -> $M {
+                self.cmplt(other)
+            }
+            #[inline(always)]
+            fn is_nan(self) -> $M {
+                self.is_nan_mask()
+            }
+            #[inline(always)]
+            fn is_finite(self) -> $M {
+                self.is_finite_mask()
+            }
+            #[inline(always)]
+            fn select(mask: $M, a: Self, b: Self) -> Self {
+                <$V>::select(mask, a, b)
+            }
+            #[inline(always)]
+            fn lane(self, l: usize) -> $S {
+                self[l]
+            }
+            #[inline(always)]
+            fn from_lanes(lanes: [$S; W]) -> Self {
+                <$V>::from_array(lanes)
+            }
+            #[inline(always)]
+            fn mask(mask: $M) -> [bool; W] {
+                let bits = mask.bitmask();
+                [bits & 1 != 0, bits & 2 != 0, bits & 4 != 0, bits & 8 != 0]
+            }
+            #[inline(always)]
+            fn any(mask: $M) -> bool {
+                mask.any()
+            }
+            #[inline(always)]
+            fn mask_of(lanes: [bool; W]) -> $M {
+                <$M>::from_array(lanes)
+            }
+        }
+    };
+}
+lanes!(glam::DVec4, f64, glam::BVec4);
+lanes!(glam::Vec4, f32, glam::BVec4A);
+
+/// A 3-vector per lane, with glam's operation order (dot = (x x' + y y') + z z', and its cross).
+#[derive(Clone, Copy)]
+pub(crate) struct V3<V> {
+    pub x: V,
+    pub y: V,
+    pub z: V,
+}
+
+/// Lane `l` of the result is `f(l)`, rounded to the lanes' precision.
+#[inline(always)]
+pub(crate) fn lanes<V: Lanes>(f: impl Fn(usize) -> f64) -> V {
+    // Written out: `array::map` and `from_fn` cost MaybeUninit bookkeeping here (measured).
+    V::from_lanes([
+        V::S::of(f(0)),
+        V::S::of(f(1)),
+        V::S::of(f(2)),
+        V::S::of(f(3)),
+    ])
+}
+
+impl<V: Lanes> V3<V> {
+    /// Lane `l` of the result is `f(l)`, rounded to the lanes' precision (as glam's `as_vec3a`).
+    #[inline(always)]
+    pub fn from_fn(f: impl Fn(usize) -> DVec3) -> Self {
+        Self {
+            x: lanes(|l| f(l).x),
+            y: lanes(|l| f(l).y),
+            z: lanes(|l| f(l).z),
+        }
+    }
+
+    #[inline(always)]
+    fn map(self, f: impl Fn(V) -> V) -> Self {
+        Self {
+            x: f(self.x),
+            y: f(self.y),
+            z: f(self.z),
+        }
+    }
+    /// Each component times the lane's scalar `s`.
+    #[inline(always)]
+    pub fn scale(self, s: V) -> Self {
+        self.map(|c| c * s)
+    }
+    #[inline(always)]
+    pub fn dot(self, o: Self) -> V {
+        self.x * o.x + self.y * o.y + self.z * o.z
+    }
+    #[inline(always)]
+    pub fn cross(self, o: Self) -> Self {
+        Self {
+            x: self.y * o.z - o.y * self.z,
+            y: self.z * o.x - o.z * self.x,
+            z: self.x * o.y - o.x * self.y,
+        }
+    }
+    #[inline(always)]
+    pub fn abs(self) -> Self {
+        self.map(V::abs)
+    }
+    /// glam's `max_element`: max(x, max(y, z)), max(a, b) = if a > b { a } else { b }.
+    #[inline(always)]
+    pub fn max_element(self) -> V {
+        let max = |a: V, b: V| V::select(a.gt(b), a, b);
+        max(self.x, max(self.y, self.z))
+    }
+    /// glam's `element_sum`: (x + y) + z.
+    #[inline(always)]
+    pub fn element_sum(self) -> V {
+        self.x + self.y + self.z
+    }
+    /// glam's `clamp(lo, hi)`: max(lo) then min(hi), per component.
+    #[inline(always)]
+    pub fn clamp(self, lo: V::S, hi: V::S) -> Self {
+        self.map(|c| c.max(V::splat(lo)).min(V::splat(hi)))
+    }
+    #[inline(always)]
+    pub fn is_finite(self) -> V::Mask {
+        self.x.is_finite() & self.y.is_finite() & self.z.is_finite()
+    }
+    #[inline(always)]
+    pub fn select(mask: V::Mask, a: Self, b: Self) -> Self {
+        Self {
+            x: V::select(mask, a.x, b.x),
+            y: V::select(mask, a.y, b.y),
+            z: V::select(mask, a.z, b.z),
+        }
+    }
+    /// Lane `l` as an f64 vector.
+    #[inline(always)]
+    pub fn lane(&self, l: usize) -> DVec3 {
+        DVec3::new(
+            self.x.lane(l).wide(),
+            self.y.lane(l).wide(),
+            self.z.lane(l).wide(),
+        )
+    }
+}
+
+impl<V: Lanes> Add for V3<V> {
+    type Output = Self;
+    #[inline(always)]
+    fn add(self, o: Self) -> Self {
+        Self {
+            x: self.x + o.x,
+            y: self.y + o.y,
+            z: self.z + o.z,
+        }
+    }
+}
+impl<V: Lanes> Sub for V3<V> {
+    type Output = Self;
+    #[inline(always)]
+    fn sub(self, o: Self) -> Self {
+        Self {
+            x: self.x - o.x,
+            y: self.y - o.y,
+            z: self.z - o.z,
+        }
+    }
+}
+
+/// W trilinear maps: monomial coefficients 1, ξ, η, ξη, ζ, ξζ, ηζ, ξηζ (as [`crate::hex8::Hex8Map`]).
+#[derive(Clone, Copy)]
+pub(crate) struct Maps<V> {
+    pub a: [V3<V>; 8],
+}
+
+impl<V: Lanes> Maps<V> {
+    /// The maps of W hexahedra whose corner `c` in lane `l` is `corner(l, c)`.
+    #[inline(always)]
+    pub fn from_corners(corner: impl Fn(usize, usize) -> DVec3) -> Self {
+        let mut corners = [V3 {
+            x: V::splat(V::S::of(0.0)),
+            y: V::splat(V::S::of(0.0)),
+            z: V::splat(V::S::of(0.0)),
+        }; 8];
+        for (c, v) in corners.iter_mut().enumerate() {
+            *v = V3::from_fn(|l| corner(l, c));
+        }
+        Self::new(&corners)
+    }
+
+    /// The maps of W hexahedra with corners `c` (VTK order): `Hex8Map::new`'s butterfly, term by term.
+    #[inline(always)]
+    pub fn new(c: &[V3<V>; 8]) -> Self {
+        let (s01, d01) = (c[1] + c[0], c[1] - c[0]);
+        let (s32, d32) = (c[2] + c[3], c[2] - c[3]);
+        let (s45, d45) = (c[5] + c[4], c[5] - c[4]);
+        let (s76, d76) = (c[6] + c[7], c[6] - c[7]);
+        let (lo0, lo1, lo2, lo3) = (s32 + s01, d32 + d01, s32 - s01, d32 - d01);
+        let (hi0, hi1, hi2, hi3) = (s76 + s45, d76 + d45, s76 - s45, d76 - d45);
+        let eighth = V::splat(V::S::of(0.125));
+        Self {
+            a: [
+                (hi0 + lo0).scale(eighth),
+                (hi1 + lo1).scale(eighth),
+                (hi2 + lo2).scale(eighth),
+                (hi3 + lo3).scale(eighth),
+                (hi0 - lo0).scale(eighth),
+                (hi1 - lo1).scale(eighth),
+                (hi2 - lo2).scale(eighth),
+                (hi3 - lo3).scale(eighth),
+            ],
+        }
+    }
+
+    /// `Kernel::add_lattice`: the undeformed part h (1 + ξ) / 2 per axis (zeros added too, as there).
+    #[inline(always)]
+    pub fn add_lattice(&mut self, h: DVec3) {
+        let half = h * 0.5;
+        let (hx, hy, hz) = (
+            V::splat(V::S::of(half.x)),
+            V::splat(V::S::of(half.y)),
+            V::splat(V::S::of(half.z)),
+        );
+        let zero = V::splat(V::S::of(0.0));
+        let a = &mut self.a;
+        a[0] = a[0]
+            + V3 {
+                x: hx,
+                y: hy,
+                z: hz,
+            };
+        a[1] = a[1]
+            + V3 {
+                x: hx,
+                y: zero,
+                z: zero,
+            };
+        a[2] = a[2]
+            + V3 {
+                x: zero,
+                y: hy,
+                z: zero,
+            };
+        a[4] = a[4]
+            + V3 {
+                x: zero,
+                y: zero,
+                z: hz,
+            };
+    }
+
+    /// x(ξ) and the columns of J, as `Hex8Map::map_and_jacobian`.
+    #[inline(always)]
+    pub fn map_and_jacobian(&self, xi: V3<V>) -> (V3<V>, [V3<V>; 3]) {
+        let a = &self.a;
+        let (x, y, z) = (xi.x, xi.y, xi.z);
+        let d_xi = a[1] + a[3].scale(y) + (a[5] + a[7].scale(y)).scale(z);
+        let d_eta = a[2] + a[3].scale(x) + (a[6] + a[7].scale(x)).scale(z);
+        let lower = a[0] + a[1].scale(x) + (a[2] + a[3].scale(x)).scale(y);
+        let upper = a[4] + a[5].scale(x) + (a[6] + a[7].scale(x)).scale(y);
+        (lower + upper.scale(z), [d_xi, d_eta, upper])
+    }
+
+    /// x(ξ), as `Hex8Map::map`.
+    #[inline(always)]
+    pub fn map(&self, xi: V3<V>) -> V3<V> {
+        let a = &self.a;
+        let lower = a[0] + a[1].scale(xi.x) + (a[2] + a[3].scale(xi.x)).scale(xi.y);
+        let upper = a[4] + a[5].scale(xi.x) + (a[6] + a[7].scale(xi.x)).scale(xi.y);
+        lower + upper.scale(xi.z)
+    }
+
+    /// `Hex8Map::magnitude`.
+    #[inline(always)]
+    fn magnitude(&self, x: V3<V>) -> V {
+        let a = &self.a;
+        x.abs().max_element()
+            + a[0].abs().max_element()
+            + (a[1].abs() + a[2].abs() + a[4].abs()).max_element()
+    }
+
+    /// `Hex8Map::step_noise`.
+    #[inline(always)]
+    fn step_noise(&self, magnitude: V, k: [V3<V>; 3], inv_det: V) -> V {
+        let zero = V::splat(V::S::of(0.0));
+        let inverse_norm = zero
+            .max(k[0].abs().element_sum())
+            .max(k[1].abs().element_sum())
+            .max(k[2].abs().element_sum())
+            * inv_det.abs();
+        V::splat(V::S::of(16.0)) * V::splat(V::EPSILON) * magnitude * inverse_norm
+    }
+
+    /// `Hex8Map::det_at_center`.
+    #[inline(always)]
+    fn det_at_center(&self) -> V {
+        self.a[1].dot(self.a[2].cross(self.a[4]))
+    }
+
+    /// The common path of `Hex8Map::invert` for W points at once: plain Newton steps, no line search.
+    /// `inside` is 1 + each lane's inside tolerance. Lanes with `take` unset are ignored. Returns, per
+    /// lane, the final ξ, |residual|², the iterations and whether the lane ended `Inside` on the common
+    /// path (the scalar kernel then gives exactly this answer); a lane not `Inside` must be redone.
+    #[inline(always)]
+    pub fn invert(
+        &self,
+        x: V3<V>,
+        xi0: V3<V>,
+        inside: V,
+        take: V::Mask,
+        options: &NewtonOptions,
+    ) -> (V3<V>, V, [u32; W], [bool; W]) {
+        let tol = V::splat(V::S::of(options.tol));
+        let det_floor = V::splat(V::S::of(options.det_ratio_min)) * self.det_at_center().abs();
+        let line_search_above = V::splat(V::S::of(1e-3));
+        let early_outside = inside + V::splat(V::S::of(1e-2));
+        let magnitude = self.magnitude(x);
+        let mut xi = xi0.clamp(V::S::of(-1.0), V::S::of(1.0));
+        let (fx, mut jac) = self.map_and_jacobian(xi);
+        let mut r = x - fx;
+        let mut rr = r.dot(r);
+        let mut pending = take;
+        let mut found = V::mask_of([false; W]);
+        let mut iterations = [0u32; W];
+        for iteration in 1..=options.max_iter {
+            let [c0, c1, c2] = jac;
+            let k0 = c1.cross(c2);
+            let det = c0.dot(k0);
+            let singular = det.is_nan() | det.le(det_floor);
+            let (k1, k2) = (c2.cross(c0), c0.cross(c1));
+            let inv_det = det.recip();
+            let delta = V3 {
+                x: k0.dot(r),
+                y: k1.dot(r),
+                z: k2.dot(r),
+            }
+            .scale(inv_det);
+            let size = delta.abs().max_element();
+            let converged =
+                size.le(tol) | size.le(self.step_noise(magnitude, [k0, k1, k2], inv_det));
+            // The converged lanes take the full step; the others the step clamped to the box.
+            let sum = xi + delta;
+            let trial = V3::select(converged, sum, sum.clamp(V::S::of(-4.0), V::S::of(4.0)));
+            let (f_trial, jac_trial) = self.map_and_jacobian(trial);
+            let r_trial = x - f_trial;
+            let rr_trial = r_trial.dot(r_trial);
+            let finite = trial.is_finite() & rr_trial.is_finite() & delta.is_finite();
+            let far = trial.abs().max_element();
+            // Converged: Inside, or (Outside / not finite) left to the scalar search.
+            let inside_now = pending & !singular & converged & finite & far.le(inside);
+            // Not converged: a step the scalar kernel would shorten (line search), a non-finite value
+            // or an early Outside all leave the common path.
+            let line_search = rr_trial.gt(rr) & size.gt(line_search_above);
+            let moved = (trial - xi).abs().max_element();
+            let early_out = moved.lt(line_search_above) & far.gt(early_outside);
+            let go_on = pending & !(converged | singular | line_search | early_out) & finite;
+            let keep = inside_now | go_on;
+            xi = V3::select(keep, trial, xi);
+            rr = V::select(keep, rr_trial, rr);
+            r = V3::select(go_on, r_trial, r);
+            jac = [
+                V3::select(go_on, jac_trial[0], jac[0]),
+                V3::select(go_on, jac_trial[1], jac[1]),
+                V3::select(go_on, jac_trial[2], jac[2]),
+            ];
+            let now = V::mask(inside_now);
+            for l in 0..W {
+                if now[l] {
+                    iterations[l] = iteration;
+                }
+            }
+            found = found | inside_now;
+            pending = go_on;
+            if !V::any(pending) {
+                break;
+            }
+        }
+        (xi, rr, iterations, V::mask(found))
+    }
+}
+
+/// Four f64 lanes in one AVX register.
+#[cfg(target_arch = "x86_64")]
+pub(crate) mod avx {
+    #![allow(unsafe_code)]
+
+    use std::arch::x86_64::{
+        __m256d, _CMP_LE_OQ, _CMP_LT_OQ, _CMP_UNORD_Q, _mm_cvtsd_f64, _mm_unpackhi_pd,
+        _mm256_add_pd, _mm256_and_pd, _mm256_andnot_pd, _mm256_blendv_pd, _mm256_castpd256_pd128,
+        _mm256_cmp_pd, _mm256_cvtsd_f64, _mm256_div_pd, _mm256_extractf128_pd, _mm256_max_pd,
+        _mm256_min_pd, _mm256_movemask_pd, _mm256_mul_pd, _mm256_or_pd, _mm256_set_pd,
+        _mm256_set1_pd, _mm256_sub_pd, _mm256_xor_pd,
+    };
+    use std::ops::{Add, BitAnd, BitOr, Mul, Not, Sub};
+
+    use super::{Lanes, W};
+
+    macro_rules! avx {
+        ($e:expr) => {
+            // SAFETY: values of these types exist only on the path entered after
+            // `is_x86_feature_detected!("avx2")` (see `LatticeLocator::locate_chunk`), and these
+            // intrinsics only compute on registers.
+            unsafe { $e }
+        };
+    }
+
+    #[derive(Clone, Copy)]
+    pub(crate) struct F64x4(__m256d);
+    #[derive(Clone, Copy)]
+    pub(crate) struct M64x4(__m256d);
+
+    impl Add for F64x4 {
+        type Output = Self;
+        #[inline(always)]
+        fn add(self, o: Self) -> Self {
+            Self(avx!(_mm256_add_pd(self.0, o.0)))
+        }
+    }
+    impl Sub for F64x4 {
+        type Output = Self;
+        #[inline(always)]
+        fn sub(self, o: Self) -> Self {
+            Self(avx!(_mm256_sub_pd(self.0, o.0)))
+        }
+    }
+    impl Mul for F64x4 {
+        type Output = Self;
+        #[inline(always)]
+        fn mul(self, o: Self) -> Self {
+            Self(avx!(_mm256_mul_pd(self.0, o.0)))
+        }
+    }
+    impl BitAnd for M64x4 {
+        type Output = Self;
+        #[inline(always)]
+        fn bitand(self, o: Self) -> Self {
+            Self(avx!(_mm256_and_pd(self.0, o.0)))
+        }
+    }
+    impl BitOr for M64x4 {
+        type Output = Self;
+        #[inline(always)]
+        fn bitor(self, o: Self) -> Self {
+            Self(avx!(_mm256_or_pd(self.0, o.0)))
+        }
+    }
+    impl Not for M64x4 {
+        type Output = Self;
+        #[inline(always)]
+        fn not(self) -> Self {
+            Self(avx!(_mm256_xor_pd(
+                self.0,
+                _mm256_set1_pd(f64::from_bits(u64::MAX))
+            )))
+        }
+    }
+
+    impl Lanes for F64x4 {
+        type S = f64;
+        type Mask = M64x4;
+        const EPSILON: f64 = f64::EPSILON;
+        #[inline(always)]
+        fn splat(v: f64) -> Self {
+            Self(avx!(_mm256_set1_pd(v)))
+        }
+        #[inline(always)]
+        fn abs(self) -> Self {
+            Self(avx!(_mm256_andnot_pd(_mm256_set1_pd(-0.0), self.0)))
+        }
+        #[inline(always)]
+        fn max(self, o: Self) -> Self {
+            Self(avx!(_mm256_max_pd(self.0, o.0)))
+        }
+        #[inline(always)]
+        fn min(self, o: Self) -> Self {
+            Self(avx!(_mm256_min_pd(self.0, o.0)))
+        }
+        #[inline(always)]
+        fn recip(self) -> Self {
+            Self(avx!(_mm256_div_pd(_mm256_set1_pd(1.0), self.0)))
+        }
+        #[inline(always)]
+        fn le(self, o: Self) -> M64x4 {
+            M64x4(avx!(_mm256_cmp_pd::<_CMP_LE_OQ>(self.0, o.0)))
+        }
+        #[inline(always)]
+        fn gt(self, o: Self) -> M64x4 {
+            M64x4(avx!(_mm256_cmp_pd::<_CMP_LT_OQ>(o.0, self.0)))
+        }
+        #[inline(always)]
+        fn lt(self, o: Self) -> M64x4 {
+            M64x4(avx!(_mm256_cmp_pd::<_CMP_LT_OQ>(self.0, o.0)))
+        }
+        #[inline(always)]
+        fn is_nan(self) -> M64x4 {
+            M64x4(avx!(_mm256_cmp_pd::<_CMP_UNORD_Q>(self.0, self.0)))
+        }
+        #[inline(always)]
+        fn is_finite(self) -> M64x4 {
+            self.abs().lt(Self::splat(f64::INFINITY))
+        }
+        #[inline(always)]
+        fn select(mask: M64x4, a: Self, b: Self) -> Self {
+            Self(avx!(_mm256_blendv_pd(b.0, a.0, mask.0)))
+        }
+        #[inline(always)]
+        fn lane(self, l: usize) -> f64 {
+            match l {
+                0 => avx!(_mm256_cvtsd_f64(self.0)),
+                1 => avx!(_mm_cvtsd_f64(_mm_unpackhi_pd(
+                    _mm256_castpd256_pd128(self.0),
+                    _mm256_castpd256_pd128(self.0)
+                ))),
+                2 => avx!(_mm_cvtsd_f64(_mm256_extractf128_pd::<1>(self.0))),
+                _ => {
+                    let hi = avx!(_mm256_extractf128_pd::<1>(self.0));
+                    avx!(_mm_cvtsd_f64(_mm_unpackhi_pd(hi, hi)))
+                }
+            }
+        }
+        #[inline(always)]
+        fn from_lanes(v: [f64; W]) -> Self {
+            Self(avx!(_mm256_set_pd(v[3], v[2], v[1], v[0])))
+        }
+        #[inline(always)]
+        fn mask(mask: M64x4) -> [bool; W] {
+            let bits = avx!(_mm256_movemask_pd(mask.0));
+            [bits & 1 != 0, bits & 2 != 0, bits & 4 != 0, bits & 8 != 0]
+        }
+        #[inline(always)]
+        fn any(mask: M64x4) -> bool {
+            avx!(_mm256_movemask_pd(mask.0)) != 0
+        }
+        #[inline(always)]
+        fn mask_of(lanes: [bool; W]) -> M64x4 {
+            let bit = |b: bool| if b { f64::from_bits(u64::MAX) } else { 0.0 };
+            M64x4(avx!(_mm256_set_pd(
+                bit(lanes[3]),
+                bit(lanes[2]),
+                bit(lanes[1]),
+                bit(lanes[0])
+            )))
+        }
+    }
+}
