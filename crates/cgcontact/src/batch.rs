@@ -1,17 +1,22 @@
 //! Batched location: the lattice locator's common case, W points at a time, one SIMD lane per point.
 //!
 //! Almost every point is found by one Newton inversion in its predicted cell (inversions per located
-//! point are 1.0001–1.09 on the seed's scenes). That path is branch-light arithmetic, so it is run
-//! here across W points at once, structure-of-arrays: `[S; W]` per quantity, which the compiler turns
-//! into SIMD instructions (2 × f64 per instruction on the baseline x86-64 target, 4 × f64 or 8 × f32
-//! with AVX2, see [`crate::locate`]'s dispatch).
+//! point are 1.0001–1.09 on the seed's scenes). That path is branch-light arithmetic, so
+//! `locate_all` runs it across W points at once, structure of arrays: one register of W lanes per
+//! scalar, with masks instead of branches. Lane types ([`Lanes`]): with AVX2 (detected at run time)
+//! 4 × f64 or 8 × f32 in 256-bit registers; without it 4 × f32 in glam's `Vec4` (SSE2 on x86_64,
+//! NEON on aarch64), and f64 points one at a time, because SSE2 pairs measured slower than the
+//! scalar kernel. docs/benchmarks.md has the numbers.
 //!
-//! The lanes compute *exactly* what [`crate::hex8`]'s scalar kernel computes, the same IEEE operations
-//! in the same order (Rust never fuses a multiply and an add on its own), so a batched answer is
-//! bitwise the scalar answer. Every lane that leaves the common path (inactive predicted cell, a
-//! singular Jacobian, a line search, an early or late `Outside`, a non-finite value, the iteration
-//! limit) is marked, and its point is answered by the scalar search from scratch. Tests check the
-//! identity point by point.
+//! The lanes compute *exactly* what [`crate::hex8`]'s scalar kernel computes: the same IEEE
+//! operations in the same order (Rust never fuses a multiply and an add on its own), so a batched
+//! answer is bitwise the scalar answer. Every lane that leaves the common path (inactive predicted
+//! cell, a singular Jacobian, a line search, an early or late `Outside`, a non-finite value, the
+//! iteration limit) is marked, and its point is answered by the scalar search from scratch. Tests
+//! check the identity point by point, forcing each lane type in turn.
+//!
+//! Intrinsics need `unsafe` in Rust 1.95 even for baseline features; each use is one register
+//! operation, and AVX values exist only behind the one entry point that checked for AVX2.
 
 use std::ops::{Add, BitAnd, BitOr, Mul, Not, Sub};
 
@@ -49,14 +54,18 @@ impl Real for f32 {
     }
 }
 
-/// Number of lanes (points) per batch.
-pub(crate) const W: usize = 4;
+/// The most lanes of any lane type (the size of per-lane scratch arrays).
+pub(crate) const MAX_W: usize = 8;
 
-/// Four lanes of one precision, with the operations the kernel uses: glam's `DVec4` (f64) and its
-/// SIMD `Vec4` (f32), whose per-component operations are those of `DVec3` and `Vec3A`.
+/// `W` lanes of one precision, with the operations the kernel uses, each exactly as glam's `DVec3`
+/// (f64) or `Vec3A` (f32) does it per component. Masks convert to bits: lane `l` is bit `l`.
+/// Implemented by glam's `Vec4` (4 × f32, SSE2 or NEON) and, with AVX2, [`avx::F64x4`] and
+/// [`avx::F32x8`].
 pub(crate) trait Lanes:
     Copy + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self>
 {
+    /// Number of lanes, at most [`MAX_W`].
+    const W: usize;
     type S: Real;
     type Mask: Copy
         + BitAnd<Output = Self::Mask>
@@ -76,15 +85,17 @@ pub(crate) trait Lanes:
     /// `if mask { a } else { b }` per lane.
     fn select(mask: Self::Mask, a: Self, b: Self) -> Self;
     fn lane(self, l: usize) -> Self::S;
-    fn from_lanes(lanes: [Self::S; W]) -> Self;
-    fn mask(mask: Self::Mask) -> [bool; W];
+    /// Lane `l` is `f(l)`.
+    fn from_fn(f: impl Fn(usize) -> Self::S) -> Self;
+    fn bits(mask: Self::Mask) -> u32;
     fn any(mask: Self::Mask) -> bool;
-    fn mask_of(lanes: [bool; W]) -> Self::Mask;
+    fn mask_from_bits(bits: u32) -> Self::Mask;
 }
 
 macro_rules! lanes {
     ($V:ty, $S:ty, $M:ty) => {
         impl Lanes for $V {
+            const W: usize = 4;
             type S = $S;
             type Mask = $M;
             const EPSILON: $S = <$S>::EPSILON;
@@ -137,26 +148,24 @@ macro_rules! lanes {
                 self[l]
             }
             #[inline(always)]
-            fn from_lanes(lanes: [$S; W]) -> Self {
-                <$V>::from_array(lanes)
+            fn from_fn(f: impl Fn(usize) -> $S) -> Self {
+                <$V>::new(f(0), f(1), f(2), f(3))
             }
             #[inline(always)]
-            fn mask(mask: $M) -> [bool; W] {
-                let bits = mask.bitmask();
-                [bits & 1 != 0, bits & 2 != 0, bits & 4 != 0, bits & 8 != 0]
+            fn bits(mask: $M) -> u32 {
+                mask.bitmask()
             }
             #[inline(always)]
             fn any(mask: $M) -> bool {
                 mask.any()
             }
             #[inline(always)]
-            fn mask_of(lanes: [bool; W]) -> $M {
-                <$M>::from_array(lanes)
+            fn mask_from_bits(bits: u32) -> $M {
+                <$M>::new(bits & 1 != 0, bits & 2 != 0, bits & 4 != 0, bits & 8 != 0)
             }
         }
     };
 }
-lanes!(glam::DVec4, f64, glam::BVec4);
 lanes!(glam::Vec4, f32, glam::BVec4A);
 
 /// A 3-vector per lane, with glam's operation order (dot = (x x' + y y') + z z', and its cross).
@@ -170,13 +179,7 @@ pub(crate) struct V3<V> {
 /// Lane `l` of the result is `f(l)`, rounded to the lanes' precision.
 #[inline(always)]
 pub(crate) fn lanes<V: Lanes>(f: impl Fn(usize) -> f64) -> V {
-    // Written out: `array::map` and `from_fn` cost MaybeUninit bookkeeping here (measured).
-    V::from_lanes([
-        V::S::of(f(0)),
-        V::S::of(f(1)),
-        V::S::of(f(2)),
-        V::S::of(f(3)),
-    ])
+    V::from_fn(|l| V::S::of(f(l)))
 }
 
 impl<V: Lanes> V3<V> {
@@ -423,7 +426,7 @@ impl<V: Lanes> Maps<V> {
         inside: V,
         take: V::Mask,
         options: &NewtonOptions,
-    ) -> (V3<V>, V, [u32; W], [bool; W]) {
+    ) -> (V3<V>, V, [u32; MAX_W], u32) {
         let tol = V::splat(V::S::of(options.tol));
         let det_floor = V::splat(V::S::of(options.det_ratio_min)) * self.det_at_center().abs();
         let line_search_above = V::splat(V::S::of(1e-3));
@@ -434,8 +437,8 @@ impl<V: Lanes> Maps<V> {
         let mut r = x - fx;
         let mut rr = r.dot(r);
         let mut pending = take;
-        let mut found = V::mask_of([false; W]);
-        let mut iterations = [0u32; W];
+        let mut found = V::mask_from_bits(0);
+        let mut iterations = [0u32; MAX_W];
         for iteration in 1..=options.max_iter {
             let [c0, c1, c2] = jac;
             let k0 = c1.cross(c2);
@@ -477,10 +480,10 @@ impl<V: Lanes> Maps<V> {
                 V3::select(go_on, jac_trial[1], jac[1]),
                 V3::select(go_on, jac_trial[2], jac[2]),
             ];
-            let now = V::mask(inside_now);
-            for l in 0..W {
-                if now[l] {
-                    iterations[l] = iteration;
+            let now = V::bits(inside_now);
+            for (l, iterations) in iterations.iter_mut().enumerate().take(V::W) {
+                if now & (1 << l) != 0 {
+                    *iterations = iteration;
                 }
             }
             found = found | inside_now;
@@ -489,7 +492,7 @@ impl<V: Lanes> Maps<V> {
                 break;
             }
         }
-        (xi, rr, iterations, V::mask(found))
+        (xi, rr, iterations, V::bits(found))
     }
 }
 
@@ -499,15 +502,17 @@ pub(crate) mod avx {
     #![allow(unsafe_code)]
 
     use std::arch::x86_64::{
-        __m256d, _CMP_LE_OQ, _CMP_LT_OQ, _CMP_UNORD_Q, _mm_cvtsd_f64, _mm_unpackhi_pd,
-        _mm256_add_pd, _mm256_and_pd, _mm256_andnot_pd, _mm256_blendv_pd, _mm256_castpd256_pd128,
-        _mm256_cmp_pd, _mm256_cvtsd_f64, _mm256_div_pd, _mm256_extractf128_pd, _mm256_max_pd,
-        _mm256_min_pd, _mm256_movemask_pd, _mm256_mul_pd, _mm256_or_pd, _mm256_set_pd,
-        _mm256_set1_pd, _mm256_sub_pd, _mm256_xor_pd,
+        __m256, __m256d, _CMP_LE_OQ, _CMP_LT_OQ, _CMP_UNORD_Q, _mm256_add_pd, _mm256_add_ps,
+        _mm256_and_pd, _mm256_and_ps, _mm256_andnot_pd, _mm256_andnot_ps, _mm256_blendv_pd,
+        _mm256_blendv_ps, _mm256_cmp_pd, _mm256_cmp_ps, _mm256_div_pd, _mm256_div_ps,
+        _mm256_max_pd, _mm256_max_ps, _mm256_min_pd, _mm256_min_ps, _mm256_movemask_pd,
+        _mm256_movemask_ps, _mm256_mul_pd, _mm256_mul_ps, _mm256_or_pd, _mm256_or_ps,
+        _mm256_set_pd, _mm256_set_ps, _mm256_set1_pd, _mm256_set1_ps, _mm256_sub_pd, _mm256_sub_ps,
+        _mm256_xor_pd, _mm256_xor_ps,
     };
     use std::ops::{Add, BitAnd, BitOr, Mul, Not, Sub};
 
-    use super::{Lanes, W};
+    use super::Lanes;
 
     macro_rules! avx {
         ($e:expr) => {
@@ -570,6 +575,7 @@ pub(crate) mod avx {
     }
 
     impl Lanes for F64x4 {
+        const W: usize = 4;
         type S = f64;
         type Mask = M64x4;
         const EPSILON: f64 = f64::EPSILON;
@@ -619,40 +625,183 @@ pub(crate) mod avx {
         }
         #[inline(always)]
         fn lane(self, l: usize) -> f64 {
-            match l {
-                0 => avx!(_mm256_cvtsd_f64(self.0)),
-                1 => avx!(_mm_cvtsd_f64(_mm_unpackhi_pd(
-                    _mm256_castpd256_pd128(self.0),
-                    _mm256_castpd256_pd128(self.0)
-                ))),
-                2 => avx!(_mm_cvtsd_f64(_mm256_extractf128_pd::<1>(self.0))),
-                _ => {
-                    let hi = avx!(_mm256_extractf128_pd::<1>(self.0));
-                    avx!(_mm_cvtsd_f64(_mm_unpackhi_pd(hi, hi)))
-                }
-            }
+            // SAFETY: `__m256d` and `[f64; 4]` have the same size, and every bit pattern is valid
+            // for both.
+            let lanes = unsafe { std::mem::transmute::<__m256d, [f64; 4]>(self.0) };
+            lanes[l]
         }
         #[inline(always)]
-        fn from_lanes(v: [f64; W]) -> Self {
-            Self(avx!(_mm256_set_pd(v[3], v[2], v[1], v[0])))
+        fn from_fn(f: impl Fn(usize) -> f64) -> Self {
+            Self(avx!(_mm256_set_pd(f(3), f(2), f(1), f(0))))
         }
         #[inline(always)]
-        fn mask(mask: M64x4) -> [bool; W] {
-            let bits = avx!(_mm256_movemask_pd(mask.0));
-            [bits & 1 != 0, bits & 2 != 0, bits & 4 != 0, bits & 8 != 0]
+        fn bits(mask: M64x4) -> u32 {
+            avx!(_mm256_movemask_pd(mask.0)) as u32
         }
         #[inline(always)]
         fn any(mask: M64x4) -> bool {
             avx!(_mm256_movemask_pd(mask.0)) != 0
         }
         #[inline(always)]
-        fn mask_of(lanes: [bool; W]) -> M64x4 {
-            let bit = |b: bool| if b { f64::from_bits(u64::MAX) } else { 0.0 };
-            M64x4(avx!(_mm256_set_pd(
-                bit(lanes[3]),
-                bit(lanes[2]),
-                bit(lanes[1]),
-                bit(lanes[0])
+        fn mask_from_bits(bits: u32) -> M64x4 {
+            let bit = |l: u32| {
+                if bits & (1 << l) != 0 {
+                    f64::from_bits(u64::MAX)
+                } else {
+                    0.0
+                }
+            };
+            M64x4(avx!(_mm256_set_pd(bit(3), bit(2), bit(1), bit(0))))
+        }
+    }
+
+    #[derive(Clone, Copy)]
+    pub(crate) struct F32x8(__m256);
+    #[derive(Clone, Copy)]
+    pub(crate) struct M32x8(__m256);
+
+    impl Add for F32x8 {
+        type Output = Self;
+        #[inline(always)]
+        fn add(self, o: Self) -> Self {
+            Self(avx!(_mm256_add_ps(self.0, o.0)))
+        }
+    }
+    impl Sub for F32x8 {
+        type Output = Self;
+        #[inline(always)]
+        fn sub(self, o: Self) -> Self {
+            Self(avx!(_mm256_sub_ps(self.0, o.0)))
+        }
+    }
+    impl Mul for F32x8 {
+        type Output = Self;
+        #[inline(always)]
+        fn mul(self, o: Self) -> Self {
+            Self(avx!(_mm256_mul_ps(self.0, o.0)))
+        }
+    }
+    impl BitAnd for M32x8 {
+        type Output = Self;
+        #[inline(always)]
+        fn bitand(self, o: Self) -> Self {
+            Self(avx!(_mm256_and_ps(self.0, o.0)))
+        }
+    }
+    impl BitOr for M32x8 {
+        type Output = Self;
+        #[inline(always)]
+        fn bitor(self, o: Self) -> Self {
+            Self(avx!(_mm256_or_ps(self.0, o.0)))
+        }
+    }
+    impl Not for M32x8 {
+        type Output = Self;
+        #[inline(always)]
+        fn not(self) -> Self {
+            Self(avx!(_mm256_xor_ps(
+                self.0,
+                _mm256_set1_ps(f32::from_bits(u32::MAX))
+            )))
+        }
+    }
+
+    impl Lanes for F32x8 {
+        const W: usize = 8;
+        type S = f32;
+        type Mask = M32x8;
+        const EPSILON: f32 = f32::EPSILON;
+        #[inline(always)]
+        fn splat(v: f32) -> Self {
+            Self(avx!(_mm256_set1_ps(v)))
+        }
+        #[inline(always)]
+        fn abs(self) -> Self {
+            Self(avx!(_mm256_andnot_ps(_mm256_set1_ps(-0.0), self.0)))
+        }
+        /// `MAXPS`, as glam's `Vec3A::max` (SSE2 `MAXPS`).
+        #[inline(always)]
+        fn max(self, o: Self) -> Self {
+            Self(avx!(_mm256_max_ps(self.0, o.0)))
+        }
+        #[inline(always)]
+        fn min(self, o: Self) -> Self {
+            Self(avx!(_mm256_min_ps(self.0, o.0)))
+        }
+        #[inline(always)]
+        fn recip(self) -> Self {
+            Self(avx!(_mm256_div_ps(_mm256_set1_ps(1.0), self.0)))
+        }
+        #[inline(always)]
+        fn le(self, o: Self) -> M32x8 {
+            M32x8(avx!(_mm256_cmp_ps::<_CMP_LE_OQ>(self.0, o.0)))
+        }
+        #[inline(always)]
+        fn gt(self, o: Self) -> M32x8 {
+            M32x8(avx!(_mm256_cmp_ps::<_CMP_LT_OQ>(o.0, self.0)))
+        }
+        #[inline(always)]
+        fn lt(self, o: Self) -> M32x8 {
+            M32x8(avx!(_mm256_cmp_ps::<_CMP_LT_OQ>(self.0, o.0)))
+        }
+        #[inline(always)]
+        fn is_nan(self) -> M32x8 {
+            M32x8(avx!(_mm256_cmp_ps::<_CMP_UNORD_Q>(self.0, self.0)))
+        }
+        #[inline(always)]
+        fn is_finite(self) -> M32x8 {
+            self.abs().lt(Self::splat(f32::INFINITY))
+        }
+        #[inline(always)]
+        fn select(mask: M32x8, a: Self, b: Self) -> Self {
+            Self(avx!(_mm256_blendv_ps(b.0, a.0, mask.0)))
+        }
+        #[inline(always)]
+        fn lane(self, l: usize) -> f32 {
+            // SAFETY: `__m256` and `[f32; 8]` have the same size, and every bit pattern is valid
+            // for both.
+            let lanes = unsafe { std::mem::transmute::<__m256, [f32; 8]>(self.0) };
+            lanes[l]
+        }
+        #[inline(always)]
+        fn from_fn(f: impl Fn(usize) -> f32) -> Self {
+            Self(avx!(_mm256_set_ps(
+                f(7),
+                f(6),
+                f(5),
+                f(4),
+                f(3),
+                f(2),
+                f(1),
+                f(0)
+            )))
+        }
+        #[inline(always)]
+        fn bits(mask: M32x8) -> u32 {
+            avx!(_mm256_movemask_ps(mask.0)) as u32
+        }
+        #[inline(always)]
+        fn any(mask: M32x8) -> bool {
+            avx!(_mm256_movemask_ps(mask.0)) != 0
+        }
+        #[inline(always)]
+        fn mask_from_bits(bits: u32) -> M32x8 {
+            let bit = |l: u32| {
+                if bits & (1 << l) != 0 {
+                    f32::from_bits(u32::MAX)
+                } else {
+                    0.0
+                }
+            };
+            M32x8(avx!(_mm256_set_ps(
+                bit(7),
+                bit(6),
+                bit(5),
+                bit(4),
+                bit(3),
+                bit(2),
+                bit(1),
+                bit(0)
             )))
         }
     }

@@ -13,7 +13,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 use smallvec::SmallVec;
 
-use crate::batch::{Lanes, Maps, Real, V3, W, lanes};
+use crate::batch::{Lanes, MAX_W, Maps, Real, V3, lanes};
 use crate::body::Body;
 use crate::hex8::{Hex8Map, Hex8Map32, Inversion, Kernel, NewtonOptions, Status};
 use crate::lattice::CellId;
@@ -336,35 +336,16 @@ impl LatticeLocator<'_> {
     /// Answers for `points` into `out` (same length), W points at a time through the batched common
     /// path ([`crate::batch`]); the remainder and every point that leaves the common path go through
     /// the scalar search. The answers are bitwise those of [`Locator::locate`].
-    ///
-    /// Software-pipelined: a batch's cell data are read before the previous batch is computed, so
-    /// that the loads are in flight during that arithmetic, and the lanes are built from values
-    /// stored long before (a vector read of freshly stored scalars stalls store forwarding).
     #[inline(always)]
     fn locate_chunk_with<V: Lanes>(&self, points: &[DVec3], out: &mut [Answer]) {
-        let mut points_w = points.chunks_exact(W);
-        let mut out_w = out.chunks_exact_mut(W);
-        let mut buffers = [[Gathered::NOTHING; W]; 2];
-        let mut pending: Option<(&[DVec3], &mut [Answer])> = None;
-        for (batch, (p, o)) in (&mut points_w).zip(&mut out_w).enumerate() {
-            let [even, odd] = &mut buffers;
-            let (next, previous) = if batch % 2 == 0 {
-                (even, odd)
-            } else {
-                (odd, even)
-            };
-            for (g, &x) in next.iter_mut().zip(p) {
+        let mut points_w = points.chunks_exact(V::W);
+        let mut out_w = out.chunks_exact_mut(V::W);
+        let mut gathered = [Gathered::NOTHING; MAX_W];
+        for (p, o) in (&mut points_w).zip(&mut out_w) {
+            for (g, &x) in gathered.iter_mut().zip(p) {
                 self.gather(x, g);
             }
-            if let Some((pp, po)) = pending.take() {
-                self.locate_lanes::<V>(pp, po, previous);
-            }
-            pending = Some((p, o));
-        }
-        if let Some((pp, po)) = pending {
-            let count = points.len() / W;
-            let last = &mut buffers[(count + 1) % 2];
-            self.locate_lanes::<V>(pp, po, last);
+            self.locate_lanes::<V>(p, o, &mut gathered);
         }
         for (&x, o) in points_w.remainder().iter().zip(out_w.into_remainder()) {
             *o = self.locate(x);
@@ -397,7 +378,12 @@ impl LatticeLocator<'_> {
     /// inversion there. Mirrors [`LatticeLocator::search`] and `search_with` step for step (see
     /// [`crate::batch`]).
     #[inline(always)]
-    fn locate_lanes<V: Lanes>(&self, points: &[DVec3], out: &mut [Answer], g: &mut [Gathered; W]) {
+    fn locate_lanes<V: Lanes>(
+        &self,
+        points: &[DVec3],
+        out: &mut [Answer],
+        g: &mut [Gathered; MAX_W],
+    ) {
         let lattice = self.body.lattice();
         let mut maps = Maps::<V>::from_corners(|l, c| g[l].u[c]);
         // The guess x − ũ, ũ interpolated at x in the cell holding x (`guess`).
@@ -410,12 +396,12 @@ impl LatticeLocator<'_> {
         } else {
             V3::from_fn(|_| DVec3::ZERO)
         };
-        let mut first = [[0u32; 3]; W];
-        let mut x_local = [DVec3::ZERO; W];
-        let mut xi0 = [DVec3::ZERO; W];
-        let mut take = [false; W];
+        let mut first = [[0u32; 3]; MAX_W];
+        let mut x_local = [DVec3::ZERO; MAX_W];
+        let mut xi0 = [DVec3::ZERO; MAX_W];
+        let mut take = 0u32;
         let mut moved = false;
-        for l in 0..W {
+        for l in 0..V::W {
             if !g[l].take {
                 continue;
             }
@@ -428,7 +414,7 @@ impl LatticeLocator<'_> {
             if !self.body.is_active(lattice.cell_id(first[l])) {
                 continue;
             }
-            take[l] = true;
+            take |= 1 << l;
             if first[l] != g[l].cell_x {
                 moved = true;
                 g[l].u = self.body.corner_displacements(first[l]);
@@ -446,11 +432,11 @@ impl LatticeLocator<'_> {
             V3::from_fn(|l| x_local[l]),
             V3::from_fn(|l| xi0[l]),
             inside,
-            V::mask_of(take),
+            V::mask_from_bits(take),
             &self.newton,
         );
-        for l in 0..W {
-            out[l] = if found[l] {
+        for (l, out) in out.iter_mut().enumerate() {
+            *out = if found & (1 << l) != 0 {
                 Ok(Some(Hit {
                     cell: lattice.cell_id(first[l]),
                     xi: xi.lane(l).clamp(DVec3::NEG_ONE, DVec3::ONE),
@@ -464,22 +450,23 @@ impl LatticeLocator<'_> {
         }
     }
 
-    /// [`Locator::locate`] for a chunk of points: batched where that measured faster (f32 always,
-    /// four f64 lanes with AVX2, detected at run time), one point at a time otherwise.
+    /// [`Locator::locate`] for a chunk of points: batched where that measured faster (with AVX2,
+    /// detected at run time: 4 f64 or 8 f32 lanes; without it, 4 f32 lanes of glam's SSE2 `Vec4`),
+    /// one point at a time otherwise (f64 without AVX2: SSE2 pairs measured slower than scalar).
     fn locate_chunk(&self, points: &[DVec3], out: &mut [Answer]) {
+        #[cfg(target_arch = "x86_64")]
+        if std::is_x86_feature_detected!("avx2") {
+            // SAFETY: AVX2 was detected on this CPU just above; this is the only way in to the
+            // AVX lanes (`batch::avx`).
+            #[allow(unsafe_code)]
+            unsafe {
+                self.locate_chunk_avx2(points, out);
+            }
+            return;
+        }
         match self.settings.precision {
             Precision::F32 => self.locate_chunk_with::<glam::Vec4>(points, out),
             Precision::F64 => {
-                #[cfg(target_arch = "x86_64")]
-                if std::is_x86_feature_detected!("avx2") {
-                    // SAFETY: AVX2 was detected on this CPU just above; this is the only way in to
-                    // the AVX lanes (`batch::avx`).
-                    #[allow(unsafe_code)]
-                    unsafe {
-                        self.locate_chunk_avx2(points, out);
-                    }
-                    return;
-                }
                 for (o, &x) in out.iter_mut().zip(points) {
                     *o = self.locate(x);
                 }
@@ -487,11 +474,15 @@ impl LatticeLocator<'_> {
         }
     }
 
-    /// The f64 batch in AVX registers, the whole of it compiled for AVX2.
+    /// The batch in AVX registers, the whole of it compiled for AVX2.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     fn locate_chunk_avx2(&self, points: &[DVec3], out: &mut [Answer]) {
-        self.locate_chunk_with::<crate::batch::avx::F64x4>(points, out);
+        use crate::batch::avx::{F32x8, F64x4};
+        match self.settings.precision {
+            Precision::F32 => self.locate_chunk_with::<F32x8>(points, out),
+            Precision::F64 => self.locate_chunk_with::<F64x4>(points, out),
+        }
     }
 }
 
@@ -512,8 +503,9 @@ impl Locator for LatticeLocator<'_> {
         Ok(owners)
     }
 
-    /// Batched: W points at a time share SIMD instructions on the common path (see [`crate::batch`]);
-    /// the answers are bitwise those of [`Locator::locate`].
+    /// Batched: 4 or 8 points at a time share SIMD instructions on the common path (the predicted
+    /// cell, one Newton inversion there), with AVX2 detected at run time for f64; the answers are
+    /// bitwise those of [`Locator::locate`], whichever path computed them.
     fn locate_all_into(&self, points: &[DVec3], out: &mut Vec<Answer>) {
         // Every answer is overwritten: a buffer of the right length is reused without a pass over it.
         if out.len() != points.len() {
@@ -524,5 +516,110 @@ impl Locator for LatticeLocator<'_> {
         out.par_chunks_mut(256)
             .zip(points.par_chunks(256))
             .for_each(|(out, points)| self.locate_chunk(points, out));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::Lattice;
+
+    /// A distorted body away from the origin and points inside, on its cells' boundaries and outside.
+    fn scene() -> (Body, Vec<DVec3>) {
+        let lattice = Lattice::new(
+            DVec3::new(1000.5, -20.0, 3.0),
+            DVec3::new(0.3, 0.25, 0.4),
+            [9, 7, 6],
+        )
+        .unwrap();
+        let mut body = Body::full(lattice);
+        let hash = |n: usize, k: u64| {
+            let z = (n as u64 ^ k).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+            (z >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        body.update_displacements(|n, x, u| {
+            let smooth = DVec3::new((x.y * 2.0).sin(), (x.z * 1.5).cos(), (x.x * 0.7).sin());
+            *u = 0.08 * smooth + 0.05 * DVec3::new(hash(n, 1), hash(n, 2), hash(n, 3));
+        })
+        .unwrap();
+        let low = lattice.origin();
+        let size = lattice.upper() - low;
+        let points = (0..2003)
+            .map(|i| {
+                let f = |k| hash(i, k) * 1.3 + 0.5;
+                let x = low + size * DVec3::new(f(4), f(5), f(6));
+                // Every third point on a lattice plane (a face of the undeformed lattice).
+                if i % 3 == 0 {
+                    x.with_x(low.x + 0.3 * (i % 9) as f64)
+                } else {
+                    x
+                }
+            })
+            .collect();
+        (body, points)
+    }
+
+    /// A hit's fields as bits: cell, ξ, iterations, residual, inversions.
+    type Bits = (CellId, [u64; 3], u32, u64, u32);
+
+    fn bits(a: &Answer) -> Result<Option<Bits>, PointError> {
+        a.map(|hit| {
+            hit.map(|h| {
+                let xi = h.xi.to_array().map(f64::to_bits);
+                (h.cell, xi, h.iterations, h.residual.to_bits(), h.inversions)
+            })
+        })
+    }
+
+    fn check<V: Lanes>(locator: &LatticeLocator<'_>, points: &[DVec3]) {
+        let mut out = vec![Ok(None); points.len()];
+        locator.locate_chunk_with::<V>(points, &mut out);
+        let mut found = 0;
+        for (x, answer) in points.iter().zip(&out) {
+            assert_eq!(bits(answer), bits(&locator.locate(*x)), "at {x}");
+            found += usize::from(matches!(answer, Ok(Some(_))));
+        }
+        assert!(found > 500, "{found}");
+    }
+
+    /// Every lane type, forced in turn (the dispatch picks one per machine): answers bitwise those
+    /// of the scalar search.
+    #[test]
+    fn every_lane_type_answers_bitwise_as_the_scalar_search() {
+        let (body, points) = scene();
+        for order in [CandidateOrder::Predicted, CandidateOrder::Undeformed] {
+            let f32 = LatticeLocator::new(
+                &body,
+                Settings {
+                    order,
+                    ..Settings::f32()
+                },
+            )
+            .unwrap();
+            check::<glam::Vec4>(&f32, &points);
+            #[cfg(target_arch = "x86_64")]
+            if std::is_x86_feature_detected!("avx2") {
+                let f64 = LatticeLocator::new(
+                    &body,
+                    Settings {
+                        order,
+                        ..Settings::default()
+                    },
+                )
+                .unwrap();
+                // SAFETY: AVX2 was detected just above.
+                #[allow(unsafe_code)]
+                unsafe {
+                    avx2_checks(&f32, &f64, &points);
+                }
+            }
+        }
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn avx2_checks(f32: &LatticeLocator<'_>, f64: &LatticeLocator<'_>, points: &[DVec3]) {
+        check::<crate::batch::avx::F32x8>(f32, points);
+        check::<crate::batch::avx::F64x4>(f64, points);
     }
 }
