@@ -1,13 +1,13 @@
 //! A fixed amount of single-threaded locating, for profilers (perf, callgrind).
 //!
-//! Run: `cargo run --release -p cgcontact-benches --example profile_locate [repeats] [f32] [each] [big]`
+//! Run: `cargo run --release -p cgcontact-benches --example profile_locate [repeats] [f32] [each] [big|sphere]`
 //! (`each`: one `locate` call per point instead of the batched `locate_all_into`).
 
 use std::time::Instant;
 
 use cgcontact::glam::DVec3;
 use cgcontact::{LatticeLocator, Locator, Precision, Settings};
-use cgcontact_scenes::indented_block;
+use cgcontact_scenes::{SphereOnBlock, indented_block};
 
 fn main() -> Result<(), cgcontact::Error> {
     let repeats: usize = std::env::args()
@@ -19,20 +19,28 @@ fn main() -> Result<(), cgcontact::Error> {
     } else {
         Precision::F64
     };
-    // `big`: the 128,000-cell block with 1 M points of the `precision` bench.
-    let scene = if std::env::args().any(|a| a == "big") {
-        indented_block([40, 80, 40], DVec3::splat(0.125), 1_000_000, 7)?
+    // `big`: the 128,000-cell block with 1 M points of the `precision` bench; `sphere`: the seed's
+    // 6,700 sphere contact points on its fine block (most of them outside the block).
+    let args: Vec<String> = std::env::args().collect();
+    let has = |flag: &str| args.iter().any(|a| a == flag);
+    let (body, points) = if has("sphere") {
+        let scene = SphereOnBlock::fine().build("sphere")?;
+        (scene.body, scene.contact_points)
     } else {
-        indented_block([20, 40, 20], DVec3::splat(0.25), 100_000, 7)?
+        let scene = if has("big") {
+            indented_block([40, 80, 40], DVec3::splat(0.125), 1_000_000, 7)?
+        } else {
+            indented_block([20, 40, 20], DVec3::splat(0.25), 100_000, 7)?
+        };
+        (scene.body, scene.known.iter().map(|k| k.x).collect())
     };
-    let points: Vec<DVec3> = scene.known.iter().map(|k| k.x).collect();
     let settings = if precision == Precision::F32 {
         Settings::f32()
     } else {
         Settings::default()
     };
     let each = std::env::args().any(|a| a == "each");
-    let locator = LatticeLocator::new(&scene.body, settings)?;
+    let locator = LatticeLocator::new(&body, settings)?;
     let one = rayon::ThreadPoolBuilder::new()
         .num_threads(1)
         .build()
