@@ -1,7 +1,7 @@
 //! Precision and threads on the big scene (issue 5): an indented block of 40 × 80 × 40 = 128,000
 //! cells (h = 0.125, top sinking 0.45 h) with 1,000,000 points made from known (cell, ξ). The lattice
-//! locator in f64 and f32 (`Settings::f32()`, glam `Vec3A` in each cell's local frame), on one thread
-//! and on all threads; the same 1 M points on a 2,000-cell block shows how flat throughput is in the
+//! locator in f64 and f32 (`Settings::f32()`, in each cell's local frame), batched `locate_all` on one
+//! thread and on all threads and the scalar `locate` one point at a time; the same 1 M points on a 2,000-cell block shows how flat throughput is in the
 //! number of cells.
 //!
 //! Run: `cargo bench -p cgcontact-benches --bench precision`
@@ -43,6 +43,14 @@ fn precision(c: &mut Criterion) {
             if cells[0] == 40 {
                 group.bench_function(format!("{name} {all} threads"), |b| {
                     b.iter(|| locator.locate_all_into(black_box(&points), &mut out))
+                });
+                // The scalar search one point at a time: what the batched `locate_all` gains.
+                group.bench_function(format!("{name} 1 thread, sequential locate"), |b| {
+                    b.iter(|| {
+                        for (slot, &x) in out.iter_mut().zip(black_box(&points)) {
+                            *slot = locator.locate(x);
+                        }
+                    })
                 });
             }
         }

@@ -312,7 +312,7 @@ impl<'a> LatticeLocator<'a> {
 /// `LatticeLocator::locate_chunk_with`).
 #[derive(Clone, Copy)]
 struct Gathered {
-    /// Finite and within reach: the batched path takes it.
+    /// Finite and within reach: the batched path takes it (otherwise `gather` answered it).
     take: bool,
     inside_tol: f64,
     /// Lattice coordinates of x.
@@ -342,8 +342,8 @@ impl LatticeLocator<'_> {
         let mut out_w = out.chunks_exact_mut(V::W);
         let mut gathered = [Gathered::NOTHING; MAX_W];
         for (p, o) in (&mut points_w).zip(&mut out_w) {
-            for (g, &x) in gathered.iter_mut().zip(p) {
-                self.gather(x, g);
+            for ((g, &x), o) in gathered.iter_mut().zip(p).zip(o.iter_mut()) {
+                self.gather(x, g, o);
             }
             self.locate_lanes::<V>(p, o, &mut gathered);
         }
@@ -353,17 +353,20 @@ impl LatticeLocator<'_> {
     }
 
     /// The first half of `search` for one point, up to the displacements of the cell holding it
-    /// (written in place: a `Gathered` is 240 bytes, and moving one costs a memcpy call).
+    /// (written in place: a `Gathered` is 240 bytes, and moving one costs a memcpy call). A point that
+    /// is not finite or out of reach is answered here, as `search` answers it.
     #[inline(always)]
-    fn gather(&self, x: DVec3, g: &mut Gathered) {
+    fn gather(&self, x: DVec3, g: &mut Gathered, out: &mut Answer) {
         g.take = false;
         if !x.is_finite() {
+            *out = Err(PointError::NonFinite);
             return;
         }
         let lattice = self.body.lattice();
         let inside_tol = self.inside_tol.at(x);
         let slack = lattice.h() * inside_tol;
         if x.cmplt(self.reach_low - slack).any() || x.cmpgt(self.reach_high + slack).any() {
+            *out = Ok(None);
             return;
         }
         g.take = true;
@@ -385,11 +388,7 @@ impl LatticeLocator<'_> {
         g: &mut [Gathered; MAX_W],
     ) {
         if g[..V::W].iter().all(|g| !g.take) {
-            // Every point out of reach (e.g. a contact surface mostly away from the body): the scalar
-            // search rejects each at once, cheaper than the lanes' arithmetic.
-            for (o, &x) in out.iter_mut().zip(points) {
-                *o = self.locate(x);
-            }
+            // Every point answered by `gather` (e.g. a contact surface mostly away from the body).
             return;
         }
         let lattice = self.body.lattice();
@@ -444,17 +443,18 @@ impl LatticeLocator<'_> {
             &self.newton,
         );
         for (l, out) in out.iter_mut().enumerate() {
-            *out = if found & (1 << l) != 0 {
-                Ok(Some(Hit {
+            if found & (1 << l) != 0 {
+                *out = Ok(Some(Hit {
                     cell: lattice.cell_id(first[l]),
                     xi: xi.lane(l).clamp(DVec3::NEG_ONE, DVec3::ONE),
                     iterations: iterations[l],
                     residual: rr.lane(l).wide().sqrt(),
                     inversions: 1,
-                }))
-            } else {
-                self.locate(points[l])
-            };
+                }));
+            } else if g[l].take {
+                // Left the common path: the whole scalar search (points `gather` did not answer).
+                *out = self.locate(points[l]);
+            }
         }
     }
 
