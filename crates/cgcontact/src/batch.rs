@@ -496,7 +496,8 @@ impl<V: Lanes> Maps<V> {
     }
 }
 
-/// Four f64 lanes in one AVX register.
+/// AVX lanes: four f64 ([`avx::F64x4`]) or eight f32 ([`avx::F32x8`]) per 256-bit register, used only
+/// behind the AVX2 check of `LatticeLocator::locate_chunk`.
 #[cfg(target_arch = "x86_64")]
 pub(crate) mod avx {
     #![allow(unsafe_code)]

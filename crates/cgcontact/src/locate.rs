@@ -532,15 +532,19 @@ mod tests {
     use super::*;
     use crate::Lattice;
 
-    /// A distorted body away from the origin and points inside, on its cells' boundaries and outside.
-    fn scene() -> (Body, Vec<DVec3>) {
+    /// A distorted body away from the origin (full, or with every fifth cell inactive, which keeps
+    /// the slot table) and points inside, on its cells' boundaries and outside.
+    fn scene(holes: bool) -> (Body, Vec<DVec3>) {
         let lattice = Lattice::new(
             DVec3::new(1000.5, -20.0, 3.0),
             DVec3::new(0.3, 0.25, 0.4),
             [9, 7, 6],
         )
         .unwrap();
-        let mut body = Body::full(lattice);
+        let active = (0..lattice.cell_count())
+            .map(|c| !holes || c % 5 != 2)
+            .collect();
+        let mut body = Body::undeformed(lattice, active).unwrap();
         let hash = |n: usize, k: u64| {
             let z = (n as u64 ^ k).wrapping_mul(0x9E37_79B9_7F4A_7C15);
             (z >> 11) as f64 / (1u64 << 53) as f64 - 0.5
@@ -594,8 +598,12 @@ mod tests {
     /// of the scalar search.
     #[test]
     fn every_lane_type_answers_bitwise_as_the_scalar_search() {
-        let (body, points) = scene();
-        for order in [CandidateOrder::Predicted, CandidateOrder::Undeformed] {
+        for (holes, order) in [
+            (false, CandidateOrder::Predicted),
+            (true, CandidateOrder::Predicted),
+            (true, CandidateOrder::Undeformed),
+        ] {
+            let (body, points) = scene(holes);
             let f32 = LatticeLocator::new(
                 &body,
                 Settings {
