@@ -22,7 +22,7 @@ use std::ops::{Add, BitAnd, BitOr, Mul, Not, Sub};
 
 use glam::DVec3;
 
-use crate::hex8::NewtonOptions;
+use crate::hex8::{self, NewtonOptions};
 
 /// A float type the lanes compute in: f64 or f32.
 pub(crate) trait Real:
@@ -305,27 +305,12 @@ impl<V: Lanes> Maps<V> {
         Self::new(&corners)
     }
 
-    /// The maps of W hexahedra with corners `c` (VTK order): `Hex8Map::new`'s butterfly, term by term.
+    /// The maps of W hexahedra with corners `c` (VTK order): `Hex8Map::new`'s butterfly, the same code.
     #[inline(always)]
     pub fn new(c: &[V3<V>; 8]) -> Self {
-        let (s01, d01) = (c[1] + c[0], c[1] - c[0]);
-        let (s32, d32) = (c[2] + c[3], c[2] - c[3]);
-        let (s45, d45) = (c[5] + c[4], c[5] - c[4]);
-        let (s76, d76) = (c[6] + c[7], c[6] - c[7]);
-        let (lo0, lo1, lo2, lo3) = (s32 + s01, d32 + d01, s32 - s01, d32 - d01);
-        let (hi0, hi1, hi2, hi3) = (s76 + s45, d76 + d45, s76 - s45, d76 - d45);
         let eighth = V::splat(V::S::of(0.125));
         Self {
-            a: [
-                (hi0 + lo0).scale(eighth),
-                (hi1 + lo1).scale(eighth),
-                (hi2 + lo2).scale(eighth),
-                (hi3 + lo3).scale(eighth),
-                (hi0 - lo0).scale(eighth),
-                (hi1 - lo1).scale(eighth),
-                (hi2 - lo2).scale(eighth),
-                (hi3 - lo3).scale(eighth),
-            ],
+            a: hex8::monomials(c, |v: V3<V>| v.scale(eighth)),
         }
     }
 
@@ -366,25 +351,16 @@ impl<V: Lanes> Maps<V> {
             };
     }
 
-    /// x(ξ) and the columns of J, as `Hex8Map::map_and_jacobian`.
+    /// x(ξ) and the columns of J: `Hex8Map::map_and_jacobian`, the same code.
     #[inline(always)]
     pub fn map_and_jacobian(&self, xi: V3<V>) -> (V3<V>, [V3<V>; 3]) {
-        let a = &self.a;
-        let (x, y, z) = (xi.x, xi.y, xi.z);
-        let d_xi = a[1] + a[3].scale(y) + (a[5] + a[7].scale(y)).scale(z);
-        let d_eta = a[2] + a[3].scale(x) + (a[6] + a[7].scale(x)).scale(z);
-        let lower = a[0] + a[1].scale(x) + (a[2] + a[3].scale(x)).scale(y);
-        let upper = a[4] + a[5].scale(x) + (a[6] + a[7].scale(x)).scale(y);
-        (lower + upper.scale(z), [d_xi, d_eta, upper])
+        hex8::map_and_jacobian(&self.a, xi.x, xi.y, xi.z, V3::scale)
     }
 
-    /// x(ξ), as `Hex8Map::map`.
+    /// x(ξ): `Hex8Map::map`, the same code.
     #[inline(always)]
     pub fn map(&self, xi: V3<V>) -> V3<V> {
-        let a = &self.a;
-        let lower = a[0] + a[1].scale(xi.x) + (a[2] + a[3].scale(xi.x)).scale(xi.y);
-        let upper = a[4] + a[5].scale(xi.x) + (a[6] + a[7].scale(xi.x)).scale(xi.y);
-        lower + upper.scale(xi.z)
+        hex8::map(&self.a, xi.x, xi.y, xi.z, V3::scale)
     }
 
     /// `Hex8Map::magnitude`.
@@ -515,6 +491,7 @@ pub(crate) mod avx {
 
     use super::Lanes;
 
+    /// Calls an AVX intrinsic.
     macro_rules! avx {
         ($e:expr) => {
             // SAFETY: values of these types exist only on the path entered after
@@ -524,286 +501,166 @@ pub(crate) mod avx {
         };
     }
 
-    #[derive(Clone, Copy)]
-    pub(crate) struct F64x4(__m256d);
-    #[derive(Clone, Copy)]
-    pub(crate) struct M64x4(__m256d);
+    /// Stamps a lane type and its mask from one 256-bit register type and its intrinsics (`_pd` for
+    /// f64, `_ps` for f32), so that both precisions share one definition.
+    macro_rules! avx_lanes {
+        (
+            $(#[$doc:meta])* $F:ident, $M:ident, $reg:ty, $S:ty, $W:literal, $bits:ty,
+            add: $add:ident, sub: $sub:ident, mul: $mul:ident, div: $div:ident,
+            and: $and:ident, or: $or:ident, xor: $xor:ident, andnot: $andnot:ident,
+            max: $max:ident, min: $min:ident, cmp: $cmp:ident, blendv: $blendv:ident,
+            movemask: $movemask:ident, set1: $set1:ident,
+            from_fn: |$f:ident| $set:expr
+        ) => {
+            $(#[$doc])*
+            #[derive(Clone, Copy)]
+            pub(crate) struct $F($reg);
 
-    impl Add for F64x4 {
-        type Output = Self;
-        #[inline(always)]
-        fn add(self, o: Self) -> Self {
-            Self(avx!(_mm256_add_pd(self.0, o.0)))
-        }
-    }
-    impl Sub for F64x4 {
-        type Output = Self;
-        #[inline(always)]
-        fn sub(self, o: Self) -> Self {
-            Self(avx!(_mm256_sub_pd(self.0, o.0)))
-        }
-    }
-    impl Mul for F64x4 {
-        type Output = Self;
-        #[inline(always)]
-        fn mul(self, o: Self) -> Self {
-            Self(avx!(_mm256_mul_pd(self.0, o.0)))
-        }
-    }
-    impl BitAnd for M64x4 {
-        type Output = Self;
-        #[inline(always)]
-        fn bitand(self, o: Self) -> Self {
-            Self(avx!(_mm256_and_pd(self.0, o.0)))
-        }
-    }
-    impl BitOr for M64x4 {
-        type Output = Self;
-        #[inline(always)]
-        fn bitor(self, o: Self) -> Self {
-            Self(avx!(_mm256_or_pd(self.0, o.0)))
-        }
-    }
-    impl Not for M64x4 {
-        type Output = Self;
-        #[inline(always)]
-        fn not(self) -> Self {
-            Self(avx!(_mm256_xor_pd(
-                self.0,
-                _mm256_set1_pd(f64::from_bits(u64::MAX))
-            )))
-        }
-    }
+            /// A lane mask: all bits set where true.
+            #[derive(Clone, Copy)]
+            pub(crate) struct $M($reg);
 
-    impl Lanes for F64x4 {
-        const W: usize = 4;
-        type S = f64;
-        type Mask = M64x4;
-        const EPSILON: f64 = f64::EPSILON;
-        #[inline(always)]
-        fn splat(v: f64) -> Self {
-            Self(avx!(_mm256_set1_pd(v)))
-        }
-        #[inline(always)]
-        fn abs(self) -> Self {
-            Self(avx!(_mm256_andnot_pd(_mm256_set1_pd(-0.0), self.0)))
-        }
-        #[inline(always)]
-        fn max(self, o: Self) -> Self {
-            Self(avx!(_mm256_max_pd(self.0, o.0)))
-        }
-        #[inline(always)]
-        fn min(self, o: Self) -> Self {
-            Self(avx!(_mm256_min_pd(self.0, o.0)))
-        }
-        #[inline(always)]
-        fn recip(self) -> Self {
-            Self(avx!(_mm256_div_pd(_mm256_set1_pd(1.0), self.0)))
-        }
-        #[inline(always)]
-        fn le(self, o: Self) -> M64x4 {
-            M64x4(avx!(_mm256_cmp_pd::<_CMP_LE_OQ>(self.0, o.0)))
-        }
-        #[inline(always)]
-        fn gt(self, o: Self) -> M64x4 {
-            M64x4(avx!(_mm256_cmp_pd::<_CMP_LT_OQ>(o.0, self.0)))
-        }
-        #[inline(always)]
-        fn lt(self, o: Self) -> M64x4 {
-            M64x4(avx!(_mm256_cmp_pd::<_CMP_LT_OQ>(self.0, o.0)))
-        }
-        #[inline(always)]
-        fn is_nan(self) -> M64x4 {
-            M64x4(avx!(_mm256_cmp_pd::<_CMP_UNORD_Q>(self.0, self.0)))
-        }
-        #[inline(always)]
-        fn is_finite(self) -> M64x4 {
-            self.abs().lt(Self::splat(f64::INFINITY))
-        }
-        #[inline(always)]
-        fn select(mask: M64x4, a: Self, b: Self) -> Self {
-            Self(avx!(_mm256_blendv_pd(b.0, a.0, mask.0)))
-        }
-        #[inline(always)]
-        fn lane(self, l: usize) -> f64 {
-            // SAFETY: `__m256d` and `[f64; 4]` have the same size, and every bit pattern is valid
-            // for both.
-            let lanes = unsafe { std::mem::transmute::<__m256d, [f64; 4]>(self.0) };
-            lanes[l]
-        }
-        #[inline(always)]
-        fn from_fn(f: impl Fn(usize) -> f64) -> Self {
-            Self(avx!(_mm256_set_pd(f(3), f(2), f(1), f(0))))
-        }
-        #[inline(always)]
-        fn bits(mask: M64x4) -> u32 {
-            avx!(_mm256_movemask_pd(mask.0)) as u32
-        }
-        #[inline(always)]
-        fn any(mask: M64x4) -> bool {
-            avx!(_mm256_movemask_pd(mask.0)) != 0
-        }
-        #[inline(always)]
-        fn mask_from_bits(bits: u32) -> M64x4 {
-            let bit = |l: u32| {
-                if bits & (1 << l) != 0 {
-                    f64::from_bits(u64::MAX)
-                } else {
-                    0.0
+            impl Add for $F {
+                type Output = Self;
+                #[inline(always)]
+                fn add(self, o: Self) -> Self {
+                    Self(avx!($add(self.0, o.0)))
                 }
-            };
-            M64x4(avx!(_mm256_set_pd(bit(3), bit(2), bit(1), bit(0))))
-        }
-    }
-
-    #[derive(Clone, Copy)]
-    pub(crate) struct F32x8(__m256);
-    #[derive(Clone, Copy)]
-    pub(crate) struct M32x8(__m256);
-
-    impl Add for F32x8 {
-        type Output = Self;
-        #[inline(always)]
-        fn add(self, o: Self) -> Self {
-            Self(avx!(_mm256_add_ps(self.0, o.0)))
-        }
-    }
-    impl Sub for F32x8 {
-        type Output = Self;
-        #[inline(always)]
-        fn sub(self, o: Self) -> Self {
-            Self(avx!(_mm256_sub_ps(self.0, o.0)))
-        }
-    }
-    impl Mul for F32x8 {
-        type Output = Self;
-        #[inline(always)]
-        fn mul(self, o: Self) -> Self {
-            Self(avx!(_mm256_mul_ps(self.0, o.0)))
-        }
-    }
-    impl BitAnd for M32x8 {
-        type Output = Self;
-        #[inline(always)]
-        fn bitand(self, o: Self) -> Self {
-            Self(avx!(_mm256_and_ps(self.0, o.0)))
-        }
-    }
-    impl BitOr for M32x8 {
-        type Output = Self;
-        #[inline(always)]
-        fn bitor(self, o: Self) -> Self {
-            Self(avx!(_mm256_or_ps(self.0, o.0)))
-        }
-    }
-    impl Not for M32x8 {
-        type Output = Self;
-        #[inline(always)]
-        fn not(self) -> Self {
-            Self(avx!(_mm256_xor_ps(
-                self.0,
-                _mm256_set1_ps(f32::from_bits(u32::MAX))
-            )))
-        }
-    }
-
-    impl Lanes for F32x8 {
-        const W: usize = 8;
-        type S = f32;
-        type Mask = M32x8;
-        const EPSILON: f32 = f32::EPSILON;
-        #[inline(always)]
-        fn splat(v: f32) -> Self {
-            Self(avx!(_mm256_set1_ps(v)))
-        }
-        #[inline(always)]
-        fn abs(self) -> Self {
-            Self(avx!(_mm256_andnot_ps(_mm256_set1_ps(-0.0), self.0)))
-        }
-        /// `MAXPS`, as glam's `Vec3A::max` (SSE2 `MAXPS`).
-        #[inline(always)]
-        fn max(self, o: Self) -> Self {
-            Self(avx!(_mm256_max_ps(self.0, o.0)))
-        }
-        #[inline(always)]
-        fn min(self, o: Self) -> Self {
-            Self(avx!(_mm256_min_ps(self.0, o.0)))
-        }
-        #[inline(always)]
-        fn recip(self) -> Self {
-            Self(avx!(_mm256_div_ps(_mm256_set1_ps(1.0), self.0)))
-        }
-        #[inline(always)]
-        fn le(self, o: Self) -> M32x8 {
-            M32x8(avx!(_mm256_cmp_ps::<_CMP_LE_OQ>(self.0, o.0)))
-        }
-        #[inline(always)]
-        fn gt(self, o: Self) -> M32x8 {
-            M32x8(avx!(_mm256_cmp_ps::<_CMP_LT_OQ>(o.0, self.0)))
-        }
-        #[inline(always)]
-        fn lt(self, o: Self) -> M32x8 {
-            M32x8(avx!(_mm256_cmp_ps::<_CMP_LT_OQ>(self.0, o.0)))
-        }
-        #[inline(always)]
-        fn is_nan(self) -> M32x8 {
-            M32x8(avx!(_mm256_cmp_ps::<_CMP_UNORD_Q>(self.0, self.0)))
-        }
-        #[inline(always)]
-        fn is_finite(self) -> M32x8 {
-            self.abs().lt(Self::splat(f32::INFINITY))
-        }
-        #[inline(always)]
-        fn select(mask: M32x8, a: Self, b: Self) -> Self {
-            Self(avx!(_mm256_blendv_ps(b.0, a.0, mask.0)))
-        }
-        #[inline(always)]
-        fn lane(self, l: usize) -> f32 {
-            // SAFETY: `__m256` and `[f32; 8]` have the same size, and every bit pattern is valid
-            // for both.
-            let lanes = unsafe { std::mem::transmute::<__m256, [f32; 8]>(self.0) };
-            lanes[l]
-        }
-        #[inline(always)]
-        fn from_fn(f: impl Fn(usize) -> f32) -> Self {
-            Self(avx!(_mm256_set_ps(
-                f(7),
-                f(6),
-                f(5),
-                f(4),
-                f(3),
-                f(2),
-                f(1),
-                f(0)
-            )))
-        }
-        #[inline(always)]
-        fn bits(mask: M32x8) -> u32 {
-            avx!(_mm256_movemask_ps(mask.0)) as u32
-        }
-        #[inline(always)]
-        fn any(mask: M32x8) -> bool {
-            avx!(_mm256_movemask_ps(mask.0)) != 0
-        }
-        #[inline(always)]
-        fn mask_from_bits(bits: u32) -> M32x8 {
-            let bit = |l: u32| {
-                if bits & (1 << l) != 0 {
-                    f32::from_bits(u32::MAX)
-                } else {
-                    0.0
+            }
+            impl Sub for $F {
+                type Output = Self;
+                #[inline(always)]
+                fn sub(self, o: Self) -> Self {
+                    Self(avx!($sub(self.0, o.0)))
                 }
-            };
-            M32x8(avx!(_mm256_set_ps(
-                bit(7),
-                bit(6),
-                bit(5),
-                bit(4),
-                bit(3),
-                bit(2),
-                bit(1),
-                bit(0)
-            )))
-        }
+            }
+            impl Mul for $F {
+                type Output = Self;
+                #[inline(always)]
+                fn mul(self, o: Self) -> Self {
+                    Self(avx!($mul(self.0, o.0)))
+                }
+            }
+            impl BitAnd for $M {
+                type Output = Self;
+                #[inline(always)]
+                fn bitand(self, o: Self) -> Self {
+                    Self(avx!($and(self.0, o.0)))
+                }
+            }
+            impl BitOr for $M {
+                type Output = Self;
+                #[inline(always)]
+                fn bitor(self, o: Self) -> Self {
+                    Self(avx!($or(self.0, o.0)))
+                }
+            }
+            impl Not for $M {
+                type Output = Self;
+                #[inline(always)]
+                fn not(self) -> Self {
+                    Self(avx!($xor(self.0, $set1(<$S>::from_bits(<$bits>::MAX)))))
+                }
+            }
+
+            impl Lanes for $F {
+                const W: usize = $W;
+                type S = $S;
+                type Mask = $M;
+                const EPSILON: $S = <$S>::EPSILON;
+                #[inline(always)]
+                fn splat(v: $S) -> Self {
+                    Self(avx!($set1(v)))
+                }
+                #[inline(always)]
+                fn abs(self) -> Self {
+                    Self(avx!($andnot($set1(-0.0), self.0)))
+                }
+                /// `MAXPD`/`MAXPS`: `if a > b { a } else { b }`, as glam's `DVec3::max` and
+                /// `Vec3A::max` (SSE2 `MAXPS`), NaN included.
+                #[inline(always)]
+                fn max(self, o: Self) -> Self {
+                    Self(avx!($max(self.0, o.0)))
+                }
+                #[inline(always)]
+                fn min(self, o: Self) -> Self {
+                    Self(avx!($min(self.0, o.0)))
+                }
+                #[inline(always)]
+                fn recip(self) -> Self {
+                    Self(avx!($div($set1(1.0), self.0)))
+                }
+                #[inline(always)]
+                fn le(self, o: Self) -> $M {
+                    $M(avx!($cmp::<_CMP_LE_OQ>(self.0, o.0)))
+                }
+                #[inline(always)]
+                fn gt(self, o: Self) -> $M {
+                    $M(avx!($cmp::<_CMP_LT_OQ>(o.0, self.0)))
+                }
+                #[inline(always)]
+                fn lt(self, o: Self) -> $M {
+                    $M(avx!($cmp::<_CMP_LT_OQ>(self.0, o.0)))
+                }
+                #[inline(always)]
+                fn is_nan(self) -> $M {
+                    $M(avx!($cmp::<_CMP_UNORD_Q>(self.0, self.0)))
+                }
+                #[inline(always)]
+                fn is_finite(self) -> $M {
+                    // |v| < ∞ is false for ±∞ and NaN.
+                    self.abs().lt(Self::splat(<$S>::INFINITY))
+                }
+                #[inline(always)]
+                fn select(mask: $M, a: Self, b: Self) -> Self {
+                    Self(avx!($blendv(b.0, a.0, mask.0)))
+                }
+                #[inline(always)]
+                fn lane(self, l: usize) -> $S {
+                    // SAFETY: the register and the array have the same size, and every bit pattern
+                    // is valid for both.
+                    let lanes = unsafe { std::mem::transmute::<$reg, [$S; $W]>(self.0) };
+                    lanes[l]
+                }
+                /// Built from scalars in registers (`_mm256_set_*`), not through memory: a vector
+                /// load of freshly stored scalars stalls store forwarding (measured).
+                #[inline(always)]
+                fn from_fn($f: impl Fn(usize) -> $S) -> Self {
+                    Self(avx!($set))
+                }
+                #[inline(always)]
+                fn bits(mask: $M) -> u32 {
+                    avx!($movemask(mask.0)) as u32
+                }
+                #[inline(always)]
+                fn any(mask: $M) -> bool {
+                    avx!($movemask(mask.0)) != 0
+                }
+                #[inline(always)]
+                fn mask_from_bits(bits: u32) -> $M {
+                    let all = <$S>::from_bits(<$bits>::MAX);
+                    $M(Self::from_fn(|l| if bits & (1 << l) != 0 { all } else { 0.0 }).0)
+                }
+            }
+        };
     }
+
+    avx_lanes!(
+        /// Four f64 lanes.
+        F64x4, M64x4, __m256d, f64, 4, u64,
+        add: _mm256_add_pd, sub: _mm256_sub_pd, mul: _mm256_mul_pd, div: _mm256_div_pd,
+        and: _mm256_and_pd, or: _mm256_or_pd, xor: _mm256_xor_pd, andnot: _mm256_andnot_pd,
+        max: _mm256_max_pd, min: _mm256_min_pd, cmp: _mm256_cmp_pd, blendv: _mm256_blendv_pd,
+        movemask: _mm256_movemask_pd, set1: _mm256_set1_pd,
+        from_fn: |f| _mm256_set_pd(f(3), f(2), f(1), f(0))
+    );
+    avx_lanes!(
+        /// Eight f32 lanes.
+        F32x8, M32x8, __m256, f32, 8, u32,
+        add: _mm256_add_ps, sub: _mm256_sub_ps, mul: _mm256_mul_ps, div: _mm256_div_ps,
+        and: _mm256_and_ps, or: _mm256_or_ps, xor: _mm256_xor_ps, andnot: _mm256_andnot_ps,
+        max: _mm256_max_ps, min: _mm256_min_ps, cmp: _mm256_cmp_ps, blendv: _mm256_blendv_ps,
+        movemask: _mm256_movemask_ps, set1: _mm256_set1_ps,
+        from_fn: |f| _mm256_set_ps(f(7), f(6), f(5), f(4), f(3), f(2), f(1), f(0))
+    );
 }

@@ -11,6 +11,8 @@
 //! to the cell's lowest lattice node), so magnitudes are of order h whatever the global coordinates;
 //! that is what keeps f32 accurate far from the origin.
 
+use std::ops::{Add, Sub};
+
 use glam::{DVec3, Vec3A};
 
 /// Sign of each corner's local coordinate, VTK order: corner `c` sits at `CORNER_XI[c]`.
@@ -104,6 +106,68 @@ pub trait Kernel: Copy + Send + Sync {
     fn invert_f64(&self, x: DVec3, xi0: DVec3, options: &NewtonOptions) -> Inversion;
 }
 
+/// The monomial coefficients (1, ξ, η, ξη, ζ, ξζ, ηζ, ξηζ) of the trilinear map with corners `c` (VTK
+/// order); `eighth(v)` is v / 8. A Haar butterfly along ξ, η, ζ in turn, (lo, hi) → (hi + lo, hi − lo),
+/// written out (binary corner b = VTK corner with bit 0: +ξ, bit 1: +η, bit 2: +ζ) so that it inlines
+/// without copies; the three halvings are one scaling at the end. Generic, so that the scalar kernels
+/// and the batched lanes (`crate::batch`) run the same operations in the same order: that is what makes
+/// their answers bitwise equal.
+#[inline(always)]
+pub(crate) fn monomials<T>(c: &[T; 8], eighth: impl Fn(T) -> T) -> [T; 8]
+where
+    T: Copy + Add<Output = T> + Sub<Output = T>,
+{
+    let (s01, d01) = (c[1] + c[0], c[1] - c[0]);
+    let (s32, d32) = (c[2] + c[3], c[2] - c[3]);
+    let (s45, d45) = (c[5] + c[4], c[5] - c[4]);
+    let (s76, d76) = (c[6] + c[7], c[6] - c[7]);
+    let (lo0, lo1, lo2, lo3) = (s32 + s01, d32 + d01, s32 - s01, d32 - d01);
+    let (hi0, hi1, hi2, hi3) = (s76 + s45, d76 + d45, s76 - s45, d76 - d45);
+    [
+        eighth(hi0 + lo0),
+        eighth(hi1 + lo1),
+        eighth(hi2 + lo2),
+        eighth(hi3 + lo3),
+        eighth(hi0 - lo0),
+        eighth(hi1 - lo1),
+        eighth(hi2 - lo2),
+        eighth(hi3 - lo3),
+    ]
+}
+
+/// x(ξ) from monomial coefficients `a`; `scale(v, s)` is v times the scalar s (shared like
+/// [`monomials`]).
+#[inline(always)]
+pub(crate) fn map<T, S>(a: &[T; 8], x: S, y: S, z: S, scale: impl Fn(T, S) -> T) -> T
+where
+    T: Copy + Add<Output = T>,
+    S: Copy,
+{
+    let lower = a[0] + scale(a[1], x) + scale(a[2] + scale(a[3], x), y);
+    let upper = a[4] + scale(a[5], x) + scale(a[6] + scale(a[7], x), y);
+    lower + scale(upper, z)
+}
+
+/// x(ξ) and the columns of J = ∂x/∂ξ from monomial coefficients `a` (shared like [`monomials`]).
+#[inline(always)]
+pub(crate) fn map_and_jacobian<T, S>(
+    a: &[T; 8],
+    x: S,
+    y: S,
+    z: S,
+    scale: impl Fn(T, S) -> T,
+) -> (T, [T; 3])
+where
+    T: Copy + Add<Output = T>,
+    S: Copy,
+{
+    let d_xi = a[1] + scale(a[3], y) + scale(a[5] + scale(a[7], y), z);
+    let d_eta = a[2] + scale(a[3], x) + scale(a[6] + scale(a[7], x), z);
+    let lower = a[0] + scale(a[1], x) + scale(a[2] + scale(a[3], x), y);
+    let upper = a[4] + scale(a[5], x) + scale(a[6] + scale(a[7], x), y);
+    (lower + scale(upper, z), [d_xi, d_eta, upper])
+}
+
 macro_rules! stamp_hex8 {
     ($(#[$doc:meta])* $name:ident, $S:ty, $V:ty, $to_v:expr, $from_v:expr) => {
         $(#[$doc])*
@@ -118,50 +182,23 @@ macro_rules! stamp_hex8 {
             #[inline(always)]
             #[must_use]
             pub fn new(corners: &[$V; 8]) -> Self {
-                // Haar butterfly along ξ, η, ζ in turn: (lo, hi) -> (hi + lo, hi - lo), written out
-                // (binary corner b = VTK corner with bit 0: +ξ, bit 1: +η, bit 2: +ζ) so that it
-                // inlines without copies; the three halvings are one scaling by 1/8 at the end.
-                let c = corners;
-                let (s01, d01) = (c[1] + c[0], c[1] - c[0]);
-                let (s32, d32) = (c[2] + c[3], c[2] - c[3]);
-                let (s45, d45) = (c[5] + c[4], c[5] - c[4]);
-                let (s76, d76) = (c[6] + c[7], c[6] - c[7]);
-                let (lo0, lo1, lo2, lo3) = (s32 + s01, d32 + d01, s32 - s01, d32 - d01);
-                let (hi0, hi1, hi2, hi3) = (s76 + s45, d76 + d45, s76 - s45, d76 - d45);
-                let a = [
-                    (hi0 + lo0) * 0.125,
-                    (hi1 + lo1) * 0.125,
-                    (hi2 + lo2) * 0.125,
-                    (hi3 + lo3) * 0.125,
-                    (hi0 - lo0) * 0.125,
-                    (hi1 - lo1) * 0.125,
-                    (hi2 - lo2) * 0.125,
-                    (hi3 - lo3) * 0.125,
-                ];
-                Self { a }
+                Self {
+                    a: monomials(corners, |v: $V| v * 0.125),
+                }
             }
 
             /// x(ξ).
             #[inline]
             #[must_use]
             pub fn map(&self, xi: $V) -> $V {
-                let a = &self.a;
-                let lower = a[0] + a[1] * xi.x + (a[2] + a[3] * xi.x) * xi.y;
-                let upper = a[4] + a[5] * xi.x + (a[6] + a[7] * xi.x) * xi.y;
-                lower + upper * xi.z
+                map(&self.a, xi.x, xi.y, xi.z, |v: $V, s: $S| v * s)
             }
 
             /// x(ξ) and the columns of J = ∂x/∂ξ.
             #[inline]
             #[must_use]
             pub fn map_and_jacobian(&self, xi: $V) -> ($V, [$V; 3]) {
-                let a = &self.a;
-                let (x, y, z) = (xi.x, xi.y, xi.z);
-                let d_xi = a[1] + a[3] * y + (a[5] + a[7] * y) * z;
-                let d_eta = a[2] + a[3] * x + (a[6] + a[7] * x) * z;
-                let lower = a[0] + a[1] * x + (a[2] + a[3] * x) * y;
-                let upper = a[4] + a[5] * x + (a[6] + a[7] * x) * y;
-                (lower + upper * z, [d_xi, d_eta, upper])
+                map_and_jacobian(&self.a, xi.x, xi.y, xi.z, |v: $V, s: $S| v * s)
             }
 
             /// The magnitude of the numbers the residual x − x(ξ) is computed from (same for every

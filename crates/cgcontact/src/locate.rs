@@ -604,25 +604,13 @@ mod tests {
             (true, CandidateOrder::Undeformed),
         ] {
             let (body, points) = scene(holes);
-            let f32 = LatticeLocator::new(
-                &body,
-                Settings {
-                    order,
-                    ..Settings::f32()
-                },
-            )
-            .unwrap();
+            let locator =
+                |base: Settings| LatticeLocator::new(&body, Settings { order, ..base }).unwrap();
+            let f32 = locator(Settings::f32());
             check::<glam::Vec4>(&f32, &points);
             #[cfg(target_arch = "x86_64")]
             if std::is_x86_feature_detected!("avx2") {
-                let f64 = LatticeLocator::new(
-                    &body,
-                    Settings {
-                        order,
-                        ..Settings::default()
-                    },
-                )
-                .unwrap();
+                let f64 = locator(Settings::default());
                 // SAFETY: AVX2 was detected just above.
                 #[allow(unsafe_code)]
                 unsafe {
