@@ -92,81 +92,77 @@ pub(crate) trait Lanes:
     fn mask_from_bits(bits: u32) -> Self::Mask;
 }
 
-macro_rules! lanes {
-    ($V:ty, $S:ty, $M:ty) => {
-        impl Lanes for $V {
-            const W: usize = 4;
-            type S = $S;
-            type Mask = $M;
-            const EPSILON: $S = <$S>::EPSILON;
-            #[inline(always)]
-            fn splat(v: $S) -> Self {
-                <$V>::splat(v)
-            }
-            #[inline(always)]
-            fn abs(self) -> Self {
-                <$V>::abs(self)
-            }
-            #[inline(always)]
-            fn max(self, other: Self) -> Self {
-                <$V>::max(self, other)
-            }
-            #[inline(always)]
-            fn min(self, other: Self) -> Self {
-                <$V>::min(self, other)
-            }
-            #[inline(always)]
-            fn recip(self) -> Self {
-                <$V>::recip(self)
-            }
-            #[inline(always)]
-            fn le(self, other: Self) -> $M {
-                self.cmple(other)
-            }
-            #[inline(always)]
-            fn gt(self, other: Self) -> $M {
-                self.cmpgt(other)
-            }
-            #[inline(always)]
-            fn lt(self, other: Self) -> $M {
-                self.cmplt(other)
-            }
-            #[inline(always)]
-            fn is_nan(self) -> $M {
-                self.is_nan_mask()
-            }
-            #[inline(always)]
-            fn is_finite(self) -> $M {
-                self.is_finite_mask()
-            }
-            #[inline(always)]
-            fn select(mask: $M, a: Self, b: Self) -> Self {
-                <$V>::select(mask, a, b)
-            }
-            #[inline(always)]
-            fn lane(self, l: usize) -> $S {
-                self[l]
-            }
-            #[inline(always)]
-            fn from_fn(f: impl Fn(usize) -> $S) -> Self {
-                <$V>::new(f(0), f(1), f(2), f(3))
-            }
-            #[inline(always)]
-            fn bits(mask: $M) -> u32 {
-                mask.bitmask()
-            }
-            #[inline(always)]
-            fn any(mask: $M) -> bool {
-                mask.any()
-            }
-            #[inline(always)]
-            fn mask_from_bits(bits: u32) -> $M {
-                <$M>::new(bits & 1 != 0, bits & 2 != 0, bits & 4 != 0, bits & 8 != 0)
-            }
-        }
-    };
+/// 4 × f32 in glam's `Vec4`: SSE2 or NEON, the instructions of its `Vec3A` (the scalar f32 kernel).
+impl Lanes for glam::Vec4 {
+    const W: usize = 4;
+    type S = f32;
+    type Mask = glam::BVec4A;
+    const EPSILON: f32 = f32::EPSILON;
+    #[inline(always)]
+    fn splat(v: f32) -> Self {
+        glam::Vec4::splat(v)
+    }
+    #[inline(always)]
+    fn abs(self) -> Self {
+        glam::Vec4::abs(self)
+    }
+    #[inline(always)]
+    fn max(self, other: Self) -> Self {
+        glam::Vec4::max(self, other)
+    }
+    #[inline(always)]
+    fn min(self, other: Self) -> Self {
+        glam::Vec4::min(self, other)
+    }
+    #[inline(always)]
+    fn recip(self) -> Self {
+        glam::Vec4::recip(self)
+    }
+    #[inline(always)]
+    fn le(self, other: Self) -> glam::BVec4A {
+        self.cmple(other)
+    }
+    #[inline(always)]
+    fn gt(self, other: Self) -> glam::BVec4A {
+        self.cmpgt(other)
+    }
+    #[inline(always)]
+    fn lt(self, other: Self) -> glam::BVec4A {
+        self.cmplt(other)
+    }
+    #[inline(always)]
+    fn is_nan(self) -> glam::BVec4A {
+        self.is_nan_mask()
+    }
+    #[inline(always)]
+    fn is_finite(self) -> glam::BVec4A {
+        self.is_finite_mask()
+    }
+    #[inline(always)]
+    fn select(mask: glam::BVec4A, a: Self, b: Self) -> Self {
+        glam::Vec4::select(mask, a, b)
+    }
+    #[inline(always)]
+    fn lane(self, l: usize) -> f32 {
+        self[l]
+    }
+    #[inline(always)]
+    fn from_fn(f: impl Fn(usize) -> f32) -> Self {
+        glam::Vec4::new(f(0), f(1), f(2), f(3))
+    }
+    #[inline(always)]
+    fn bits(mask: glam::BVec4A) -> u32 {
+        mask.bitmask()
+    }
+    #[inline(always)]
+    fn any(mask: glam::BVec4A) -> bool {
+        mask.any()
+    }
+    #[inline(always)]
+    fn mask_from_bits(bits: u32) -> glam::BVec4A {
+        <glam::BVec4A>::new(bits & 1 != 0, bits & 2 != 0, bits & 4 != 0, bits & 8 != 0)
+    }
 }
-lanes!(glam::Vec4, f32, glam::BVec4A);
 
 /// A 3-vector per lane, with glam's operation order (dot = (x x' + y y') + z z', and its cross).
 #[derive(Clone, Copy)]
