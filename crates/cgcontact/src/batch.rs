@@ -180,6 +180,7 @@ pub(crate) fn lanes<V: Lanes>(f: impl Fn(usize) -> f64) -> V {
 
 impl<V: Lanes> V3<V> {
     /// Lane `l` of the result is `f(l)`, rounded to the lanes' precision (as glam's `as_vec3a`).
+    /// `f` is called once per lane and component; keep it pure, so that the compiler shares the work.
     #[inline(always)]
     pub fn from_fn(f: impl Fn(usize) -> DVec3) -> Self {
         Self {

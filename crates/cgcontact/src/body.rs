@@ -23,10 +23,9 @@ pub struct Body {
     lattice: Lattice,
     active: BitVec,
     active_count: usize,
-    /// For each lattice node, its slot in `u`, or `NO_SLOT`; empty when every node has one (`dense`).
+    /// For each lattice node, its slot in `u`, or `NO_SLOT`; empty when every node has one, so that
+    /// node n's slot is n (see [`Body::dense`]).
     slot: Vec<u32>,
-    /// Every lattice node carries a displacement: node n's slot is n.
-    dense: bool,
     /// Displacement of each node of an active cell, in ascending lattice node order.
     u: Vec<DVec3>,
     /// Node index of each corner (VTK order) minus that of corner 0, for any cell.
@@ -65,13 +64,15 @@ impl Body {
         }
         let u = vec![DVec3::ZERO; next as usize];
         let corner_offsets = lattice.corner_nodes([0, 0, 0]);
-        let dense = u.len() == lattice.node_count();
         Ok(Self {
             lattice,
             active,
             active_count,
-            slot: if dense { Vec::new() } else { slot },
-            dense,
+            slot: if u.len() == lattice.node_count() {
+                Vec::new()
+            } else {
+                slot
+            },
             u,
             corner_offsets,
         })
@@ -160,10 +161,16 @@ impl Body {
         (0..self.lattice.node_count()).filter(|&n| self.slot_of(n).is_some())
     }
 
+    /// Every lattice node carries a displacement, in node order: there is no slot table.
+    #[inline(always)]
+    fn dense(&self) -> bool {
+        self.slot.is_empty()
+    }
+
     /// The slot of lattice node `node` in the displacements, or `None` when it has none.
     #[inline(always)]
     fn slot_of(&self, node: usize) -> Option<usize> {
-        if self.dense {
+        if self.dense() {
             (node < self.u.len()).then_some(node)
         } else {
             match self.slot.get(node) {
@@ -262,20 +269,8 @@ impl Body {
     /// Corner displacements of active cell `ijk`, in VTK order. The caller guarantees the cell is active.
     #[inline(always)]
     pub(crate) fn corner_displacements(&self, ijk: [u32; 3]) -> [DVec3; 8] {
-        // Explicit loops, not `array::map`: the latter costs ~100 instructions of MaybeUninit
-        // bookkeeping per call on the hot path (measured with callgrind).
-        let base = self.lattice.node_index(ijk);
-        let mut u = [DVec3::ZERO; 8];
-        if self.dense {
-            for (u, &o) in u.iter_mut().zip(&self.corner_offsets) {
-                *u = self.u[base + o];
-            }
-        } else {
-            for (u, &o) in u.iter_mut().zip(&self.corner_offsets) {
-                *u = self.u[self.slot[base + o] as usize];
-            }
-        }
-        u
+        // Every corner of an active cell has a displacement: the gather with zeros is this gather.
+        self.corner_displacements_or_zero(ijk)
     }
 
     /// Corner displacements where they exist, zero elsewhere (for cells that may be inactive).
@@ -289,8 +284,10 @@ impl Body {
     /// [`Body::corner_displacements_or_zero`] written into `u`.
     #[inline(always)]
     pub(crate) fn corner_displacements_or_zero_into(&self, ijk: [u32; 3], u: &mut [DVec3; 8]) {
+        // Explicit loops, not `array::map`: the latter costs ~100 instructions of MaybeUninit
+        // bookkeeping per call on the hot path (measured with callgrind).
         let base = self.lattice.node_index(ijk);
-        if self.dense {
+        if self.dense() {
             for (u, &o) in u.iter_mut().zip(&self.corner_offsets) {
                 *u = self.u[base + o];
             }

@@ -97,6 +97,12 @@ fn lattice_point(ijk: [u32; 3]) -> DVec3 {
     DVec3::new(f64::from(ijk[0]), f64::from(ijk[1]), f64::from(ijk[2]))
 }
 
+/// Local coordinates in cell `ijk` of the undeformed point at lattice coordinates `t`.
+#[inline]
+fn undeformed_xi(t: DVec3, ijk: [u32; 3]) -> DVec3 {
+    2.0 * (t - lattice_point(ijk)) - 1.0
+}
+
 /// What a candidate search does with each inside hit.
 enum Collect<'o> {
     First,
@@ -183,7 +189,7 @@ impl<'a> LatticeLocator<'a> {
             }
             None => K::lattice_cell(lattice.h(), &self.body.corner_displacements(ijk)),
         };
-        let xi0 = 2.0 * (t_guess - lattice_point(ijk)) - 1.0;
+        let xi0 = undeformed_xi(t_guess, ijk);
         map.invert_f64(x - lattice.node_position(ijk), xi0, options)
     }
 
@@ -191,7 +197,7 @@ impl<'a> LatticeLocator<'a> {
     /// lattice coordinates `t_at` (clamped into the cell).
     #[inline]
     fn guess<K: Kernel>(&self, t_x: DVec3, cell: [u32; 3], t_at: DVec3, u_map: &K) -> DVec3 {
-        let xi = (2.0 * (t_at - lattice_point(cell)) - 1.0).clamp(DVec3::NEG_ONE, DVec3::ONE);
+        let xi = undeformed_xi(t_at, cell).clamp(DVec3::NEG_ONE, DVec3::ONE);
         t_x - u_map.map_f64(xi) * self.inv_h
     }
 
@@ -396,9 +402,10 @@ impl LatticeLocator<'_> {
         // The guess x − ũ, ũ interpolated at x in the cell holding x (`guess`).
         let predicted = self.settings.order == CandidateOrder::Predicted;
         let u_at_x = if predicted {
+            // Pure per lane: the compiler evaluates it once per lane, not once per component
+            // (callgrind: storing it in `Gathered` instead costs 20 instructions per point more).
             maps.map(V3::from_fn(|l| {
-                (2.0 * (g[l].t_x - lattice_point(g[l].cell_x)) - 1.0)
-                    .clamp(DVec3::NEG_ONE, DVec3::ONE)
+                undeformed_xi(g[l].t_x, g[l].cell_x).clamp(DVec3::NEG_ONE, DVec3::ONE)
             }))
         } else {
             V3::from_fn(|_| DVec3::ZERO)
@@ -427,7 +434,7 @@ impl LatticeLocator<'_> {
                 g[l].u = self.body.corner_displacements(first[l]);
             }
             x_local[l] = points[l] - lattice.node_position(first[l]);
-            xi0[l] = 2.0 * (t_guess - lattice_point(first[l])) - 1.0;
+            xi0[l] = undeformed_xi(t_guess, first[l]);
         }
         if moved {
             maps = Maps::from_corners(|l, c| g[l].u[c]);
