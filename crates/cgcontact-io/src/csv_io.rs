@@ -49,17 +49,11 @@ pub fn parse_points(mut reader: impl Read) -> Result<Vec<DVec3>, ErrorKind> {
     let mut points = Vec::new();
     let mut record = csv::StringRecord::new();
     let mut first = true;
-    loop {
-        match csv.read_record(&mut record) {
-            Ok(false) => break,
-            Ok(true) => {}
-            Err(e) => return Err(csv_error(&e, &mut lines)),
-        }
-        let line = lines.line_at(&record);
-        let numbers: Vec<Option<f64>> = record.iter().map(|f| f.parse::<f64>().ok()).collect();
+    while let Some(line) = next_record(&mut csv, &mut record, &mut lines)? {
         if first {
             first = false;
-            if numbers.iter().all(Option::is_none) {
+            // A first line with no number at all is a header.
+            if record.iter().all(|f| f.parse::<f64>().is_err()) {
                 if record.len() != 3 {
                     return Err(ErrorKind::Csv {
                         line,
@@ -76,8 +70,8 @@ pub fn parse_points(mut reader: impl Read) -> Result<Vec<DVec3>, ErrorKind> {
             });
         }
         let mut xyz = [0.0; 3];
-        for (axis, (value, text)) in numbers.iter().zip(record.iter()).enumerate() {
-            xyz[axis] = value.ok_or_else(|| ErrorKind::Csv {
+        for (axis, text) in record.iter().enumerate() {
+            xyz[axis] = text.parse().map_err(|_| ErrorKind::Csv {
                 line,
                 message: format!("field {} (`{text}`) is not a number", axis + 1),
             })?;
@@ -170,12 +164,7 @@ pub fn parse_results(mut reader: impl Read) -> Result<Vec<ResultRow>, ErrorKind>
     let mut lines = LineCounter::new(&bytes);
     let mut csv = csv_reader(bytes.as_slice());
     let mut record = csv::StringRecord::new();
-    match csv.read_record(&mut record) {
-        Ok(true) => {}
-        Ok(false) => return Err(ErrorKind::Empty),
-        Err(e) => return Err(csv_error(&e, &mut lines)),
-    }
-    let header_line = lines.line_at(&record);
+    let header_line = next_record(&mut csv, &mut record, &mut lines)?.ok_or(ErrorKind::Empty)?;
     let names: Vec<String> = record.iter().map(str::to_owned).collect();
     if names.len() < 5 || names[..5] != RESULTS_HEADER[..5] {
         return Err(ErrorKind::Csv {
@@ -193,13 +182,7 @@ pub fn parse_results(mut reader: impl Read) -> Result<Vec<ResultRow>, ErrorKind>
         column("inversions"),
     );
     let mut rows = Vec::new();
-    loop {
-        match csv.read_record(&mut record) {
-            Ok(false) => break,
-            Ok(true) => {}
-            Err(e) => return Err(csv_error(&e, &mut lines)),
-        }
-        let line = lines.line_at(&record);
+    while let Some(line) = next_record(&mut csv, &mut record, &mut lines)? {
         if record.len() != names.len() {
             return Err(ErrorKind::Csv {
                 line,
@@ -314,6 +297,19 @@ impl<'a> LineCounter<'a> {
             at += skip;
         }
         self.line_of_byte(at as u64)
+    }
+}
+
+/// Reads the next record into `record`: the line it starts on, or `None` at the end of the data.
+fn next_record(
+    csv: &mut csv::Reader<impl Read>,
+    record: &mut csv::StringRecord,
+    lines: &mut LineCounter<'_>,
+) -> Result<Option<u64>, ErrorKind> {
+    match csv.read_record(record) {
+        Ok(true) => Ok(Some(lines.line_at(record))),
+        Ok(false) => Ok(None),
+        Err(e) => Err(csv_error(&e, lines)),
     }
 }
 
