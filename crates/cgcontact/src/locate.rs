@@ -149,16 +149,26 @@ impl<'a> LatticeLocator<'a> {
         self.u_max
     }
 
-    fn search(&self, x: DVec3, mut collect: Collect<'_>) -> Result<Option<Hit>, PointError> {
+    /// Whether `x` can be held by a cell at all: its inside tolerance when it can, `Ok(None)` when it
+    /// lies outside the lattice's box padded by u_max (and the tolerance), an error when not finite.
+    /// The first step of every search, batched or not.
+    #[inline(always)]
+    fn admit(&self, x: DVec3) -> Result<Option<f64>, PointError> {
         if !x.is_finite() {
             return Err(PointError::NonFinite);
         }
         let inside_tol = self.inside_tol.at(x);
-        let lattice = self.body.lattice();
-        let slack = lattice.h() * inside_tol;
+        let slack = self.body.lattice().h() * inside_tol;
         if x.cmplt(self.reach_low - slack).any() || x.cmpgt(self.reach_high + slack).any() {
             return Ok(None);
         }
+        Ok(Some(inside_tol))
+    }
+
+    fn search(&self, x: DVec3, mut collect: Collect<'_>) -> Result<Option<Hit>, PointError> {
+        let Some(inside_tol) = self.admit(x)? else {
+            return Ok(None);
+        };
         let options = NewtonOptions {
             inside_tol,
             ..self.newton
@@ -363,18 +373,15 @@ impl LatticeLocator<'_> {
     /// is not finite or out of reach is answered here, as `search` answers it.
     #[inline(always)]
     fn gather(&self, x: DVec3, g: &mut Gathered, out: &mut Answer) {
-        g.take = false;
-        if !x.is_finite() {
-            *out = Err(PointError::NonFinite);
-            return;
-        }
+        let inside_tol = match self.admit(x) {
+            Ok(Some(inside_tol)) => inside_tol,
+            rejected => {
+                g.take = false;
+                *out = rejected.map(|_| None);
+                return;
+            }
+        };
         let lattice = self.body.lattice();
-        let inside_tol = self.inside_tol.at(x);
-        let slack = lattice.h() * inside_tol;
-        if x.cmplt(self.reach_low - slack).any() || x.cmpgt(self.reach_high + slack).any() {
-            *out = Ok(None);
-            return;
-        }
         g.take = true;
         g.inside_tol = inside_tol;
         g.t_x = (x - lattice.origin()) * self.inv_h;
