@@ -34,6 +34,16 @@ fn main() -> Result<(), cgcontact::Error> {
         };
         (scene.body, scene.known.iter().map(|k| k.x).collect())
     };
+    let mut points = points;
+    if has("sorted") {
+        // Points in lattice order (diagnosis: how much of the time is memory latency).
+        let (o, h) = (body.lattice().origin(), body.lattice().h());
+        let key = |x: &DVec3| {
+            let t = ((*x - o) / h).floor();
+            (t.z as i64, t.y as i64, t.x as i64)
+        };
+        points.sort_by_key(key);
+    }
     let settings = if precision == Precision::F32 {
         Settings::f32()
     } else {

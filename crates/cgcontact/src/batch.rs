@@ -90,6 +90,13 @@ pub(crate) trait Lanes:
     fn bits(mask: Self::Mask) -> u32;
     fn any(mask: Self::Mask) -> bool;
     fn mask_from_bits(bits: u32) -> Self::Mask;
+    /// How the displacements these lanes read are stored, one per node: `DVec3` (the body's own) for
+    /// f64 lanes, `Vec3A` (the locator's f32 copy, rounded as `as_vec3a` rounds) for f32 lanes.
+    type Node: Copy;
+    /// W nodes, `node(l)` in lane `l`, transposed into x, y and z registers.
+    fn transpose<'n>(node: impl Fn(usize) -> &'n Self::Node) -> V3<Self>
+    where
+        Self::Node: 'n;
 }
 
 /// 4 × f32 in glam's `Vec4`: SSE2 or NEON, the instructions of its `Vec3A` (the scalar f32 kernel).
@@ -161,6 +168,16 @@ impl Lanes for glam::Vec4 {
     #[inline(always)]
     fn mask_from_bits(bits: u32) -> glam::BVec4A {
         <glam::BVec4A>::new(bits & 1 != 0, bits & 2 != 0, bits & 4 != 0, bits & 8 != 0)
+    }
+    type Node = glam::Vec3A;
+    #[inline(always)]
+    fn transpose<'n>(node: impl Fn(usize) -> &'n glam::Vec3A) -> V3<Self> {
+        let n = [node(0), node(1), node(2), node(3)];
+        V3 {
+            x: glam::Vec4::new(n[0].x, n[1].x, n[2].x, n[3].x),
+            y: glam::Vec4::new(n[0].y, n[1].y, n[2].y, n[3].y),
+            z: glam::Vec4::new(n[0].z, n[1].z, n[2].z, n[3].z),
+        }
     }
 }
 
@@ -288,16 +305,20 @@ pub(crate) struct Maps<V> {
 }
 
 impl<V: Lanes> Maps<V> {
-    /// The maps of W hexahedra whose corner `c` in lane `l` is `corner(l, c)`.
+    /// The maps of W hexahedra whose corner `c` in lane `l` is `node(l, c)`.
     #[inline(always)]
-    pub fn from_corners(corner: impl Fn(usize, usize) -> DVec3) -> Self {
+    pub fn from_nodes<'n>(node: impl Fn(usize, usize) -> &'n V::Node) -> Self
+    where
+        V::Node: 'n,
+    {
+        let zero = V::splat(V::S::of(0.0));
         let mut corners = [V3 {
-            x: V::splat(V::S::of(0.0)),
-            y: V::splat(V::S::of(0.0)),
-            z: V::splat(V::S::of(0.0)),
+            x: zero,
+            y: zero,
+            z: zero,
         }; 8];
         for (c, v) in corners.iter_mut().enumerate() {
-            *v = V3::from_fn(|l| corner(l, c));
+            *v = V::transpose(|l| node(l, c));
         }
         Self::new(&corners)
     }
@@ -476,17 +497,20 @@ pub(crate) mod avx {
     #![allow(unsafe_code)]
 
     use std::arch::x86_64::{
-        __m256, __m256d, _CMP_LE_OQ, _CMP_LT_OQ, _CMP_UNORD_Q, _mm256_add_pd, _mm256_add_ps,
-        _mm256_and_pd, _mm256_and_ps, _mm256_andnot_pd, _mm256_andnot_ps, _mm256_blendv_pd,
-        _mm256_blendv_ps, _mm256_cmp_pd, _mm256_cmp_ps, _mm256_div_pd, _mm256_div_ps,
-        _mm256_max_pd, _mm256_max_ps, _mm256_min_pd, _mm256_min_ps, _mm256_movemask_pd,
-        _mm256_movemask_ps, _mm256_mul_pd, _mm256_mul_ps, _mm256_or_pd, _mm256_or_ps,
-        _mm256_set_pd, _mm256_set_ps, _mm256_set1_pd, _mm256_set1_ps, _mm256_sub_pd, _mm256_sub_ps,
-        _mm256_xor_pd, _mm256_xor_ps,
+        __m128, __m256, __m256d, _CMP_LE_OQ, _CMP_LT_OQ, _CMP_UNORD_Q, _mm256_add_pd,
+        _mm256_add_ps, _mm256_and_pd, _mm256_and_ps, _mm256_andnot_pd, _mm256_andnot_ps,
+        _mm256_blendv_pd, _mm256_blendv_ps, _mm256_cmp_pd, _mm256_cmp_ps, _mm256_div_pd,
+        _mm256_div_ps, _mm256_max_pd, _mm256_max_ps, _mm256_min_pd, _mm256_min_ps,
+        _mm256_movemask_pd, _mm256_movemask_ps, _mm256_mul_pd, _mm256_mul_ps, _mm256_or_pd,
+        _mm256_or_ps, _mm256_set_m128, _mm256_set_pd, _mm256_set_ps, _mm256_set1_pd,
+        _mm256_set1_ps, _mm256_shuffle_ps, _mm256_sub_pd, _mm256_sub_ps, _mm256_unpackhi_pd,
+        _mm256_unpackhi_ps, _mm256_unpacklo_pd, _mm256_unpacklo_ps, _mm256_xor_pd, _mm256_xor_ps,
     };
     use std::ops::{Add, BitAnd, BitOr, Mul, Not, Sub};
 
-    use super::Lanes;
+    use glam::{DVec3, Vec3A};
+
+    use super::{Lanes, V3};
 
     /// Calls an AVX intrinsic.
     macro_rules! avx {
@@ -507,7 +531,8 @@ pub(crate) mod avx {
             and: $and:ident, or: $or:ident, xor: $xor:ident, andnot: $andnot:ident,
             max: $max:ident, min: $min:ident, cmp: $cmp:ident, blendv: $blendv:ident,
             movemask: $movemask:ident, set1: $set1:ident,
-            from_fn: |$f:ident| $set:expr
+            from_fn: |$f:ident| $set:expr,
+            node: $Node:ty, transpose: $transpose:ident
         ) => {
             $(#[$doc])*
             #[derive(Clone, Copy)]
@@ -638,8 +663,54 @@ pub(crate) mod avx {
                     let all = <$S>::from_bits(<$bits>::MAX);
                     $M(Self::from_fn(|l| if bits & (1 << l) != 0 { all } else { 0.0 }).0)
                 }
+                type Node = $Node;
+                #[inline(always)]
+                fn transpose<'n>(node: impl Fn(usize) -> &'n $Node) -> V3<Self> {
+                    let [x, y, z] = $transpose(node);
+                    V3 {
+                        x: Self(x),
+                        y: Self(y),
+                        z: Self(z),
+                    }
+                }
             }
         };
+    }
+
+    /// Four `DVec3` into x, y and z registers: [x0 y0 | x2 y2] and [x1 y1 | x3 y3] unpacked.
+    #[inline(always)]
+    fn transpose_f64<'n>(node: impl Fn(usize) -> &'n DVec3) -> [__m256d; 3] {
+        let n = [node(0), node(1), node(2), node(3)];
+        let even = avx!(_mm256_set_pd(n[2].y, n[2].x, n[0].y, n[0].x));
+        let odd = avx!(_mm256_set_pd(n[3].y, n[3].x, n[1].y, n[1].x));
+        [
+            avx!(_mm256_unpacklo_pd(even, odd)),
+            avx!(_mm256_unpackhi_pd(even, odd)),
+            avx!(_mm256_set_pd(n[3].z, n[2].z, n[1].z, n[0].z)),
+        ]
+    }
+
+    /// Eight `Vec3A` into x, y and z registers: lanes l and l + 4 paired in one register, then the
+    /// 4 × 4 transpose of each 128-bit half.
+    #[inline(always)]
+    fn transpose_f32<'n>(node: impl Fn(usize) -> &'n Vec3A) -> [__m256; 3] {
+        let m = |l: usize| -> __m128 { (*node(l)).into() };
+        let pair = |l: usize| avx!(_mm256_set_m128(m(l + 4), m(l)));
+        let (r0, r1, r2, r3) = (pair(0), pair(1), pair(2), pair(3));
+        // [x0 x1 y0 y1 | x4 x5 y4 y5], [x2 x3 y2 y3 | x6 x7 y6 y7], and the same for z (and w).
+        let (xy01, xy23) = (
+            avx!(_mm256_unpacklo_ps(r0, r1)),
+            avx!(_mm256_unpacklo_ps(r2, r3)),
+        );
+        let (zw01, zw23) = (
+            avx!(_mm256_unpackhi_ps(r0, r1)),
+            avx!(_mm256_unpackhi_ps(r2, r3)),
+        );
+        [
+            avx!(_mm256_shuffle_ps::<0x44>(xy01, xy23)),
+            avx!(_mm256_shuffle_ps::<0xEE>(xy01, xy23)),
+            avx!(_mm256_shuffle_ps::<0x44>(zw01, zw23)),
+        ]
     }
 
     avx_lanes!(
@@ -649,7 +720,8 @@ pub(crate) mod avx {
         and: _mm256_and_pd, or: _mm256_or_pd, xor: _mm256_xor_pd, andnot: _mm256_andnot_pd,
         max: _mm256_max_pd, min: _mm256_min_pd, cmp: _mm256_cmp_pd, blendv: _mm256_blendv_pd,
         movemask: _mm256_movemask_pd, set1: _mm256_set1_pd,
-        from_fn: |f| _mm256_set_pd(f(3), f(2), f(1), f(0))
+        from_fn: |f| _mm256_set_pd(f(3), f(2), f(1), f(0)),
+        node: DVec3, transpose: transpose_f64
     );
     avx_lanes!(
         /// Eight f32 lanes.
@@ -658,6 +730,7 @@ pub(crate) mod avx {
         and: _mm256_and_ps, or: _mm256_or_ps, xor: _mm256_xor_ps, andnot: _mm256_andnot_ps,
         max: _mm256_max_ps, min: _mm256_min_ps, cmp: _mm256_cmp_ps, blendv: _mm256_blendv_ps,
         movemask: _mm256_movemask_ps, set1: _mm256_set1_ps,
-        from_fn: |f| _mm256_set_ps(f(7), f(6), f(5), f(4), f(3), f(2), f(1), f(0))
+        from_fn: |f| _mm256_set_ps(f(7), f(6), f(5), f(4), f(3), f(2), f(1), f(0)),
+        node: Vec3A, transpose: transpose_f32
     );
 }

@@ -303,6 +303,26 @@ impl Body {
         }
     }
 
+    /// Corner `c`'s entry of `data`, an array in slot order like the displacements (a locator's f32
+    /// copy of them, say), for the cell whose lowest lattice node is `base`; `zero` where the corner
+    /// has no slot. The batched search's gather, one corner of one lane at a time.
+    #[inline(always)]
+    pub(crate) fn corner_entry<'d, T>(
+        &self,
+        data: &'d [T],
+        base: usize,
+        c: usize,
+        zero: &'d T,
+    ) -> &'d T {
+        let node = base + self.corner_offsets[c];
+        if self.dense() {
+            &data[node]
+        } else {
+            // NO_SLOT is u32::MAX, never a valid slot: `get` answers None for it.
+            data.get(self.slot[node] as usize).unwrap_or(zero)
+        }
+    }
+
     /// Corner positions of a deformed cell relative to its lowest undeformed node, VTK order.
     #[inline]
     pub(crate) fn local_corners(&self, ijk: [u32; 3]) -> [DVec3; 8] {

@@ -9,7 +9,7 @@
 //! starting at the cell holding x − ũ, ũ the displacement interpolated at x on the undeformed lattice,
 //! which is the containing cell for almost every point.
 
-use glam::DVec3;
+use glam::{DVec3, Vec3A};
 use rayon::prelude::*;
 use smallvec::SmallVec;
 
@@ -89,6 +89,31 @@ pub struct LatticeLocator<'a> {
     /// The lattice's box padded by `u_max`: points outside are rejected at once.
     reach_low: DVec3,
     reach_high: DVec3,
+    /// With f32 precision, the displacements rounded to f32, in the body's slot order (16 bytes per
+    /// node): the batched path reads them as they are. Empty with f64.
+    u_f32: Vec<Vec3A>,
+}
+
+/// The displacements as the batched path reads them: the body's f64 ones, or the locator's f32 copy.
+trait Nodes: Copy + 'static {
+    const ZERO: Self;
+    fn of<'l>(locator: &'l LatticeLocator<'_>) -> &'l [Self];
+}
+
+impl Nodes for DVec3 {
+    const ZERO: Self = DVec3::ZERO;
+    #[inline(always)]
+    fn of<'l>(locator: &'l LatticeLocator<'_>) -> &'l [Self] {
+        locator.body.displacements()
+    }
+}
+
+impl Nodes for Vec3A {
+    const ZERO: Self = Vec3A::ZERO;
+    #[inline(always)]
+    fn of<'l>(locator: &'l LatticeLocator<'_>) -> &'l [Self] {
+        &locator.u_f32
+    }
 }
 
 /// Lattice coordinates of a cell's lowest node.
@@ -128,6 +153,10 @@ impl<'a> LatticeLocator<'a> {
             inside_tol: InsideTolerance::new(&settings, lattice, u_max.max_element()),
             reach_low: lattice.origin() - u_max,
             reach_high: lattice.upper() + u_max,
+            u_f32: match settings.precision {
+                Precision::F32 => body.displacements().iter().map(|u| u.as_vec3a()).collect(),
+                Precision::F64 => Vec::new(),
+            },
         })
     }
 
@@ -333,9 +362,9 @@ struct Gathered {
     inside_tol: f64,
     /// Lattice coordinates of x.
     t_x: DVec3,
-    /// The cell holding x, and the displacements of its corners (zero where a corner has none).
+    /// The cell holding x, and its lowest lattice node.
     cell_x: [u32; 3],
-    u: [DVec3; 8],
+    base: usize,
 }
 
 impl Gathered {
@@ -344,7 +373,7 @@ impl Gathered {
         inside_tol: 0.0,
         t_x: DVec3::ZERO,
         cell_x: [0; 3],
-        u: [DVec3::ZERO; 8],
+        base: 0,
     };
 }
 
@@ -353,7 +382,10 @@ impl LatticeLocator<'_> {
     /// path ([`crate::batch`]); the remainder and every point that leaves the common path go through
     /// the scalar search. The answers are bitwise those of [`Locator::locate`].
     #[inline(always)]
-    fn locate_chunk_with<V: Lanes>(&self, points: &[DVec3], out: &mut [Answer]) {
+    fn locate_chunk_with<V: Lanes>(&self, points: &[DVec3], out: &mut [Answer])
+    where
+        V::Node: Nodes,
+    {
         let mut points_w = points.chunks_exact(V::W);
         let mut out_w = out.chunks_exact_mut(V::W);
         let mut gathered = [Gathered::NOTHING; MAX_W];
@@ -368,9 +400,8 @@ impl LatticeLocator<'_> {
         }
     }
 
-    /// The first half of `search` for one point, up to the displacements of the cell holding it
-    /// (written in place: a `Gathered` is 240 bytes, and moving one costs a memcpy call). A point that
-    /// is not finite or out of reach is answered here, as `search` answers it.
+    /// The first half of `search` for one point, up to the cell holding it (written in place). A point
+    /// that is not finite or out of reach is answered here, as `search` answers it.
     #[inline(always)]
     fn gather(&self, x: DVec3, g: &mut Gathered, out: &mut Answer) {
         let inside_tol = match self.admit(x) {
@@ -386,8 +417,7 @@ impl LatticeLocator<'_> {
         g.inside_tol = inside_tol;
         g.t_x = (x - lattice.origin()) * self.inv_h;
         g.cell_x = lattice.clamped_cell(g.t_x);
-        self.body
-            .corner_displacements_or_zero_into(g.cell_x, &mut g.u);
+        g.base = lattice.node_index(g.cell_x);
     }
 
     /// The lattice search's common path for W gathered points: the predicted cell, one Newton
@@ -399,13 +429,21 @@ impl LatticeLocator<'_> {
         points: &[DVec3],
         out: &mut [Answer],
         g: &mut [Gathered; MAX_W],
-    ) {
+    ) where
+        V::Node: Nodes,
+    {
         if g[..V::W].iter().all(|g| !g.take) {
             // Every point answered by `gather` (e.g. a contact surface mostly away from the body).
             return;
         }
         let lattice = self.body.lattice();
-        let mut maps = Maps::<V>::from_corners(|l, c| g[l].u[c]);
+        // The displacements of the corners of the cell holding x (zero where a corner has none).
+        let nodes = V::Node::of(self);
+        let zero = V::Node::ZERO;
+        let corners = |g: &[Gathered; MAX_W]| {
+            Maps::<V>::from_nodes(|l, c| self.body.corner_entry(nodes, g[l].base, c, &zero))
+        };
+        let mut maps = corners(g);
         // The guess x − ũ, ũ interpolated at x in the cell holding x (`guess`).
         let predicted = self.settings.order == CandidateOrder::Predicted;
         let u_at_x = if predicted {
@@ -438,13 +476,13 @@ impl LatticeLocator<'_> {
             take |= 1 << l;
             if first[l] != g[l].cell_x {
                 moved = true;
-                g[l].u = self.body.corner_displacements(first[l]);
+                g[l].base = lattice.node_index(first[l]);
             }
             x_local[l] = points[l] - lattice.node_position(first[l]);
             xi0[l] = undeformed_xi(t_guess, first[l]);
         }
         if moved {
-            maps = Maps::from_corners(|l, c| g[l].u[c]);
+            maps = corners(g);
         }
         maps.add_lattice(lattice.h());
         let inside: V = lanes(|l| g[l].inside_tol);
@@ -597,7 +635,10 @@ mod tests {
         })
     }
 
-    fn check<V: Lanes>(locator: &LatticeLocator<'_>, points: &[DVec3]) {
+    fn check<V: Lanes>(locator: &LatticeLocator<'_>, points: &[DVec3])
+    where
+        V::Node: Nodes,
+    {
         let mut out = vec![Ok(None); points.len()];
         locator.locate_chunk_with::<V>(points, &mut out);
         let mut found = 0;
