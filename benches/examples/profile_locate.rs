@@ -72,6 +72,18 @@ fn main() -> Result<(), cgcontact::Error> {
         }
     }
     let seconds = start.elapsed().as_secs_f64();
+    if has("stats") {
+        let answers = locator.locate_all(&points);
+        let hits: Vec<_> = answers.iter().filter_map(|a| a.ok().flatten()).collect();
+        let more = hits.iter().filter(|h| h.inversions > 1).count();
+        let iters: u64 = hits.iter().map(|h| u64::from(h.iterations)).sum();
+        println!(
+            "{} of {} points found, {more} after more than one inversion, {:.2} Newton iterations per hit",
+            hits.len(),
+            points.len(),
+            iters as f64 / hits.len() as f64
+        );
+    }
     let how = if each { "locate" } else { "locate_all" };
     println!(
         "{precision:?} {how}: {located} located in {seconds:.3} s: {:.3} M points/s on one thread",

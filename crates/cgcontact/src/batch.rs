@@ -97,6 +97,261 @@ pub(crate) trait Lanes:
     fn transpose<'n>(node: impl Fn(usize) -> &'n Self::Node) -> V3<Self>
     where
         Self::Node: 'n;
+    /// f64 lanes, as many: the per-point bookkeeping runs there, in f64 as in the scalar search.
+    type Wide: Wide;
+    /// Each lane rounded to this precision (as `as f32` rounds), or unchanged in f64.
+    fn narrow(wide: Self::Wide) -> Self;
+    /// Each lane widened to f64 (exact).
+    fn widen(self) -> Self::Wide;
+}
+
+/// f64 lanes for the per-point bookkeeping (the lattice hash, the guess, the local frame, the
+/// answer): the points' own `DVec3` transposed in, and two operations more.
+pub(crate) trait Wide: Lanes<S = f64, Node = DVec3> {
+    /// Truncation toward zero, exact for lanes in [0, 2^32) (lattice indices).
+    fn trunc(self) -> Self;
+    fn sqrt(self) -> Self;
+}
+
+/// One f64 lane: the scalar instructions, with the lane types' semantics (`max` is MAXPD's
+/// `if a > b { a } else { b }`). Pairs of it make the wide lanes of the portable f32 path.
+impl Lanes for f64 {
+    const W: usize = 1;
+    type S = f64;
+    type Mask = bool;
+    const EPSILON: f64 = f64::EPSILON;
+    #[inline(always)]
+    fn splat(v: f64) -> Self {
+        v
+    }
+    #[inline(always)]
+    fn abs(self) -> Self {
+        f64::abs(self)
+    }
+    #[inline(always)]
+    fn max(self, o: Self) -> Self {
+        if self > o { self } else { o }
+    }
+    #[inline(always)]
+    fn min(self, o: Self) -> Self {
+        if self < o { self } else { o }
+    }
+    #[inline(always)]
+    fn recip(self) -> Self {
+        1.0 / self
+    }
+    #[inline(always)]
+    fn le(self, o: Self) -> bool {
+        self <= o
+    }
+    #[inline(always)]
+    fn gt(self, o: Self) -> bool {
+        self > o
+    }
+    #[inline(always)]
+    fn lt(self, o: Self) -> bool {
+        self < o
+    }
+    #[inline(always)]
+    fn is_nan(self) -> bool {
+        f64::is_nan(self)
+    }
+    #[inline(always)]
+    fn is_finite(self) -> bool {
+        f64::is_finite(self)
+    }
+    #[inline(always)]
+    fn select(mask: bool, a: Self, b: Self) -> Self {
+        if mask { a } else { b }
+    }
+    #[inline(always)]
+    fn lane(self, _: usize) -> f64 {
+        self
+    }
+    #[inline(always)]
+    fn from_fn(f: impl Fn(usize) -> f64) -> Self {
+        f(0)
+    }
+    #[inline(always)]
+    fn bits(mask: bool) -> u32 {
+        u32::from(mask)
+    }
+    #[inline(always)]
+    fn any(mask: bool) -> bool {
+        mask
+    }
+    #[inline(always)]
+    fn mask_from_bits(bits: u32) -> bool {
+        bits & 1 != 0
+    }
+    type Node = DVec3;
+    #[inline(always)]
+    fn transpose<'n>(node: impl Fn(usize) -> &'n DVec3) -> V3<Self> {
+        let n = node(0);
+        V3 {
+            x: n.x,
+            y: n.y,
+            z: n.z,
+        }
+    }
+    type Wide = f64;
+    #[inline(always)]
+    fn narrow(wide: f64) -> Self {
+        wide
+    }
+    #[inline(always)]
+    fn widen(self) -> f64 {
+        self
+    }
+}
+
+impl Wide for f64 {
+    #[inline(always)]
+    fn trunc(self) -> Self {
+        // `as` truncates (and saturates); no libm call, unlike `f64::trunc` without SSE4.1.
+        self as u32 as f64
+    }
+    #[inline(always)]
+    fn sqrt(self) -> Self {
+        f64::sqrt(self)
+    }
+}
+
+/// Twice the lanes of `L`: lanes 0..L::W in the first, the rest in the second.
+#[derive(Clone, Copy)]
+pub(crate) struct Pair<L>(pub L, pub L);
+
+macro_rules! pair_op {
+    ($Trait:ident, $f:ident) => {
+        impl<L: $Trait<Output = L>> $Trait for Pair<L> {
+            type Output = Self;
+            #[inline(always)]
+            fn $f(self, o: Self) -> Self {
+                Pair(self.0.$f(o.0), self.1.$f(o.1))
+            }
+        }
+    };
+}
+pair_op!(Add, add);
+pair_op!(Sub, sub);
+pair_op!(Mul, mul);
+pair_op!(BitAnd, bitand);
+pair_op!(BitOr, bitor);
+
+impl<M: Not<Output = M>> Not for Pair<M> {
+    type Output = Self;
+    #[inline(always)]
+    fn not(self) -> Self {
+        Pair(!self.0, !self.1)
+    }
+}
+
+impl<L: Lanes> Lanes for Pair<L> {
+    const W: usize = 2 * L::W;
+    type S = L::S;
+    type Mask = Pair<L::Mask>;
+    const EPSILON: L::S = L::EPSILON;
+    #[inline(always)]
+    fn splat(v: L::S) -> Self {
+        Pair(L::splat(v), L::splat(v))
+    }
+    #[inline(always)]
+    fn abs(self) -> Self {
+        Pair(self.0.abs(), self.1.abs())
+    }
+    #[inline(always)]
+    fn max(self, o: Self) -> Self {
+        Pair(self.0.max(o.0), self.1.max(o.1))
+    }
+    #[inline(always)]
+    fn min(self, o: Self) -> Self {
+        Pair(self.0.min(o.0), self.1.min(o.1))
+    }
+    #[inline(always)]
+    fn recip(self) -> Self {
+        Pair(self.0.recip(), self.1.recip())
+    }
+    #[inline(always)]
+    fn le(self, o: Self) -> Self::Mask {
+        Pair(self.0.le(o.0), self.1.le(o.1))
+    }
+    #[inline(always)]
+    fn gt(self, o: Self) -> Self::Mask {
+        Pair(self.0.gt(o.0), self.1.gt(o.1))
+    }
+    #[inline(always)]
+    fn lt(self, o: Self) -> Self::Mask {
+        Pair(self.0.lt(o.0), self.1.lt(o.1))
+    }
+    #[inline(always)]
+    fn is_nan(self) -> Self::Mask {
+        Pair(self.0.is_nan(), self.1.is_nan())
+    }
+    #[inline(always)]
+    fn is_finite(self) -> Self::Mask {
+        Pair(self.0.is_finite(), self.1.is_finite())
+    }
+    #[inline(always)]
+    fn select(mask: Self::Mask, a: Self, b: Self) -> Self {
+        Pair(L::select(mask.0, a.0, b.0), L::select(mask.1, a.1, b.1))
+    }
+    #[inline(always)]
+    fn lane(self, l: usize) -> L::S {
+        if l < L::W {
+            self.0.lane(l)
+        } else {
+            self.1.lane(l - L::W)
+        }
+    }
+    #[inline(always)]
+    fn from_fn(f: impl Fn(usize) -> L::S) -> Self {
+        Pair(L::from_fn(&f), L::from_fn(|l| f(l + L::W)))
+    }
+    #[inline(always)]
+    fn bits(mask: Self::Mask) -> u32 {
+        L::bits(mask.0) | L::bits(mask.1) << L::W
+    }
+    #[inline(always)]
+    fn any(mask: Self::Mask) -> bool {
+        L::any(mask.0 | mask.1)
+    }
+    #[inline(always)]
+    fn mask_from_bits(bits: u32) -> Self::Mask {
+        Pair(L::mask_from_bits(bits), L::mask_from_bits(bits >> L::W))
+    }
+    type Node = L::Node;
+    #[inline(always)]
+    fn transpose<'n>(node: impl Fn(usize) -> &'n L::Node) -> V3<Self>
+    where
+        L::Node: 'n,
+    {
+        let (a, b) = (L::transpose(&node), L::transpose(|l| node(l + L::W)));
+        V3 {
+            x: Pair(a.x, b.x),
+            y: Pair(a.y, b.y),
+            z: Pair(a.z, b.z),
+        }
+    }
+    type Wide = Pair<L::Wide>;
+    #[inline(always)]
+    fn narrow(wide: Self::Wide) -> Self {
+        Pair(L::narrow(wide.0), L::narrow(wide.1))
+    }
+    #[inline(always)]
+    fn widen(self) -> Self::Wide {
+        Pair(self.0.widen(), self.1.widen())
+    }
+}
+
+impl<L: Wide> Wide for Pair<L> {
+    #[inline(always)]
+    fn trunc(self) -> Self {
+        Pair(self.0.trunc(), self.1.trunc())
+    }
+    #[inline(always)]
+    fn sqrt(self) -> Self {
+        Pair(self.0.sqrt(), self.1.sqrt())
+    }
 }
 
 /// 4 × f32 in glam's `Vec4`: SSE2 or NEON, the instructions of its `Vec3A` (the scalar f32 kernel).
@@ -179,6 +434,16 @@ impl Lanes for glam::Vec4 {
             z: glam::Vec4::new(n[0].z, n[1].z, n[2].z, n[3].z),
         }
     }
+    type Wide = Pair<Pair<f64>>;
+    #[inline(always)]
+    fn narrow(w: Self::Wide) -> Self {
+        glam::Vec4::new(w.0.0 as f32, w.0.1 as f32, w.1.0 as f32, w.1.1 as f32)
+    }
+    #[inline(always)]
+    fn widen(self) -> Self::Wide {
+        let w = self.as_dvec4();
+        Pair(Pair(w.x, w.y), Pair(w.z, w.w))
+    }
 }
 
 /// A 3-vector per lane, with glam's operation order (dot = (x x' + y y') + z z', and its cross).
@@ -189,24 +454,7 @@ pub(crate) struct V3<V> {
     pub z: V,
 }
 
-/// Lane `l` of the result is `f(l)`, rounded to the lanes' precision.
-#[inline(always)]
-pub(crate) fn lanes<V: Lanes>(f: impl Fn(usize) -> f64) -> V {
-    V::from_fn(|l| V::S::of(f(l)))
-}
-
 impl<V: Lanes> V3<V> {
-    /// Lane `l` of the result is `f(l)`, rounded to the lanes' precision (as glam's `as_vec3a`).
-    /// `f` is called once per lane and component; keep it pure, so that the compiler shares the work.
-    #[inline(always)]
-    pub fn from_fn(f: impl Fn(usize) -> DVec3) -> Self {
-        Self {
-            x: lanes(|l| f(l).x),
-            y: lanes(|l| f(l).y),
-            z: lanes(|l| f(l).z),
-        }
-    }
-
     #[inline(always)]
     fn map(self, f: impl Fn(V) -> V) -> Self {
         Self {
@@ -264,6 +512,42 @@ impl<V: Lanes> V3<V> {
             z: V::select(mask, a.z, b.z),
         }
     }
+    /// Each lane rounded to this precision.
+    #[inline(always)]
+    pub fn narrow(wide: V3<V::Wide>) -> Self {
+        Self {
+            x: V::narrow(wide.x),
+            y: V::narrow(wide.y),
+            z: V::narrow(wide.z),
+        }
+    }
+    /// Each lane widened to f64.
+    #[inline(always)]
+    pub fn widen(self) -> V3<V::Wide> {
+        V3 {
+            x: self.x.widen(),
+            y: self.y.widen(),
+            z: self.z.widen(),
+        }
+    }
+    /// Every lane `v`.
+    #[inline(always)]
+    pub fn splat(v: DVec3) -> Self {
+        Self {
+            x: V::splat(V::S::of(v.x)),
+            y: V::splat(V::S::of(v.y)),
+            z: V::splat(V::S::of(v.z)),
+        }
+    }
+    /// Each component times the matching component of `v` (glam's `DVec3 * DVec3`).
+    #[inline(always)]
+    pub fn mul_each(self, v: DVec3) -> Self {
+        Self {
+            x: self.x * V::splat(V::S::of(v.x)),
+            y: self.y * V::splat(V::S::of(v.y)),
+            z: self.z * V::splat(V::S::of(v.z)),
+        }
+    }
     /// Lane `l` as an f64 vector.
     #[inline(always)]
     pub fn lane(&self, l: usize) -> DVec3 {
@@ -311,16 +595,19 @@ impl<V: Lanes> Maps<V> {
     where
         V::Node: 'n,
     {
-        let zero = V::splat(V::S::of(0.0));
-        let mut corners = [V3 {
-            x: zero,
-            y: zero,
-            z: zero,
-        }; 8];
-        for (c, v) in corners.iter_mut().enumerate() {
-            *v = V::transpose(|l| node(l, c));
-        }
-        Self::new(&corners)
+        // Written out: `array::from_fn`'s closure is not inlined into the caller's AVX2 context, and
+        // a loop over a zeroed array costs a memset call.
+        let corner = |c: usize| V::transpose(|l| node(l, c));
+        Self::new(&[
+            corner(0),
+            corner(1),
+            corner(2),
+            corner(3),
+            corner(4),
+            corner(5),
+            corner(6),
+            corner(7),
+        ])
     }
 
     /// The maps of W hexahedra with corners `c` (VTK order): `Hex8Map::new`'s butterfly, the same code.
@@ -497,20 +784,22 @@ pub(crate) mod avx {
     #![allow(unsafe_code)]
 
     use std::arch::x86_64::{
-        __m128, __m256, __m256d, _CMP_LE_OQ, _CMP_LT_OQ, _CMP_UNORD_Q, _mm256_add_pd,
-        _mm256_add_ps, _mm256_and_pd, _mm256_and_ps, _mm256_andnot_pd, _mm256_andnot_ps,
-        _mm256_blendv_pd, _mm256_blendv_ps, _mm256_cmp_pd, _mm256_cmp_ps, _mm256_div_pd,
-        _mm256_div_ps, _mm256_max_pd, _mm256_max_ps, _mm256_min_pd, _mm256_min_ps,
-        _mm256_movemask_pd, _mm256_movemask_ps, _mm256_mul_pd, _mm256_mul_ps, _mm256_or_pd,
-        _mm256_or_ps, _mm256_set_m128, _mm256_set_pd, _mm256_set_ps, _mm256_set1_pd,
-        _mm256_set1_ps, _mm256_shuffle_ps, _mm256_sub_pd, _mm256_sub_ps, _mm256_unpackhi_pd,
-        _mm256_unpackhi_ps, _mm256_unpacklo_pd, _mm256_unpacklo_ps, _mm256_xor_pd, _mm256_xor_ps,
+        __m128, __m256, __m256d, _CMP_LE_OQ, _CMP_LT_OQ, _CMP_UNORD_Q, _MM_FROUND_NO_EXC,
+        _MM_FROUND_TO_ZERO, _mm256_add_pd, _mm256_add_ps, _mm256_and_pd, _mm256_and_ps,
+        _mm256_andnot_pd, _mm256_andnot_ps, _mm256_blendv_pd, _mm256_blendv_ps,
+        _mm256_castps256_ps128, _mm256_cmp_pd, _mm256_cmp_ps, _mm256_cvtpd_ps, _mm256_cvtps_pd,
+        _mm256_div_pd, _mm256_div_ps, _mm256_extractf128_ps, _mm256_max_pd, _mm256_max_ps,
+        _mm256_min_pd, _mm256_min_ps, _mm256_movemask_pd, _mm256_movemask_ps, _mm256_mul_pd,
+        _mm256_mul_ps, _mm256_or_pd, _mm256_or_ps, _mm256_round_pd, _mm256_set_m128, _mm256_set_pd,
+        _mm256_set_ps, _mm256_set1_pd, _mm256_set1_ps, _mm256_shuffle_ps, _mm256_sqrt_pd,
+        _mm256_sub_pd, _mm256_sub_ps, _mm256_unpackhi_pd, _mm256_unpackhi_ps, _mm256_unpacklo_pd,
+        _mm256_unpacklo_ps, _mm256_xor_pd, _mm256_xor_ps,
     };
     use std::ops::{Add, BitAnd, BitOr, Mul, Not, Sub};
 
     use glam::{DVec3, Vec3A};
 
-    use super::{Lanes, V3};
+    use super::{Lanes, Pair, V3, Wide};
 
     /// Calls an AVX intrinsic.
     macro_rules! avx {
@@ -532,7 +821,8 @@ pub(crate) mod avx {
             max: $max:ident, min: $min:ident, cmp: $cmp:ident, blendv: $blendv:ident,
             movemask: $movemask:ident, set1: $set1:ident,
             from_fn: |$f:ident| $set:expr,
-            node: $Node:ty, transpose: $transpose:ident
+            node: $Node:ty, transpose: $transpose:ident,
+            wide: $Wide:ty, narrow: |$n:ident| $narrow:expr, widen: |$w:ident| $widen:expr
         ) => {
             $(#[$doc])*
             #[derive(Clone, Copy)]
@@ -673,6 +963,16 @@ pub(crate) mod avx {
                         z: Self(z),
                     }
                 }
+                type Wide = $Wide;
+                #[inline(always)]
+                fn narrow($n: $Wide) -> Self {
+                    $narrow
+                }
+                #[inline(always)]
+                fn widen(self) -> $Wide {
+                    let $w = self;
+                    $widen
+                }
             }
         };
     }
@@ -694,9 +994,22 @@ pub(crate) mod avx {
     /// 4 × 4 transpose of each 128-bit half.
     #[inline(always)]
     fn transpose_f32<'n>(node: impl Fn(usize) -> &'n Vec3A) -> [__m256; 3] {
-        let m = |l: usize| -> __m128 { (*node(l)).into() };
-        let pair = |l: usize| avx!(_mm256_set_m128(m(l + 4), m(l)));
-        let (r0, r1, r2, r3) = (pair(0), pair(1), pair(2), pair(3));
+        // No closures here: a closure is compiled without the caller's AVX2, and its intrinsics
+        // become calls (measured: f32 19 -> 14 M points/s).
+        let m: [__m128; 8] = [
+            (*node(0)).into(),
+            (*node(1)).into(),
+            (*node(2)).into(),
+            (*node(3)).into(),
+            (*node(4)).into(),
+            (*node(5)).into(),
+            (*node(6)).into(),
+            (*node(7)).into(),
+        ];
+        let r0 = avx!(_mm256_set_m128(m[4], m[0]));
+        let r1 = avx!(_mm256_set_m128(m[5], m[1]));
+        let r2 = avx!(_mm256_set_m128(m[6], m[2]));
+        let r3 = avx!(_mm256_set_m128(m[7], m[3]));
         // [x0 x1 y0 y1 | x4 x5 y4 y5], [x2 x3 y2 y3 | x6 x7 y6 y7], and the same for z (and w).
         let (xy01, xy23) = (
             avx!(_mm256_unpacklo_ps(r0, r1)),
@@ -721,7 +1034,8 @@ pub(crate) mod avx {
         max: _mm256_max_pd, min: _mm256_min_pd, cmp: _mm256_cmp_pd, blendv: _mm256_blendv_pd,
         movemask: _mm256_movemask_pd, set1: _mm256_set1_pd,
         from_fn: |f| _mm256_set_pd(f(3), f(2), f(1), f(0)),
-        node: DVec3, transpose: transpose_f64
+        node: DVec3, transpose: transpose_f64,
+        wide: F64x4, narrow: |w| w, widen: |v| v
     );
     avx_lanes!(
         /// Eight f32 lanes.
@@ -731,6 +1045,25 @@ pub(crate) mod avx {
         max: _mm256_max_ps, min: _mm256_min_ps, cmp: _mm256_cmp_ps, blendv: _mm256_blendv_ps,
         movemask: _mm256_movemask_ps, set1: _mm256_set1_ps,
         from_fn: |f| _mm256_set_ps(f(7), f(6), f(5), f(4), f(3), f(2), f(1), f(0)),
-        node: Vec3A, transpose: transpose_f32
+        node: Vec3A, transpose: transpose_f32,
+        wide: Pair<F64x4>,
+        narrow: |w| Self(avx!(_mm256_set_m128(_mm256_cvtpd_ps((w.1).0), _mm256_cvtpd_ps((w.0).0)))),
+        widen: |v| Pair(
+            F64x4(avx!(_mm256_cvtps_pd(_mm256_castps256_ps128(v.0)))),
+            F64x4(avx!(_mm256_cvtps_pd(_mm256_extractf128_ps::<1>(v.0)))),
+        )
     );
+
+    impl Wide for F64x4 {
+        #[inline(always)]
+        fn trunc(self) -> Self {
+            Self(avx!(_mm256_round_pd::<
+                { _MM_FROUND_TO_ZERO | _MM_FROUND_NO_EXC },
+            >(self.0)))
+        }
+        #[inline(always)]
+        fn sqrt(self) -> Self {
+            Self(avx!(_mm256_sqrt_pd(self.0)))
+        }
+    }
 }

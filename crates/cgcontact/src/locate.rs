@@ -13,7 +13,7 @@ use glam::{DVec3, Vec3A};
 use rayon::prelude::*;
 use smallvec::SmallVec;
 
-use crate::batch::{Lanes, MAX_W, Maps, Real, V3, lanes};
+use crate::batch::{Lanes, MAX_W, Maps, Real, V3, Wide};
 use crate::body::Body;
 use crate::hex8::{Hex8Map, Hex8Map32, Inversion, Kernel, NewtonOptions, Status};
 use crate::lattice::CellId;
@@ -92,6 +92,8 @@ pub struct LatticeLocator<'a> {
     /// With f32 precision, the displacements rounded to f32, in the body's slot order (16 bytes per
     /// node): the batched path reads them as they are. Empty with f64.
     u_f32: Vec<Vec3A>,
+    /// Every cell of the lattice is active: the batched path skips the activity lookup.
+    all_active: bool,
 }
 
 /// The displacements as the batched path reads them: the body's f64 ones, or the locator's f32 copy.
@@ -157,6 +159,7 @@ impl<'a> LatticeLocator<'a> {
                 Precision::F32 => body.displacements().iter().map(|u| u.as_vec3a()).collect(),
                 Precision::F64 => Vec::new(),
             },
+            all_active: body.active_count() == lattice.cell_count(),
         })
     }
 
@@ -353,34 +356,28 @@ impl<'a> LatticeLocator<'a> {
     }
 }
 
-/// What the batched path needs of one point, read ahead of its computation (see
-/// `LatticeLocator::locate_chunk_with`).
-#[derive(Clone, Copy)]
-struct Gathered {
-    /// Finite and within reach: the batched path takes it (otherwise `gather` answered it).
-    take: bool,
-    inside_tol: f64,
-    /// Lattice coordinates of x.
-    t_x: DVec3,
-    /// The cell holding x, and its lowest lattice node.
-    cell_x: [u32; 3],
-    base: usize,
-}
-
-impl Gathered {
-    const NOTHING: Self = Self {
-        take: false,
-        inside_tol: 0.0,
-        t_x: DVec3::ZERO,
-        cell_x: [0; 3],
-        base: 0,
-    };
+/// The first half of the batched search for W points, up to the displacement maps of the cells
+/// holding them (see `LatticeLocator::front`).
+struct Front<V: Lanes> {
+    /// The points, their lattice coordinates and the cells holding them, in f64 lanes.
+    x: V3<V::Wide>,
+    t_x: V3<V::Wide>,
+    cell_x: V3<V::Wide>,
+    inside_tol: V::Wide,
+    /// Lanes within reach (bits): the others are answered by the scalar search.
+    take: u32,
+    /// The displacement maps of the cells holding the points (zero where a corner has none).
+    maps: Maps<V>,
 }
 
 impl LatticeLocator<'_> {
     /// Answers for `points` into `out` (same length), W points at a time through the batched common
     /// path ([`crate::batch`]); the remainder and every point that leaves the common path go through
     /// the scalar search. The answers are bitwise those of [`Locator::locate`].
+    ///
+    /// Software-pipelined: the first half of the next W points (their cells and the loads of their
+    /// corners) is issued before the second half of the current ones, so that the loads' latency
+    /// overlaps the current Newton inversions.
     #[inline(always)]
     fn locate_chunk_with<V: Lanes>(&self, points: &[DVec3], out: &mut [Answer])
     where
@@ -388,126 +385,165 @@ impl LatticeLocator<'_> {
     {
         let mut points_w = points.chunks_exact(V::W);
         let mut out_w = out.chunks_exact_mut(V::W);
-        let mut gathered = [Gathered::NOTHING; MAX_W];
-        for (p, o) in (&mut points_w).zip(&mut out_w) {
-            for ((g, &x), o) in gathered.iter_mut().zip(p).zip(o.iter_mut()) {
-                self.gather(x, g, o);
-            }
-            self.locate_lanes::<V>(p, o, &mut gathered);
+        let mut next = points_w.next().map(|p| (p, self.front::<V>(p)));
+        while let Some((p, front)) = next {
+            next = points_w.next().map(|p| (p, self.front::<V>(p)));
+            let o = out_w.next().expect("as many answer chunks as point chunks");
+            self.back::<V>(p, front, o);
         }
         for (&x, o) in points_w.remainder().iter().zip(out_w.into_remainder()) {
             *o = self.locate(x);
         }
     }
 
-    /// The first half of `search` for one point, up to the cell holding it (written in place). A point
-    /// that is not finite or out of reach is answered here, as `search` answers it.
+    /// `search` up to the cell holding each of W points (`points` has W entries), one lane each, and
+    /// that cell's displacement map: the same f64 operations in f64 lanes (`V::Wide`).
     #[inline(always)]
-    fn gather(&self, x: DVec3, g: &mut Gathered, out: &mut Answer) {
-        let inside_tol = match self.admit(x) {
-            Ok(Some(inside_tol)) => inside_tol,
-            rejected => {
-                g.take = false;
-                *out = rejected.map(|_| None);
-                return;
-            }
-        };
-        let lattice = self.body.lattice();
-        g.take = true;
-        g.inside_tol = inside_tol;
-        g.t_x = (x - lattice.origin()) * self.inv_h;
-        g.cell_x = lattice.clamped_cell(g.t_x);
-        g.base = lattice.node_index(g.cell_x);
-    }
-
-    /// The lattice search's common path for W gathered points: the predicted cell, one Newton
-    /// inversion there. Mirrors [`LatticeLocator::search`] and `search_with` step for step (see
-    /// [`crate::batch`]).
-    #[inline(always)]
-    fn locate_lanes<V: Lanes>(
-        &self,
-        points: &[DVec3],
-        out: &mut [Answer],
-        g: &mut [Gathered; MAX_W],
-    ) where
+    fn front<V: Lanes>(&self, points: &[DVec3]) -> Front<V>
+    where
         V::Node: Nodes,
     {
-        if g[..V::W].iter().all(|g| !g.take) {
-            // Every point answered by `gather` (e.g. a contact surface mostly away from the body).
-            return;
-        }
         let lattice = self.body.lattice();
-        // The displacements of the corners of the cell holding x (zero where a corner has none).
+        let splat = V3::<V::Wide>::splat;
+        let x = V::Wide::transpose(|l| &points[l]);
+        // `admit`: finite and within reach (the lattice's box padded by u_max and the tolerance).
+        let inside_tol = self.inside_tol.at_magnitude(x.abs().max_element());
+        let slack = splat(lattice.h()).scale(inside_tol);
+        let (low, high) = (
+            splat(self.reach_low) - slack,
+            splat(self.reach_high) + slack,
+        );
+        let outside = x.x.lt(low.x) | x.y.lt(low.y) | x.z.lt(low.z);
+        let outside = outside | x.x.gt(high.x) | x.y.gt(high.y) | x.z.gt(high.z);
+        let take = V::Wide::bits(x.is_finite() & !outside);
+        let t_x = (x - splat(lattice.origin())).mul_each(self.inv_h);
+        let cell_x = self.clamped_cells::<V::Wide>(t_x);
+        Front {
+            x,
+            t_x,
+            cell_x,
+            inside_tol,
+            take,
+            maps: self.maps_of::<V>(&cell_x),
+        }
+    }
+
+    /// `Lattice::clamped_cell` in f64 lanes: max(0), then min(cells − 1) before truncating, which
+    /// is the same (MAXPD maps NaN to 0, as `f64::max` does).
+    #[inline(always)]
+    fn clamped_cells<D: Wide>(&self, t: V3<D>) -> V3<D> {
+        let last = DVec3::from(self.body.lattice().cells().map(|n| f64::from(n - 1)));
+        let clamp = |t: D, last: f64| t.max(D::splat(0.0)).min(D::splat(last)).trunc();
+        V3 {
+            x: clamp(t.x, last.x),
+            y: clamp(t.y, last.y),
+            z: clamp(t.z, last.z),
+        }
+    }
+
+    /// `Lattice::node_index` (`nodes`) or `Lattice::cell_id` (`cells`) of each lane's cell, exactly
+    /// (integers below 2^53 in f64).
+    #[inline(always)]
+    fn lane_indices<D: Wide>(cell: &V3<D>, [nx, ny, _]: [u32; 3]) -> [usize; MAX_W] {
+        let index = cell.x + D::splat(f64::from(nx)) * (cell.y + D::splat(f64::from(ny)) * cell.z);
+        std::array::from_fn(|l| if l < D::W { index.lane(l) as usize } else { 0 })
+    }
+
+    /// The displacement maps of each lane's cell (zero where a corner has none).
+    #[inline(always)]
+    fn maps_of<V: Lanes>(&self, cell: &V3<V::Wide>) -> Maps<V>
+    where
+        V::Node: Nodes,
+    {
+        let base = Self::lane_indices(cell, self.body.lattice().nodes());
         let nodes = V::Node::of(self);
         let zero = V::Node::ZERO;
-        let corners = |g: &[Gathered; MAX_W]| {
-            Maps::<V>::from_nodes(|l, c| self.body.corner_entry(nodes, g[l].base, c, &zero))
-        };
-        let mut maps = corners(g);
-        // The guess x − ũ, ũ interpolated at x in the cell holding x (`guess`).
-        let predicted = self.settings.order == CandidateOrder::Predicted;
-        let u_at_x = if predicted {
-            // Pure per lane: the compiler evaluates it once per lane, not once per component
-            // (callgrind: storing it in `Gathered` instead costs 20 instructions per point more).
-            maps.map(V3::from_fn(|l| {
-                undeformed_xi(g[l].t_x, g[l].cell_x).clamp(DVec3::NEG_ONE, DVec3::ONE)
-            }))
-        } else {
-            V3::from_fn(|_| DVec3::ZERO)
-        };
-        let mut first = [[0u32; 3]; MAX_W];
-        let mut x_local = [DVec3::ZERO; MAX_W];
-        let mut xi0 = [DVec3::ZERO; MAX_W];
-        let mut take = 0u32;
-        let mut moved = false;
-        for l in 0..V::W {
-            if !g[l].take {
-                continue;
-            }
-            let t_guess = if predicted {
-                g[l].t_x - u_at_x.lane(l) * self.inv_h
-            } else {
-                g[l].t_x
-            };
-            first[l] = lattice.clamped_cell(t_guess);
-            if !self.body.is_active(lattice.cell_id(first[l])) {
-                continue;
-            }
-            take |= 1 << l;
-            if first[l] != g[l].cell_x {
-                moved = true;
-                g[l].base = lattice.node_index(first[l]);
-            }
-            x_local[l] = points[l] - lattice.node_position(first[l]);
-            xi0[l] = undeformed_xi(t_guess, first[l]);
+        Maps::from_nodes(|l, c| self.body.corner_entry(nodes, base[l], c, &zero))
+    }
+
+    /// The rest of the common path for W points: the predicted cell and one Newton inversion there.
+    /// Every point refused by `admit` or leaving the common path is answered by the scalar search.
+    #[inline(always)]
+    fn back<V: Lanes>(&self, points: &[DVec3], front: Front<V>, out: &mut [Answer])
+    where
+        V::Node: Nodes,
+    {
+        let mut found = 0;
+        if front.take != 0 {
+            found = self.invert_lanes(front, out);
         }
-        if moved {
-            maps = corners(g);
+        for (l, out) in out.iter_mut().enumerate() {
+            if found & (1 << l) == 0 {
+                *out = self.locate(points[l]);
+            }
+        }
+    }
+
+    /// The predicted cells and one Newton inversion there, for the lanes `front` takes: writes the
+    /// answer of every lane it finds and returns their bits.
+    #[inline(always)]
+    fn invert_lanes<V: Lanes>(&self, front: Front<V>, out: &mut [Answer]) -> u32
+    where
+        V::Node: Nodes,
+    {
+        let lattice = self.body.lattice();
+        let splat = V3::<V::Wide>::splat;
+        let Front {
+            x,
+            t_x,
+            cell_x,
+            inside_tol,
+            mut take,
+            mut maps,
+        } = front;
+        // The guess x − ũ, ũ interpolated at x in the cell holding x (`guess`).
+        let t_guess = match self.settings.order {
+            CandidateOrder::Predicted => {
+                let two = V::Wide::splat(2.0);
+                let xi = ((t_x - cell_x).scale(two) - splat(DVec3::ONE)).clamp(-1.0, 1.0);
+                t_x - maps.map(V3::narrow(xi)).widen().mul_each(self.inv_h)
+            }
+            CandidateOrder::Undeformed => t_x,
+        };
+        let first = self.clamped_cells(t_guess);
+        let cell = Self::lane_indices(&first, lattice.cells());
+        if !self.all_active {
+            for (l, &cell) in cell.iter().enumerate().take(V::W) {
+                if !self.body.is_active(CellId(cell as u32)) {
+                    take &= !(1 << l);
+                }
+            }
+        }
+        let moved = first.x.lt(cell_x.x) | first.x.gt(cell_x.x) | first.y.lt(cell_x.y);
+        let moved = moved | first.y.gt(cell_x.y) | first.z.lt(cell_x.z) | first.z.gt(cell_x.z);
+        if V::Wide::bits(moved) & take != 0 {
+            maps = self.maps_of(&first);
         }
         maps.add_lattice(lattice.h());
-        let inside: V = lanes(|l| g[l].inside_tol);
-        let inside = V::splat(V::S::of(1.0)) + inside;
+        let x_local = x - (splat(lattice.origin()) + first.mul_each(lattice.h()));
+        let xi0 = (t_guess - first).scale(V::Wide::splat(2.0)) - splat(DVec3::ONE);
+        let inside = V::splat(V::S::of(1.0)) + V::narrow(inside_tol);
         let (xi, rr, iterations, found) = maps.invert(
-            V3::from_fn(|l| x_local[l]),
-            V3::from_fn(|l| xi0[l]),
+            V3::narrow(x_local),
+            V3::narrow(xi0),
             inside,
             V::mask_from_bits(take),
             &self.newton,
         );
+        let xi = xi.widen().clamp(-1.0, 1.0);
+        let residual = rr.widen().sqrt();
         for (l, out) in out.iter_mut().enumerate() {
             if found & (1 << l) != 0 {
                 *out = Ok(Some(Hit {
-                    cell: lattice.cell_id(first[l]),
-                    xi: xi.lane(l).clamp(DVec3::NEG_ONE, DVec3::ONE),
+                    cell: CellId(cell[l] as u32),
+                    xi: xi.lane(l),
                     iterations: iterations[l],
-                    residual: rr.lane(l).wide().sqrt(),
+                    residual: residual.lane(l),
                     inversions: 1,
                 }));
-            } else if g[l].take {
-                // Left the common path: the whole scalar search (points `gather` did not answer).
-                *out = self.locate(points[l]);
             }
         }
+        found
     }
 
     /// [`Locator::locate`] for a chunk of points: batched where that measured faster (with AVX2,

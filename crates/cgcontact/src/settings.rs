@@ -2,6 +2,8 @@
 
 use glam::DVec3;
 
+use crate::batch::Lanes;
+
 use crate::hex8::NewtonOptions;
 use crate::{Error, Lattice};
 
@@ -150,6 +152,13 @@ impl InsideTolerance {
     #[inline]
     #[must_use]
     pub fn at(&self, x: DVec3) -> f64 {
-        self.base + self.per_magnitude * x.abs().max_element().max(self.origin_magnitude)
+        self.at_magnitude(x.abs().max_element())
+    }
+
+    /// [`InsideTolerance::at`] from |x|∞, in lanes (the batched search) or in one f64.
+    #[inline(always)]
+    pub(crate) fn at_magnitude<D: Lanes<S = f64>>(&self, magnitude: D) -> D {
+        D::splat(self.base)
+            + D::splat(self.per_magnitude) * magnitude.max(D::splat(self.origin_magnitude))
     }
 }
