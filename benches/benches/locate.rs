@@ -72,6 +72,10 @@ fn build(c: &mut Criterion) {
     c.bench_function("build/locator-136k-nodes", |b| {
         b.iter(|| LatticeLocator::new(black_box(&body), Settings::default()).expect("valid"))
     });
+    // f32 locators also round the displacements into their own f32 copy (16 bytes per node).
+    c.bench_function("build/locator-136k-nodes-f32", |b| {
+        b.iter(|| LatticeLocator::new(black_box(&body), Settings::f32()).expect("valid"))
+    });
 }
 
 criterion_group!(benches, locate_all, build);
