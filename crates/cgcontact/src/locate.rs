@@ -364,10 +364,29 @@ struct Front<V: Lanes> {
     t_x: V3<V::Wide>,
     cell_x: V3<V::Wide>,
     inside_tol: V::Wide,
-    /// Lanes within reach (bits): the others are answered by the scalar search.
+    /// Lanes with a finite point, and lanes within reach (bits): `admit`'s two answers.
+    finite: u32,
     take: u32,
-    /// The displacement maps of the cells holding the points (zero where a corner has none).
+    /// The displacement maps of the cells holding the points (zero where a corner has none); not
+    /// computed when no lane is within reach (a contact surface mostly away from the body).
     maps: Maps<V>,
+}
+
+impl<V: Lanes> Front<V> {
+    fn new() -> Self {
+        let zero = V3::splat(DVec3::ZERO);
+        Self {
+            x: zero,
+            t_x: zero,
+            cell_x: zero,
+            inside_tol: V::Wide::splat(0.0),
+            finite: 0,
+            take: 0,
+            maps: Maps {
+                a: [V3::splat(DVec3::ZERO); 8],
+            },
+        }
+    }
 }
 
 impl LatticeLocator<'_> {
@@ -377,21 +396,27 @@ impl LatticeLocator<'_> {
     ///
     /// Software-pipelined: the first half of the next W points (their cells and the loads of their
     /// corners) is issued before the second half of the current ones, so that the loads' latency
-    /// overlaps the current Newton inversions.
+    /// overlaps the current Newton inversions. The two halves meet in two `Front`s used in turn,
+    /// written in place (moving one, about 1 KB, cost a copy and a store-forwarding stall).
     #[inline(always)]
     fn locate_chunk_with<V: Lanes>(&self, points: &[DVec3], out: &mut [Answer])
     where
         V::Node: Nodes,
     {
-        let mut points_w = points.chunks_exact(V::W);
-        let mut out_w = out.chunks_exact_mut(V::W);
-        let mut next = points_w.next().map(|p| (p, self.front::<V>(p)));
-        while let Some((p, front)) = next {
-            next = points_w.next().map(|p| (p, self.front::<V>(p)));
-            let o = out_w.next().expect("as many answer chunks as point chunks");
-            self.back::<V>(p, front, o);
+        let w = V::W;
+        let batches = points.len() / w;
+        let mut fronts = [Front::<V>::new(), Front::<V>::new()];
+        if batches > 0 {
+            self.front(&points[..w], &mut fronts[0]);
         }
-        for (&x, o) in points_w.remainder().iter().zip(out_w.into_remainder()) {
+        for b in 0..batches {
+            if b + 1 < batches {
+                self.front(&points[(b + 1) * w..(b + 2) * w], &mut fronts[(b + 1) % 2]);
+            }
+            let (points, out) = (&points[b * w..(b + 1) * w], &mut out[b * w..(b + 1) * w]);
+            self.back(points, &fronts[b % 2], out);
+        }
+        for (&x, o) in points.iter().zip(out.iter_mut()).skip(batches * w) {
             *o = self.locate(x);
         }
     }
@@ -399,7 +424,7 @@ impl LatticeLocator<'_> {
     /// `search` up to the cell holding each of W points (`points` has W entries), one lane each, and
     /// that cell's displacement map: the same f64 operations in f64 lanes (`V::Wide`).
     #[inline(always)]
-    fn front<V: Lanes>(&self, points: &[DVec3]) -> Front<V>
+    fn front<V: Lanes>(&self, points: &[DVec3], front: &mut Front<V>)
     where
         V::Node: Nodes,
     {
@@ -415,17 +440,22 @@ impl LatticeLocator<'_> {
         );
         let outside = x.x.lt(low.x) | x.y.lt(low.y) | x.z.lt(low.z);
         let outside = outside | x.x.gt(high.x) | x.y.gt(high.y) | x.z.gt(high.z);
-        let take = V::Wide::bits(x.is_finite() & !outside);
+        let finite = x.is_finite();
+        let take = V::Wide::bits(finite & !outside);
         let t_x = (x - splat(lattice.origin())).mul_each(self.inv_h);
         let cell_x = self.clamped_cells::<V::Wide>(t_x);
-        Front {
+        if take != 0 {
+            front.maps = self.maps_of::<V>(&cell_x);
+        }
+        *front = Front {
             x,
             t_x,
             cell_x,
             inside_tol,
             take,
-            maps: self.maps_of::<V>(&cell_x),
-        }
+            finite: V::Wide::bits(finite),
+            maps: front.maps,
+        };
     }
 
     /// `Lattice::clamped_cell` in f64 lanes: max(0), then min(cells − 1) before truncating, which
@@ -462,27 +492,38 @@ impl LatticeLocator<'_> {
     }
 
     /// The rest of the common path for W points: the predicted cell and one Newton inversion there.
-    /// Every point refused by `admit` or leaving the common path is answered by the scalar search.
+    /// A point refused by `admit` gets `admit`'s answer; one leaving the common path, the scalar
+    /// search's.
     #[inline(always)]
-    fn back<V: Lanes>(&self, points: &[DVec3], front: Front<V>, out: &mut [Answer])
+    fn back<V: Lanes>(&self, points: &[DVec3], front: &Front<V>, out: &mut [Answer])
     where
         V::Node: Nodes,
     {
-        let mut found = 0;
-        if front.take != 0 {
-            found = self.invert_lanes(front, out);
-        }
+        let (finite, take) = (front.finite, front.take);
+        let found = if take != 0 {
+            self.invert_lanes(front, out)
+        } else {
+            0
+        };
         for (l, out) in out.iter_mut().enumerate() {
-            if found & (1 << l) == 0 {
-                *out = self.locate(points[l]);
+            let bit = 1 << l;
+            if found & bit != 0 {
+                continue;
             }
+            *out = if take & bit != 0 {
+                self.locate(points[l])
+            } else if finite & bit != 0 {
+                Ok(None)
+            } else {
+                Err(PointError::NonFinite)
+            };
         }
     }
 
     /// The predicted cells and one Newton inversion there, for the lanes `front` takes: writes the
     /// answer of every lane it finds and returns their bits.
     #[inline(always)]
-    fn invert_lanes<V: Lanes>(&self, front: Front<V>, out: &mut [Answer]) -> u32
+    fn invert_lanes<V: Lanes>(&self, front: &Front<V>, out: &mut [Answer]) -> u32
     where
         V::Node: Nodes,
     {
@@ -495,7 +536,8 @@ impl LatticeLocator<'_> {
             inside_tol,
             mut take,
             mut maps,
-        } = front;
+            ..
+        } = *front;
         // The guess x − ũ, ũ interpolated at x in the cell holding x (`guess`).
         let t_guess = match self.settings.order {
             CandidateOrder::Predicted => {
