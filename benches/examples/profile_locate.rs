@@ -1,7 +1,9 @@
 //! A fixed amount of single-threaded locating, for profilers (perf, callgrind).
 //!
-//! Run: `cargo run --release -p cgcontact-benches --example profile_locate [repeats] [f32] [each] [big|sphere]`
-//! (`each`: one `locate` call per point instead of the batched `locate_all_into`).
+//! Run: `cargo run --release -p cgcontact-benches --example profile_locate [repeats] [f32] [each] [big|sphere] [sorted] [stats]`
+//! (`each`: one `locate` call per point instead of the batched `locate_all_into`; `sorted`: the
+//! points in lattice order instead of random order, to tell waiting on memory from computing;
+//! `stats`: how many points needed more than one inversion, and Newton iterations per hit).
 
 use std::time::Instant;
 
