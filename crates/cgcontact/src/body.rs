@@ -276,36 +276,20 @@ impl Body {
     /// Corner displacements where they exist, zero elsewhere (for cells that may be inactive).
     #[inline(always)]
     pub(crate) fn corner_displacements_or_zero(&self, ijk: [u32; 3]) -> [DVec3; 8] {
-        let mut u = [DVec3::ZERO; 8];
-        self.corner_displacements_or_zero_into(ijk, &mut u);
-        u
-    }
-
-    /// [`Body::corner_displacements_or_zero`] written into `u`.
-    #[inline(always)]
-    pub(crate) fn corner_displacements_or_zero_into(&self, ijk: [u32; 3], u: &mut [DVec3; 8]) {
-        // Explicit loops, not `array::map`: the latter costs ~100 instructions of MaybeUninit
+        // An explicit loop, not `array::map`: the latter costs ~100 instructions of MaybeUninit
         // bookkeeping per call on the hot path (measured with callgrind).
-        let base = self.lattice.node_index(ijk);
-        if self.dense() {
-            for (u, &o) in u.iter_mut().zip(&self.corner_offsets) {
-                *u = self.u[base + o];
-            }
-            return;
+        let (base, zero) = (self.lattice.node_index(ijk), DVec3::ZERO);
+        let mut u = [zero; 8];
+        for (c, u) in u.iter_mut().enumerate() {
+            *u = *self.corner_entry(&self.u, base, c, &zero);
         }
-        for (u, &o) in u.iter_mut().zip(&self.corner_offsets) {
-            // NO_SLOT is u32::MAX, never a valid slot: `get` answers None for it.
-            *u = self
-                .u
-                .get(self.slot[base + o] as usize)
-                .copied()
-                .unwrap_or(DVec3::ZERO);
-        }
+        u
     }
 
     /// Corner `c`'s entry of `data`, an array in slot order like the displacements (a locator's f32
     /// copy of them, say), for the cell whose lowest lattice node is `base`; `zero` where the corner
-    /// has no slot. The batched search's gather, one corner of one lane at a time.
+    /// has no slot. The one gather: the scalar search's and, one corner of one lane at a time, the
+    /// batched search's.
     #[inline(always)]
     pub(crate) fn corner_entry<'d, T>(
         &self,
