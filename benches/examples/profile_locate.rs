@@ -1,9 +1,12 @@
 //! A fixed amount of single-threaded locating, for profilers (perf, callgrind).
 //!
-//! Run: `cargo run --release -p cgcontact-benches --example profile_locate [repeats] [f32] [each] [big|sphere] [sorted] [stats]`
+//! Run: `cargo run --release -p cgcontact-benches --example profile_locate [repeats] [f32] [each] [big|sphere] [sorted [window=N]|slabs] [stats]`
 //! (`each`: one `locate` call per point instead of the batched `locate_all_into`; `sorted`: the
 //! points in lattice order instead of random order, to tell waiting on memory from computing;
-//! `stats`: how many points needed more than one inversion, and Newton iterations per hit).
+//! `window=N`: then shuffled within consecutive windows of N points, so that the lanes of a batch
+//! hold different cells while memory stays local; `slabs`: random order within slabs of 5 cell
+//! layers; `stats`: how many points needed more than one inversion, and Newton iterations per hit).
+//! `CGCONTACT_SIMD=avx2` (or `portable`) caps the instruction set the batched path uses.
 
 use std::time::Instant;
 
@@ -45,6 +48,24 @@ fn main() -> Result<(), cgcontact::Error> {
             (t.z as i64, t.y as i64, t.x as i64)
         };
         points.sort_by_key(key);
+        if let Some(w) = args.iter().find_map(|a| a.strip_prefix("window=")) {
+            let w: usize = w.parse().expect("window=N with N a number of points");
+            // A fixed linear congruential shuffle: the same order on every run.
+            let mut state = 12345u64;
+            for chunk in points.chunks_mut(w) {
+                for i in (1..chunk.len()).rev() {
+                    state = state
+                        .wrapping_mul(6364136223846793005)
+                        .wrapping_add(1442695040888963407);
+                    chunk.swap(i, (state >> 33) as usize % (i + 1));
+                }
+            }
+        }
+    } else if has("slabs") {
+        // Points in random order within z slabs of 5 cell layers: memory as local as `sorted`, cells
+        // within a batch as mixed as random order (diagnosis: memory versus batch coherence).
+        let (o, h) = (body.lattice().origin(), body.lattice().h());
+        points.sort_by_key(|x| ((x.z - o.z) / h.z / 5.0).floor() as i64);
     }
     let settings = if precision == Precision::F32 {
         Settings::f32()
