@@ -152,7 +152,7 @@ pub enum ErrorKind {
         "the lattice spanned by the nodes has {lattice_nodes} nodes for {used_nodes} used ones: {message}"
     )]
     TooSparse {
-        /// Nodes of the detected lattice.
+        /// Nodes of the detected lattice (saturated at `u64::MAX`).
         lattice_nodes: u64,
         /// Nodes used by cells.
         used_nodes: usize,

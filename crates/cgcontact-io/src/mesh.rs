@@ -281,7 +281,9 @@ impl HexMesh {
             h[axis] = (high - low) / n;
             counts[axis] = n as u32;
         }
-        let lattice_nodes: u64 = counts.iter().map(|&n| u64::from(n) + 1).product();
+        // Saturating: three axes of up to 2^32 cells overflow u64, and a wrapped count could pass.
+        let lattice_nodes =
+            (counts.iter()).fold(1u64, |nodes, &n| nodes.saturating_mul(u64::from(n) + 1));
         let used_count = used.count_ones();
         let limit = MAX_LATTICE_NODES.max(MAX_LATTICE_NODES_PER_USED_NODE * used_count as u64);
         if lattice_nodes > limit {
@@ -474,6 +476,27 @@ mod tests {
         let v = [-5.0, 0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 2.0, 2.0, 2.0, 2.01, 7.0];
         assert_eq!(extreme_planes(&v, 0.5), Some((0.0, 2.0)));
         assert_eq!(extreme_planes(&[0.0, 1.0], 0.5), None);
+    }
+
+    /// Two unit cubes 2^22 apart on every axis: (2^22 + 2)^3 lattice nodes overflow u64, and the
+    /// mesh must be refused as too sparse, not panic (debug) or wrap into a small count (release).
+    #[test]
+    fn a_lattice_too_large_to_count_is_refused() {
+        let far = f64::from(1u32 << 22);
+        let cube =
+            |o: f64| CORNER_OFFSETS.map(|[a, b, c]| DVec3::new(a as f64, b as f64, c as f64) + o);
+        let mesh = HexMesh {
+            points: [cube(0.0), cube(far)].concat(),
+            cells: vec![[0, 1, 2, 3, 4, 5, 6, 7], [8, 9, 10, 11, 12, 13, 14, 15]],
+            displacement: None,
+        };
+        assert!(matches!(
+            mesh.to_lattice(),
+            Err(ErrorKind::TooSparse {
+                lattice_nodes: u64::MAX,
+                ..
+            })
+        ));
     }
 
     #[test]

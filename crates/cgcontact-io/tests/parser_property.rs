@@ -129,8 +129,18 @@ fn results_bytes(rows: &[(Option<u32>, [f64; 3], u32, f64)]) -> (Vec<u8>, CellMa
     (out, cells)
 }
 
+/// The `CGCONTACT_FUZZ_SCALE` multiplier (1 when unset or not a number).
+fn fuzz_scale() -> u32 {
+    std::env::var("CGCONTACT_FUZZ_SCALE")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(1)
+}
+
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 512, failure_persistence: None, ..ProptestConfig::default() })]
+    // `CGCONTACT_FUZZ_SCALE=N` runs N times the cases, to hunt rare inputs (it found the node-count
+    // overflow of `HexMesh::to_lattice` at 100×; debug builds, which check overflow, are the ones to run).
+    #![proptest_config(ProptestConfig { cases: 512 * fuzz_scale(), failure_persistence: None, ..ProptestConfig::default() })]
 
     #[test]
     fn mesh_parser_never_panics_on_arbitrary_bytes(bytes in prop::collection::vec(any::<u8>(), 0..512)) {

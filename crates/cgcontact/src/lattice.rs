@@ -71,8 +71,9 @@ impl Lattice {
                 "cell counts {cells:?} must be at least 1 on every axis"
             )));
         }
-        let nodes: u64 = cells.iter().map(|&n| u64::from(n) + 1).product();
-        if nodes >= u64::from(u32::MAX) {
+        // In u128: three axes of up to 2^32 nodes overflow u64.
+        let nodes: u128 = cells.iter().map(|&n| u128::from(n) + 1).product();
+        if nodes >= u128::from(u32::MAX) {
             return Err(Error::InvalidLattice(format!(
                 "{nodes} nodes exceed the 2^32 - 1 indices this library uses"
             )));
@@ -291,5 +292,7 @@ mod tests {
         assert!(Lattice::new(DVec3::ZERO, DVec3::ONE, [1, 0, 1]).is_err());
         assert!(Lattice::new(DVec3::NAN, DVec3::ONE, [1, 1, 1]).is_err());
         assert!(Lattice::new(DVec3::ZERO, DVec3::ONE, [100_000, 100_000, 1]).is_err());
+        // (2^32)^3 nodes: more than u64 counts, refused rather than overflowing.
+        assert!(Lattice::new(DVec3::ZERO, DVec3::ONE, [u32::MAX; 3]).is_err());
     }
 }
