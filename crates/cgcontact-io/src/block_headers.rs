@@ -11,7 +11,7 @@
 use base64::Engine as _;
 
 use crate::ErrorKind;
-use crate::raw_appended::{attribute, find};
+use crate::raw_appended::{attribute, find, header_word};
 
 /// Largest ratio of decompressed bytes to the base64 text holding them that a valid array can have.
 const MAX_EXPANSION: u128 = 1100;
@@ -93,18 +93,11 @@ fn check_header(text: &[u8], header_bytes: usize, little: bool) -> Result<(), St
         Ok(bytes) if bytes.len() >= 3 * header_bytes => bytes,
         _ => return Ok(()),
     };
-    let value = |k: usize| -> u128 {
-        let word = &bytes[k * header_bytes..(k + 1) * header_bytes];
-        let mut v = 0u128;
-        for i in 0..header_bytes {
-            let b = if little {
-                word[header_bytes - 1 - i]
-            } else {
-                word[i]
-            };
-            v = (v << 8) | u128::from(b);
-        }
-        v
+    let value = |k: usize| {
+        u128::from(header_word(
+            &bytes[k * header_bytes..(k + 1) * header_bytes],
+            little,
+        ))
     };
     let (blocks, block_size, last) = (value(0), value(1), value(2));
     if blocks == 0 {

@@ -69,15 +69,7 @@ pub(crate) fn to_base64(xml: &[u8]) -> Result<Option<Vec<u8>>, ErrorKind> {
                 data.len()
             ))
         })?;
-        let mut v: u64 = 0;
-        for i in 0..header_bytes {
-            let b = if little {
-                bytes[header_bytes - 1 - i]
-            } else {
-                bytes[i]
-            };
-            v = (v << 8) | u64::from(b);
-        }
+        let v = header_word(bytes, little);
         usize::try_from(v).map_err(|_| bad(format!("block size {v} at byte {at}")))
     };
 
@@ -221,6 +213,16 @@ pub(crate) fn attribute(tag: &[u8], name: &[u8]) -> Option<Vec<u8>> {
         return Some(rest[1..1 + end].to_vec());
     }
     None
+}
+
+/// An unsigned block-header word (VTK's `header_type`, 4 or 8 bytes) in the file's byte order.
+pub(crate) fn header_word(word: &[u8], little: bool) -> u64 {
+    let push = |v: u64, &b: &u8| (v << 8) | u64::from(b);
+    if little {
+        word.iter().rev().fold(0, push)
+    } else {
+        word.iter().fold(0, push)
+    }
 }
 
 pub(crate) fn find(hay: &[u8], needle: &[u8], from: usize) -> Option<usize> {

@@ -472,7 +472,7 @@ impl LatticeLocator<'_> {
     }
 
     /// `Lattice::node_index` (`nodes`) or `Lattice::cell_id` (`cells`) of each lane's cell, exactly
-    /// (integers below 2^53 in f64).
+    /// (integers below 2^32 in f64).
     #[inline(always)]
     fn lane_indices<D: Wide>(cell: &V3<D>, [nx, ny, _]: [u32; 3]) -> [usize; MAX_W] {
         let index = cell.x + D::splat(f64::from(nx)) * (cell.y + D::splat(f64::from(ny)) * cell.z);
@@ -795,7 +795,8 @@ mod tests {
             let (body, points) = scene(holes);
             let locator =
                 |base: Settings| LatticeLocator::new(&body, Settings { order, ..base }).unwrap();
-            let mut out = vec![Ok(None); points.len()];
+            // Every answer overwritten by each run: a point is never non-finite here.
+            let mut out = vec![Err(PointError::NonFinite); points.len()];
             let f32 = locator(Settings::f32());
             f32.locate_chunk_with::<glam::Vec4>(&points, &mut out);
             check(&f32, &points, &out);
@@ -804,9 +805,8 @@ mod tests {
                 use std::is_x86_feature_detected as has;
                 // SAFETY (both blocks): each entry is run only where its instruction sets were
                 // detected, just before.
-                // Every answer overwritten: a point is never non-finite here.
-                let mut out = vec![Err(PointError::NonFinite); points.len()];
                 if has!("avx2") {
+                    out.fill(Err(PointError::NonFinite));
                     #[allow(unsafe_code)]
                     unsafe {
                         locator.locate_chunk_avx2(&points, &mut out);
