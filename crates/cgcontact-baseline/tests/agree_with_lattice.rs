@@ -16,7 +16,18 @@ use common::{Kind, Spec};
 /// of the boundary points (f32, or coordinates far from the origin: the tolerance absorbs the rounding
 /// of the data), only the strategies' agreement is checked there.
 fn check_scene(spec: &Spec, points_per_kind: usize, settings: Settings, xi_tol: f64) -> usize {
-    let body = common::body(spec);
+    check_body(&common::body(spec), spec, points_per_kind, settings, xi_tol)
+}
+
+/// [`check_scene`] on `body`, a body of `spec` whose displacements may have been changed since.
+fn check_body(
+    body: &cgcontact::Body,
+    spec: &Spec,
+    points_per_kind: usize,
+    settings: Settings,
+    xi_tol: f64,
+) -> usize {
+    let body = body.clone();
     let lattice = LatticeLocator::new(&body, settings).unwrap();
     let brute = BruteForce::new(&body, settings).unwrap();
     let rtree = RTree::new(&body, settings).unwrap();
@@ -165,6 +176,114 @@ fn large_displacements_jitter_and_holes() {
         "displacements exceed a cell"
     );
     assert!(check_scene(&spec, 300, Settings::default(), 1e-10) > 600);
+}
+
+/// Mean Newton inversions per point of the lattice locator over `points`, failed ones included.
+fn inversions_per_point(locator: &LatticeLocator<'_>, points: &[DVec3]) -> f64 {
+    let tried: u64 = points
+        .iter()
+        .map(|&x| u64::from(locator.locate_counted(x).1))
+        .sum();
+    tried as f64 / points.len() as f64
+}
+
+/// A rigid translation of 10 cells on every axis: the search box of each point is its own cell's
+/// neighbourhood, not 21³ cells (30 s against 0.5 s before the displacement range bounded it).
+#[test]
+fn rigid_translation_of_ten_cells_agrees_and_costs_one_inversion() {
+    let spec = Spec {
+        holes: 0.1,
+        seed: 53,
+        ..MILD
+    };
+    let mut body = common::body(&spec);
+    body.update_displacements(|_, _, u| *u += 10.0 * spec.h)
+        .unwrap();
+    assert!(check_body(&body, &spec, 300, Settings::default(), 1e-10) > 600);
+    let locator = LatticeLocator::new(&body, Settings::default()).unwrap();
+    let points: Vec<DVec3> = common::points(&body, 300, 7)
+        .into_iter()
+        .map(|p| p.0)
+        .collect();
+    let per_point = inversions_per_point(&locator, &points);
+    assert!(per_point < 1.5, "{per_point} inversions per point");
+}
+
+/// Large shears (up to 4 cells): the per-block displacement ranges are built and the search visits
+/// only the cells whose blocks reach a point; the answers are still brute force's.
+#[test]
+fn displacements_of_four_cells_agree_through_the_block_ranges() {
+    let spec = Spec {
+        amplitude: 4.0,
+        jitter: 0.1,
+        holes: 0.1,
+        cells: [14, 12, 10],
+        seed: 59,
+        ..MILD
+    };
+    let body = common::body(&spec);
+    let u_max = body.max_displacement() / spec.h;
+    assert!(u_max.x > 4.0 && u_max.y > 3.0, "{u_max}");
+    // An f64 locator keeps nothing on the heap but the block ranges.
+    let locator = LatticeLocator::new(&body, Settings::default()).unwrap();
+    assert!(locator.heap_bytes() > 0, "the block ranges were not built");
+    assert!(check_scene(&spec, 300, Settings::default(), 1e-10) > 600);
+    assert!(check_scene(&spec, 150, Settings::f32(), 1e-4) > 300);
+}
+
+/// One node moved 30 cells on every axis (its cells invert): every point of a valid cell is still
+/// found, at its known ξ, and a point costs a few inversions, not one per cell of the 61³ box
+/// around it (85 s for 6,700 points on the seed's block before per-block ranges).
+#[test]
+fn one_far_moved_node_is_searched_only_where_it_reaches() {
+    let spec = Spec {
+        holes: 0.1,
+        cells: [14, 12, 10],
+        seed: 61,
+        ..MILD
+    };
+    let mut body = common::body(&spec);
+    let spike = body.lattice().node_index([7, 6, 5]);
+    body.update_displacements(|node, _, u| {
+        if node == spike {
+            *u += 30.0 * spec.h;
+        }
+    })
+    .unwrap();
+    let inverted: Vec<_> = body.inverted_cells().into_iter().map(|(c, _)| c).collect();
+    assert!(!inverted.is_empty());
+    let locator = LatticeLocator::new(&body, Settings::default()).unwrap();
+    assert!(locator.heap_bytes() > 0, "the block ranges were not built");
+    let brute = BruteForce::new(&body, Settings::default()).unwrap();
+    let points = common::points(&body, 300, 3);
+    let mut checked = 0;
+    for (x, kind) in &points {
+        let owners = brute.locate_owners(*x).unwrap();
+        let found = locator.locate_owners(*x).unwrap();
+        let cells = |o: &cgcontact::Owners| o.iter().map(|h| h.cell).collect::<Vec<_>>();
+        // Where only valid cells are involved, the owners are brute force's.
+        if cells(&owners)
+            .iter()
+            .chain(&cells(&found))
+            .all(|c| !inverted.contains(c))
+        {
+            assert_eq!(cells(&found), cells(&owners), "at {x} ({kind:?})");
+            checked += 1;
+        }
+        if let Kind::Volume { cell, xi } | Kind::Shared { cell, xi } = kind
+            && !inverted.contains(cell)
+        {
+            let hit = found
+                .iter()
+                .find(|h| h.cell == *cell)
+                .unwrap_or_else(|| panic!("known {cell} missed at {x}"));
+            assert!((hit.xi - *xi).abs().max_element() < 1e-9);
+        }
+    }
+    assert!(checked > 1000, "{checked}");
+    let xs: Vec<DVec3> = points.iter().map(|p| p.0).collect();
+    let per_point = inversions_per_point(&locator, &xs);
+    assert!(per_point < 3.0, "{per_point} inversions per point");
 }
 
 #[test]

@@ -42,6 +42,7 @@ mod error;
 pub mod hex8;
 mod lattice;
 mod locate;
+mod reach;
 mod settings;
 
 pub use body::Body;

@@ -17,6 +17,7 @@ use crate::batch::{Lanes, MAX_W, Maps, Real, V3, Wide};
 use crate::body::Body;
 use crate::hex8::{Hex8Map, Hex8Map32, Inversion, Kernel, NewtonOptions, Status};
 use crate::lattice::CellId;
+use crate::reach::{self, Candidates, Pyramid, RING_CELLS, Range};
 use crate::settings::{CandidateOrder, InsideTolerance, Precision, Settings};
 use crate::{Error, PointError};
 
@@ -53,6 +54,18 @@ pub trait Locator: Sync {
     /// Every cell holding `x`, sorted by cell id.
     fn locate_owners(&self, x: DVec3) -> Result<Owners, PointError>;
 
+    /// [`Locator::locate`], and the Newton inversions the search tried, failed ones included, so that
+    /// the cost of a point no cell holds is seen too. The default counts only a hit's inversions (a
+    /// miss counts 0): the lattice locator overrides it.
+    fn locate_counted(&self, x: DVec3) -> (Answer, u32) {
+        let answer = self.locate(x);
+        let tried = match answer {
+            Ok(Some(hit)) => hit.inversions,
+            _ => 0,
+        };
+        (answer, tried)
+    }
+
     /// [`Locator::locate`] for every point, in parallel on the current rayon pool, answers in input
     /// order, written into `out` (resized; no allocation per point).
     fn locate_all_into(&self, points: &[DVec3], out: &mut Vec<Answer>) {
@@ -82,13 +95,21 @@ pub struct LatticeLocator<'a> {
     newton: NewtonOptions,
     /// Largest displacement component per axis.
     u_max: DVec3,
+    /// The range of the displacements (signed, per axis): the search box of a point x is
+    /// x − this range, in undeformed space.
+    u_range: Range,
     /// 1 / h per axis.
     inv_h: DVec3,
     /// The inside tolerance's constants.
     inside_tol: InsideTolerance,
-    /// The lattice's box padded by `u_max`: points outside are rejected at once.
+    /// The lattice's box shifted by the displacement range: points outside are rejected at once.
     reach_low: DVec3,
     reach_high: DVec3,
+    /// The reach box's widening per unit of inside tolerance (`reach::widening`).
+    reach_pad: DVec3,
+    /// Per-block displacement ranges, built only where the displacements spread over more than a
+    /// few cells: the search then visits only cells whose own shifted box holds the point.
+    pyramid: Option<Pyramid>,
     /// With f32 precision, the displacements rounded to f32, in the body's slot order (16 bytes per
     /// node): the batched path reads them as they are. Empty with f64.
     u_f32: Vec<Vec3A>,
@@ -137,24 +158,30 @@ enum Collect<'o> {
 }
 
 impl<'a> LatticeLocator<'a> {
-    /// A locator over `body` (O(nodes): one pass for the displacement bound).
+    /// A locator over `body`: one pass over the displacements for their range, and, only when they
+    /// spread over more than a few cells, one over the active cells for per-block ranges.
     pub fn new(body: &'a Body, settings: Settings) -> Result<Self, Error> {
         settings.validate()?;
-        let u_max = body.max_displacement();
+        let u_range = reach::displacement_range(body);
+        let u_max = u_range.high.max(-u_range.low);
         if !u_max.is_finite() {
             // Bodies reject non-finite displacements; this guards against any future path that doesn't.
             body.validate()?;
         }
         let lattice = body.lattice();
+        let spread = u_range.high - u_range.low;
         Ok(Self {
             body,
             settings,
             newton: settings.newton(),
             u_max,
+            u_range,
             inv_h: lattice.h().recip(),
             inside_tol: InsideTolerance::new(&settings, lattice, u_max.max_element()),
-            reach_low: lattice.origin() - u_max,
-            reach_high: lattice.upper() + u_max,
+            reach_low: lattice.origin() + u_range.low,
+            reach_high: lattice.upper() + u_range.high,
+            reach_pad: reach::widening(lattice.h(), spread, 1.0),
+            pyramid: reach::pyramid_pays(spread, lattice.h()).then(|| Pyramid::new(body)),
             u_f32: match settings.precision {
                 Precision::F32 => body.displacements().iter().map(|u| u.as_vec3a()).collect(),
                 Precision::F64 => Vec::new(),
@@ -175,14 +202,23 @@ impl<'a> LatticeLocator<'a> {
         &self.settings
     }
 
-    /// Largest displacement component per axis: the half-width of the search box.
+    /// Largest displacement component per axis.
     #[must_use]
     pub fn max_displacement(&self) -> DVec3 {
         self.u_max
     }
 
+    /// Bytes this locator keeps on the heap besides the body (the f32 copy of the displacements,
+    /// the per-block displacement ranges).
+    #[must_use]
+    pub fn heap_bytes(&self) -> usize {
+        self.u_f32.capacity() * size_of::<Vec3A>()
+            + self.pyramid.as_ref().map_or(0, Pyramid::heap_bytes)
+    }
+
     /// Whether `x` can be held by a cell at all: its inside tolerance when it can, `Ok(None)` when it
-    /// lies outside the lattice's box padded by u_max (and the tolerance), an error when not finite.
+    /// lies outside the lattice's box shifted by the displacement range (and widened by the
+    /// tolerance), an error when not finite.
     /// The first step of every search, batched or not.
     #[inline(always)]
     fn admit(&self, x: DVec3) -> Result<Option<f64>, PointError> {
@@ -190,47 +226,41 @@ impl<'a> LatticeLocator<'a> {
             return Err(PointError::NonFinite);
         }
         let inside_tol = self.inside_tol.at(x);
-        let slack = self.body.lattice().h() * inside_tol;
+        let slack = self.reach_pad * inside_tol;
         if x.cmplt(self.reach_low - slack).any() || x.cmpgt(self.reach_high + slack).any() {
             return Ok(None);
         }
         Ok(Some(inside_tol))
     }
 
-    fn search(&self, x: DVec3, mut collect: Collect<'_>) -> Result<Option<Hit>, PointError> {
+    /// The search for `x`, and the inversions it tried.
+    fn search(&self, x: DVec3, mut collect: Collect<'_>) -> Result<(Option<Hit>, u32), PointError> {
         let Some(inside_tol) = self.admit(x)? else {
-            return Ok(None);
+            return Ok((None, 0));
         };
         let options = NewtonOptions {
             inside_tol,
             ..self.newton
         };
-        match self.settings.precision {
-            Precision::F64 => Ok(self.search_with::<Hex8Map>(x, &options, &mut collect)),
-            Precision::F32 => Ok(self.search_with::<Hex8Map32>(x, &options, &mut collect)),
-        }
+        Ok(match self.settings.precision {
+            Precision::F64 => self.search_with::<Hex8Map>(x, &options, &mut collect),
+            Precision::F32 => self.search_with::<Hex8Map32>(x, &options, &mut collect),
+        })
     }
 
-    /// Invert candidate cell `ijk` (active) for `x`; `t_guess` is the predicted undeformed position in
-    /// lattice coordinates (gives the starting ξ), `u_map` the cell's displacement map when the caller
-    /// already has it.
+    /// Invert candidate cell `ijk` for `x`; `t_guess` is the predicted undeformed position in
+    /// lattice coordinates (gives the starting ξ), `u_map` the cell's displacement map.
     #[inline]
     fn try_cell<K: Kernel>(
         &self,
         x: DVec3,
         ijk: [u32; 3],
         t_guess: DVec3,
-        u_map: Option<K>,
+        mut map: K,
         options: &NewtonOptions,
     ) -> Inversion {
         let lattice = self.body.lattice();
-        let map = match u_map {
-            Some(mut map) => {
-                map.add_lattice(lattice.h());
-                map
-            }
-            None => K::lattice_cell(lattice.h(), &self.body.corner_displacements(ijk)),
-        };
+        map.add_lattice(lattice.h());
         let xi0 = undeformed_xi(t_guess, ijk);
         map.invert_f64(x - lattice.node_position(ijk), xi0, options)
     }
@@ -260,8 +290,9 @@ impl<'a> LatticeLocator<'a> {
         x: DVec3,
         options: &NewtonOptions,
         collect: &mut Collect<'_>,
-    ) -> Option<Hit> {
+    ) -> (Option<Hit>, u32) {
         let lattice = self.body.lattice();
+        let h = lattice.h();
         let t_x = (x - lattice.origin()) * self.inv_h;
         let cell_x = lattice.clamped_cell(t_x);
         // The displacement map of the cell holding x (corners of inactive cells count as undisplaced:
@@ -276,18 +307,14 @@ impl<'a> LatticeLocator<'a> {
         let mut inversions = 0u32;
         let mut found = None;
         let mut visit =
-            |ijk: [u32; 3], u_map: Option<K>, t_guess: DVec3, found: &mut Option<Hit>| -> bool {
-                let cell = lattice.cell_id(ijk);
-                if !self.body.is_active(cell) {
-                    return false;
-                }
+            |ijk: [u32; 3], u_map: K, t_guess: DVec3, found: &mut Option<Hit>| -> bool {
                 let inversion = self.try_cell::<K>(x, ijk, t_guess, u_map, options);
                 inversions += 1;
                 if inversion.status != Status::Inside {
                     return false;
                 }
                 let hit = Hit {
-                    cell,
+                    cell: lattice.cell_id(ijk),
                     xi: inversion.xi.clamp(DVec3::NEG_ONE, DVec3::ONE),
                     iterations: inversion.iterations,
                     residual: inversion.residual,
@@ -304,11 +331,17 @@ impl<'a> LatticeLocator<'a> {
                     }
                 }
             };
-        // The predicted cell first: it holds the point almost always, and when it is the cell holding
-        // x its displacement map is already built.
-        let reuse = (first == cell_x).then_some(u_map_x);
-        if visit(first, reuse, t_guess, &mut found) {
-            return found;
+        // The predicted cell first, without the range test: it holds the point almost always, and
+        // when it is the cell holding x its displacement map is already built.
+        if self.body.is_active(lattice.cell_id(first)) {
+            let u_map = if first == cell_x {
+                u_map_x
+            } else {
+                K::displacement_map(&self.body.corner_displacements(first))
+            };
+            if visit(first, u_map, t_guess, &mut found) {
+                return (found, inversions);
+            }
         }
         // A miss: where the displacement varies fast, ũ(x) is a poor estimate of u at the undeformed
         // point. Refine the guess by the fixed point X ← x − ũ(X) before ordering the rings around it.
@@ -316,13 +349,36 @@ impl<'a> LatticeLocator<'a> {
             CandidateOrder::Predicted => self.refine_guess::<K>(t_x, t_guess),
             CandidateOrder::Undeformed => t_guess,
         };
-        let center = lattice.clamped_cell(t_guess);
-        // Then every other cell meeting [x − u_max, x + u_max] (widened by the inside tolerance), in rings
-        // of growing Chebyshev distance around the predicted cell.
-        let widen = options.inside_tol;
-        let low = lattice.clamped_cell(t_x - self.u_max * self.inv_h - widen);
-        let high = lattice.clamped_cell(t_x + self.u_max * self.inv_h + widen);
-        let s = [0, 1, 2].map(|a| i64::from(center[a].clamp(low[a], high[a])));
+        // Then every other active cell meeting x − the displacement range (widened by the inside
+        // tolerance) whose own shifted box holds x, in rings of growing Chebyshev distance around
+        // the predicted cell.
+        let tau = options.inside_tol;
+        let range = self.u_range;
+        let w = reach::widening(h, range.high - range.low, tau);
+        let low = lattice.clamped_cell(t_x - (range.high + w) * self.inv_h);
+        let high = lattice.clamped_cell(t_x - (range.low - w) * self.inv_h);
+        let center = [0, 1, 2].map(|a| lattice.clamped_cell(t_guess)[a].clamp(low[a], high[a]));
+        // A cell that the displacements of its own corners cannot bring to x is never inverted.
+        let reaches = |ijk: [u32; 3], u: &[DVec3; 8]| {
+            Range::of(u).reaches(x - lattice.node_position(ijk), h, h, tau)
+        };
+        let box_cells: u64 = (0..3).map(|a| u64::from(high[a] - low[a] + 1)).product();
+        if let Some(pyramid) = self.pyramid.as_ref().filter(|_| box_cells > RING_CELLS) {
+            // A large box (a far-moved node, large strains): the pyramid finds the few cells whose
+            // blocks reach x, and they are visited in the ring walk's order.
+            let mut candidates = Candidates::new();
+            pyramid.candidates(self.body, x, t_x, low, high, center, tau, &mut candidates);
+            candidates.retain(|(_, ijk)| *ijk != first);
+            candidates.sort_unstable_by_key(|(key, _)| *key);
+            for (_, ijk) in candidates {
+                let u = self.body.corner_displacements(ijk);
+                if visit(ijk, K::displacement_map(&u), t_guess, &mut found) {
+                    return (found, inversions);
+                }
+            }
+            return (found, inversions);
+        }
+        let s = center.map(i64::from);
         let (lo, hi) = (low.map(i64::from), high.map(i64::from));
         let radius = (0..3)
             .map(|a| (s[a] - lo[a]).max(hi[a] - s[a]))
@@ -345,14 +401,21 @@ impl<'a> LatticeLocator<'a> {
                         if i < from || i > to || ijk == first {
                             continue;
                         }
-                        if visit(ijk, None, t_guess, &mut found) {
-                            return found;
+                        if !self.body.is_active(lattice.cell_id(ijk)) {
+                            continue;
+                        }
+                        let u = self.body.corner_displacements(ijk);
+                        if !reaches(ijk, &u) {
+                            continue;
+                        }
+                        if visit(ijk, K::displacement_map(&u), t_guess, &mut found) {
+                            return (found, inversions);
                         }
                     }
                 }
             }
         }
-        found
+        (found, inversions)
     }
 }
 
@@ -431,9 +494,10 @@ impl LatticeLocator<'_> {
         let lattice = self.body.lattice();
         let splat = V3::<V::Wide>::splat;
         let x = V::Wide::transpose(|l| &points[l]);
-        // `admit`: finite and within reach (the lattice's box padded by u_max and the tolerance).
+        // `admit`: finite and within reach (the lattice's box shifted by the displacement range,
+        // widened by the tolerance).
         let inside_tol = self.inside_tol.at_magnitude(x.abs().max_element());
-        let slack = splat(lattice.h()).scale(inside_tol);
+        let slack = splat(self.reach_pad).scale(inside_tol);
         let (low, high) = (
             splat(self.reach_low) - slack,
             splat(self.reach_high) + slack,
@@ -691,7 +755,15 @@ impl Locator for LatticeLocator<'_> {
 
     #[inline]
     fn locate(&self, x: DVec3) -> Answer {
-        self.search(x, Collect::First)
+        self.search(x, Collect::First).map(|(hit, _)| hit)
+    }
+
+    /// Every inversion counted, failed ones included (0 for a point refused before any).
+    fn locate_counted(&self, x: DVec3) -> (Answer, u32) {
+        match self.search(x, Collect::First) {
+            Ok((answer, tried)) => (Ok(answer), tried),
+            Err(error) => (Err(error), 0),
+        }
     }
 
     fn locate_owners(&self, x: DVec3) -> Result<Owners, PointError> {
@@ -781,6 +853,53 @@ mod tests {
             found += usize::from(matches!(answer, Ok(Some(_))));
         }
         assert!(found > 500, "{found}");
+    }
+
+    /// The block ranges only choose which cells the ring walk would invert: with them and without
+    /// them (every cell of the box walked, each tested by its own range), the answers are the same
+    /// bits, owners included, on a body with a far-moved node and on one with large shears.
+    #[test]
+    fn block_ranges_answer_bitwise_as_the_full_ring_walk() {
+        let (mut body, points) = scene(true);
+        let h = body.lattice().h();
+        let spike = body.lattice().node_index([4, 3, 3]);
+        body.update_displacements(|node, _, u| {
+            if node == spike {
+                *u += 12.0 * h;
+            }
+        })
+        .unwrap();
+        let mut sheared = body.clone();
+        sheared
+            .update_displacements(|_, x, u| {
+                *u += DVec3::new(3.0 * h.x * (x.y * 2.0).sin(), 0.0, 0.0)
+            })
+            .unwrap();
+        for body in [&body, &sheared] {
+            for settings in [Settings::default(), Settings::f32()] {
+                let with = LatticeLocator::new(body, settings).unwrap();
+                assert!(with.pyramid.is_some());
+                let without = LatticeLocator {
+                    pyramid: None,
+                    ..with.clone()
+                };
+                let mut found = 0;
+                for &x in &points {
+                    let (a, b) = (with.locate_counted(x), without.locate_counted(x));
+                    assert_eq!(bits(&a.0), bits(&b.0), "at {x}");
+                    assert_eq!(a.1, b.1, "inversions at {x}");
+                    let owners = |l: &LatticeLocator<'_>| {
+                        let o = l.locate_owners(x).unwrap();
+                        o.iter()
+                            .map(|h| bits(&Ok(Some(*h))).unwrap())
+                            .collect::<Vec<_>>()
+                    };
+                    assert_eq!(owners(&with), owners(&without), "owners at {x}");
+                    found += usize::from(matches!(a.0, Ok(Some(_))));
+                }
+                assert!(found > 300, "{found}");
+            }
+        }
     }
 
     /// Every lane type and instruction set, forced in turn (the dispatch picks one per machine):

@@ -1,0 +1,89 @@
+//! Work bounded by the local displacement: the seed's fine block with jitter (0.3 h) and its 6,700
+//! sphere contact points (most of them outside the block), as deformed, then with one node moved
+//! 100 h on every axis (a spike), then rigidly translated by 10 h on every axis. One thread.
+//!
+//! Before the per-block displacement bounds, the spike cost O(cells) per point (85 s for the 6,700
+//! points) and the translation 120× the deformed query; the targets are 50× and 3×.
+//!
+//! Run: `cargo bench -p cgcontact-benches --bench locality`
+
+use std::hint::black_box;
+use std::time::Duration;
+
+use cgcontact::{Body, LatticeLocator, Locator, Settings};
+use cgcontact_scenes::SphereOnBlock;
+use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+
+/// The three bodies of the comparison: as deformed, with a spike, translated.
+pub fn bodies() -> Vec<(&'static str, Body)> {
+    let scene = SphereOnBlock {
+        jitter: 0.3,
+        known_points: 0,
+        ..SphereOnBlock::fine()
+    }
+    .build("sphere-fine-jitter")
+    .expect("valid scene");
+    let base = scene.body;
+    let h = base.lattice().h();
+    let spike_node = base.lattice().node_index([10, 20, 10]);
+    let mut spike = base.clone();
+    spike
+        .update_displacements(|node, _, u| {
+            if node == spike_node {
+                *u += 100.0 * h;
+            }
+        })
+        .expect("finite");
+    let mut translated = base.clone();
+    translated
+        .update_displacements(|_, _, u| *u += 10.0 * h)
+        .expect("finite");
+    vec![
+        ("deformed", base),
+        ("spike 100 h", spike),
+        ("translated 10 h", translated),
+    ]
+}
+
+fn locality(c: &mut Criterion) {
+    let points = SphereOnBlock {
+        jitter: 0.3,
+        known_points: 0,
+        ..SphereOnBlock::fine()
+    }
+    .build("sphere-fine-jitter")
+    .expect("valid scene")
+    .contact_points;
+    let one = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .expect("pool");
+    let mut group = c.benchmark_group("locality/fine-sphere");
+    group
+        .sample_size(10)
+        .warm_up_time(Duration::from_millis(500))
+        .measurement_time(Duration::from_secs(2))
+        .throughput(Throughput::Elements(points.len() as u64));
+    for (name, body) in bodies() {
+        let locator = LatticeLocator::new(&body, Settings::default()).expect("valid");
+        let mut out = Vec::with_capacity(points.len());
+        group.bench_function(name, |b| {
+            b.iter(|| one.install(|| locator.locate_all_into(black_box(&points), &mut out)))
+        });
+    }
+    group.finish();
+    let mut group = c.benchmark_group("locality/build");
+    group
+        .sample_size(10)
+        .warm_up_time(Duration::from_millis(500))
+        .measurement_time(Duration::from_secs(2));
+    for (name, body) in bodies() {
+        group.bench_function(name, |b| {
+            b.iter(|| LatticeLocator::new(black_box(&body), Settings::default()).expect("valid"))
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, locality);
+criterion_main!(benches);

@@ -1,0 +1,282 @@
+//! Where each part of a deformed body can reach, so that a search's work is bounded by the local
+//! displacement, not by the largest one.
+//!
+//! A point x held by deformed cell c satisfies x = X(ξ) + u(ξ): it lies in c's undeformed box shifted
+//! by the range of c's corner displacements (widened by the inside tolerance, see [`widening`]).
+//! The same holds for any block of cells with the range of displacements over the block. So the
+//! candidates for x are the cells whose own shifted box holds x, found by descending a pyramid of
+//! blocks (4³ cells, then 4³ of those, ...) that keeps, per block, the displacement range of the
+//! nodes of its active cells. A rigid translation then costs O(1) per point, and a single far-moved
+//! node only the blocks that hold it.
+//!
+//! The pyramid is built only when the largest displacement makes the search box of the ring walk
+//! larger than [`RING_CELLS`] cells; below that, the ring walk with the per-cell test is cheaper.
+
+use glam::DVec3;
+use smallvec::SmallVec;
+
+use crate::body::Body;
+
+/// Cells of a search box up to which the ring walk visits every cell (each tested by its own
+/// displacement range before any inversion); above, the pyramid finds the candidates.
+pub(crate) const RING_CELLS: u64 = 125;
+
+/// log2 of the blocks' edge, in children per axis (4).
+const FANOUT_BITS: u32 = 2;
+
+/// A candidate cell found by the pyramid, with its place in the ring order.
+pub(crate) type Candidate = ([u32; 4], [u32; 3]);
+
+/// Candidates of one search: a handful in a smooth field, more where a block reaches far.
+pub(crate) type Candidates = SmallVec<[Candidate; 32]>;
+
+/// A displacement range: the lowest and highest component per axis (empty: low > high).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Range {
+    pub(crate) low: DVec3,
+    pub(crate) high: DVec3,
+}
+
+impl Range {
+    pub(crate) const EMPTY: Self = Self {
+        low: DVec3::INFINITY,
+        high: DVec3::NEG_INFINITY,
+    };
+
+    /// The range of a cell's corner displacements.
+    #[inline(always)]
+    pub(crate) fn of(u: &[DVec3; 8]) -> Self {
+        let (mut low, mut high) = (u[0], u[0]);
+        for &u in &u[1..] {
+            low = low.min(u);
+            high = high.max(u);
+        }
+        Self { low, high }
+    }
+
+    #[inline]
+    fn union(self, other: Self) -> Self {
+        Self {
+            low: self.low.min(other.low),
+            high: self.high.max(other.high),
+        }
+    }
+
+    /// Whether `rel`, a point relative to the lowest corner of an undeformed box of size `size`, can
+    /// lie in that box shifted by this range, up to the inside tolerance `tau` (ξ units).
+    #[inline(always)]
+    pub(crate) fn reaches(&self, rel: DVec3, size: DVec3, h: DVec3, tau: f64) -> bool {
+        let w = widening(h, self.high - self.low, tau);
+        // Written so that an empty range (low = +inf) or a NaN answers false.
+        rel.cmpge(self.low - w).all() && rel.cmple(size + self.high + w).all()
+    }
+}
+
+/// How far outside a cell's shifted box a point may be and still be found inside it by a Newton
+/// inversion with inside tolerance `tau`: at |ξ_k| ≤ 1 + τ the undeformed part leaves the cell by
+/// τh/2 and the trilinear extrapolation of the displacements leaves their range by at most
+/// ((1 + τ)³ − 1)/2 ≈ 1.5τ of its width `spread`. Twice that, per axis.
+#[inline(always)]
+pub(crate) fn widening(h: DVec3, spread: DVec3, tau: f64) -> DVec3 {
+    tau * (h + 4.0 * spread)
+}
+
+/// One level of the pyramid: blocks of 4^level cells per axis.
+#[derive(Clone, Debug)]
+struct Level {
+    /// log2 of a block's edge in cells.
+    shift: u32,
+    /// Blocks per axis.
+    blocks: [u32; 3],
+    /// The displacement range of each block (x fastest), empty where it has no active cell.
+    ranges: Vec<Range>,
+}
+
+impl Level {
+    #[inline]
+    fn index(&self, b: [u32; 3]) -> usize {
+        let [nx, ny, _] = self.blocks.map(|n| n as usize);
+        b[0] as usize + nx * (b[1] as usize + ny * b[2] as usize)
+    }
+}
+
+/// The displacement ranges of a body's blocks of cells, finest level first.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct Pyramid {
+    levels: Vec<Level>,
+}
+
+impl Pyramid {
+    /// The pyramid of `body`: one pass over its active cells' corners, then one over each level.
+    pub(crate) fn new(body: &Body) -> Self {
+        let cells = body.lattice().cells();
+        let blocks_of =
+            |shift: u32| cells.map(|n| ((u64::from(n) + (1 << shift) - 1) >> shift) as u32);
+        let mut finest = Level {
+            shift: FANOUT_BITS,
+            blocks: blocks_of(FANOUT_BITS),
+            ranges: Vec::new(),
+        };
+        finest.ranges = vec![Range::EMPTY; finest.blocks.iter().map(|&n| n as usize).product()];
+        let lattice = body.lattice();
+        for cell in body.active_cells() {
+            let ijk = lattice
+                .cell_ijk(cell)
+                .expect("active cells lie in the lattice");
+            let range = Range::of(&body.corner_displacements(ijk));
+            let slot = finest.index(ijk.map(|i| i >> FANOUT_BITS));
+            finest.ranges[slot] = finest.ranges[slot].union(range);
+        }
+        let mut levels = vec![finest];
+        loop {
+            let below = levels.last().expect("the finest level");
+            if below.blocks.iter().all(|&n| n <= 1 << FANOUT_BITS) {
+                break;
+            }
+            let shift = below.shift + FANOUT_BITS;
+            let mut level = Level {
+                shift,
+                blocks: blocks_of(shift),
+                ranges: Vec::new(),
+            };
+            level.ranges = vec![Range::EMPTY; level.blocks.iter().map(|&n| n as usize).product()];
+            for k in 0..below.blocks[2] {
+                for j in 0..below.blocks[1] {
+                    for i in 0..below.blocks[0] {
+                        let range = below.ranges[below.index([i, j, k])];
+                        let slot = level.index([i, j, k].map(|b| b >> FANOUT_BITS));
+                        level.ranges[slot] = level.ranges[slot].union(range);
+                    }
+                }
+            }
+            levels.push(level);
+        }
+        Self { levels }
+    }
+
+    /// Bytes on the heap.
+    pub(crate) fn heap_bytes(&self) -> usize {
+        self.levels
+            .iter()
+            .map(|l| l.ranges.capacity() * size_of::<Range>())
+            .sum()
+    }
+
+    /// The active cells of `body` in the box of cells [`low`, `high`] whose own shifted box holds
+    /// `x` (lattice coordinates `t_x`) with inside tolerance `tau`, each with its key in the ring
+    /// order around `center`, pushed to `out` (unsorted).
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn candidates(
+        &self,
+        body: &Body,
+        x: DVec3,
+        t_x: DVec3,
+        low: [u32; 3],
+        high: [u32; 3],
+        center: [u32; 3],
+        tau: f64,
+        out: &mut Candidates,
+    ) {
+        let lattice = body.lattice();
+        let h = lattice.h();
+        let top = self.levels.len() - 1;
+        let mut stack: SmallVec<[(usize, [u32; 3]); 64]> = SmallVec::new();
+        let shift = self.levels[top].shift;
+        for k in low[2] >> shift..=high[2] >> shift {
+            for j in low[1] >> shift..=high[1] >> shift {
+                for i in low[0] >> shift..=high[0] >> shift {
+                    stack.push((top, [i, j, k]));
+                }
+            }
+        }
+        while let Some((l, b)) = stack.pop() {
+            let level = &self.levels[l];
+            let range = level.ranges[level.index(b)];
+            let first = b.map(|b| b << level.shift);
+            let size = h * f64::from(1u32 << level.shift);
+            let rel = x - lattice.node_position(first);
+            if !range.reaches(rel, size, h, tau) {
+                continue;
+            }
+            let last = first.map(|f| f + (1 << level.shift) - 1);
+            let from = [0, 1, 2].map(|a| first[a].max(low[a]));
+            let to = [0, 1, 2].map(|a| last[a].min(high[a]));
+            if (0..3).any(|a| from[a] > to[a]) {
+                continue;
+            }
+            if l > 0 {
+                let child = self.levels[l - 1].shift;
+                for k in from[2] >> child..=to[2] >> child {
+                    for j in from[1] >> child..=to[1] >> child {
+                        for i in from[0] >> child..=to[0] >> child {
+                            stack.push((l - 1, [i, j, k]));
+                        }
+                    }
+                }
+                continue;
+            }
+            // The cells of this block that its range lets reach x: X = x − u, u in the range, and
+            // cell i spans [i, i + 1] in lattice coordinates.
+            let w = widening(h, range.high - range.low, tau);
+            let t_low = t_x - (range.high + w) / h;
+            let t_high = t_x - (range.low - w) / h;
+            let (mut lo, mut hi) = ([0u32; 3], [0u32; 3]);
+            let mut empty = false;
+            for a in 0..3 {
+                let l = (t_low[a].floor() - 1.0).max(f64::from(from[a]));
+                let u = t_high[a].floor().min(f64::from(to[a]));
+                // NaN (a non-finite range) empties the box too.
+                if l.partial_cmp(&u).is_none_or(|o| o.is_gt()) {
+                    empty = true;
+                    break;
+                }
+                (lo[a], hi[a]) = (l as u32, u as u32);
+            }
+            if empty {
+                continue;
+            }
+            for k in lo[2]..=hi[2] {
+                for j in lo[1]..=hi[1] {
+                    for i in lo[0]..=hi[0] {
+                        let ijk = [i, j, k];
+                        if !body.is_active(lattice.cell_id(ijk)) {
+                            continue;
+                        }
+                        let u = body.corner_displacements(ijk);
+                        if Range::of(&u).reaches(x - lattice.node_position(ijk), h, h, tau) {
+                            out.push((ring_key(ijk, center), ijk));
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// The place of cell `ijk` in the ring walk around `center`: Chebyshev distance, then z, y, x.
+#[inline]
+pub(crate) fn ring_key(ijk: [u32; 3], center: [u32; 3]) -> [u32; 4] {
+    let r = (0..3)
+        .map(|a| ijk[a].abs_diff(center[a]))
+        .max()
+        .unwrap_or(0);
+    [r, ijk[2], ijk[1], ijk[0]]
+}
+
+/// The range of every displacement of `body` (signed, per axis): the deformed body lies in the
+/// lattice's box shifted by it.
+pub(crate) fn displacement_range(body: &Body) -> Range {
+    body.displacements()
+        .iter()
+        .fold(Range::EMPTY, |r, &u| Range {
+            low: r.low.min(u),
+            high: r.high.max(u),
+        })
+}
+
+/// Whether a search box of `spread / h` cells per axis (plus the cell holding x on each side) may
+/// exceed [`RING_CELLS`] cells: then the pyramid pays for its build.
+pub(crate) fn pyramid_pays(spread: DVec3, h: DVec3) -> bool {
+    let cells = (spread / h + 2.0).min(DVec3::splat(1e7));
+    cells.x * cells.y * cells.z > RING_CELLS as f64
+}
