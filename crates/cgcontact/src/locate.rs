@@ -248,19 +248,26 @@ impl<'a> LatticeLocator<'a> {
         })
     }
 
-    /// Invert candidate cell `ijk` for `x`; `t_guess` is the predicted undeformed position in
-    /// lattice coordinates (gives the starting ξ), `u_map` the cell's displacement map.
+    /// Invert candidate cell `ijk` (active) for `x`; `t_guess` is the predicted undeformed position in
+    /// lattice coordinates (gives the starting ξ), `u_map` the cell's displacement map when the caller
+    /// already has it.
     #[inline]
     fn try_cell<K: Kernel>(
         &self,
         x: DVec3,
         ijk: [u32; 3],
         t_guess: DVec3,
-        mut map: K,
+        u_map: Option<K>,
         options: &NewtonOptions,
     ) -> Inversion {
         let lattice = self.body.lattice();
-        map.add_lattice(lattice.h());
+        let map = match u_map {
+            Some(mut map) => {
+                map.add_lattice(lattice.h());
+                map
+            }
+            None => K::lattice_cell(lattice.h(), &self.body.corner_displacements(ijk)),
+        };
         let xi0 = undeformed_xi(t_guess, ijk);
         map.invert_f64(x - lattice.node_position(ijk), xi0, options)
     }
@@ -285,6 +292,45 @@ impl<'a> LatticeLocator<'a> {
         t_guess
     }
 
+    /// Invert `ijk` (active) for `x` and collect the hit: true when the search is over (the first
+    /// hit wanted and found, written to `found`).
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn visit<K: Kernel>(
+        &self,
+        x: DVec3,
+        ijk: [u32; 3],
+        u_map: Option<K>,
+        t_guess: DVec3,
+        options: &NewtonOptions,
+        collect: &mut Collect<'_>,
+        inversions: &mut u32,
+        found: &mut Option<Hit>,
+    ) -> bool {
+        let inversion = self.try_cell::<K>(x, ijk, t_guess, u_map, options);
+        *inversions += 1;
+        if inversion.status != Status::Inside {
+            return false;
+        }
+        let hit = Hit {
+            cell: self.body.lattice().cell_id(ijk),
+            xi: inversion.xi.clamp(DVec3::NEG_ONE, DVec3::ONE),
+            iterations: inversion.iterations,
+            residual: inversion.residual,
+            inversions: *inversions,
+        };
+        match collect {
+            Collect::First => {
+                *found = Some(hit);
+                true
+            }
+            Collect::All(owners) => {
+                owners.push(hit);
+                false
+            }
+        }
+    }
+
     fn search_with<K: Kernel>(
         &self,
         x: DVec3,
@@ -292,7 +338,6 @@ impl<'a> LatticeLocator<'a> {
         collect: &mut Collect<'_>,
     ) -> (Option<Hit>, u32) {
         let lattice = self.body.lattice();
-        let h = lattice.h();
         let t_x = (x - lattice.origin()) * self.inv_h;
         let cell_x = lattice.clamped_cell(t_x);
         // The displacement map of the cell holding x (corners of inactive cells count as undisplaced:
@@ -306,43 +351,45 @@ impl<'a> LatticeLocator<'a> {
         let first = lattice.clamped_cell(t_guess);
         let mut inversions = 0u32;
         let mut found = None;
-        let mut visit =
-            |ijk: [u32; 3], u_map: K, t_guess: DVec3, found: &mut Option<Hit>| -> bool {
-                let inversion = self.try_cell::<K>(x, ijk, t_guess, u_map, options);
-                inversions += 1;
-                if inversion.status != Status::Inside {
-                    return false;
-                }
-                let hit = Hit {
-                    cell: lattice.cell_id(ijk),
-                    xi: inversion.xi.clamp(DVec3::NEG_ONE, DVec3::ONE),
-                    iterations: inversion.iterations,
-                    residual: inversion.residual,
-                    inversions,
-                };
-                match collect {
-                    Collect::First => {
-                        *found = Some(hit);
-                        true
-                    }
-                    Collect::All(owners) => {
-                        owners.push(hit);
-                        false
-                    }
-                }
-            };
         // The predicted cell first, without the range test: it holds the point almost always, and
         // when it is the cell holding x its displacement map is already built.
         if self.body.is_active(lattice.cell_id(first)) {
-            let u_map = if first == cell_x {
-                u_map_x
-            } else {
-                K::displacement_map(&self.body.corner_displacements(first))
-            };
-            if visit(first, u_map, t_guess, &mut found) {
+            let reuse = (first == cell_x).then_some(u_map_x);
+            let (c, n, f) = (&mut *collect, &mut inversions, &mut found);
+            if self.visit(x, first, reuse, t_guess, options, c, n, f) {
                 return (found, inversions);
             }
         }
+        self.search_rings::<K>(
+            x,
+            t_x,
+            t_guess,
+            first,
+            options,
+            collect,
+            &mut inversions,
+            &mut found,
+        );
+        (found, inversions)
+    }
+
+    /// The search after a miss in the predicted cell `first`: every other active cell that can
+    /// hold x, nearest first. Kept out of line: the common path stays small.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(never)]
+    fn search_rings<K: Kernel>(
+        &self,
+        x: DVec3,
+        t_x: DVec3,
+        t_guess: DVec3,
+        first: [u32; 3],
+        options: &NewtonOptions,
+        collect: &mut Collect<'_>,
+        inversions: &mut u32,
+        found: &mut Option<Hit>,
+    ) {
+        let lattice = self.body.lattice();
+        let h = lattice.h();
         // A miss: where the displacement varies fast, ũ(x) is a poor estimate of u at the undeformed
         // point. Refine the guess by the fixed point X ← x − ũ(X) before ordering the rings around it.
         let t_guess = match self.settings.order {
@@ -372,11 +419,20 @@ impl<'a> LatticeLocator<'a> {
             candidates.sort_unstable_by_key(|(key, _)| *key);
             for (_, ijk) in candidates {
                 let u = self.body.corner_displacements(ijk);
-                if visit(ijk, K::displacement_map(&u), t_guess, &mut found) {
-                    return (found, inversions);
+                if self.visit(
+                    x,
+                    ijk,
+                    Some(K::displacement_map(&u)),
+                    t_guess,
+                    options,
+                    collect,
+                    inversions,
+                    found,
+                ) {
+                    return;
                 }
             }
-            return (found, inversions);
+            return;
         }
         let s = center.map(i64::from);
         let (lo, hi) = (low.map(i64::from), high.map(i64::from));
@@ -408,14 +464,22 @@ impl<'a> LatticeLocator<'a> {
                         if !reaches(ijk, &u) {
                             continue;
                         }
-                        if visit(ijk, K::displacement_map(&u), t_guess, &mut found) {
-                            return (found, inversions);
+                        if self.visit(
+                            x,
+                            ijk,
+                            Some(K::displacement_map(&u)),
+                            t_guess,
+                            options,
+                            collect,
+                            inversions,
+                            found,
+                        ) {
+                            return;
                         }
                     }
                 }
             }
         }
-        (found, inversions)
     }
 }
 
