@@ -407,7 +407,7 @@ impl<'a> LatticeLocator<'a> {
         let center = [0, 1, 2].map(|a| lattice.clamped_cell(t_guess)[a].clamp(low[a], high[a]));
         // A cell that the displacements of its own corners cannot bring to x is never inverted.
         let reaches = |ijk: [u32; 3], u: &[DVec3; 8]| {
-            Range::of(u).reaches(x - lattice.node_position(ijk), h, h, tau)
+            reach::cell_reaches(x - lattice.node_position(ijk), h, u, tau)
         };
         let box_cells: u64 = (0..3).map(|a| u64::from(high[a] - low[a] + 1)).product();
         if let Some(pyramid) = self.pyramid.as_ref().filter(|_| box_cells > RING_CELLS) {
