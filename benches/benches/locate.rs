@@ -1,4 +1,4 @@
-//! The core's headline benchmark (issue 2): `locate_all` on the seed's fine block, a 20 × 40 × 20
+//! The core's headline benchmark: `locate_all` on the seed's fine block, a 20 × 40 × 20
 //! lattice (h = 0.25) indented by a smooth field of maximum displacement 0.45 h, 100,000 points
 //! made from known (cell, ξ), f64, on one thread and on all threads. Also: building a locator from a
 //! 136,000-node body.

@@ -1,4 +1,4 @@
-//! Precision and threads on the big scene (issue 5): an indented block of 40 × 80 × 40 = 128,000
+//! Precision and threads on the big scene: an indented block of 40 × 80 × 40 = 128,000
 //! cells (h = 0.125, top sinking 0.45 h) with 1,000,000 points made from known (cell, ξ). The lattice
 //! locator in f64 and f32 (`Settings::f32()`, in each cell's local frame): batched `locate_all` on one
 //! thread and on all threads, and the scalar `locate` one point at a time. The same 1 M points on a

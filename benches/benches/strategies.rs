@@ -1,4 +1,4 @@
-//! Every strategy on the same scene (issue 3): the seed's fine block (20 × 40 × 20 cells, h = 0.25)
+//! Every strategy on the same scene: the seed's fine block (20 × 40 × 20 cells, h = 0.25)
 //! with 10,000 points made from known (cell, ξ), and the seed's 6,700 sphere contact points (most of
 //! them outside the block, as in the seed). One thread, so that the ratios compare work, not cores.
 //! The O(cells)-per-point strategies (centroid, node-radius, brute force) run on an evenly spaced

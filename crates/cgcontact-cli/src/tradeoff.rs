@@ -808,7 +808,7 @@ fn report(
     );
     let _ = writeln!(
         s,
-        "## Targets (issues 3 and 5)\n\n{}",
+        "## Targets\n\n{}",
         targets(rows, threads)
     );
     if let Some(reading) = reading {
