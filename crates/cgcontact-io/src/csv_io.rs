@@ -86,14 +86,13 @@ pub fn parse_points(mut reader: impl Read) -> Result<Vec<DVec3>, ErrorKind> {
 
 /// Write points as CSV with header `x,y,z` (shortest round-trip form: read back bitwise).
 pub fn write_points(path: impl AsRef<Path>, points: &[DVec3]) -> Result<(), IoError> {
-    let path = path.as_ref();
-    let io = |e: std::io::Error| ErrorKind::Io(e).in_file(path);
-    let mut out = std::io::BufWriter::new(std::fs::File::create(path).map_err(io)?);
-    writeln!(out, "x,y,z").map_err(io)?;
-    for p in points {
-        writeln!(out, "{},{},{}", p.x, p.y, p.z).map_err(io)?;
-    }
-    out.flush().map_err(io)
+    crate::atomic::write_file(path, |out| {
+        writeln!(out, "x,y,z")?;
+        for p in points {
+            writeln!(out, "{},{},{}", p.x, p.y, p.z)?;
+        }
+        Ok(())
+    })
 }
 
 /// One row of a results file.
@@ -121,11 +120,7 @@ pub fn write_results(
     answers: &[Answer],
     cells: &CellMap,
 ) -> Result<(), IoError> {
-    let path = path.as_ref();
-    let io = |e: std::io::Error| ErrorKind::Io(e).in_file(path);
-    let mut out = std::io::BufWriter::new(std::fs::File::create(path).map_err(io)?);
-    write_results_to(&mut out, answers, cells).map_err(io)?;
-    out.flush().map_err(io)
+    crate::atomic::write_file(path, |out| Ok(write_results_to(out, answers, cells)?))
 }
 
 /// [`write_results`] to any writer.

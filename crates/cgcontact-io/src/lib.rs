@@ -11,7 +11,8 @@
 //! | [`read_points`], [`write_results`], [`read_results`] | CSV points `x,y,z` and results `point,cell,xi,eta,zeta,...` |
 //! | [`write_deformed_vtu`], [`write_points_vtu`] | the deformed mesh (cells with `points_held`, `active`) and the located points (`cell`, `xi`) for ParaView |
 //!
-//! Every error is an [`IoError`] naming the file and the offending line, cell or node; no input
+//! Every file is written whole or not at all ([`write_file`]: a temporary file renamed over the
+//! target), and every error is an [`IoError`] naming the file and the offending line, cell or node; no input
 //! makes this crate panic. `docs/formats.md` describes the formats as implemented.
 //!
 //! ```
@@ -44,6 +45,7 @@
 #![deny(missing_docs)]
 #![forbid(unsafe_code)]
 
+mod atomic;
 mod block_headers;
 mod csv_io;
 mod error;
@@ -52,6 +54,7 @@ mod raw_appended;
 mod vtk_read;
 mod vtk_write;
 
+pub use atomic::write_file;
 pub use csv_io::{
     RESULTS_HEADER, ResultRow, parse_points, parse_results, read_points, read_results,
     write_points, write_results, write_results_to,

@@ -1,7 +1,6 @@
 //! Writing VTK files with vtkio: bodies in all three flavours (for scenes and round trips), and the
 //! deformed mesh and located points for ParaView.
 
-use std::io::{BufWriter, Write};
 use std::path::Path;
 
 use cgcontact::{Answer, Body, CellId, Lattice};
@@ -254,18 +253,16 @@ fn write_piece(
         data: DataSet::inline(piece),
         file_path: None,
     };
-    let fail = |e: vtkio::Error| ErrorKind::Vtk(format!("writing: {e}")).in_file(path);
-    let io = |e: std::io::Error| ErrorKind::Io(e).in_file(path);
+    let fail = |e: vtkio::Error| ErrorKind::Vtk(format!("writing: {e}"));
     match format {
         MeshFormat::LegacyAscii => {
             let mut text = String::new();
-            vtk.write_legacy_ascii(&mut text).map_err(fail)?;
-            std::fs::write(path, text).map_err(io)
+            vtk.write_legacy_ascii(&mut text)
+                .map_err(|e| fail(e).in_file(path))?;
+            crate::atomic::write_file(path, |out| Ok(out.write_all(text.as_bytes())?))
         }
         MeshFormat::LegacyBinary => {
-            let mut out = BufWriter::new(std::fs::File::create(path).map_err(io)?);
-            vtk.write_legacy(&mut out).map_err(fail)?;
-            out.flush().map_err(io)
+            crate::atomic::write_file(path, |out| vtk.write_legacy(out).map_err(fail))
         }
         MeshFormat::Xml | MeshFormat::XmlZlib => {
             let (compressor, level) = if format == MeshFormat::XmlZlib {
@@ -275,10 +272,8 @@ fn write_piece(
             };
             let file: VTKFile = vtk
                 .try_into_xml_format(compressor, level)
-                .map_err(|e| fail(e.into()))?;
-            let mut out = BufWriter::new(std::fs::File::create(path).map_err(io)?);
-            file.write(&mut out).map_err(|e| fail(e.into()))?;
-            out.flush().map_err(io)
+                .map_err(|e| fail(e.into()).in_file(path))?;
+            crate::atomic::write_file(path, |out| file.write(out).map_err(|e| fail(e.into())))
         }
     }
 }

@@ -1,0 +1,209 @@
+//! Files written whole or not at all.
+//!
+//! Every file this crate writes goes through [`write_file`]: the content goes to a temporary file
+//! in the target's folder, which is flushed, synced and then renamed over the target. A failure
+//! (a full disk, an error of the writer) removes the temporary file and leaves the target as it
+//! was; a process killed mid-write leaves at most a hidden `.NAME.XXXXXX.partial` file beside an
+//! intact target.
+
+use std::fs::OpenOptions;
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+
+use crate::{ErrorKind, IoError};
+
+/// Write the file at `path` through `write`, atomically (see the module docs).
+///
+/// A symbolic link is written through (its target is replaced, not the link). A target that
+/// exists and is not a regular file (`/dev/null`, a named pipe) is written in place, since there
+/// is nothing there to keep. A folder is refused.
+pub fn write_file(
+    path: impl AsRef<Path>,
+    write: impl FnOnce(&mut dyn Write) -> Result<(), ErrorKind>,
+) -> Result<(), IoError> {
+    let path = path.as_ref();
+    let in_file = |kind: ErrorKind| kind.in_file(path);
+    let io = |e: std::io::Error| ErrorKind::Io(e).in_file(path);
+    let target = resolve(path);
+    let existing = std::fs::metadata(&target).ok();
+    if let Some(meta) = &existing {
+        if meta.is_dir() {
+            return Err(in_file(ErrorKind::Mismatch(
+                "is a folder, not a file".to_owned(),
+            )));
+        }
+        if !meta.is_file() {
+            let file = OpenOptions::new().write(true).open(&target).map_err(io)?;
+            let mut out = Recorder::new(BufWriter::new(file));
+            return finish(write(&mut out), out).map_err(in_file);
+        }
+    }
+    let folder = match target.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let name = target
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let prefix = format!(".{name}.");
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(&prefix).suffix(".partial");
+    // As `File::create` makes it (0666 less the umask), not the temporary file's usual 0600.
+    #[cfg(unix)]
+    builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666));
+    let mut temp = builder.tempfile_in(&folder).map_err(io)?;
+    {
+        let mut out = Recorder::new(BufWriter::new(temp.as_file_mut()));
+        finish(write(&mut out), out).map_err(in_file)?;
+    }
+    temp.as_file().sync_all().map_err(io)?;
+    if let Some(meta) = existing {
+        // Keep the replaced file's permissions.
+        temp.as_file()
+            .set_permissions(meta.permissions())
+            .map_err(io)?;
+    }
+    temp.persist(&target).map_err(|e| io(e.error))?;
+    Ok(())
+}
+
+/// The file a path names: a symbolic link's target (as far as it resolves), else the path.
+fn resolve(path: &Path) -> PathBuf {
+    match std::fs::symlink_metadata(path) {
+        Ok(meta) if meta.file_type().is_symlink() => {
+            std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf())
+        }
+        _ => path.to_path_buf(),
+    }
+}
+
+/// The writer's result, flushed; where the writer failed because the file did (a full disk),
+/// that I/O error rather than the writer's rendering of it.
+fn finish<W: Write>(result: Result<(), ErrorKind>, mut out: Recorder<W>) -> Result<(), ErrorKind> {
+    let flushed = out.flush();
+    match (result, out.error.take()) {
+        (Err(_), Some(io)) => Err(ErrorKind::Io(io)),
+        (Err(e), None) => Err(e),
+        (Ok(()), Some(io)) => Err(ErrorKind::Io(io)),
+        (Ok(()), None) => flushed.map_err(ErrorKind::Io),
+    }
+}
+
+/// A writer that keeps the first I/O error it met: some writers (vtkio's XML serializer) report a
+/// full disk as their own "deserialization error", and the user must read "no space left".
+struct Recorder<W: Write> {
+    inner: W,
+    error: Option<std::io::Error>,
+}
+
+impl<W: Write> Recorder<W> {
+    fn new(inner: W) -> Self {
+        Self { inner, error: None }
+    }
+
+    fn keep<T>(&mut self, result: std::io::Result<T>) -> std::io::Result<T> {
+        result.map_err(|e| {
+            let copy = std::io::Error::new(e.kind(), e.to_string());
+            self.error.get_or_insert(e);
+            copy
+        })
+    }
+}
+
+impl<W: Write> Write for Recorder<W> {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        let result = self.inner.write(buf);
+        self.keep(result)
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        let result = self.inner.flush();
+        self.keep(result)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn fail_halfway(out: &mut dyn Write) -> Result<(), ErrorKind> {
+        out.write_all(b"point,cell\n0,1\n")?;
+        Err(ErrorKind::Mismatch("the writer gave up halfway".to_owned()))
+    }
+
+    /// A write that fails halfway leaves the old file as it was and no temporary file behind.
+    #[test]
+    fn failed_write_keeps_the_old_file_and_leaves_no_temporary() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("results.csv");
+        std::fs::write(&path, "old content\n").unwrap();
+        let error = write_file(&path, fail_halfway).unwrap_err();
+        assert!(error.to_string().contains("halfway"), "{error}");
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), "old content\n");
+        let names: Vec<_> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert_eq!(names, vec![std::ffi::OsString::from("results.csv")]);
+    }
+
+    /// Until the write completes the target holds its old content: the new one goes elsewhere.
+    #[test]
+    fn target_is_untouched_until_the_write_completes() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("results.csv");
+        std::fs::write(&path, "old\n").unwrap();
+        write_file(&path, |out| {
+            out.write_all(b"new\n")?;
+            out.flush()?;
+            assert_eq!(std::fs::read_to_string(&path).unwrap(), "old\n");
+            Ok(())
+        })
+        .unwrap();
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), "new\n");
+    }
+
+    /// A symbolic link is written through: the link stays, its target gets the content.
+    #[cfg(unix)]
+    #[test]
+    fn symlink_is_written_through() {
+        let dir = tempfile::tempdir().unwrap();
+        let real = dir.path().join("real.csv");
+        let link = dir.path().join("link.csv");
+        std::fs::write(&real, "old\n").unwrap();
+        std::os::unix::fs::symlink(&real, &link).unwrap();
+        write_file(&link, |out| Ok(out.write_all(b"new\n")?)).unwrap();
+        assert!(std::fs::symlink_metadata(&link).unwrap().file_type().is_symlink());
+        assert_eq!(std::fs::read_to_string(&real).unwrap(), "new\n");
+    }
+
+    /// A full device is reported as such, even through a writer that renders I/O errors its own way.
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn full_device_is_an_io_error_named_as_such() {
+        let error = write_file("/dev/full", |out| {
+            let big = vec![b'x'; 1 << 20];
+            out.write_all(&big)
+                .map_err(|_| ErrorKind::Vtk("Deserialization error".to_owned()))
+        })
+        .unwrap_err();
+        let message = error.to_string();
+        assert!(message.contains("No space left"), "{message}");
+        assert!(matches!(error.kind(), ErrorKind::Io(_)));
+    }
+
+    /// New files get the usual permissions, not the temporary file's 0600.
+    #[cfg(unix)]
+    #[test]
+    fn new_files_get_the_usual_permissions() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = tempfile::tempdir().unwrap();
+        let made = dir.path().join("made.csv");
+        std::fs::write(&made, "x\n").unwrap();
+        let ours = dir.path().join("ours.csv");
+        write_file(&ours, |out| Ok(out.write_all(b"x\n")?)).unwrap();
+        let mode = |p: &Path| std::fs::metadata(p).unwrap().permissions().mode() & 0o777;
+        assert_eq!(mode(&ours), mode(&made));
+    }
+}
