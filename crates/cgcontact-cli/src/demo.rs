@@ -2,11 +2,12 @@
 
 use std::path::PathBuf;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use cgcontact_io::{CellMap, write_deformed_vtu, write_points_vtu, write_results};
 use cgcontact_scenes::SphereOnBlock;
 use clap::Args;
 
+use crate::output::{prepare_folder, say};
 use crate::picture::contact_patch_svg;
 use crate::run::{SearchArgs, search};
 
@@ -32,7 +33,8 @@ pub struct DemoArgs {
 }
 
 pub fn run(args: &DemoArgs) -> Result<()> {
-    let pool = args.search.pool()?;
+    let pool = args.search.check()?;
+    prepare_folder("--out", &args.out)?;
     let (knobs, name) = if args.coarse {
         (SphereOnBlock::coarse(), "sphere-coarse")
     } else {
@@ -46,8 +48,6 @@ pub fn run(args: &DemoArgs) -> Result<()> {
     let (answers, mut summary) = search(&scene.body, &scene.contact_points, &args.search, &pool)?;
 
     let dir = &args.out;
-    std::fs::create_dir_all(dir)
-        .with_context(|| format!("{}: cannot create the folder", dir.display()))?;
     let cells = CellMap::ascending(&scene.body);
     let results = dir.join("results.csv");
     write_results(&results, &answers, &cells)?;
@@ -62,7 +62,7 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         .map(|p| p.display().to_string())
         .collect();
     if !args.search.json && !args.search.quiet {
-        println!("scene: {name}, the seed's 5 x 10 x 5 mm block indented by a 1 mm sphere");
+        say!("scene: {name}, the seed's 5 x 10 x 5 mm block indented by a 1 mm sphere")?;
     }
     summary.print(&args.search)
 }

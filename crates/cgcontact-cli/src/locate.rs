@@ -2,12 +2,13 @@
 
 use std::path::PathBuf;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use cgcontact_io::{
     DisplacementArray, read_mesh, read_points, write_deformed_vtu, write_points_vtu, write_results,
 };
 use clap::Args;
 
+use crate::output::{check_outputs, prepare_folder};
 use crate::run::{SearchArgs, search};
 
 /// Locate the points of a CSV file in a VTK mesh of hexahedra on a cartesian lattice.
@@ -40,7 +41,37 @@ pub struct LocateArgs {
 }
 
 pub fn run(args: &LocateArgs) -> Result<()> {
-    let pool = args.search.pool()?;
+    // Every setting and every output checked before any file is read or any work done.
+    let pool = args.search.check()?;
+    let inputs = [
+        ("--mesh", args.mesh.as_path()),
+        ("--points", args.points.as_path()),
+    ];
+    let mut outputs = Vec::new();
+    if let Some(out) = &args.out {
+        outputs.push(("--out", out.clone()));
+    }
+    let vtk_files = args
+        .vtk
+        .as_ref()
+        .map(|dir| [dir.join("mesh.vtu"), dir.join("points.vtu")]);
+    if let Some(files) = &vtk_files {
+        outputs.extend(files.iter().map(|f| ("--vtk", f.clone())));
+    }
+    // The --vtk folder need not exist yet: its files are checked against the inputs first.
+    if let Some(dir) = &args.vtk {
+        if dir.exists() && !dir.is_dir() {
+            anyhow::bail!("{}: --vtk names a file, not a folder", dir.display());
+        }
+        let existing: Vec<_> = outputs
+            .iter()
+            .filter(|(flag, _)| *flag != "--vtk" || dir.is_dir())
+            .cloned()
+            .collect();
+        check_outputs(&inputs, &existing)?;
+        prepare_folder("--vtk", dir)?;
+    }
+    check_outputs(&inputs, &outputs)?;
     let mesh = read_mesh(
         &args.mesh,
         &DisplacementArray::from_option(args.displacement.as_deref()),
@@ -58,13 +89,9 @@ pub fn run(args: &LocateArgs) -> Result<()> {
         write_results(out, &answers, &mesh.cells)?;
         summary.files.push(out.display().to_string());
     }
-    if let Some(dir) = &args.vtk {
-        std::fs::create_dir_all(dir)
-            .with_context(|| format!("{}: cannot create the folder", dir.display()))?;
-        let mesh_path = dir.join("mesh.vtu");
-        write_deformed_vtu(&mesh_path, &mesh.body, &mesh.cells, &answers, false)?;
-        let points_path = dir.join("points.vtu");
-        write_points_vtu(&points_path, &points, &answers, &mesh.cells)?;
+    if let Some([mesh_path, points_path]) = &vtk_files {
+        write_deformed_vtu(mesh_path, &mesh.body, &mesh.cells, &answers, false)?;
+        write_points_vtu(points_path, &points, &answers, &mesh.cells)?;
         summary.files.push(mesh_path.display().to_string());
         summary.files.push(points_path.display().to_string());
     }

@@ -6,6 +6,7 @@
 
 mod demo;
 mod locate;
+mod output;
 mod picture;
 mod run;
 mod scene;
@@ -56,6 +57,14 @@ fn main() -> ExitCode {
     });
     match result {
         Ok(Ok(())) => ExitCode::SUCCESS,
+        Ok(Err(error))
+            if error
+                .downcast_ref::<output::StdoutError>()
+                .is_some_and(output::StdoutError::is_closed_pipe) =>
+        {
+            // The reader went away (`| head`): a normal end, as for any Unix tool.
+            ExitCode::SUCCESS
+        }
         Ok(Err(error)) => {
             // One line: the chain of causes joined, the file and line/cell named by the innermost.
             eprintln!("cgcontact: error: {error:#}");

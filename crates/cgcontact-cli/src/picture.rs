@@ -12,6 +12,19 @@ use plotters::prelude::*;
 /// points the column holds, and the contact points (located: red; not located: grey) projected on
 /// the x–y plane. Only the region around the sphere is drawn.
 pub fn contact_patch_svg(path: &Path, scene: &Scene, answers: &[Answer]) -> Result<()> {
+    let mut svg = String::new();
+    let root = SVGBackend::with_string(&mut svg, (800, 800)).into_drawing_area();
+    draw_contact_patch(root, path, scene, answers)?;
+    crate::output::write_text(path, &svg)
+}
+
+/// [`contact_patch_svg`]'s drawing, on `root`.
+fn draw_contact_patch(
+    root: DrawingArea<SVGBackend<'_>, plotters::coord::Shift>,
+    path: &Path,
+    scene: &Scene,
+    answers: &[Answer],
+) -> Result<()> {
     let body = &scene.body;
     let lattice = body.lattice();
     let [nx, ny, nz] = lattice.cells();
@@ -33,7 +46,6 @@ pub fn contact_patch_svg(path: &Path, scene: &Scene, answers: &[Answer]) -> Resu
 
     let fail =
         |e: &dyn std::fmt::Display| anyhow!("{}: cannot draw the picture: {e}", path.display());
-    let root = SVGBackend::new(path, (800, 800)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| fail(&e))?;
     let mut chart = ChartBuilder::on(&root)
         .margin(10)

@@ -15,6 +15,8 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rayon::prelude::*;
 use serde::Serialize;
 
+use crate::output::say;
+
 /// Search strategy.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum StrategyName {
@@ -31,6 +33,12 @@ pub enum StrategyName {
     /// Every cell: the oracle.
     Brute,
 }
+
+/// The most worker threads per available core `--threads` starts.
+pub const THREADS_PER_CORE: usize = 4;
+
+/// Newton step tolerances (ξ units) above which `--tol` gets a warning.
+const LOOSE_TOL: f64 = 1e-3;
 
 /// Kernel precision.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -68,6 +76,23 @@ pub struct SearchArgs {
 }
 
 impl SearchArgs {
+    /// Check every flag before any file is read: the settings (an error when out of range, a
+    /// warning when `--tol` is loose enough to give wrong answers) and the thread count.
+    pub fn check(&self) -> Result<rayon::ThreadPool> {
+        self.settings()?;
+        if let Some(tol) = self.tol
+            && tol > LOOSE_TOL
+            && !self.quiet
+        {
+            // ξ spans 2 across a cell: a step tolerance this large stops Newton before it has found
+            // the point, and points near faces land in the wrong cell.
+            eprintln!(
+                "cgcontact: warning: --tol {tol} is a Newton step tolerance in ξ units (a cell spans 2); above {LOOSE_TOL:e} answers can be off by about tol² and points near faces can be put in the wrong cell"
+            );
+        }
+        self.pool()
+    }
+
     /// The library settings these flags ask for.
     pub fn settings(&self) -> Result<Settings> {
         let mut settings = match self.precision {
@@ -82,13 +107,26 @@ impl SearchArgs {
         Ok(settings)
     }
 
-    /// A rayon pool with `--threads` workers.
+    /// A rayon pool with `--threads` workers, at most [`THREADS_PER_CORE`] per available core
+    /// (more only adds switching; a warning says so).
     pub fn pool(&self) -> Result<rayon::ThreadPool> {
         let mut builder = rayon::ThreadPoolBuilder::new();
         if let Some(n) = self.threads {
             if n == 0 {
                 bail!("--threads must be at least 1");
             }
+            let cores = std::thread::available_parallelism().map_or(1, usize::from);
+            let cap = THREADS_PER_CORE * cores;
+            let n = if n > cap {
+                if !self.quiet {
+                    eprintln!(
+                        "cgcontact: warning: --threads {n} capped at {cap} ({THREADS_PER_CORE} per available core, {cores} here)"
+                    );
+                }
+                cap
+            } else {
+                n
+            };
             builder = builder.num_threads(n);
         }
         builder.build().context("cannot start the worker threads")
@@ -128,12 +166,12 @@ impl Summary {
     /// Print the summary: JSON on stdout, or a few lines of text unless quiet.
     pub fn print(&self, args: &SearchArgs) -> Result<()> {
         if args.json {
-            println!(
+            say!(
                 "{}",
                 serde_json::to_string_pretty(self).context("cannot format the summary")?
-            );
+            )?;
         } else if !args.quiet {
-            println!(
+            say!(
                 "{} points: {} located, {} not located{}",
                 self.points,
                 self.located,
@@ -143,15 +181,15 @@ impl Summary {
                 } else {
                     String::new()
                 }
-            );
-            println!(
+            )?;
+            say!(
                 "body: {} active of {} lattice cells, {} nodes, max displacement {:.4e}",
                 self.active_cells,
                 self.cells,
                 self.nodes,
                 DVec3::from_array(self.max_displacement).max_element()
-            );
-            println!(
+            )?;
+            say!(
                 "{} ({}, {} thread{}): setup {:.3} ms, query {:.3} ms, {:.3e} points/s, {:.3} inversions per point ({:.3} per located point)",
                 self.strategy,
                 self.precision,
@@ -162,9 +200,9 @@ impl Summary {
                 self.points_per_second,
                 self.inversions_per_point,
                 self.inversions_per_located_point
-            );
+            )?;
             for file in &self.files {
-                println!("wrote {file}");
+                say!("wrote {file}")?;
             }
         }
         if !self.inverted_cells.is_empty() && !args.quiet {

@@ -1,12 +1,13 @@
 //! `cgcontact scene`: write a generated scene (mesh, points, known answers).
 
-use std::io::Write;
 use std::path::PathBuf;
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Result, bail};
 use cgcontact::glam::DVec3;
 use cgcontact_io::{CellMap, MeshFormat, write_mesh, write_points};
 use cgcontact_scenes::SphereOnBlock;
+
+use crate::output::{prepare_folder, say};
 use clap::{Args, ValueEnum};
 
 /// Scene names.
@@ -139,8 +140,7 @@ pub fn run(args: &SceneArgs) -> Result<()> {
     knobs.seed = args.seed;
     let scene = knobs.build(&format!("{:?}", args.name).to_lowercase())?;
 
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("{}: cannot create the folder", args.out.display()))?;
+    prepare_folder("--out", &args.out)?;
     let format = match args.format {
         FormatName::Vtu => MeshFormat::Xml,
         FormatName::Vtk => MeshFormat::LegacyAscii,
@@ -152,35 +152,34 @@ pub fn run(args: &SceneArgs) -> Result<()> {
     write_points(&points, &scene.all_points())?;
     let known = args.out.join("known.csv");
     let cells = CellMap::ascending(&scene.body);
-    let io = |e: std::io::Error| anyhow::anyhow!("{}: {e}", known.display());
-    let mut out = std::io::BufWriter::new(std::fs::File::create(&known).map_err(io)?);
-    writeln!(out, "point,cell,xi,eta,zeta").map_err(io)?;
-    for (row, k) in scene.known.iter().enumerate() {
-        let cell = cells
-            .input_cell(k.cell)
-            .expect("known points lie in active cells");
-        writeln!(
-            out,
-            "{},{},{},{},{}",
-            scene.contact_points.len() + row,
-            cell,
-            k.xi.x,
-            k.xi.y,
-            k.xi.z
-        )
-        .map_err(io)?;
-    }
-    out.flush().map_err(io)?;
-    println!(
+    cgcontact_io::write_file(&known, |out| {
+        writeln!(out, "point,cell,xi,eta,zeta")?;
+        for (row, k) in scene.known.iter().enumerate() {
+            let cell = cells
+                .input_cell(k.cell)
+                .expect("known points lie in active cells");
+            writeln!(
+                out,
+                "{},{},{},{},{}",
+                scene.contact_points.len() + row,
+                cell,
+                k.xi.x,
+                k.xi.y,
+                k.xi.z
+            )?;
+        }
+        Ok(())
+    })?;
+    say!(
         "scene {}: {} cells ({} active), {} contact points, {} known points",
         scene.name,
         scene.body.lattice().cell_count(),
         scene.body.active_count(),
         scene.contact_points.len(),
         scene.known.len()
-    );
+    )?;
     for file in [&mesh, &points, &known] {
-        println!("wrote {}", file.display());
+        say!("wrote {}", file.display())?;
     }
     Ok(())
 }

@@ -562,8 +562,7 @@ pub fn run(args: &TradeoffArgs) -> Result<()> {
             .context("cannot start the worker threads")
     };
     let (one, all) = (pool(1)?, pool(threads)?);
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("{}: cannot create the folder", args.out.display()))?;
+    crate::output::prepare_folder("--out", &args.out)?;
 
     let started = Instant::now();
     let configs = configs();
@@ -596,15 +595,15 @@ pub fn run(args: &TradeoffArgs) -> Result<()> {
         plotted,
         reading,
     );
-    std::fs::write(&md, report).with_context(|| format!("{}: cannot write", md.display()))?;
-    println!(
+    crate::output::write_text(&md, &report)?;
+    crate::output::say!(
         "{} configurations × {} scenes in {:.1} s; wrote {} and {}",
         configs.len(),
         scenes.len(),
         started.elapsed().as_secs_f64(),
         md.display(),
         svg.display()
-    );
+    )?;
     Ok(())
 }
 
@@ -806,11 +805,7 @@ fn report(
         machine(),
         elapsed.as_secs_f64()
     );
-    let _ = writeln!(
-        s,
-        "## Targets\n\n{}",
-        targets(rows, threads)
-    );
+    let _ = writeln!(s, "## Targets\n\n{}", targets(rows, threads));
     if let Some(reading) = reading {
         let _ = writeln!(s, "{reading}\n");
     }
@@ -913,6 +908,20 @@ fn colour(strategy: Strategy, settings: &Settings) -> RGBColor {
 /// glyphs to the viewer), so captions, tick labels and mark labels do render; positions of labels are
 /// approximate, which is why marks are labelled by number with a legend beside the plot.
 fn plot(path: &Path, rows: &[Row], scene: &str) -> Result<usize> {
+    let mut svg = String::new();
+    let root = SVGBackend::with_string(&mut svg, (1100, 640)).into_drawing_area();
+    let plotted = draw_plot(root, path, rows, scene)?;
+    crate::output::write_text(path, &svg)?;
+    Ok(plotted)
+}
+
+/// [`plot`]'s drawing, on `root`.
+fn draw_plot(
+    root: DrawingArea<SVGBackend<'_>, plotters::coord::Shift>,
+    path: &Path,
+    rows: &[Row],
+    scene: &str,
+) -> Result<usize> {
     let marks: Vec<&Row> = rows.iter().filter(|r| r.scene == scene).collect();
     if marks.is_empty() {
         bail!("no configuration ran on scene {scene}");
@@ -946,7 +955,6 @@ fn plot(path: &Path, rows: &[Row], scene: &str) -> Result<usize> {
         .collect();
 
     let fail = |e: &dyn std::fmt::Display| anyhow!("{}: cannot draw the plot: {e}", path.display());
-    let root = SVGBackend::new(path, (1100, 640)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| fail(&e))?;
     let (area, legend) = root.split_horizontally(780);
     let mut chart = ChartBuilder::on(&area)

@@ -1,0 +1,139 @@
+//! What the tool writes: files (whole or not at all), standard output, and the checks that no output
+//! replaces an input or fails after the work is done.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use anyhow::{Result, bail};
+
+/// Write `text` to `path`, whole or not at all.
+pub fn write_text(path: &Path, text: &str) -> Result<()> {
+    cgcontact_io::write_file(path, |out| Ok(out.write_all(text.as_bytes())?))?;
+    Ok(())
+}
+
+/// Standard output could not be written. A closed pipe (`cgcontact ... | head -c 1`) is a normal end
+/// of the program; anything else (a full disk) is an error.
+#[derive(Debug)]
+pub struct StdoutError(pub std::io::Error);
+
+impl std::fmt::Display for StdoutError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "cannot write to standard output: {}", self.0)
+    }
+}
+
+impl std::error::Error for StdoutError {}
+
+impl StdoutError {
+    /// The reader went away: nothing to report.
+    pub fn is_closed_pipe(&self) -> bool {
+        self.0.kind() == std::io::ErrorKind::BrokenPipe
+    }
+}
+
+/// Write `text` and a newline to standard output, flushed.
+pub fn print_line(text: &str) -> Result<()> {
+    let mut out = std::io::stdout().lock();
+    writeln!(out, "{text}")
+        .and_then(|()| out.flush())
+        .map_err(|e| StdoutError(e).into())
+}
+
+/// `println!` that returns an error instead of panicking when standard output fails.
+macro_rules! say {
+    ($($arg:tt)*) => {
+        $crate::output::print_line(&format!($($arg)*))
+    };
+}
+pub(crate) use say;
+
+/// The file a path names, for comparing: its canonical form when it exists, else its folder's
+/// canonical form joined with its name (the folder must exist).
+fn identity(path: &Path) -> Option<PathBuf> {
+    if let Ok(canonical) = std::fs::canonicalize(path) {
+        return Some(canonical);
+    }
+    let name = path.file_name()?;
+    let folder = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    Some(std::fs::canonicalize(folder).ok()?.join(name))
+}
+
+/// Whether two paths name the same file: the same canonical path, or (on Unix) the same device and
+/// inode (hard links).
+fn same_file(a: &Path, b: &Path) -> bool {
+    if let (Some(x), Some(y)) = (identity(a), identity(b))
+        && x == y
+    {
+        return true;
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        if let (Ok(x), Ok(y)) = (std::fs::metadata(a), std::fs::metadata(b)) {
+            return x.dev() == y.dev() && x.ino() == y.ino();
+        }
+    }
+    false
+}
+
+/// Check, before any work, that every output file can be written where asked and replaces no
+/// input: `outputs` are (flag, path) pairs, `inputs` likewise.
+pub fn check_outputs(inputs: &[(&str, &Path)], outputs: &[(&str, PathBuf)]) -> Result<()> {
+    for (flag, output) in outputs {
+        for (input_flag, input) in inputs {
+            if same_file(output, input) {
+                bail!(
+                    "{}: {flag} would overwrite the input {input_flag} {} (the same file); choose another output",
+                    output.display(),
+                    input.display()
+                );
+            }
+        }
+        if output.is_dir() {
+            bail!("{}: {flag} names a folder, not a file", output.display());
+        }
+        let folder = match output.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p,
+            _ => Path::new("."),
+        };
+        if !folder.is_dir() {
+            bail!(
+                "{}: {flag}: the folder {} does not exist",
+                output.display(),
+                folder.display()
+            );
+        }
+        // A folder we cannot write to fails now, not after the work (devices are written in place).
+        if !output.exists() || output.is_file() {
+            tempfile::tempfile_in(folder).map_err(|e| {
+                anyhow::anyhow!(
+                    "{}: {flag}: cannot write in {}: {e}",
+                    output.display(),
+                    folder.display()
+                )
+            })?;
+        }
+    }
+    Ok(())
+}
+
+/// Check that `dir` (a `--vtk` or `--out` folder) is a folder or can be made one, and create it.
+pub fn prepare_folder(flag: &str, dir: &Path) -> Result<()> {
+    if dir.exists() && !dir.is_dir() {
+        bail!("{}: {flag} names a file, not a folder", dir.display());
+    }
+    std::fs::create_dir_all(dir)
+        .map_err(|e| anyhow::anyhow!("{}: {flag}: cannot create the folder: {e}", dir.display()))?;
+    // A folder we cannot write to fails now, not after the work.
+    tempfile::tempfile_in(dir).map_err(|e| {
+        anyhow::anyhow!(
+            "{}: {flag}: cannot write in this folder: {e}",
+            dir.display()
+        )
+    })?;
+    Ok(())
+}

@@ -1,0 +1,355 @@
+//! Nothing lost: an output never replaces an input, a bad output target fails before any work,
+//! standard output closing early is a normal end, and flags are checked before any file is read.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+
+fn cgcontact(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_cgcontact"))
+        .args(args)
+        .output()
+        .expect("the binary runs")
+}
+
+/// A folder with a small scene: `mesh.vtu`, `points.csv`.
+fn scene() -> (tempfile::TempDir, PathBuf, PathBuf) {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().to_str().unwrap().to_owned();
+    let made = cgcontact(&[
+        "scene", "block", "--cells", "3,3,2", "--known", "50", "--out", &out,
+    ]);
+    assert!(
+        made.status.success(),
+        "{}",
+        String::from_utf8_lossy(&made.stderr)
+    );
+    let (mesh, points) = (dir.path().join("mesh.vtu"), dir.path().join("points.csv"));
+    (dir, mesh, points)
+}
+
+fn s(path: &Path) -> &str {
+    path.to_str().unwrap()
+}
+
+fn stderr(output: &Output) -> String {
+    String::from_utf8_lossy(&output.stderr).into_owned()
+}
+
+/// Exit code 2, one line naming `names`, and the files in `kept` byte for byte as before.
+fn refused(output: &Output, names: &[&str], kept: &[(&Path, &[u8])]) {
+    let message = stderr(output);
+    assert_eq!(output.status.code(), Some(2), "{message}");
+    assert_eq!(message.lines().count(), 1, "{message}");
+    for name in names {
+        assert!(message.contains(name), "{name} not in: {message}");
+    }
+    for (path, bytes) in kept {
+        assert_eq!(
+            &std::fs::read(path).unwrap()[..],
+            *bytes,
+            "{} changed",
+            path.display()
+        );
+    }
+}
+
+#[test]
+fn out_equal_to_the_points_is_refused_and_the_points_kept() {
+    let (_dir, mesh, points) = scene();
+    let before = std::fs::read(&points).unwrap();
+    let run = cgcontact(&[
+        "locate",
+        "--mesh",
+        s(&mesh),
+        "--points",
+        s(&points),
+        "--out",
+        s(&points),
+    ]);
+    refused(
+        &run,
+        &["--out", "--points", "points.csv"],
+        &[(&points, &before)],
+    );
+}
+
+#[cfg(unix)]
+#[test]
+fn out_through_a_symlink_or_a_hard_link_to_the_mesh_is_refused() {
+    let (dir, mesh, points) = scene();
+    let before = std::fs::read(&mesh).unwrap();
+    let link = dir.path().join("link.csv");
+    std::os::unix::fs::symlink(&mesh, &link).unwrap();
+    let run = cgcontact(&[
+        "locate",
+        "--mesh",
+        s(&mesh),
+        "--points",
+        s(&points),
+        "--out",
+        s(&link),
+    ]);
+    refused(
+        &run,
+        &["link.csv", "--mesh", "mesh.vtu"],
+        &[(&mesh, &before)],
+    );
+    let hard = dir.path().join("hard.csv");
+    std::fs::hard_link(&mesh, &hard).unwrap();
+    let run = cgcontact(&[
+        "locate",
+        "--mesh",
+        s(&mesh),
+        "--points",
+        s(&points),
+        "--out",
+        s(&hard),
+    ]);
+    refused(&run, &["hard.csv", "--mesh"], &[(&mesh, &before)]);
+}
+
+#[test]
+fn vtk_folder_holding_the_input_mesh_is_refused() {
+    let (dir, mesh, points) = scene();
+    let before = std::fs::read(&mesh).unwrap();
+    let run = cgcontact(&[
+        "locate",
+        "--mesh",
+        s(&mesh),
+        "--points",
+        s(&points),
+        "--vtk",
+        s(dir.path()),
+    ]);
+    refused(&run, &["--vtk", "--mesh", "mesh.vtu"], &[(&mesh, &before)]);
+}
+
+/// Before, the results were written and then `--vtk` failed: now nothing is written.
+#[test]
+fn vtk_naming_a_file_fails_before_the_results_are_written() {
+    let (dir, mesh, points) = scene();
+    let results = dir.path().join("results.csv");
+    std::fs::write(&results, "previous results\n").unwrap();
+    let not_a_folder = dir.path().join("a-file");
+    std::fs::write(&not_a_folder, "x").unwrap();
+    let run = cgcontact(&[
+        "locate",
+        "--mesh",
+        s(&mesh),
+        "--points",
+        s(&points),
+        "--out",
+        s(&results),
+        "--vtk",
+        s(&not_a_folder),
+    ]);
+    refused(
+        &run,
+        &["a-file", "not a folder"],
+        &[(&results, b"previous results\n")],
+    );
+}
+
+#[test]
+fn out_in_a_missing_folder_fails_before_the_mesh_is_read() {
+    let (dir, _mesh, points) = scene();
+    let missing = dir.path().join("no-such-folder").join("results.csv");
+    let run = cgcontact(&[
+        "locate",
+        "--mesh",
+        "/no/such/mesh.vtu",
+        "--points",
+        s(&points),
+        "--out",
+        s(&missing),
+    ]);
+    refused(&run, &["no-such-folder", "does not exist"], &[]);
+}
+
+#[test]
+fn settings_are_checked_before_any_file_is_read() {
+    let run = cgcontact(&[
+        "locate",
+        "--mesh",
+        "/no/such/mesh.vtu",
+        "--points",
+        "/no/such/points.csv",
+        "--threads",
+        "0",
+    ]);
+    refused(&run, &["--threads"], &[]);
+    let run = cgcontact(&[
+        "locate",
+        "--mesh",
+        "/no/such/mesh.vtu",
+        "--points",
+        "/no/such/points.csv",
+        "--tol=-1",
+    ]);
+    refused(&run, &["--tol"], &[]);
+}
+
+/// A full disk under the VTK writer is named as such (it read "Deserialization error"), and the
+/// results file is never left half written.
+#[cfg(target_os = "linux")]
+#[test]
+fn full_disk_is_reported_as_no_space_left() {
+    let (dir, mesh, points) = scene();
+    let vtk = dir.path().join("vtk");
+    std::fs::create_dir(&vtk).unwrap();
+    std::os::unix::fs::symlink("/dev/full", vtk.join("mesh.vtu")).unwrap();
+    let run = cgcontact(&[
+        "locate",
+        "--mesh",
+        s(&mesh),
+        "--points",
+        s(&points),
+        "--vtk",
+        s(&vtk),
+    ]);
+    refused(&run, &["mesh.vtu", "No space left on device"], &[]);
+    let full = dir.path().join("full.csv");
+    std::os::unix::fs::symlink("/dev/full", &full).unwrap();
+    let run = cgcontact(&[
+        "locate",
+        "--mesh",
+        s(&mesh),
+        "--points",
+        s(&points),
+        "--out",
+        s(&full),
+    ]);
+    refused(&run, &["full.csv", "No space left on device"], &[]);
+}
+
+/// `cgcontact ... --json | head -c 1`: the reader goes away, the tool ends quietly with success.
+#[test]
+fn closed_stdout_is_a_quiet_end() {
+    let (_dir, mesh, points) = scene();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_cgcontact"))
+        .args([
+            "locate",
+            "--mesh",
+            s(&mesh),
+            "--points",
+            s(&points),
+            "--json",
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Close the read end before the tool writes anything.
+    drop(child.stdout.take());
+    let output = child.wait_with_output().unwrap();
+    assert!(output.status.success(), "{}", stderr(&output));
+    assert!(stderr(&output).is_empty(), "{}", stderr(&output));
+}
+
+/// Standard output on a full device is an error with a message (it was "internal error").
+#[cfg(target_os = "linux")]
+#[test]
+fn full_stdout_is_an_error() {
+    let (_dir, mesh, points) = scene();
+    let output = Command::new(env!("CARGO_BIN_EXE_cgcontact"))
+        .args([
+            "locate",
+            "--mesh",
+            s(&mesh),
+            "--points",
+            s(&points),
+            "--json",
+        ])
+        .stdout(std::fs::File::create("/dev/full").unwrap())
+        .output()
+        .unwrap();
+    refused(
+        &output,
+        &["standard output", "No space left on device"],
+        &[],
+    );
+}
+
+/// `--threads 100000` started over 1,700 threads: now at most 4 per available core, with a warning.
+#[test]
+fn absurd_thread_counts_are_capped_with_a_warning() {
+    let (_dir, mesh, points) = scene();
+    let run = cgcontact(&[
+        "locate",
+        "--mesh",
+        s(&mesh),
+        "--points",
+        s(&points),
+        "--threads",
+        "100000",
+        "--json",
+    ]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    assert!(stderr(&run).contains("capped"), "{}", stderr(&run));
+    let summary: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    let cores = std::thread::available_parallelism().map_or(1, usize::from) as u64;
+    assert!(
+        summary["threads"].as_u64().unwrap() <= 4 * cores,
+        "{summary}"
+    );
+}
+
+#[test]
+fn loose_newton_tolerance_is_warned() {
+    let (_dir, mesh, points) = scene();
+    let run = cgcontact(&[
+        "locate",
+        "--mesh",
+        s(&mesh),
+        "--points",
+        s(&points),
+        "--tol",
+        "10",
+    ]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    assert!(
+        stderr(&run).contains("warning: --tol 10"),
+        "{}",
+        stderr(&run)
+    );
+    let quiet = cgcontact(&[
+        "locate",
+        "--mesh",
+        s(&mesh),
+        "--points",
+        s(&points),
+        "--tol",
+        "1e-8",
+    ]);
+    assert!(stderr(&quiet).is_empty(), "{}", stderr(&quiet));
+}
+
+/// A results file replaced by a run is replaced whole: no temporary file is left beside it.
+#[test]
+fn results_replace_the_old_file_whole() {
+    let (dir, mesh, points) = scene();
+    let results = dir.path().join("results.csv");
+    std::fs::write(&results, "previous results\n").unwrap();
+    let run = cgcontact(&[
+        "locate",
+        "--mesh",
+        s(&mesh),
+        "--points",
+        s(&points),
+        "--out",
+        s(&results),
+        "-q",
+    ]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    let rows = cgcontact_io::read_results(&results).unwrap();
+    assert_eq!(
+        rows.len(),
+        cgcontact_io::read_points(&points).unwrap().len()
+    );
+    let leftovers: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().ends_with(".partial"))
+        .collect();
+    assert!(leftovers.is_empty());
+}
