@@ -78,6 +78,11 @@ pub fn run(args: &LocateArgs) -> Result<()> {
     )?;
     let points = read_points(&args.points)?;
     let (answers, mut summary) = search(&mesh.body, &points, &args.search, &pool)?;
+    summary.displacement = mesh.has_displacement.then(|| {
+        args.displacement
+            .clone()
+            .unwrap_or_else(|| cgcontact_io::DEFAULT_DISPLACEMENT.to_owned())
+    });
     // Name inverted cells as the user knows them: by their index in the input mesh.
     for cell in &mut summary.inverted_cells {
         *cell = mesh

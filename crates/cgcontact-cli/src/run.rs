@@ -155,6 +155,9 @@ pub struct Summary {
     pub active_cells: usize,
     pub nodes: usize,
     pub max_displacement: [f64; 3],
+    /// Where the displacement came from: the point-data array read, `generated` for a built-in
+    /// scene, or null when the mesh file had none (the body is undeformed).
+    pub displacement: Option<String>,
     /// Cells whose det J ≤ 0 at a corner (inverted or degenerate): answers in or near them are not
     /// to be trusted. Input cell indices where the caller knows them, else lattice cell ids.
     pub inverted_cells: Vec<usize>,
@@ -182,12 +185,18 @@ impl Summary {
                     String::new()
                 }
             )?;
+            let displacement = match &self.displacement {
+                Some(name) => format!(
+                    "max displacement {:.4e} ({name})",
+                    DVec3::from_array(self.max_displacement).max_element()
+                ),
+                None => "no displacement array in the mesh: undeformed".to_owned(),
+            };
             say!(
-                "body: {} active of {} lattice cells, {} nodes, max displacement {:.4e}",
+                "body: {} active of {} lattice cells, {} nodes, {displacement}",
                 self.active_cells,
                 self.cells,
                 self.nodes,
-                DVec3::from_array(self.max_displacement).max_element()
             )?;
             say!(
                 "{} ({}, {} thread{}): setup {:.3} ms, query {:.3} ms, {:.3e} points/s, {:.3} inversions per point ({:.3} per located point)",
@@ -313,6 +322,7 @@ pub fn search(
         active_cells: body.active_count(),
         nodes: body.node_count(),
         max_displacement: body.max_displacement().to_array(),
+        displacement: Some("generated".to_owned()),
         inverted_cells: body
             .inverted_cells()
             .iter()

@@ -353,3 +353,47 @@ fn results_replace_the_old_file_whole() {
         .collect();
     assert!(leftovers.is_empty());
 }
+
+/// A legacy file cut just before `POINT_DATA` is a valid undeformed mesh: the summary says it has no
+/// displacement (text and `--json`), where it used to look like any other run.
+#[test]
+fn mesh_read_without_displacement_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().to_str().unwrap();
+    let made = cgcontact(&[
+        "scene", "block", "--cells", "3,3,2", "--known", "50", "--format", "vtk", "--out", out,
+    ]);
+    assert!(made.status.success(), "{}", stderr(&made));
+    let text = std::fs::read_to_string(dir.path().join("mesh.vtk")).unwrap();
+    let cut = &text[..text
+        .find("POINT_DATA")
+        .expect("the scene has a displacement")];
+    let mesh = dir.path().join("cut.vtk");
+    std::fs::write(&mesh, cut).unwrap();
+    let points = dir.path().join("points.csv");
+    let run = cgcontact(&[
+        "locate",
+        "--mesh",
+        s(&mesh),
+        "--points",
+        s(&points),
+        "--json",
+    ]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    let summary: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    assert!(summary["displacement"].is_null(), "{summary}");
+    let run = cgcontact(&["locate", "--mesh", s(&mesh), "--points", s(&points)]);
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(stdout.contains("no displacement array"), "{stdout}");
+    let whole = dir.path().join("mesh.vtk");
+    let run = cgcontact(&[
+        "locate",
+        "--mesh",
+        s(&whole),
+        "--points",
+        s(&points),
+        "--json",
+    ]);
+    let summary: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    assert_eq!(summary["displacement"], "displacement", "{summary}");
+}

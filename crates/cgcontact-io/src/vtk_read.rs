@@ -68,7 +68,49 @@ fn parse_hex_mesh_impl(
     displacement: &DisplacementArray,
 ) -> Result<HexMesh, ErrorKind> {
     let vtk = parse_vtk(bytes)?;
-    hex_mesh_from_vtk(vtk, source, displacement)
+    let declared = is_xml(bytes).then(|| declared_point_arrays(bytes));
+    hex_mesh_from_vtk(vtk, source, displacement, declared.as_deref())
+}
+
+/// Whether the bytes are an XML file (legacy ones start with `# vtk`).
+fn is_xml(bytes: &[u8]) -> bool {
+    let start = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
+    start.iter().find(|b| !b.is_ascii_whitespace()) == Some(&b'<')
+}
+
+/// The names of the point-data arrays each `<Piece>` of an XML file declares, read from the text.
+///
+/// vtkio 0.7.0-rc2 drops a data array whose content fails to decode (a tuple short or long, bad
+/// base64, a zlib block of the wrong size, a payload that is not zlib) instead of reporting it:
+/// `read_mesh` would then solve the mesh as undeformed. Comparing what the file declares with what
+/// vtkio returns turns that into an error. (The fix upstream: `Attribute` decoding in
+/// `vtkio::xml` should return its error rather than skip the array.)
+fn declared_point_arrays(xml: &[u8]) -> Vec<Vec<String>> {
+    use crate::raw_appended::{attribute, find};
+    // Raw appended bytes could contain anything: the pieces all come before them.
+    let end = find(xml, b"<AppendedData", 0).unwrap_or(xml.len());
+    let xml = &xml[..end];
+    let mut pieces = Vec::new();
+    let mut at = 0;
+    while let Some(start) = find(xml, b"<Piece", at) {
+        let piece_end = find(xml, b"</Piece", start).unwrap_or(xml.len());
+        let piece = &xml[start..piece_end];
+        let mut names = Vec::new();
+        if let Some(data) = find(piece, b"<PointData", 0) {
+            let data_end = find(piece, b"</PointData", data).unwrap_or(piece.len());
+            let mut tag_at = data;
+            while let Some(tag) = find(&piece[..data_end], b"<DataArray", tag_at) {
+                let close = find(piece, b">", tag).unwrap_or(piece.len());
+                if let Some(name) = attribute(&piece[tag..close], b"Name") {
+                    names.push(String::from_utf8_lossy(&name).into_owned());
+                }
+                tag_at = close;
+            }
+        }
+        pieces.push(names);
+        at = piece_end.max(start + 1);
+    }
+    pieces
 }
 
 /// Run a vtkio call, turning a panic into an error.
@@ -172,6 +214,7 @@ fn hex_mesh_from_vtk(
     vtk: Vtk,
     source: Option<&Path>,
     displacement: &DisplacementArray,
+    declared: Option<&[Vec<String>]>,
 ) -> Result<HexMesh, ErrorKind> {
     let pieces = match vtk.data {
         DataSet::UnstructuredGrid { pieces, .. } => pieces,
@@ -198,7 +241,7 @@ fn hex_mesh_from_vtk(
     };
     let mut found_any = false;
     let mut available = Vec::new();
-    for piece in pieces {
+    for (index, piece) in pieces.into_iter().enumerate() {
         let piece = guarded("piece", || {
             piece
                 .into_loaded_piece_data(source)
@@ -221,7 +264,26 @@ fn hex_mesh_from_vtk(
                     found_any = true;
                     u.extend(values);
                 }
-                None => u.extend(std::iter::repeat_n(DVec3::ZERO, points.len())),
+                None => {
+                    let wanted = match displacement {
+                        DisplacementArray::Named(name) => name.as_str(),
+                        _ => DEFAULT_DISPLACEMENT,
+                    };
+                    let in_file = declared
+                        .and_then(|d| d.get(index))
+                        .is_some_and(|names| names.iter().any(|n| n == wanted));
+                    if in_file {
+                        return Err(ErrorKind::BadDisplacement {
+                            name: wanted.to_owned(),
+                            message: format!(
+                                "piece {index} declares it, but its data cannot be decoded (a length \
+                                 that does not match the node count, corrupt base64 or compressed \
+                                 data, or an empty appended block)"
+                            ),
+                        });
+                    }
+                    u.extend(std::iter::repeat_n(DVec3::ZERO, points.len()));
+                }
             }
         }
     }
@@ -243,6 +305,23 @@ fn hex_mesh_from_vtk(
     mesh.displacement = if found_any { u } else { None };
     if mesh.cells.is_empty() {
         return Err(ErrorKind::NoCells);
+    }
+    // One rule for every format: a NaN or infinity anywhere in the nodes or the displacement is an
+    // error, used node or not (a legacy ASCII parser cannot read `nan` at all; a binary or XML file
+    // could carry one anywhere).
+    if let Some(node) = mesh.points.iter().position(|p| !p.is_finite()) {
+        return Err(ErrorKind::NonFiniteNode {
+            node,
+            position: mesh.points[node].to_array(),
+        });
+    }
+    if let Some(u) = &mesh.displacement
+        && let Some(node) = u.iter().position(|v| !v.is_finite())
+    {
+        return Err(ErrorKind::NonFiniteDisplacement {
+            node,
+            value: u[node].to_array(),
+        });
     }
     Ok(mesh)
 }
@@ -451,6 +530,5 @@ fn piece_displacement(
         .chunks_exact(3)
         .map(|c| DVec3::new(c[0], c[1], c[2]))
         .collect();
-    // Non-finite values only matter at nodes some cell uses; `HexMesh::to_lattice` checks those.
     Ok(Some(u))
 }

@@ -1,0 +1,203 @@
+//! A displacement array that is in the file but cannot be decoded is an error naming it. vtkio
+//! drops such an array silently, and the mesh was then solved as undeformed with exit code 0.
+
+mod common;
+
+use cgcontact::glam::DVec3;
+use cgcontact_io::{DisplacementArray, HexMesh, MeshFormat, parse_hex_mesh, write_mesh};
+
+fn mesh() -> HexMesh {
+    let body = common::body_with_holes(DVec3::new(1.0, -2.0, 0.5), DVec3::splat(0.5), [3, 2, 2], 5);
+    let mut mesh = HexMesh::from_body(&body);
+    // Displacements that are not all zero, so that dropping them would change every answer.
+    mesh.displacement = Some(
+        mesh.points
+            .iter()
+            .map(|p| DVec3::new(0.01 * p.y, -0.02 * p.x, 0.005))
+            .collect(),
+    );
+    mesh
+}
+
+/// Both ways of asking for the array refuse the file, naming the array.
+fn refused(bytes: &[u8], case: &str) {
+    for which in [
+        DisplacementArray::Default,
+        DisplacementArray::Named("displacement".to_owned()),
+    ] {
+        match parse_hex_mesh(bytes, &which) {
+            Ok(mesh) => panic!(
+                "{case}: read, displacement {}",
+                if mesh.displacement.is_some() {
+                    "present"
+                } else {
+                    "dropped"
+                }
+            ),
+            Err(error) => {
+                let message = error.to_string();
+                assert!(message.contains("displacement"), "{case}: {message}");
+                assert!(!message.contains("found: none"), "{case}: {message}");
+            }
+        }
+    }
+}
+
+/// The byte range of the displacement DataArray's text content.
+fn displacement_content(text: &str) -> std::ops::Range<usize> {
+    let tag = text.find("Name=\"displacement\"").unwrap();
+    let start = tag + text[tag..].find('>').unwrap() + 1;
+    let end = start + text[start..].find("</DataArray>").unwrap();
+    start..end
+}
+
+#[test]
+fn the_intact_files_read_with_their_displacement() {
+    let mesh = mesh();
+    let ascii = common::vtu_ascii(&mesh);
+    let read = parse_hex_mesh(ascii.as_bytes(), &DisplacementArray::Default).unwrap();
+    assert_eq!(read.displacement, mesh.displacement);
+    for compressed in [false, true] {
+        let raw = common::vtu_raw_appended(&mesh, compressed, true, 4096);
+        let read = parse_hex_mesh(&raw, &DisplacementArray::Default).unwrap();
+        assert_eq!(read.displacement, mesh.displacement);
+    }
+}
+
+#[test]
+fn ascii_array_one_tuple_short_or_long() {
+    let text = common::vtu_ascii(&mesh());
+    let range = displacement_content(&text);
+    let values: Vec<&str> = text[range.clone()].split_whitespace().collect();
+    let short = values[..values.len() - 3].join(" ");
+    let long = format!("{} 0 0 0", values.join(" "));
+    for (case, content) in [("one tuple short", short), ("one tuple long", long)] {
+        let corrupt = format!("{}{content}{}", &text[..range.start], &text[range.end..]);
+        refused(corrupt.as_bytes(), case);
+    }
+}
+
+#[test]
+fn base64_array_with_garbage_or_an_extra_pad() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("m.vtu");
+    let body = common::body_with_holes(DVec3::ZERO, DVec3::splat(0.5), [3, 2, 2], 9);
+    let mut body = body;
+    body.update_displacements(|_, x, u| *u = DVec3::new(0.01 * x.y, 0.0, -0.01 * x.x))
+        .unwrap();
+    write_mesh(&path, &body, MeshFormat::Xml).unwrap();
+    let text = std::fs::read_to_string(&path).unwrap();
+    let range = displacement_content(&text);
+    let content = &text[range.clone()];
+    let middle = content.len() / 2;
+    for (case, corrupt) in [
+        (
+            "garbage",
+            format!("{}!!*~{}", &content[..middle], &content[middle..]),
+        ),
+        ("an extra =", format!("{}=", content.trim_end())),
+        ("one tuple short", content[..content.len() - 32].to_owned()),
+    ] {
+        let file = format!("{}{corrupt}{}", &text[..range.start], &text[range.end..]);
+        refused(file.as_bytes(), case);
+    }
+}
+
+/// The displacement is the first array of the appended block: its header starts right after `_`.
+fn appended_start(bytes: &[u8]) -> usize {
+    let tag = bytes
+        .windows(13)
+        .position(|w| w == b"<AppendedData")
+        .unwrap();
+    tag + bytes[tag..].iter().position(|&b| b == b'_').unwrap() + 1
+}
+
+#[test]
+fn raw_appended_array_of_size_zero() {
+    let mut bytes = common::vtu_raw_appended(&mesh(), false, true, 64);
+    let at = appended_start(&bytes);
+    bytes[at..at + 8].copy_from_slice(&0u64.to_le_bytes());
+    refused(&bytes, "size 0");
+}
+
+/// Never a silently different displacement: an error naming the array, or (where the size error
+/// is harmless: the last block's stream ends where it should) the right values.
+#[test]
+fn zlib_block_size_off_by_8_or_16() {
+    let mesh = mesh();
+    let original = common::vtu_raw_appended(&mesh, true, true, 100);
+    let at = appended_start(&original);
+    let blocks = u64::from_le_bytes(original[at..at + 8].try_into().unwrap()) as usize;
+    assert!(blocks > 2, "{blocks} blocks");
+    let mut refused_any = false;
+    for block in 0..blocks {
+        // Header: blocks, block size, last block size, then each block's compressed size.
+        let field = at + 24 + 8 * block;
+        let size = u64::from_le_bytes(original[field..field + 8].try_into().unwrap());
+        for delta in [8, 16] {
+            for sized in [size + delta, size - delta] {
+                let mut bytes = original.clone();
+                bytes[field..field + 8].copy_from_slice(&sized.to_le_bytes());
+                let case = format!("block {block}: compressed size {size} -> {sized}");
+                match parse_hex_mesh(&bytes, &DisplacementArray::Default) {
+                    Ok(read) => assert_eq!(read.displacement, mesh.displacement, "{case}"),
+                    Err(error) => {
+                        refused_any = true;
+                        let message = error.to_string();
+                        assert!(!message.contains("found: none"), "{case}: {message}");
+                    }
+                }
+            }
+        }
+    }
+    assert!(refused_any);
+}
+
+#[test]
+fn payload_that_is_not_zlib() {
+    let mut bytes = common::vtu_raw_appended(&mesh(), true, true, 4096);
+    let at = appended_start(&bytes);
+    let blocks = u64::from_le_bytes(bytes[at..at + 8].try_into().unwrap()) as usize;
+    let data = at + 24 + 8 * blocks;
+    for b in &mut bytes[data..data + 6] {
+        *b = 0x55;
+    }
+    refused(&bytes, "not zlib");
+}
+
+/// One rule for every format: a NaN at a node no cell uses was refused in legacy files and
+/// accepted in XML; now it is refused in both, naming the node.
+#[test]
+fn nan_at_an_unused_node_is_refused_in_every_format() {
+    for (what, at_point) in [("coordinate", true), ("displacement", false)] {
+        let mut mesh = mesh();
+        let unused = mesh.points.len();
+        mesh.points
+            .push(DVec3::new(0.25, if at_point { f64::NAN } else { 0.0 }, 9.0));
+        let u = mesh.displacement.as_mut().unwrap();
+        u.push(DVec3::new(if at_point { 0.0 } else { f64::NAN }, 0.0, 0.0));
+        let files: Vec<(&str, Vec<u8>)> = vec![
+            (
+                "legacy ascii",
+                common::legacy_ascii(&mesh, common::LegacyData::Vectors, false).into_bytes(),
+            ),
+            ("vtu ascii", common::vtu_ascii(&mesh).into_bytes()),
+            (
+                "vtu raw appended",
+                common::vtu_raw_appended(&mesh, false, true, 4096),
+            ),
+        ];
+        for (format, bytes) in files {
+            let error = parse_hex_mesh(&bytes, &DisplacementArray::Default).expect_err(&format!(
+                "{format}: NaN {what} at unused node {unused} accepted"
+            ));
+            let message = error.to_string();
+            if format != "legacy ascii" {
+                assert!(
+                    message.contains(&format!("{unused}")),
+                    "{format}: {message}"
+                );
+            }
+        }
+    }
+}
