@@ -28,24 +28,30 @@ pub const RESULTS_HEADER: [&str; 8] = [
 /// number, or a row without exactly 3 fields, is an error naming its 1-based line. A file without
 /// data rows is an error.
 pub fn read_points(path: impl AsRef<Path>) -> Result<Vec<DVec3>, IoError> {
-    read_with(path.as_ref(), parse_points)
+    read_with(path.as_ref(), points_from_bytes)
 }
 
-/// Open `path` and parse it with `parse`, naming the file in any error.
+/// Read `path` (within the input size limit, refused at once if binary) and parse it with `parse`,
+/// naming the file in any error.
 fn read_with<T>(
     path: &Path,
-    parse: impl FnOnce(std::fs::File) -> Result<T, ErrorKind>,
+    parse: impl FnOnce(&[u8]) -> Result<T, ErrorKind>,
 ) -> Result<T, IoError> {
-    let file = std::fs::File::open(path).map_err(|e| ErrorKind::Io(e).in_file(path))?;
-    parse(file).map_err(|e| e.in_file(path))
+    let bytes = crate::input::read_input(path, crate::input::Expect::Text)?;
+    parse(&bytes).map_err(|e| e.in_file(path))
 }
 
 /// [`read_points`] from any reader.
 pub fn parse_points(mut reader: impl Read) -> Result<Vec<DVec3>, ErrorKind> {
     let mut bytes = Vec::new();
     reader.read_to_end(&mut bytes)?;
-    let mut lines = LineCounter::new(&bytes);
-    let mut csv = csv_reader(bytes.as_slice());
+    points_from_bytes(&bytes)
+}
+
+/// [`parse_points`] on the bytes of a whole file.
+fn points_from_bytes(bytes: &[u8]) -> Result<Vec<DVec3>, ErrorKind> {
+    let mut lines = LineCounter::new(bytes);
+    let mut csv = csv_reader(bytes);
     let mut points = Vec::new();
     let mut record = csv::StringRecord::new();
     let mut first = true;
@@ -57,7 +63,7 @@ pub fn parse_points(mut reader: impl Read) -> Result<Vec<DVec3>, ErrorKind> {
                 if record.len() != 3 {
                     return Err(ErrorKind::Csv {
                         line,
-                        message: format!("header with {} fields, expected 3 (x,y,z)", record.len()),
+                        message: wrong_field_count(&record, "header"),
                     });
                 }
                 continue;
@@ -66,14 +72,18 @@ pub fn parse_points(mut reader: impl Read) -> Result<Vec<DVec3>, ErrorKind> {
         if record.len() != 3 {
             return Err(ErrorKind::Csv {
                 line,
-                message: format!("{} fields, expected 3 (x,y,z)", record.len()),
+                message: wrong_field_count(&record, "row"),
             });
         }
         let mut xyz = [0.0; 3];
         for (axis, text) in record.iter().enumerate() {
             xyz[axis] = text.parse().map_err(|_| ErrorKind::Csv {
                 line,
-                message: format!("field {} (`{text}`) is not a number", axis + 1),
+                message: format!(
+                    "field {} ({}) is not a number",
+                    axis + 1,
+                    crate::excerpt(text.as_bytes(), 32)
+                ),
             })?;
         }
         points.push(DVec3::from_array(xyz));
@@ -149,15 +159,20 @@ pub fn write_results_to(
 
 /// Read a results file (header first; the columns after `zeta` are optional).
 pub fn read_results(path: impl AsRef<Path>) -> Result<Vec<ResultRow>, IoError> {
-    read_with(path.as_ref(), parse_results)
+    read_with(path.as_ref(), results_from_bytes)
 }
 
 /// [`read_results`] from any reader.
 pub fn parse_results(mut reader: impl Read) -> Result<Vec<ResultRow>, ErrorKind> {
     let mut bytes = Vec::new();
     reader.read_to_end(&mut bytes)?;
-    let mut lines = LineCounter::new(&bytes);
-    let mut csv = csv_reader(bytes.as_slice());
+    results_from_bytes(&bytes)
+}
+
+/// [`parse_results`] on the bytes of a whole file.
+fn results_from_bytes(bytes: &[u8]) -> Result<Vec<ResultRow>, ErrorKind> {
+    let mut lines = LineCounter::new(bytes);
+    let mut csv = csv_reader(bytes);
     let mut record = csv::StringRecord::new();
     let header_line = next_record(&mut csv, &mut record, &mut lines)?.ok_or(ErrorKind::Empty)?;
     let names: Vec<String> = record.iter().map(str::to_owned).collect();
@@ -165,8 +180,8 @@ pub fn parse_results(mut reader: impl Read) -> Result<Vec<ResultRow>, ErrorKind>
         return Err(ErrorKind::Csv {
             line: header_line,
             message: format!(
-                "header `{}` does not start with point,cell,xi,eta,zeta",
-                names.join(",")
+                "header {} does not start with point,cell,xi,eta,zeta",
+                crate::excerpt(names.join(",").as_bytes(), 60)
             ),
         });
     }
@@ -187,7 +202,11 @@ pub fn parse_results(mut reader: impl Read) -> Result<Vec<ResultRow>, ErrorKind>
         let field = |i: usize| record.get(i).unwrap_or("");
         let bad = |i: usize| ErrorKind::Csv {
             line,
-            message: format!("{} `{}` is not valid", names[i], field(i)),
+            message: format!(
+                "{} {} is not valid",
+                names[i],
+                crate::excerpt(field(i).as_bytes(), 32)
+            ),
         };
         let point = field(0).parse::<usize>().map_err(|_| bad(0))?;
         let cell = match field(1).parse::<i64>().map_err(|_| bad(1))? {
@@ -301,10 +320,32 @@ fn next_record(
     record: &mut csv::StringRecord,
     lines: &mut LineCounter<'_>,
 ) -> Result<Option<u64>, ErrorKind> {
-    match csv.read_record(record) {
-        Ok(true) => Ok(Some(lines.line_at(record))),
-        Ok(false) => Ok(None),
-        Err(e) => Err(csv_error(&e, lines)),
+    loop {
+        match csv.read_record(record) {
+            // A line of spaces only is a blank line (docs/formats.md): skipped like an empty one.
+            Ok(true) if record.len() == 1 && record[0].is_empty() => {}
+            Ok(true) => return Ok(Some(lines.line_at(record))),
+            Ok(false) => return Ok(None),
+            Err(e) => return Err(csv_error(&e, lines)),
+        }
+    }
+}
+
+/// Why a points row or header does not have the 3 fields x,y,z, in words: another separator is
+/// named (`1;2;3` is one field for a comma-separated reader).
+fn wrong_field_count(record: &csv::StringRecord, what: &str) -> String {
+    let separator = [';', '\t', '|']
+        .into_iter()
+        .find(|&c| record.len() < 3 && record.iter().any(|f| f.contains(c)));
+    match separator {
+        Some(c) => format!(
+            "{what} separated by {}, expected commas (x,y,z)",
+            match c {
+                '\t' => "tabs".to_owned(),
+                c => format!("`{c}`"),
+            }
+        ),
+        None => format!("{what} with {} fields, expected 3 (x,y,z)", record.len()),
     }
 }
 

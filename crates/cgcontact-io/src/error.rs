@@ -215,6 +215,25 @@ pub enum ErrorKind {
     /// The core library refused the lattice or body built from the file.
     #[error(transparent)]
     Core(#[from] cgcontact::Error),
+    /// A node of some cell lies outside the extent of the lattice detected from the nodes.
+    #[error(
+        "node {node} at {position:?} lies outside the lattice (origin {origin:?}, spacing {h:?}, \
+         {nodes:?} nodes per axis): it would be lattice node {index:?}"
+    )]
+    OutsideLattice {
+        /// Input node index.
+        node: usize,
+        /// Its coordinates.
+        position: [f64; 3],
+        /// Detected lattice origin.
+        origin: [f64; 3],
+        /// Detected lattice spacing.
+        h: [f64; 3],
+        /// Lattice nodes per axis.
+        nodes: [u32; 3],
+        /// The lattice index it rounds to, per axis (out of range on some axis).
+        index: [f64; 3],
+    },
 }
 
 impl ErrorKind {

@@ -49,6 +49,7 @@ mod atomic;
 mod block_headers;
 mod csv_io;
 mod error;
+mod input;
 mod mesh;
 mod raw_appended;
 mod vtk_read;
@@ -60,8 +61,29 @@ pub use csv_io::{
     write_points, write_results, write_results_to,
 };
 pub use error::{ErrorKind, IoError};
+pub use input::{DEFAULT_MAX_INPUT_BYTES, MAX_INPUT_BYTES_VAR, max_input_bytes};
 pub use mesh::{CellMap, HexMesh, LATTICE_TOLERANCE, LatticeMesh};
 pub use vtk_read::{
     DEFAULT_DISPLACEMENT, DisplacementArray, parse_hex_mesh, read_hex_mesh, read_mesh,
 };
 pub use vtk_write::{MeshFormat, write_deformed_vtu, write_mesh, write_points_vtu};
+
+/// A piece of an input for an error message: at most `max_chars` characters, control characters
+/// and undecodable bytes escaped, in backticks, so that a binary file never reaches the terminal.
+pub(crate) fn excerpt(bytes: &[u8], max_chars: usize) -> String {
+    let text = String::from_utf8_lossy(bytes);
+    let mut out = String::from("`");
+    for (i, c) in text.chars().enumerate() {
+        if i == max_chars {
+            out.push('…');
+            break;
+        }
+        if c.is_control() || c == char::REPLACEMENT_CHARACTER {
+            out.extend(c.escape_default());
+        } else {
+            out.push(c);
+        }
+    }
+    out.push('`');
+    out
+}

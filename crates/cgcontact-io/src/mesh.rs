@@ -315,7 +315,17 @@ impl HexMesh {
             let i = t.round();
             let off = p - (origin + i * h);
             let inside = (0..3).all(|a| i[a] >= 0.0 && i[a] < f64::from(nodes[a]));
-            if !inside || off.abs().cmpgt(tol).any() {
+            if !inside {
+                return Err(ErrorKind::OutsideLattice {
+                    node: n,
+                    position: p.to_array(),
+                    origin: origin.to_array(),
+                    h: h.to_array(),
+                    nodes,
+                    index: i.to_array(),
+                });
+            }
+            if off.abs().cmpgt(tol).any() {
                 return Err(ErrorKind::OffLattice {
                     node: n,
                     position: p.to_array(),

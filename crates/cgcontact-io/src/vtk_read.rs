@@ -50,7 +50,7 @@ pub fn read_hex_mesh(
     displacement: &DisplacementArray,
 ) -> Result<HexMesh, IoError> {
     let path = path.as_ref();
-    let bytes = std::fs::read(path).map_err(|e| ErrorKind::Io(e).in_file(path))?;
+    let bytes = crate::input::read_input(path, crate::input::Expect::Vtk)?;
     parse_hex_mesh_impl(&bytes, Some(path), displacement).map_err(|e| e.in_file(path))
 }
 
@@ -179,11 +179,11 @@ fn parse_legacy_whole(bytes: &[u8]) -> Result<Vtk, ErrorKind> {
     let at_line = |rest: &[u8]| {
         let at = bytes.len() - rest.len();
         let line = 1 + bytes[..at].iter().filter(|&&b| b == b'\n').count();
-        let excerpt: String = String::from_utf8_lossy(&rest[..rest.len().min(40)])
-            .chars()
-            .take_while(|c| *c != '\n' && *c != '\r')
-            .collect();
-        (line, excerpt)
+        let end = rest
+            .iter()
+            .position(|&b| b == b'\n' || b == b'\r')
+            .unwrap_or(rest.len());
+        (line, crate::excerpt(&rest[..end], 40))
     };
     match vtkio::parser::parse_be(bytes) {
         Ok((rest, vtk)) => match rest.iter().position(|b| !b.is_ascii_whitespace()) {
@@ -191,22 +191,95 @@ fn parse_legacy_whole(bytes: &[u8]) -> Result<Vtk, ErrorKind> {
             Some(i) => {
                 let (line, excerpt) = at_line(&rest[i..]);
                 Err(ErrorKind::Vtk(format!(
-                    "legacy VTK: line {line}: unexpected `{excerpt}` after the last complete section (truncated or \
+                    "legacy VTK: line {line}: unexpected {excerpt} after the last complete section (truncated or \
                      malformed section?)"
                 )))
             }
         },
+        // The parser backtracks to the start of the section (or of the file) it could not
+        // finish: a count of each ASCII section's values says which one is short.
+        Err(_) if short_section(bytes).is_some() => Err(ErrorKind::Vtk(format!(
+            "legacy VTK: {}",
+            short_section(bytes).unwrap_or_default()
+        ))),
         Err(nom::Err::Incomplete(_)) => Err(ErrorKind::Vtk(
             "legacy VTK: the file ends before its data does (truncated?)".to_owned(),
         )),
         Err(nom::Err::Error(e) | nom::Err::Failure(e)) => {
             let (line, excerpt) = at_line(e.input);
             Err(ErrorKind::Vtk(format!(
-                "legacy VTK: line {line}: cannot parse `{excerpt}` (expected {:?}; truncated or malformed?)",
+                "legacy VTK: line {line}: cannot parse {excerpt} (expected {:?}; truncated or malformed?)",
                 e.code
             )))
         }
     }
+}
+
+/// In an ASCII legacy file, the first section holding fewer values than its header declares:
+/// `line N: the `POINTS 48 double` section holds 100 of its 144 values (...)`.
+fn short_section(bytes: &[u8]) -> Option<String> {
+    let text = std::str::from_utf8(bytes).ok()?;
+    let mut lines = text.lines();
+    // Version 5.x lists cells as OFFSETS and CONNECTIVITY under a CELLS line.
+    let v5 = lines.next()?.contains("Version 5");
+    // Line 3 says ASCII or BINARY; binary sections cannot be counted in tokens.
+    if !lines.nth(1)?.trim().eq_ignore_ascii_case("ascii") {
+        return None;
+    }
+    let mut cells = (0u64, 0u64);
+    let number = |t: &str| t.parse::<f64>().is_ok() || t.eq_ignore_ascii_case("nan");
+    // (header line, header, values expected, values found)
+    let mut current: Option<(usize, &str, u64, u64)> = None;
+    let mut points = 0u64;
+    let short = |(line, header, expected, found): (usize, &str, u64, u64)| {
+        (found < expected).then(|| {
+            format!(
+                "line {}: the `{}` section holds {found} of its {expected} values (the file is cut, or values are missing)",
+                line + 1,
+                header.trim()
+            )
+        })
+    };
+    for (index, line) in text.lines().enumerate().skip(4) {
+        let mut words = line.split_whitespace();
+        let Some(first) = words.next() else { continue };
+        if number(first) {
+            if let Some(section) = &mut current {
+                section.3 += line.split_whitespace().filter(|t| number(t)).count() as u64;
+            }
+            continue;
+        }
+        if let Some(section) = current.take()
+            && let Some(message) = short(section)
+        {
+            return Some(message);
+        }
+        let count = |w: Option<&str>| w.and_then(|n| n.parse::<u64>().ok());
+        let expected = match first.to_ascii_uppercase().as_str() {
+            "POINTS" => count(words.next()).map(|n| {
+                points = n;
+                3 * n
+            }),
+            "CELLS" => {
+                cells = (
+                    count(words.next()).unwrap_or(0),
+                    count(words.next()).unwrap_or(0),
+                );
+                (!v5).then_some(cells.1)
+            }
+            "OFFSETS" if v5 => Some(cells.0),
+            "CONNECTIVITY" if v5 => Some(cells.1),
+            "CELL_TYPES" => count(words.next()),
+            "VECTORS" | "NORMALS" => Some(3 * points),
+            // A FIELD array: `name components tuples type`.
+            _ => match (count(words.next()), count(words.next()), words.next()) {
+                (Some(c), Some(n), Some(_)) => Some(c * n),
+                _ => None,
+            },
+        };
+        current = expected.map(|n| (index, line, n, 0));
+    }
+    current.and_then(short)
 }
 
 /// Extract points, hexahedra and the displacement array from a parsed file.
