@@ -158,7 +158,11 @@ fn parse_vtk(bytes: &[u8]) -> Result<Vtk, ErrorKind> {
         // A corrupt compressed-block header would make vtkio's allocation abort the process.
         block_headers::check(xml)?;
         guarded("XML VTK", || {
-            Vtk::parse_xml(xml).map_err(vtk_error("XML VTK"))
+            Vtk::parse_xml(xml).map_err(|e| {
+                let message = format!("XML VTK: {e}");
+                let place = xml_place(xml, &message);
+                ErrorKind::Vtk(format!("{message}{place}"))
+            })
         })
     } else if start.is_empty() {
         Err(ErrorKind::Format("the file is empty".to_owned()))
@@ -167,6 +171,61 @@ fn parse_vtk(bytes: &[u8]) -> Result<Vtk, ErrorKind> {
             "neither a legacy VTK file (`# vtk DataFile ...`) nor an XML VTK file (`<VTKFile ...>`)".to_owned(),
         ))
     }
+}
+
+/// Where in an XML file vtkio's error `message` is: the line of the first syntax error, or the line
+/// of the data array a validation error names; empty when neither is found. vtkio's errors carry
+/// no position.
+fn xml_place(xml: &[u8], message: &str) -> String {
+    let line_of = |at: usize| {
+        1 + xml[..at.min(xml.len())]
+            .iter()
+            .filter(|&&b| b == b'\n')
+            .count()
+    };
+    use quick_xml::events::Event;
+    let mut reader = quick_xml::Reader::from_reader(xml);
+    // Open elements: name and where each starts.
+    let mut open: Vec<(Vec<u8>, usize)> = Vec::new();
+    loop {
+        let at = usize::try_from(reader.buffer_position()).unwrap_or(usize::MAX);
+        match reader.read_event() {
+            Ok(Event::Eof) => {
+                if let Some((name, start)) = open.last() {
+                    return format!(
+                        " (line {}, byte {start}: the file ends inside the <{}> element that starts there: truncated?)",
+                        line_of(*start),
+                        String::from_utf8_lossy(name)
+                    );
+                }
+                break;
+            }
+            Ok(Event::Start(tag)) => open.push((tag.name().as_ref().to_vec(), at)),
+            Ok(Event::End(_)) => {
+                open.pop();
+            }
+            Ok(_) => {}
+            Err(e) => {
+                let at = usize::try_from(reader.error_position()).unwrap_or(usize::MAX);
+                return format!(" (line {}, byte {at}: {e})", line_of(at));
+            }
+        }
+    }
+    // A validation error names an array: `name: "connectivity"`.
+    let name = message
+        .split("name: \"")
+        .nth(1)
+        .and_then(|rest| rest.split('"').next());
+    if let Some(name) = name {
+        let attribute = format!("Name=\"{name}\"");
+        if let Some(at) = crate::raw_appended::find(xml, attribute.as_bytes(), 0) {
+            return format!(
+                " (the data array `{name}` at line {}, byte {at})",
+                line_of(at)
+            );
+        }
+    }
+    String::new()
 }
 
 /// Parse a legacy file with vtkio's parser, refusing input left over after it, and saying on which

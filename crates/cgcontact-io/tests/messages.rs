@@ -145,3 +145,26 @@ fn node_outside_the_lattice_is_named_as_outside() {
     assert!(message.contains("outside the lattice"), "{message}");
     assert!(!message.contains("[0.0, 0.0, 0.0] spacings"), "{message}");
 }
+
+/// XML errors named no place: now the line and byte of the fault, or of the array at fault.
+#[test]
+fn xml_errors_name_the_line() {
+    let body = body_with_holes(DVec3::ZERO, DVec3::splat(0.5), [3, 2, 2], 3);
+    let text = common::vtu_ascii(&HexMesh::from_body(&body));
+    let truncated = &text[..text.len() / 2];
+    let message = parse_hex_mesh(truncated.as_bytes(), &DisplacementArray::Default)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        message.contains("line ") && message.contains("truncated"),
+        "{message}"
+    );
+    let mismatched = text.replacen("</Points>", "</Pointz>", 1);
+    let line = 1 + text[..text.find("</Points>").unwrap()]
+        .matches('\n')
+        .count();
+    let message = parse_hex_mesh(mismatched.as_bytes(), &DisplacementArray::Default)
+        .unwrap_err()
+        .to_string();
+    assert!(message.contains(&format!("line {line}")), "{message}");
+}
