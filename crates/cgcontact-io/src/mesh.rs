@@ -41,8 +41,17 @@ pub struct HexMesh {
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct CellMap {
     lattice_of_input: Vec<CellId>,
+    input_of_lattice: InputOfLattice,
+}
+
+/// Lattice cell → input cell: a table over the lattice's cells while it costs at most 64 entries
+/// per input cell, else the pairs sorted by lattice cell (memory grows with the input's cells).
+#[derive(Clone, Debug, PartialEq, Eq)]
+enum InputOfLattice {
     /// One entry per lattice cell: its input index, or `NO_CELL`.
-    input_of_lattice: Vec<u32>,
+    Table(Vec<u32>),
+    /// (lattice cell, input cell), ascending by lattice cell.
+    Sorted(Vec<(u32, u32)>),
 }
 
 impl CellMap {
@@ -51,24 +60,65 @@ impl CellMap {
     #[must_use]
     pub fn ascending(body: &Body) -> Self {
         let lattice_of_input: Vec<CellId> = body.active_cells().collect();
-        let mut input_of_lattice = vec![NO_CELL; body.lattice().cell_count()];
-        for (input, cell) in lattice_of_input.iter().enumerate() {
-            input_of_lattice[cell.index()] = input as u32;
-        }
-        Self {
+        Self::new(lattice_of_input, body.lattice().cell_count())
+            .expect("a body's active cells are distinct")
+    }
+
+    /// The map of input cells `lattice_of_input` on a lattice of `cell_count` cells; the input
+    /// index of a cell that appears twice, as `Err((first, second))`.
+    fn new(lattice_of_input: Vec<CellId>, cell_count: usize) -> Result<Self, (usize, usize)> {
+        let input_of_lattice = if cell_count <= 64 * lattice_of_input.len().max(1) {
+            let mut table = vec![NO_CELL; cell_count];
+            for (input, cell) in lattice_of_input.iter().enumerate() {
+                let slot = &mut table[cell.index()];
+                if *slot != NO_CELL {
+                    return Err((*slot as usize, input));
+                }
+                *slot = input as u32;
+            }
+            InputOfLattice::Table(table)
+        } else {
+            let mut pairs: Vec<(u32, u32)> = lattice_of_input
+                .iter()
+                .enumerate()
+                .map(|(input, cell)| (cell.0, input as u32))
+                .collect();
+            pairs.sort_unstable();
+            if let Some(w) = pairs.windows(2).find(|w| w[0].0 == w[1].0) {
+                return Err((w[0].1 as usize, w[1].1 as usize));
+            }
+            InputOfLattice::Sorted(pairs)
+        };
+        Ok(Self {
             lattice_of_input,
             input_of_lattice,
-        }
+        })
     }
 
     /// Input cell index of lattice cell `cell`, or `None` when the input has no such cell.
     #[inline]
     #[must_use]
     pub fn input_cell(&self, cell: CellId) -> Option<usize> {
-        match self.input_of_lattice.get(cell.index()) {
-            Some(&i) if i != NO_CELL => Some(i as usize),
-            _ => None,
+        match &self.input_of_lattice {
+            InputOfLattice::Table(table) => match table.get(cell.index()) {
+                Some(&i) if i != NO_CELL => Some(i as usize),
+                _ => None,
+            },
+            InputOfLattice::Sorted(pairs) => pairs
+                .binary_search_by_key(&cell.0, |&(c, _)| c)
+                .ok()
+                .map(|at| pairs[at].1 as usize),
         }
+    }
+
+    /// Bytes on the heap.
+    #[must_use]
+    pub fn heap_bytes(&self) -> usize {
+        self.lattice_of_input.capacity() * size_of::<CellId>()
+            + match &self.input_of_lattice {
+                InputOfLattice::Table(table) => table.capacity() * size_of::<u32>(),
+                InputOfLattice::Sorted(pairs) => pairs.capacity() * size_of::<(u32, u32)>(),
+            }
     }
 
     /// Lattice cell of input cell `input`, or `None` when out of range.
@@ -132,20 +182,27 @@ impl HexMesh {
     #[must_use]
     pub fn from_body(body: &Body) -> Self {
         let lattice = body.lattice();
-        let mut index = vec![u32::MAX; lattice.node_count()];
-        let mut points = Vec::with_capacity(body.node_count());
-        for (slot, node) in body.nodes().enumerate() {
-            index[node] = slot as u32;
-            let ijk = lattice
-                .node_ijk(node)
-                .expect("body nodes are lattice nodes");
-            points.push(lattice.node_position(ijk));
-        }
+        // The body's nodes, ascending: a node's index is its place here (no table over the lattice).
+        let nodes: Vec<usize> = body.nodes().collect();
+        let points = nodes
+            .iter()
+            .map(|&node| {
+                let ijk = lattice
+                    .node_ijk(node)
+                    .expect("body nodes are lattice nodes");
+                lattice.node_position(ijk)
+            })
+            .collect();
+        let index = |n: usize| {
+            nodes
+                .binary_search(&n)
+                .expect("corners of active cells are body nodes") as u32
+        };
         let cells = body
             .active_cells()
             .map(|cell| {
                 let ijk = lattice.cell_ijk(cell).expect("active cells are in range");
-                lattice.corner_nodes(ijk).map(|n| index[n])
+                lattice.corner_nodes(ijk).map(index)
             })
             .collect();
         Self {
@@ -179,14 +236,10 @@ impl HexMesh {
         let node_ijk = self.lattice_nodes(&lattice, &used)?;
         let cells = self.lattice_cells(&lattice, &node_ijk)?;
 
-        let mut active = BitVec::repeat(false, lattice.cell_count());
-        for cell in &cells.lattice_of_input {
-            active.set(cell.index(), true);
-        }
-        let mut body = Body::undeformed(lattice, active)?;
+        let mut body = Body::from_cells(lattice, cells.lattice_of_input.iter().copied())?;
         if let Some(u) = &self.displacement {
-            let dense = self.dense_displacements(&lattice, &used, &node_ijk, u)?;
-            body.update_displacements(|node, _, v| *v = dense[node])?;
+            let u = self.slot_displacements(&body, &used, &node_ijk, u)?;
+            body.set_displacements(&u)?;
         }
         Ok(LatticeMesh {
             body,
@@ -346,7 +399,6 @@ impl HexMesh {
         node_ijk: &[[u32; 3]],
     ) -> Result<CellMap, ErrorKind> {
         let counts = lattice.cells();
-        let mut input_of_lattice = vec![NO_CELL; lattice.cell_count()];
         let mut lattice_of_input = Vec::with_capacity(self.cells.len());
         if self.cells.len() >= NO_CELL as usize {
             return Err(ErrorKind::Topology(format!(
@@ -373,60 +425,60 @@ impl HexMesh {
             }
             // Corner 6 sits at base + 1 and is a lattice node, so base < counts on every axis.
             debug_assert!((0..3).all(|a| base[a] < counts[a]));
-            let id = lattice.cell_id(base);
-            let slot = &mut input_of_lattice[id.index()];
-            if *slot != NO_CELL {
-                return Err(ErrorKind::DuplicateCell {
-                    first: *slot as usize,
-                    second: c,
-                    ijk: base,
-                });
-            }
-            *slot = c as u32;
-            lattice_of_input.push(id);
+            lattice_of_input.push(lattice.cell_id(base));
         }
-        Ok(CellMap {
-            lattice_of_input,
-            input_of_lattice,
+        CellMap::new(lattice_of_input, lattice.cell_count()).map_err(|(first, second)| {
+            // Both are the cell whose lowest corner is this lattice node.
+            let ijk = node_ijk[self.cells[second][0] as usize];
+            ErrorKind::DuplicateCell { first, second, ijk }
         })
     }
 
-    /// One displacement per lattice node (zero where no used node sits), checking that coinciding
-    /// input nodes agree.
-    fn dense_displacements(
+    /// The displacements of `body`'s nodes in its slot order (ascending lattice node), from the
+    /// used input nodes, checking that coinciding input nodes agree. Memory grows with the used
+    /// nodes, not the lattice.
+    fn slot_displacements(
         &self,
-        lattice: &Lattice,
+        body: &Body,
         used: &BitVec,
         node_ijk: &[[u32; 3]],
         u: &[DVec3],
     ) -> Result<Vec<DVec3>, ErrorKind> {
-        let mut dense = vec![DVec3::ZERO; lattice.node_count()];
-        let mut source = vec![u32::MAX; lattice.node_count()];
+        let lattice = body.lattice();
         let tol = LATTICE_TOLERANCE * lattice.h().max_element();
-        for n in used.iter_ones() {
-            let value = u[n];
-            if !value.is_finite() {
+        // (lattice node, input node), sorted: copies of a lattice node come together.
+        let mut by_node: Vec<(usize, usize)> = used
+            .iter_ones()
+            .map(|n| (lattice.node_index(node_ijk[n]), n))
+            .collect();
+        by_node.sort_unstable();
+        for &(_, n) in &by_node {
+            if !u[n].is_finite() {
                 return Err(ErrorKind::NonFiniteDisplacement {
                     node: n,
-                    value: value.to_array(),
-                });
-            }
-            let node = lattice.node_index(node_ijk[n]);
-            if source[node] == u32::MAX {
-                source[node] = n as u32;
-                dense[node] = value;
-            } else if (dense[node] - value).abs().max_element()
-                > tol + ROUNDING_SLACK * value.abs().max_element()
-            {
-                return Err(ErrorKind::InconsistentDisplacement {
-                    first: source[node] as usize,
-                    second: n,
-                    first_u: dense[node].to_array(),
-                    second_u: value.to_array(),
+                    value: u[n].to_array(),
                 });
             }
         }
-        Ok(dense)
+        for w in by_node.windows(2) {
+            let ((node, first), (next, second)) = (w[0], w[1]);
+            let (a, b) = (u[first], u[second]);
+            if node == next
+                && (a - b).abs().max_element() > tol + ROUNDING_SLACK * b.abs().max_element()
+            {
+                return Err(ErrorKind::InconsistentDisplacement {
+                    first,
+                    second,
+                    first_u: a.to_array(),
+                    second_u: b.to_array(),
+                });
+            }
+        }
+        by_node.dedup_by_key(|&mut (node, _)| node);
+        // Every node of the body is a corner of an input cell, so a used input node: the lists
+        // match one to one.
+        debug_assert!(by_node.iter().map(|&(node, _)| node).eq(body.nodes()));
+        Ok(by_node.into_iter().map(|(_, n)| u[n]).collect())
     }
 }
 

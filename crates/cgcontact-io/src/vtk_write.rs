@@ -83,12 +83,6 @@ pub fn write_deformed_vtu(
 ) -> Result<(), IoError> {
     let path = path.as_ref();
     let lattice = *body.lattice();
-    let mut held = vec![0i32; lattice.cell_count()];
-    for hit in answers.iter().flatten().flatten() {
-        if let Some(h) = held.get_mut(hit.cell.index()) {
-            *h = h.saturating_add(1);
-        }
-    }
     let mut order: Vec<CellId> = cells.lattice_cells().to_vec();
     if include_inactive {
         order.extend(
@@ -97,20 +91,32 @@ pub fn write_deformed_vtu(
                 .filter(|&c| !body.is_active(c)),
         );
     }
-    // Nodes: the corners of the written cells, numbered in ascending lattice node order.
-    let mut index = vec![u32::MAX; lattice.node_count()];
-    for &cell in &order {
-        for n in corners(&lattice, cell) {
-            index[n] = 0;
+    // Points held, per written cell: in the order's own indexing (no table over the lattice).
+    let mut held = vec![0i32; order.len()];
+    let place = |cell: CellId| -> Option<usize> {
+        cells.input_cell(cell).or_else(|| {
+            include_inactive
+                .then(|| order[cells.len()..].binary_search(&cell).ok())
+                .flatten()
+                .map(|i| cells.len() + i)
+        })
+    };
+    for hit in answers.iter().flatten().flatten() {
+        if let Some(h) = place(hit.cell).and_then(|i| held.get_mut(i)) {
+            *h = h.saturating_add(1);
         }
     }
-    let mut points = Vec::new();
-    let mut u = Vec::new();
-    for (node, slot) in index.iter_mut().enumerate() {
-        if *slot == u32::MAX {
-            continue;
-        }
-        *slot = points.len() as u32;
+    // Nodes: the corners of the written cells, numbered in ascending lattice node order.
+    let mut nodes: Vec<usize> = order
+        .iter()
+        .flat_map(|&cell| corners(&lattice, cell))
+        .collect();
+    nodes.sort_unstable();
+    nodes.dedup();
+    let index = |n: usize| nodes.binary_search(&n).expect("a corner of a written cell") as u32;
+    let mut points = Vec::with_capacity(nodes.len());
+    let mut u = Vec::with_capacity(nodes.len());
+    for &node in &nodes {
         let ijk = lattice.node_ijk(node).expect("node of the lattice");
         let d = body.displacement(node).unwrap_or(DVec3::ZERO);
         points.push(lattice.node_position(ijk) + d);
@@ -118,14 +124,14 @@ pub fn write_deformed_vtu(
     }
     let connectivity: Vec<[u32; 8]> = order
         .iter()
-        .map(|&c| corners(&lattice, c).map(|n| index[n]))
+        .map(|&c| corners(&lattice, c).map(index))
         .collect();
     let input_cell: Vec<i64> = order
         .iter()
         .map(|&c| cells.input_cell(c).map_or(-1, |i| i as i64))
         .collect();
     let lattice_cell: Vec<i64> = order.iter().map(|&c| i64::from(c.0)).collect();
-    let points_held: Vec<i32> = order.iter().map(|&c| held[c.index()]).collect();
+    let points_held = held;
     let active: Vec<u8> = order.iter().map(|&c| u8::from(body.is_active(c))).collect();
     let piece = UnstructuredGridPiece {
         points: IOBuffer::F64(flatten(&points)),

@@ -1,31 +1,63 @@
 //! A deformed body: a lattice, its active cells, and one displacement per node of an active cell.
 //!
 //! Nothing else is stored: no coordinates (they come from the lattice), no connectivity (corners come
-//! from index arithmetic). Displacements live in one compact array, in ascending lattice node order,
-//! and a `u32` per lattice node maps it to its slot there. When every lattice node carries a
-//! displacement (a full block) the slot of node n is n: the table is not kept, the corner gather reads
-//! the displacements directly (one dependent memory access fewer per corner), and a node costs
-//! 24 bytes (28 with the table).
+//! from index arithmetic). Displacements live in one compact array, in ascending lattice node order.
+//! How a lattice node finds its slot there depends on how much of the lattice the body fills, so
+//! that memory grows with the active cells, never with the lattice alone:
+//!
+//! | body | node → slot | active cells |
+//! |---|---|---|
+//! | every cell active (a full block) | slot n is node n: no table, 24 bytes per node | all |
+//! | nodes fill ≥ 1/32 of the lattice | a `u32` per lattice node | a bit per lattice cell |
+//! | sparser | a hash map of its nodes (about 20 bytes per node) | a sorted list and a hash set |
 
 use bitvec::vec::BitVec;
 use glam::DVec3;
 
 use crate::Error;
 use crate::hex8;
+use crate::idmap::IdMap;
 use crate::lattice::{CORNER_OFFSETS, CellId, Lattice};
 
 /// Slot value of a lattice node that belongs to no active cell.
 const NO_SLOT: u32 = u32::MAX;
 
+/// A body uses a slot table while the lattice has at most this many nodes per active cell (the
+/// table then costs at most 128 bytes per active cell); sparser bodies use hash maps.
+const TABLE_NODES_PER_CELL: usize = 32;
+
+/// Where each lattice node's displacement lives.
+#[derive(Clone, Debug)]
+enum Slots {
+    /// Every lattice node carries one: node n's slot is n.
+    Dense,
+    /// One slot per lattice node, `NO_SLOT` where none: the body's `table`.
+    Table,
+    /// The nodes in slot order (ascending) and a map node → slot.
+    Sparse { nodes: Vec<u32>, map: IdMap },
+}
+
+/// Which lattice cells are active.
+#[derive(Clone, Debug)]
+enum Cells {
+    /// A bit per lattice cell.
+    Mask(BitVec),
+    /// The active cells ascending, and the set of them.
+    Sparse { cells: Vec<u32>, set: IdMap },
+}
+
 /// A body meshed on a cartesian lattice and deformed by nodal displacements.
 #[derive(Clone, Debug)]
 pub struct Body {
     lattice: Lattice,
-    active: BitVec,
+    cells: Cells,
     active_count: usize,
-    /// For each lattice node, its slot in `u`, or `NO_SLOT`; empty when every node has one, so that
-    /// node n's slot is n (see [`Body::dense`]).
-    slot: Vec<u32>,
+    /// Each lattice node's slot in `u` (see [`Slots`]).
+    slots: Slots,
+    /// `Slots::Dense`, read first by the corner gather (one flag, no match, on the hot path).
+    dense: bool,
+    /// The slot table of `Slots::Table` (empty otherwise), outside the enum for the same reason.
+    table: Vec<u32>,
     /// Displacement of each node of an active cell, in ascending lattice node order.
     u: Vec<DVec3>,
     /// Node index of each corner (VTK order) minus that of corner 0, for any cell.
@@ -44,36 +76,93 @@ impl Body {
                 got: active.len(),
             });
         }
-        let active_count = active.count_ones();
-        if active_count == 0 {
+        let cells: Vec<u32> = active.iter_ones().map(|c| c as u32).collect();
+        Self::build(lattice, cells, Some(active))
+    }
+
+    /// An undeformed body of the given active cells (any order, repeats ignored), in memory that
+    /// grows with the cells, not the lattice: a few cells on a huge lattice take kilobytes.
+    ///
+    /// Errors when a cell lies outside the lattice, or there is none.
+    pub fn from_cells(
+        lattice: Lattice,
+        cells: impl IntoIterator<Item = CellId>,
+    ) -> Result<Self, Error> {
+        let mut ids: Vec<u32> = cells.into_iter().map(|c| c.0).collect();
+        if let Some(&bad) = ids.iter().find(|&&c| c as usize >= lattice.cell_count()) {
+            return Err(Error::CellOutOfRange {
+                cell: CellId(bad),
+                cells: lattice.cell_count(),
+            });
+        }
+        ids.sort_unstable();
+        ids.dedup();
+        Self::build(lattice, ids, None)
+    }
+
+    /// The body of the active cells `ids` (ascending, distinct, in range), `mask` their bit mask
+    /// when the caller has one.
+    fn build(lattice: Lattice, ids: Vec<u32>, mask: Option<BitVec>) -> Result<Self, Error> {
+        if ids.is_empty() {
             return Err(Error::EmptyBody);
         }
-        let mut slot = vec![NO_SLOT; lattice.node_count()];
-        for cell in active.iter_ones() {
-            let ijk = lattice
-                .cell_ijk(CellId(cell as u32))
-                .expect("mask length equals the cell count");
-            for node in lattice.corner_nodes(ijk) {
-                slot[node] = 0;
-            }
-        }
-        let mut next = 0u32;
-        for s in slot.iter_mut().filter(|s| **s != NO_SLOT) {
-            *s = next;
-            next += 1;
-        }
-        let u = vec![DVec3::ZERO; next as usize];
+        let active_count = ids.len();
         let corner_offsets = lattice.corner_nodes([0, 0, 0]);
+        let corners = |id: u32| {
+            let ijk = lattice
+                .cell_ijk(CellId(id))
+                .expect("active cells lie in the lattice");
+            lattice.corner_nodes(ijk)
+        };
+        let mut slot_table = Vec::new();
+        let (slots, nodes) = if active_count == lattice.cell_count() {
+            (Slots::Dense, lattice.node_count())
+        } else if lattice.node_count() <= TABLE_NODES_PER_CELL * active_count {
+            let mut table = vec![NO_SLOT; lattice.node_count()];
+            for &id in &ids {
+                for node in corners(id) {
+                    table[node] = 0;
+                }
+            }
+            let mut next = 0u32;
+            for s in table.iter_mut().filter(|s| **s != NO_SLOT) {
+                *s = next;
+                next += 1;
+            }
+            slot_table = table;
+            (Slots::Table, next as usize)
+        } else {
+            let mut nodes: Vec<u32> = ids
+                .iter()
+                .flat_map(|&id| corners(id))
+                .map(|n| n as u32)
+                .collect();
+            nodes.sort_unstable();
+            nodes.dedup();
+            let map = IdMap::new(nodes.iter().enumerate().map(|(s, &n)| (n, s as u32)));
+            let count = nodes.len();
+            (Slots::Sparse { nodes, map }, count)
+        };
+        let cells = if lattice.cell_count() <= 64 * active_count {
+            Cells::Mask(mask.unwrap_or_else(|| {
+                let mut bits = BitVec::repeat(false, lattice.cell_count());
+                for &id in &ids {
+                    bits.set(id as usize, true);
+                }
+                bits
+            }))
+        } else {
+            let set = IdMap::new(ids.iter().map(|&id| (id, 0)));
+            Cells::Sparse { cells: ids, set }
+        };
         Ok(Self {
             lattice,
-            active,
+            cells,
             active_count,
-            slot: if u.len() == lattice.node_count() {
-                Vec::new()
-            } else {
-                slot
-            },
-            u,
+            dense: matches!(slots, Slots::Dense),
+            slots,
+            table: slot_table,
+            u: vec![DVec3::ZERO; nodes],
             corner_offsets,
         })
     }
@@ -115,26 +204,33 @@ impl Body {
         &self.lattice
     }
 
-    /// The active cell mask (one bit per lattice cell).
-    #[inline]
-    #[must_use]
-    pub fn active(&self) -> &BitVec {
-        &self.active
-    }
-
     /// Whether lattice cell `cell` is active (false when out of range).
     #[inline]
     #[must_use]
     pub fn is_active(&self, cell: CellId) -> bool {
-        // A word lookup: BitVec's proxy-reference `get` costs measurably on the hot path.
-        let i = cell.index();
-        let word = self
-            .active
-            .as_raw_slice()
-            .get(i / usize::BITS as usize)
-            .copied()
-            .unwrap_or(0);
-        i < self.active.len() && (word >> (i % usize::BITS as usize)) & 1 == 1
+        match &self.cells {
+            Cells::Mask(mask) => {
+                // A word lookup: BitVec's proxy-reference `get` costs measurably on the hot path.
+                let i = cell.index();
+                let word = mask
+                    .as_raw_slice()
+                    .get(i / usize::BITS as usize)
+                    .copied()
+                    .unwrap_or(0);
+                i < mask.len() && (word >> (i % usize::BITS as usize)) & 1 == 1
+            }
+            Cells::Sparse { .. } => self.is_active_sparse(cell),
+        }
+    }
+
+    /// [`Body::is_active`] on a sparse body: a hash lookup, out of line.
+    #[inline(never)]
+    fn is_active_sparse(&self, cell: CellId) -> bool {
+        match &self.cells {
+            // u32::MAX is the map's empty key, never a cell.
+            Cells::Sparse { set, .. } => cell.0 != u32::MAX && set.get(cell.0).is_some(),
+            Cells::Mask(_) => false,
+        }
     }
 
     /// Number of active cells.
@@ -145,8 +241,11 @@ impl Body {
     }
 
     /// Ids of the active cells, ascending.
-    pub fn active_cells(&self) -> impl Iterator<Item = CellId> + '_ {
-        self.active.iter_ones().map(|c| CellId(c as u32))
+    pub fn active_cells(&self) -> Box<dyn Iterator<Item = CellId> + '_> {
+        match &self.cells {
+            Cells::Mask(mask) => Box::new(mask.iter_ones().map(|c| CellId(c as u32))),
+            Cells::Sparse { cells, .. } => Box::new(cells.iter().map(|&c| CellId(c))),
+        }
     }
 
     /// Number of nodes carrying a displacement (nodes of active cells).
@@ -156,26 +255,33 @@ impl Body {
         self.u.len()
     }
 
-    /// Lattice indices of the nodes carrying a displacement, in slot order.
-    pub fn nodes(&self) -> impl Iterator<Item = usize> + '_ {
-        (0..self.lattice.node_count()).filter(|&n| self.slot_of(n).is_some())
-    }
-
-    /// Every lattice node carries a displacement, in node order: there is no slot table.
-    #[inline(always)]
-    fn dense(&self) -> bool {
-        self.slot.is_empty()
+    /// Lattice indices of the nodes carrying a displacement, in slot order (ascending).
+    pub fn nodes(&self) -> Box<dyn Iterator<Item = usize> + '_> {
+        match &self.slots {
+            Slots::Dense => Box::new(0..self.u.len()),
+            Slots::Table => Box::new(
+                self.table
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, s)| **s != NO_SLOT)
+                    .map(|(n, _)| n),
+            ),
+            Slots::Sparse { nodes, .. } => Box::new(nodes.iter().map(|&n| n as usize)),
+        }
     }
 
     /// The slot of lattice node `node` in the displacements, or `None` when it has none.
     #[inline(always)]
     fn slot_of(&self, node: usize) -> Option<usize> {
-        if self.dense() {
-            (node < self.u.len()).then_some(node)
-        } else {
-            match self.slot.get(node) {
+        match &self.slots {
+            Slots::Dense => (node < self.u.len()).then_some(node),
+            Slots::Table => match self.table.get(node) {
                 Some(&s) if s != NO_SLOT => Some(s as usize),
                 _ => None,
+            },
+            Slots::Sparse { map, .. } => {
+                let key = u32::try_from(node).ok()?;
+                map.get(key).map(|s| s as usize)
             }
         }
     }
@@ -224,10 +330,13 @@ impl Body {
     ) -> Result<(), Error> {
         let lattice = self.lattice;
         let mut bad = None;
-        for node in 0..lattice.node_count() {
-            let Some(s) = self.slot_of(node) else {
-                continue;
-            };
+        let nodes: Vec<usize> = match &self.slots {
+            // Slot n is node n: no list needed.
+            Slots::Dense => Vec::new(),
+            _ => self.nodes().collect(),
+        };
+        for s in 0..self.u.len() {
+            let node = if nodes.is_empty() { s } else { nodes[s] };
             let ijk = lattice.node_ijk(node).expect("node in range");
             let u = &mut self.u[s];
             f(node, lattice.node_position(ijk), u);
@@ -245,9 +354,16 @@ impl Body {
     /// Heap bytes held by the body (mask, node slots, displacements): what "memory per node" measures.
     #[must_use]
     pub fn heap_bytes(&self) -> usize {
-        self.active.capacity() / 8
-            + self.slot.capacity() * size_of::<u32>()
-            + self.u.capacity() * size_of::<DVec3>()
+        let cells = match &self.cells {
+            Cells::Mask(mask) => mask.capacity() / 8,
+            Cells::Sparse { cells, set } => cells.capacity() * size_of::<u32>() + set.heap_bytes(),
+        };
+        let slots = match &self.slots {
+            Slots::Dense => 0,
+            Slots::Table => self.table.capacity() * size_of::<u32>(),
+            Slots::Sparse { nodes, map } => nodes.capacity() * size_of::<u32>() + map.heap_bytes(),
+        };
+        cells + slots + self.u.capacity() * size_of::<DVec3>()
     }
 
     /// Largest displacement component per axis over all nodes (the search bound of the locator).
@@ -299,11 +415,26 @@ impl Body {
         zero: &'d T,
     ) -> &'d T {
         let node = base + self.corner_offsets[c];
-        if self.dense() {
+        if self.dense {
             &data[node]
-        } else {
+        } else if !self.table.is_empty() {
             // NO_SLOT is u32::MAX, never a valid slot: `get` answers None for it.
-            data.get(self.slot[node] as usize).unwrap_or(zero)
+            data.get(self.table[node] as usize).unwrap_or(zero)
+        } else {
+            self.sparse_entry(data, node, zero)
+        }
+    }
+
+    /// [`Body::corner_entry`] on a sparse body: a hash lookup, kept out of line so that the gather
+    /// of full and table bodies stays small.
+    #[inline(never)]
+    fn sparse_entry<'d, T>(&self, data: &'d [T], node: usize, zero: &'d T) -> &'d T {
+        match &self.slots {
+            Slots::Sparse { map, .. } => match map.get(node as u32) {
+                Some(s) => &data[s as usize],
+                None => zero,
+            },
+            _ => zero,
         }
     }
 
@@ -374,6 +505,76 @@ mod tests {
 
     fn lattice() -> Lattice {
         Lattice::new(DVec3::new(1.0, 2.0, 3.0), DVec3::splat(0.5), [3, 2, 2]).unwrap()
+    }
+
+    /// Every representation (full, slot table, hash maps: chosen by how much of the lattice the
+    /// cells fill) against an independent answer: the corners of the chosen cells.
+    #[test]
+    fn every_storage_answers_as_the_cells_it_was_given() {
+        let l = Lattice::new(
+            DVec3::new(-3.0, 0.5, 1e3),
+            DVec3::new(0.5, 0.25, 1.0),
+            [30, 20, 25],
+        )
+        .unwrap();
+        let mut state = 7u64;
+        let mut next = move || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (state >> 33) as usize
+        };
+        let field =
+            |n: usize| DVec3::new(n as f64 * 1e-6, -(n as f64) * 2e-6, (n % 13) as f64 * 1e-3);
+        for count in [3, 40, 2_000, l.cell_count() / 2, l.cell_count()] {
+            let mut chosen: Vec<u32> = (0..count)
+                .map(|_| (next() % l.cell_count()) as u32)
+                .collect();
+            if count == l.cell_count() {
+                chosen = (0..count as u32).collect();
+            }
+            let mut body = Body::from_cells(l, chosen.iter().map(|&c| CellId(c))).unwrap();
+            chosen.sort_unstable();
+            chosen.dedup();
+            assert_eq!(body.active_count(), chosen.len());
+            assert!(body.active_cells().map(|c| c.0).eq(chosen.iter().copied()));
+            let mut corners: Vec<usize> = chosen
+                .iter()
+                .flat_map(|&c| l.corner_nodes(l.cell_ijk(CellId(c)).unwrap()))
+                .collect();
+            corners.sort_unstable();
+            corners.dedup();
+            assert!(body.nodes().eq(corners.iter().copied()), "{count} cells");
+            body.update_displacements(|n, _, u| *u = field(n)).unwrap();
+            for n in 0..l.node_count() {
+                let expected = corners.binary_search(&n).is_ok().then(|| field(n));
+                assert_eq!(body.displacement(n), expected, "node {n}, {count} cells");
+            }
+            for c in 0..l.cell_count() as u32 {
+                let active = chosen.binary_search(&c).is_ok();
+                assert_eq!(body.is_active(CellId(c)), active);
+                let ijk = l.cell_ijk(CellId(c)).unwrap();
+                let gathered = body.corner_displacements_or_zero(ijk);
+                for (k, node) in l.corner_nodes(ijk).into_iter().enumerate() {
+                    let expected = if corners.binary_search(&node).is_ok() {
+                        field(node)
+                    } else {
+                        DVec3::ZERO
+                    };
+                    assert_eq!(gathered[k], expected);
+                }
+            }
+            assert!(!body.is_active(CellId(u32::MAX)));
+            // Memory grows with the cells: a few cells take a few kilobytes.
+            if count <= 40 {
+                assert!(body.heap_bytes() < 64 * 1024, "{}", body.heap_bytes());
+            }
+        }
+        assert!(matches!(
+            Body::from_cells(l, [CellId(l.cell_count() as u32)]),
+            Err(Error::CellOutOfRange { .. })
+        ));
+        assert!(matches!(Body::from_cells(l, []), Err(Error::EmptyBody)));
     }
 
     #[test]

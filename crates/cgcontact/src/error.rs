@@ -36,6 +36,14 @@ pub enum Error {
     /// A setting is out of its range.
     #[error("invalid setting: {0}")]
     InvalidSettings(String),
+    /// A cell id beyond the lattice's cells.
+    #[error("{cell} is outside the lattice's {cells} cells")]
+    CellOutOfRange {
+        /// The cell given.
+        cell: CellId,
+        /// The lattice's cell count.
+        cells: usize,
+    },
 }
 
 /// Why a single query point got no answer (the other points of a batch are unaffected).

@@ -7,7 +7,7 @@
 //! | piece | what it is |
 //! |---|---|
 //! | [`Lattice`] | origin, spacing, cell counts; all index arithmetic (nothing stored per node) |
-//! | [`Body`] | a lattice, its active cells (a bit mask) and one displacement per node of an active cell |
+//! | [`Body`] | a lattice, its active cells and one displacement per node of an active cell, in memory that grows with the cells, not the lattice |
 //! | [`hex8`] | trilinear map, Jacobian and the safeguarded Newton inversion, in f64 and f32 from one source |
 //! | [`LatticeLocator`] | hashes a point to its lattice cell and inverts only the few neighbours that can hold it; complete for any valid mesh |
 //! | [`Locator`] | the trait every strategy implements (the baselines crate adds the seed's filters, an R-tree and brute force) |
@@ -40,6 +40,7 @@ mod batch;
 mod body;
 mod error;
 pub mod hex8;
+mod idmap;
 mod lattice;
 mod locate;
 mod reach;
