@@ -2,11 +2,13 @@
 //! bytes and mutated valid files never panic (an error value or a parse, nothing else), and valid
 //! files round-trip. Case counts are bounded so the file runs in a few seconds in the test profile.
 
+mod common;
+
 use bitvec::vec::BitVec;
 use cgcontact::glam::DVec3;
 use cgcontact::{Body, CellId, Hit, Lattice};
 use cgcontact_io::{
-    CellMap, DisplacementArray, MeshFormat, parse_hex_mesh, parse_points, parse_results,
+    CellMap, DisplacementArray, HexMesh, MeshFormat, parse_hex_mesh, parse_points, parse_results,
     write_mesh, write_results_to,
 };
 use proptest::prelude::*;
@@ -129,6 +131,48 @@ fn results_bytes(rows: &[(Option<u32>, [f64; 3], u32, f64)]) -> (Vec<u8>, CellMa
     (out, cells)
 }
 
+/// The hand-written flavours of `tests/common` (what VTK and ParaView write that our writer does
+/// not): XML ascii, raw appended (plain and zlib, 32- and 64-bit headers), legacy 4.2 with VECTORS,
+/// legacy 5.1 with a FIELD array.
+fn flavour_bytes(body: &Body, flavour: usize) -> Vec<u8> {
+    let mesh = HexMesh::from_body(body);
+    match flavour % 6 {
+        0 => common::vtu_ascii(&mesh).into_bytes(),
+        1 => common::vtu_raw_appended(&mesh, false, true, 4096),
+        2 => common::vtu_raw_appended(&mesh, true, false, 4096),
+        3 => common::vtu_raw_appended(&mesh, true, true, 4096),
+        4 => common::legacy_ascii(&mesh, common::LegacyData::Vectors, false).into_bytes(),
+        _ => common::legacy_ascii(&mesh, common::LegacyData::Field, true).into_bytes(),
+    }
+}
+
+/// The byte range of the displacement array's data in an XML file: its inline text, or (appended)
+/// the block its `offset` points to, up to the next array's.
+fn displacement_range(bytes: &[u8]) -> Option<std::ops::Range<usize>> {
+    let find = |needle: &[u8], from: usize| {
+        bytes[from..]
+            .windows(needle.len())
+            .position(|w| w == needle)
+            .map(|i| i + from)
+    };
+    let tag = find(b"Name=\"displacement\"", 0)?;
+    let close = find(b">", tag)?;
+    if bytes[close - 1] != b'/' {
+        let end = find(b"</DataArray>", close)?;
+        return Some(close + 1..end);
+    }
+    // Appended: from the block's start to the next block's (the Points array's offset).
+    let offset_of = |from: usize| -> Option<usize> {
+        let at = find(b"offset=\"", from)? + 8;
+        let end = find(b"\"", at)?;
+        std::str::from_utf8(&bytes[at..end]).ok()?.parse().ok()
+    };
+    let start = offset_of(tag)?;
+    let next = offset_of(close)?;
+    let data = find(b"_", find(b"<AppendedData", 0)?)? + 1;
+    Some(data + start..data + next)
+}
+
 /// The `CGCONTACT_FUZZ_SCALE` multiplier (1 when unset or not a number).
 fn fuzz_scale() -> u32 {
     std::env::var("CGCONTACT_FUZZ_SCALE")
@@ -157,6 +201,32 @@ proptest! {
     fn mesh_parser_never_panics_on_mutated_files(body in body_strategy(), format in 0usize..4, edits in edits()) {
         let bytes = mesh_bytes(&body, FORMATS[format]);
         read_any_mesh(&mutate(bytes, &edits));
+    }
+
+    #[test]
+    fn mesh_parser_never_panics_on_mutated_hand_written_flavours(body in body_strategy(), flavour in 0usize..6, edits in edits()) {
+        read_any_mesh(&mutate(flavour_bytes(&body, flavour), &edits));
+    }
+
+    /// The silent drop: a file whose displacement array is corrupted (edits inside its data only)
+    /// either fails to read or reads with a displacement, never as an undeformed mesh.
+    #[test]
+    fn corrupt_displacement_is_never_dropped_silently(body in body_strategy(), flavour in 0usize..5, edits in edits()) {
+        let bytes = match flavour {
+            0..=3 => flavour_bytes(&body, flavour),
+            _ => mesh_bytes(&body, MeshFormat::Xml),
+        };
+        let range = displacement_range(&bytes).expect("the files carry a displacement");
+        let (head, rest) = bytes.split_at(range.start);
+        let (data, tail) = rest.split_at(range.end - range.start);
+        let mut corrupt = head.to_vec();
+        corrupt.extend(mutate(data.to_vec(), &edits));
+        corrupt.extend_from_slice(tail);
+        for which in [DisplacementArray::Default, DisplacementArray::Named("displacement".into())] {
+            if let Ok(mesh) = parse_hex_mesh(&corrupt, &which) {
+                prop_assert!(mesh.displacement.is_some(), "read as undeformed, flavour {}", flavour);
+            }
+        }
     }
 
     #[test]
