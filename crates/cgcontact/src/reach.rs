@@ -3,16 +3,16 @@
 //!
 //! A point x held by deformed cell c lies in the bounds of c's deformed corners (a trilinear cell
 //! lies in their convex hull), so in c's undeformed box shifted by the range of its corner
-//! displacements (both widened by the inside tolerance, see [`widening`]). The latter holds for any
-//! block of cells with the range of displacements over the block. So the
-//! candidates for x are the cells whose own bounds hold x, found by descending a pyramid of
-//! blocks (2³ cells, then 2³ of those, ...: an octree over the lattice) that keeps, per block, the
-//! displacement range of the nodes of its active cells. Leaves of 2³ cells and two children per
-//! axis measured fewest instructions for a far-moved node (516 M against 680 M with 4³-cell
-//! leaves and 741 M with 4³ children per level, `locality` bench scenes under callgrind). A rigid translation then costs O(1) per point, and a single far-moved
-//! node only the blocks that hold it.
+//! displacements (both widened by the inside tolerance, see [`widening`]). The latter holds for
+//! any block of cells with the range of displacements over the block. So the candidates for x are
+//! the cells whose own bounds hold x, found by descending a pyramid of blocks (2³ cells, then 2³
+//! of those, ...: an octree over the lattice) that keeps, per block, the displacement range of the
+//! nodes of its active cells. A rigid translation then costs O(1) per point, and a single
+//! far-moved node only the blocks that hold it. Leaves of 2³ cells and two children per axis
+//! measured fewest instructions for a far-moved node (516 M against 680 M with 4³-cell leaves and
+//! 741 M with 4³ children per level, the `locality` bench's scenes under callgrind).
 //!
-//! The pyramid is built only when the largest displacement makes the search box of the ring walk
+//! The pyramid is built only when the displacements' spread makes the search box of the ring walk
 //! larger than [`RING_CELLS`] cells; below that, the ring walk with the per-cell test is cheaper.
 
 use glam::DVec3;
@@ -22,7 +22,7 @@ use crate::body::Body;
 use crate::lattice::CORNER_OFFSETS;
 
 /// Cells of a search box up to which the ring walk visits every cell (each tested by its own
-/// displacement range before any inversion); above, the pyramid finds the candidates.
+/// bounds before any inversion); above, the pyramid finds the candidates.
 pub(crate) const RING_CELLS: u64 = 125;
 
 /// log2 of a block's edge in children per axis (2).
