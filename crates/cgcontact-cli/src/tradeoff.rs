@@ -155,7 +155,8 @@ fn configs() -> Vec<Config> {
     ]
 }
 
-/// The settings that differ from the defaults, for the table.
+/// The settings for the table: precision, Newton tolerance, iteration limit and inside tolerance
+/// always, the candidate order only when it is not the default.
 fn settings_text(settings: &Settings) -> String {
     let d = Settings::default();
     format!(

@@ -4,17 +4,25 @@
 //! and vtkio 0.7.0-rc2 allocates `block size × (blocks − 1) + last block size` bytes from it before it
 //! decompresses anything. A corrupt header therefore asks for petabytes, and a failed allocation aborts
 //! the process: no `catch_unwind` can turn that into an error. So we read each compressed array's
-//! header first (inline `format="binary"` arrays and base64 appended data; raw appended data is checked
-//! by `raw_appended`) and refuse sizes no real file can have: deflate expands at most 1032 : 1 and LZ4
-//! 255 : 1, so an array may not decompress to more than 1100 times the text that holds it.
+//! header first (inline `format="binary"` arrays and base64 appended data, raw appended data once
+//! `raw_appended` has re-encoded it, which checks its headers too) and refuse sizes no real file can
+//! have: deflate expands at most 1032 : 1 and LZ4 255 : 1, so an array may not decompress to more
+//! than [`MAX_EXPANSION`] times the bytes that hold it ([`plausible_size`], the one test both use).
 
 use base64::Engine as _;
 
 use crate::ErrorKind;
 use crate::raw_appended::{attribute, find, header_word};
 
-/// Largest ratio of decompressed bytes to the base64 text holding them that a valid array can have.
-const MAX_EXPANSION: u128 = 1100;
+/// Largest ratio of decompressed bytes to the compressed bytes (or the base64 text) holding them that
+/// a valid array can have.
+pub(crate) const MAX_EXPANSION: u128 = 1100;
+
+/// Whether `claimed` decompressed bytes can come from `held` bytes of compressed data or its text:
+/// at most [`MAX_EXPANSION`] times them, plus 64 KiB for the smallest arrays' headers.
+pub(crate) fn plausible_size(claimed: u128, held: u128) -> bool {
+    claimed <= MAX_EXPANSION.saturating_mul(held).saturating_add(1 << 16)
+}
 
 /// Refuse a compressed array whose header asks for more memory than its text could ever decompress to.
 pub(crate) fn check(xml: &[u8]) -> Result<(), ErrorKind> {
@@ -109,8 +117,7 @@ fn check_header(text: &[u8], header_bytes: usize, little: bool) -> Result<(), St
         };
     }
     let total = block_size.saturating_mul(blocks - 1).saturating_add(last);
-    let limit = MAX_EXPANSION * text.len() as u128;
-    if total > limit || blocks > text.len() as u128 {
+    if !plausible_size(total, text.len() as u128) || blocks > text.len() as u128 {
         return Err(format!(
             "its header says {blocks} block(s) of {block_size} bytes ({total} bytes in all), more than \
              the {} bytes of text holding it could decompress to",

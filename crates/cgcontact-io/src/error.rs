@@ -72,7 +72,7 @@ pub enum ErrorKind {
     Topology(String),
     /// A cell is not a hexahedron.
     #[error(
-        "cell {cell}: VTK cell type {vtk_type} ({name}); only hexahedra (type 12) are supported"
+        "cell {cell}: VTK cell type {vtk_type} ({name}); only hexahedra (type 12) and voxels (type 11) are supported"
     )]
     NotHexahedron {
         /// Input cell index.

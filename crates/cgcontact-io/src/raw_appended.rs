@@ -1,4 +1,4 @@
-//! Re-encoding raw appended data of XML VTK files as base64, the one thing here written by hand.
+//! Re-encoding raw appended data of XML VTK files as base64.
 //!
 //! ParaView and VTK write `.vtu` files with `<AppendedData encoding="raw">` by default: the arrays'
 //! bytes follow an `_` verbatim. vtkio 0.7.0-rc2 reads appended data only in base64 (its `Raw`
@@ -98,14 +98,16 @@ pub(crate) fn to_base64(xml: &[u8]) -> Result<Option<Vec<u8>>, ErrorKind> {
                     .ok_or_else(|| bad("sizes overflow".into()))?;
             }
             // vtkio allocates the decompressed size from this header before decompressing: refuse
-            // sizes that no zlib/LZ4 stream of this length can produce (both expand at most about
-            // 1032:1), so that a corrupt header is an error, not an allocation failure.
+            // sizes that no zlib/LZ4 stream of this length can produce (`plausible_size`, the test
+            // of `block_headers` too), so that a corrupt header is an error, not an allocation
+            // failure.
             let block_size = read(at + header_bytes)?;
             let last_size = read(at + 2 * header_bytes)?;
             let claimed = block_size
                 .saturating_mul(blocks.saturating_sub(1))
                 .saturating_add(last_size);
-            if blocks == 0 || claimed > total.saturating_mul(1100).saturating_add(1 << 16) {
+            if blocks == 0 || !crate::block_headers::plausible_size(claimed as u128, total as u128)
+            {
                 return Err(bad(format!(
                     "block at byte {at} claims {claimed} bytes from {total} compressed in {blocks} blocks"
                 )));

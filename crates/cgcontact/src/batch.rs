@@ -15,8 +15,11 @@
 //! iteration limit) is marked, and its point is answered by the scalar search from scratch. Tests
 //! check the identity point by point, forcing each lane type in turn.
 //!
-//! Intrinsics need `unsafe` in Rust 1.95 even for baseline features; each use is one register
-//! operation, and AVX values exist only behind the one entry point that checked for AVX2.
+//! An AVX intrinsic is `unsafe` to call from a function not compiled with AVX enabled, and the lane
+//! methods are plain `#[inline(always)]` functions (inlined into the `#[target_feature]` entry
+//! points of `locate.rs`), so each call is wrapped. It is sound because AVX lane values exist only
+//! behind those entry points, which run only after detection found AVX2 (and AVX-512VL for the
+//! second); each wrapped call is one register operation.
 
 use std::ops::{Add, BitAnd, BitOr, Mul, Not, Sub};
 

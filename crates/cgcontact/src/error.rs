@@ -31,7 +31,7 @@ pub enum Error {
         value: [f64; 3],
     },
     /// Cells whose Jacobian determinant is not positive at some corner (inverted or degenerate).
-    #[error("{} inverted or degenerate cell(s), first {}: det J ratio {:.3e}", .0.len(), .0[0].0, .0[0].1)]
+    #[error("{}", inverted_message(.0))]
     InvertedCells(Vec<(CellId, f64)>),
     /// A setting is out of its range.
     #[error("invalid setting: {0}")]
@@ -46,6 +46,18 @@ pub enum Error {
     },
 }
 
+/// The message of [`Error::InvertedCells`]: the count and the first cell (an empty list, which no
+/// entry point returns, still displays).
+fn inverted_message(cells: &[(CellId, f64)]) -> String {
+    match cells.first() {
+        Some((cell, ratio)) => format!(
+            "{} inverted or degenerate cell(s), first {cell}: det J ratio {ratio:.3e}",
+            cells.len()
+        ),
+        None => "no inverted cell".to_owned(),
+    }
+}
+
 /// Why a single query point got no answer (the other points of a batch are unaffected).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
 #[non_exhaustive]
@@ -53,4 +65,20 @@ pub enum PointError {
     /// The point has a NaN or infinite coordinate.
     #[error("the point has a NaN or infinite coordinate")]
     NonFinite,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `InvertedCells(vec![])` indexed `[0]` in its message and panicked.
+    #[test]
+    fn inverted_cells_display_without_panicking() {
+        assert_eq!(Error::InvertedCells(vec![]).to_string(), "no inverted cell");
+        let one = Error::InvertedCells(vec![(CellId(4), -0.5)]).to_string();
+        assert!(
+            one.starts_with("1 inverted") && one.contains("cell 4"),
+            "{one}"
+        );
+    }
 }

@@ -4,7 +4,9 @@
 //! `N_c = (1 + ξ ξ_c)(1 + η η_c)(1 + ζ ζ_c) / 8`. Expanded in monomials it is
 //! `a0 + a1 ξ + a2 η + a3 ξη + a4 ζ + a5 ξζ + a6 ηζ + a7 ξηζ`; the 8 vector coefficients are
 //! computed once per cell (24 additions, a butterfly), after which one map-and-Jacobian evaluation
-//! costs about 20 fused multiply-adds. This is what makes one Newton iteration cheap.
+//! costs about 20 multiply-adds (separate multiplies and adds: no fused multiply-add, so that
+//! every lane type and the scalar kernel round alike). This is what makes one Newton iteration
+//! cheap.
 //!
 //! One source serves both precisions: [`Hex8Map`] (f64, `DVec3`) and [`Hex8Map32`] (f32, glam's SIMD
 //! `Vec3A`) are stamped from the same macro. Callers work in a cell's *local frame* (corners relative
@@ -87,8 +89,6 @@ pub struct Inversion {
 /// A hex8 kernel of one precision, seen through f64 at its boundary so that locators can be written
 /// once for both precisions.
 pub trait Kernel: Copy + Send + Sync {
-    /// Name for reports ("f64", "f32").
-    const NAME: &'static str;
     /// The map of a lattice cell of spacing `h` whose corners are displaced by `u` (VTK order),
     /// in the cell's local frame (lowest undeformed node at the origin).
     fn lattice_cell(h: DVec3, u: &[DVec3; 8]) -> Self;
@@ -321,7 +321,6 @@ macro_rules! stamp_hex8 {
         }
 
         impl Kernel for $name {
-            const NAME: &'static str = stringify!($S);
 
             #[inline]
             fn lattice_cell(h: DVec3, u: &[DVec3; 8]) -> Self {

@@ -14,8 +14,9 @@ pub enum Precision {
     #[default]
     F64,
     /// f32 in the cell's local frame (glam's SIMD `Vec3A` one point at a time; 8 lanes per AVX2
-    /// register in `locate_all`): ξ error ≈ 1e-6, and only 1.0–1.2× faster than f64, because the
-    /// lattice hash, the corner gather and the local frame stay in f64 (docs/benchmarks.md).
+    /// register in `locate_all`): ξ error ≈ 1e-6. Its speed-up over f64 depends on the scene: about
+    /// 1.5× where the displacements stay in cache, 1.2–1.3× on random-order points of a large body,
+    /// whose time goes to waiting on memory (docs/benchmarks.md has the measured figures).
     F32,
 }
 
@@ -107,7 +108,8 @@ impl Settings {
     /// Inside tolerance (ξ units) for a query at `x` on `lattice` with largest displacement component
     /// `u_max`: the setting plus the rounding carried by the data. A point given on a face of a cell far
     /// from the origin is only known to `eps · |x|`, and the kernel rounds at its own precision, so the
-    /// allowance is 8 ε₆₄ |x|∞ / h_min + 8 ε_kernel (2 + u_max / h_min): closed cells stay closed at any
+    /// allowance is 8 ε₆₄ max(|x|∞, |origin|∞) / h_min + 8 ε_kernel (2 + u_max / h_min) (the lattice's
+    /// origin counts too: a cell's corners are computed from it): closed cells stay closed at any
     /// offset, and no more. Every strategy uses this, so that they agree on what "inside" means.
     #[must_use]
     pub fn inside_tolerance(&self, lattice: &Lattice, u_max: f64, x: DVec3) -> f64 {
