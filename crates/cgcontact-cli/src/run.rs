@@ -73,6 +73,10 @@ pub struct SearchArgs {
     /// Print nothing but errors (and the JSON object with --json).
     #[arg(long, short)]
     pub quiet: bool,
+    /// Time the query N more times after the first (a warm-up), reusing the answer buffer as a
+    /// solver loop does, and report the minimum and the median.
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    pub repeat: u32,
 }
 
 impl SearchArgs {
@@ -142,6 +146,12 @@ pub struct Summary {
     pub invalid_points: usize,
     pub setup_seconds: f64,
     pub query_seconds: f64,
+    /// With `--repeat N`: the fastest and the median of the N timed repeats (warm caches, the
+    /// answer buffer reused: what a solver loop sees).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub query_seconds_min: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub query_seconds_median: Option<f64>,
     pub points_per_second: f64,
     /// Newton inversions per point, failed ones included (lattice; the baselines count those of
     /// located points only).
@@ -210,6 +220,15 @@ impl Summary {
                 self.inversions_per_point,
                 self.inversions_per_located_point
             )?;
+            if let (Some(min), Some(median)) = (self.query_seconds_min, self.query_seconds_median) {
+                say!(
+                    "repeated {} times: query min {:.3} ms, median {:.3} ms, {:.3e} points/s at the min (the first query also pays for touching a fresh answer buffer)",
+                    args.repeat,
+                    min * 1e3,
+                    median * 1e3,
+                    self.points as f64 / min.max(1e-12)
+                )?;
+            }
             for file in &self.files {
                 say!("wrote {file}")?;
             }
@@ -289,6 +308,19 @@ pub fn search(
     if let Some(bar) = progress {
         bar.finish_and_clear();
     }
+    // `--repeat N`: the same query again on warm caches, into a reused buffer.
+    let mut repeats: Vec<f64> = (0..args.repeat)
+        .map(|_| {
+            let start = Instant::now();
+            pool.install(|| locator.locate_all_into(points, &mut buffer));
+            start.elapsed().as_secs_f64()
+        })
+        .collect();
+    repeats.sort_unstable_by(f64::total_cmp);
+    let (query_seconds_min, query_seconds_median) = match repeats.len() {
+        0 => (None, None),
+        n => (Some(repeats[0]), Some(repeats[n / 2])),
+    };
 
     let located: Vec<_> = answers.iter().filter_map(|a| a.ok().flatten()).collect();
     let invalid_points = answers.iter().filter(|a| a.is_err()).count();
@@ -307,6 +339,8 @@ pub fn search(
         invalid_points,
         setup_seconds,
         query_seconds,
+        query_seconds_min,
+        query_seconds_median,
         points_per_second: points.len() as f64 / query_seconds.max(1e-12),
         inversions_per_point: inversions as f64 / points.len().max(1) as f64,
         inversions_per_located_point: located.iter().map(|h| f64::from(h.inversions)).sum::<f64>()

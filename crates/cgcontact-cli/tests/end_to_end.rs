@@ -170,3 +170,43 @@ fn demo_writes_its_files_and_summary() {
         located
     );
 }
+
+/// `--repeat N` times the query N more times and reports the min and the median; without it, the
+/// summary has neither.
+#[test]
+fn repeat_reports_min_and_median() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().to_str().unwrap();
+    let scene = cgcontact(&[
+        "scene", "block", "--cells", "3,3,2", "--known", "200", "--out", out,
+    ]);
+    assert!(
+        scene.status.success(),
+        "{}",
+        String::from_utf8_lossy(&scene.stderr)
+    );
+    let (mesh, points) = (format!("{out}/mesh.vtu"), format!("{out}/points.csv"));
+    let json = |extra: &[&str]| -> serde_json::Value {
+        let run = cgcontact(
+            &[
+                &["locate", "--mesh", &mesh, "--points", &points, "--json"],
+                extra,
+            ]
+            .concat(),
+        );
+        assert!(
+            run.status.success(),
+            "{}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+        serde_json::from_slice(&run.stdout).unwrap()
+    };
+    let repeated = json(&["--repeat", "5"]);
+    let (min, median) = (
+        repeated["query_seconds_min"].as_f64().unwrap(),
+        repeated["query_seconds_median"].as_f64().unwrap(),
+    );
+    assert!(0.0 < min && min <= median, "{repeated}");
+    let once = json(&[]);
+    assert!(once.get("query_seconds_min").is_none(), "{once}");
+}
