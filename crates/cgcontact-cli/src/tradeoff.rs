@@ -582,7 +582,7 @@ pub fn run(args: &TradeoffArgs) -> Result<()> {
     bar.finish_and_clear();
 
     let svg = args.out.join("tradeoff.svg");
-    let plotted = plot(&svg, &rows, "fine-jitter")?;
+    let plotted = plot(&svg, &rows)?;
     let md = args.out.join("tradeoff.md");
     let reading = std::fs::read_to_string(&md)
         .ok()
@@ -883,8 +883,11 @@ fn report(
     let _ = writeln!(
         s,
         "\n## Plot\n\n![throughput against ξ error](tradeoff.svg)\n\n\
-         `tradeoff.svg`: the `fine-jitter` scene (where the settings differ most), one mark per configuration ({plotted} marks): points/s on 1 thread \
-         (x, log) against max ξ error (y, log; an error of exactly 0 is drawn at 1e-17). Lower right is better."
+         `tradeoff.svg`: one column per scene, one numbered mark per configuration (up to {plotted} per scene; the legend \
+         numbers them): points/s on 1 thread (x, log) against, on top, the share of the points answered wrongly \
+         (missed, put in a cell that does not hold them, or put inside when no cell does; log, 0 drawn at the \
+         bottom line) and, below, the max ξ error of the right answers (log, 0 drawn at 1e-17). Lower right is \
+         better in both rows: a configuration is only as good as its worse row."
     );
     s
 }
@@ -902,16 +905,36 @@ fn colour(strategy: Strategy, settings: &Settings) -> RGBColor {
     }
 }
 
-/// Write the throughput/error plot of `scene`'s rows; returns the number of marks.
+/// Share of a row's points answered wrongly: missed (a reference cell, no answer), put in a cell that
+/// does not hold them, or put inside when no cell holds them.
+fn failure_share(r: &Row) -> f64 {
+    let missed = r.should.saturating_sub(r.found);
+    (missed + r.wrong_cells + r.wrong_inside) as f64 / r.points_run.max(1) as f64
+}
+
+/// Lowest value of each panel's y axis; a value of exactly 0 is drawn there (and labelled `0`).
+const FAILURE_FLOOR: f64 = 1e-6;
+const XI_FLOOR: f64 = 1e-17;
+
+/// Write the trade plot: one column per scene (small multiples), throughput on 1 thread (x) against
+/// the share of points answered wrongly (top row) and the max ξ error of the right answers (bottom
+/// row), one numbered mark per configuration, with a shared legend. Returns the number of marks.
 ///
 /// The workspace builds plotters without a font stack (no `ttf`/`ab_glyph`): its text then falls back
 /// to a crude size estimate, which the SVG backend accepts (it writes `<text>` elements and leaves the
 /// glyphs to the viewer), so captions, tick labels and mark labels do render; positions of labels are
 /// approximate, which is why marks are labelled by number with a legend beside the plot.
-fn plot(path: &Path, rows: &[Row], scene: &str) -> Result<usize> {
+fn plot(path: &Path, rows: &[Row]) -> Result<usize> {
+    let mut scenes: Vec<&str> = Vec::new();
+    for r in rows {
+        if !scenes.contains(&r.scene) {
+            scenes.push(r.scene);
+        }
+    }
+    let width = 300 * scenes.len() as u32 + 330;
     let mut svg = String::new();
-    let root = SVGBackend::with_string(&mut svg, (1100, 640)).into_drawing_area();
-    let plotted = draw_plot(root, path, rows, scene)?;
+    let root = SVGBackend::with_string(&mut svg, (width, 700)).into_drawing_area();
+    let plotted = draw_plot(root, path, rows, &scenes)?;
     crate::output::write_text(path, &svg)?;
     Ok(plotted)
 }
@@ -921,103 +944,135 @@ fn draw_plot(
     root: DrawingArea<SVGBackend<'_>, plotters::coord::Shift>,
     path: &Path,
     rows: &[Row],
-    scene: &str,
+    scenes: &[&str],
 ) -> Result<usize> {
-    let marks: Vec<&Row> = rows.iter().filter(|r| r.scene == scene).collect();
-    if marks.is_empty() {
-        bail!("no configuration ran on scene {scene}");
+    if rows.is_empty() {
+        bail!("no configuration ran");
     }
-    let floor = 1e-17;
-    let y = |r: &Row| r.max_xi.max(floor);
+    let fail = |e: &dyn std::fmt::Display| anyhow!("{}: cannot draw the plot: {e}", path.display());
+    let configs = configs();
+    let number = |label: &str| configs.iter().position(|c| c.label == label).unwrap_or(0) + 1;
+    let settings_of = |label: &str| {
+        configs
+            .iter()
+            .find(|c| c.label == label)
+            .map_or(Settings::default(), |c| c.settings)
+    };
+    root.fill(&WHITE).map_err(|e| fail(&e))?;
+    let (plots, legend) = root.split_horizontally(300 * scenes.len() as u32);
+    let (title, plots) = plots.split_vertically(40);
+    title
+        .draw(&Text::new(
+            "accuracy/speed trade: points/s on 1 thread (x, log) against the share of points answered \
+             wrongly (top) and the max ξ error of the right answers (bottom); lower right is better",
+            (10, 12),
+            ("sans-serif", 15).into_font(),
+        ))
+        .map_err(|e| fail(&e))?;
+    let panels = plots.split_evenly((2, scenes.len()));
     let decade = |v: f64, up: bool| {
         let e = v.log10();
         10f64.powf(if up { e.ceil() } else { e.floor() })
     };
-    let x_lo = decade(
-        marks
-            .iter()
-            .map(|r| r.pps_one)
-            .fold(f64::INFINITY, f64::min),
-        false,
-    );
-    // At least 3x headroom on the right, so that the fastest marks' numbers are not clipped.
-    let x_hi = decade(
-        marks.iter().map(|r| r.pps_one).fold(0.0, f64::max) * 3.0,
-        true,
-    );
-    let y_lo = decade(
-        marks.iter().map(|r| y(r)).fold(f64::INFINITY, f64::min),
-        false,
-    );
-    let y_hi = decade(marks.iter().map(|r| y(r)).fold(0.0, f64::max) * 1.01, true).max(y_lo * 10.0);
-    let configs: Vec<(String, Strategy, Settings)> = configs()
-        .into_iter()
-        .map(|c| (c.label, c.strategy, c.settings))
-        .collect();
-
-    let fail = |e: &dyn std::fmt::Display| anyhow!("{}: cannot draw the plot: {e}", path.display());
-    root.fill(&WHITE).map_err(|e| fail(&e))?;
-    let (area, legend) = root.split_horizontally(780);
-    let mut chart = ChartBuilder::on(&area)
-        .caption(
-            format!("accuracy/speed trade, scene '{scene}'"),
-            ("sans-serif", 20),
-        )
-        .margin(12)
-        .x_label_area_size(45)
-        .y_label_area_size(70)
-        .build_cartesian_2d((x_lo..x_hi).log_scale(), (y_lo..y_hi).log_scale())
-        .map_err(|e| fail(&e))?;
-    chart
-        .configure_mesh()
-        .x_desc("points/s, 1 thread")
-        .y_desc("max ξ error")
-        .x_label_formatter(&|v| format!("{v:.0e}"))
-        .y_label_formatter(&|v| format!("{v:.0e}"))
-        .draw()
-        .map_err(|e| fail(&e))?;
-    // The settings of a configuration, by its label (for its colour).
-    let settings_of = |label: &str| {
-        configs
-            .iter()
-            .find(|c| c.0 == label)
-            .map_or(Settings::default(), |c| c.2)
-    };
-    for (k, r) in marks.iter().enumerate() {
-        let settings = settings_of(&r.label);
-        let c = colour(r.strategy, &settings);
-        let at = (r.pps_one, y(r));
-        chart
-            .draw_series([Circle::new(at, 5, c.filled())])
-            .map_err(|e| fail(&e))?;
-        chart
-            // Marks of nearly equal configurations coincide: stagger their numbers.
-            .draw_series([EmptyElement::at(at)
-                + Text::new(
-                    format!("{}", k + 1),
-                    (7 + 14 * (k % 4) as i32, -4 - 12 * (k % 3) as i32),
-                    ("sans-serif", 13).into_font(),
-                )])
-            .map_err(|e| fail(&e))?;
+    type Metric = fn(&Row) -> f64;
+    let metrics: [(&str, Metric, f64); 2] = [
+        (
+            "wrong, missed or falsely inside",
+            |r| failure_share(r).max(FAILURE_FLOOR),
+            FAILURE_FLOOR,
+        ),
+        ("max ξ error", |r| r.max_xi.max(XI_FLOOR), XI_FLOOR),
+    ];
+    let mut plotted = 0;
+    for (row, (name, metric, floor)) in metrics.iter().enumerate() {
+        for (col, scene) in scenes.iter().enumerate() {
+            let marks: Vec<&Row> = rows.iter().filter(|r| r.scene == *scene).collect();
+            let x_lo = decade(
+                marks
+                    .iter()
+                    .map(|r| r.pps_one)
+                    .fold(f64::INFINITY, f64::min),
+                false,
+            );
+            // Headroom on the right, so that the fastest marks' numbers are not clipped.
+            let x_hi = decade(
+                marks.iter().map(|r| r.pps_one).fold(0.0, f64::max) * 3.0,
+                true,
+            );
+            let y_lo = *floor;
+            let y_hi = if row == 0 {
+                1.0
+            } else {
+                decade(
+                    marks.iter().map(|r| metric(r)).fold(0.0, f64::max) * 1.01,
+                    true,
+                )
+                .max(y_lo * 10.0)
+            };
+            let mut chart = ChartBuilder::on(&panels[row * scenes.len() + col])
+                .caption(format!("{scene}: {name}"), ("sans-serif", 14))
+                .margin(8)
+                .x_label_area_size(30)
+                .y_label_area_size(58)
+                .build_cartesian_2d((x_lo..x_hi).log_scale(), (y_lo..y_hi).log_scale())
+                .map_err(|e| fail(&e))?;
+            let floor = *floor;
+            chart
+                .configure_mesh()
+                .x_labels(4)
+                .y_labels(6)
+                .y_desc(if row == 0 {
+                    "share of points (0 at the bottom)"
+                } else {
+                    "(0 at the bottom)"
+                })
+                .x_label_formatter(&|v| format!("{v:.0e}"))
+                // The floor stands for exactly 0.
+                .y_label_formatter(&|v| {
+                    if *v <= floor * 1.0001 {
+                        "0".to_owned()
+                    } else {
+                        format!("{v:.0e}")
+                    }
+                })
+                .draw()
+                .map_err(|e| fail(&e))?;
+            for (k, r) in marks.iter().enumerate() {
+                let c = colour(r.strategy, &settings_of(&r.label));
+                let at = (r.pps_one, metric(r));
+                chart
+                    .draw_series([Circle::new(at, 4, c.filled())])
+                    .map_err(|e| fail(&e))?;
+                chart
+                    // Marks of nearly equal configurations coincide: stagger their numbers.
+                    .draw_series([EmptyElement::at(at)
+                        + Text::new(
+                            format!("{}", number(&r.label)),
+                            (6 + 12 * (k % 3) as i32, -4 - 11 * (k % 4) as i32),
+                            ("sans-serif", 11).into_font(),
+                        )])
+                    .map_err(|e| fail(&e))?;
+            }
+            plotted = plotted.max(marks.len());
+        }
     }
-    for (k, r) in marks.iter().enumerate() {
-        let settings = settings_of(&r.label);
-        let top = 40 + 22 * k as i32;
+    for (k, config) in configs.iter().enumerate() {
+        let top = 60 + 22 * k as i32;
         legend
             .draw(&Circle::new(
                 (16, top),
                 5,
-                colour(r.strategy, &settings).filled(),
+                colour(config.strategy, &config.settings).filled(),
             ))
             .map_err(|e| fail(&e))?;
         legend
             .draw(&Text::new(
-                format!("{}  {}", k + 1, r.label),
+                format!("{}  {}", k + 1, config.label),
                 (28, top - 7),
                 ("sans-serif", 14).into_font(),
             ))
             .map_err(|e| fail(&e))?;
     }
     root.present().map_err(|e| fail(&e))?;
-    Ok(marks.len())
+    Ok(plotted)
 }
