@@ -1,0 +1,362 @@
+//! `locate_all`'s common path: 4 or 8 points per SIMD lane set through the predicted cell and one
+//! Newton inversion there (`crate::batch` has the lanes), the scalar search for the rest, and the
+//! one place where the instruction set is chosen.
+
+use glam::{DVec3, Vec3A};
+
+use super::{Answer, Hit, LatticeLocator, Locator};
+use crate::PointError;
+use crate::batch::{Lanes, MAX_W, Maps, Real, V3, Wide};
+use crate::lattice::CellId;
+use crate::settings::{CandidateOrder, Precision};
+
+/// The displacements as the batched path reads them: the body's f64 ones, or the locator's f32 copy.
+pub(super) trait Nodes: Copy + 'static {
+    const ZERO: Self;
+    fn of<'l>(locator: &'l LatticeLocator<'_>) -> &'l [Self];
+}
+
+impl Nodes for DVec3 {
+    const ZERO: Self = DVec3::ZERO;
+    #[inline(always)]
+    fn of<'l>(locator: &'l LatticeLocator<'_>) -> &'l [Self] {
+        locator.body.displacements()
+    }
+}
+
+impl Nodes for Vec3A {
+    const ZERO: Self = Vec3A::ZERO;
+    #[inline(always)]
+    fn of<'l>(locator: &'l LatticeLocator<'_>) -> &'l [Self] {
+        &locator.u_f32
+    }
+}
+
+/// The first half of the batched search for W points, up to the displacement maps of the cells
+/// holding them (see `LatticeLocator::front`).
+struct Front<V: Lanes> {
+    /// The points, their lattice coordinates and the cells holding them, in f64 lanes.
+    x: V3<V::Wide>,
+    t_x: V3<V::Wide>,
+    cell_x: V3<V::Wide>,
+    inside_tol: V::Wide,
+    /// Lanes with a finite point, and lanes within reach (bits): `admit`'s two answers.
+    finite: u32,
+    take: u32,
+    /// The displacement maps of the cells holding the points (zero where a corner has none); not
+    /// computed when no lane is within reach (a contact surface mostly away from the body).
+    maps: Maps<V>,
+}
+
+impl<V: Lanes> Front<V> {
+    fn new() -> Self {
+        let zero = V3::splat(DVec3::ZERO);
+        Self {
+            x: zero,
+            t_x: zero,
+            cell_x: zero,
+            inside_tol: V::Wide::splat(0.0),
+            finite: 0,
+            take: 0,
+            maps: Maps {
+                a: [V3::splat(DVec3::ZERO); 8],
+            },
+        }
+    }
+}
+
+impl LatticeLocator<'_> {
+    /// Answers for `points` into `out` (same length), W points at a time through the batched common
+    /// path ([`crate::batch`]); the remainder and every point that leaves the common path go through
+    /// the scalar search. The answers are bitwise those of [`Locator::locate`].
+    ///
+    /// Software-pipelined: the first half of the next W points (their cells and the loads of their
+    /// corners) is issued before the second half of the current ones, so that the loads' latency
+    /// overlaps the current Newton inversions. The two halves meet in two `Front`s used in turn,
+    /// written in place (moving one, about 1 KB, cost a copy and a store-forwarding stall).
+    #[inline(always)]
+    pub(super) fn locate_chunk_with<V: Lanes>(&self, points: &[DVec3], out: &mut [Answer])
+    where
+        V::Node: Nodes,
+    {
+        let w = V::W;
+        let batches = points.len() / w;
+        let mut fronts = [Front::<V>::new(), Front::<V>::new()];
+        if batches > 0 {
+            self.front(&points[..w], &mut fronts[0]);
+        }
+        for b in 0..batches {
+            if b + 1 < batches {
+                self.front(&points[(b + 1) * w..(b + 2) * w], &mut fronts[(b + 1) % 2]);
+            }
+            let (points, out) = (&points[b * w..(b + 1) * w], &mut out[b * w..(b + 1) * w]);
+            self.back(points, &fronts[b % 2], out);
+        }
+        for (&x, o) in points.iter().zip(out.iter_mut()).skip(batches * w) {
+            *o = self.locate(x);
+        }
+    }
+
+    /// `search` up to the cell holding each of W points (`points` has W entries), one lane each, and
+    /// that cell's displacement map: the same f64 operations in f64 lanes (`V::Wide`).
+    #[inline(always)]
+    fn front<V: Lanes>(&self, points: &[DVec3], front: &mut Front<V>)
+    where
+        V::Node: Nodes,
+    {
+        let lattice = self.body.lattice();
+        let splat = V3::<V::Wide>::splat;
+        let x = V::Wide::transpose(|l| &points[l]);
+        // `admit`: finite and within reach (the lattice's box shifted by the displacement range,
+        // widened by the tolerance).
+        let inside_tol = self.inside_tol.at_magnitude(x.abs().max_element());
+        let slack = splat(self.reach_pad).scale(inside_tol);
+        let (low, high) = (
+            splat(self.reach_low) - slack,
+            splat(self.reach_high) + slack,
+        );
+        let outside = x.x.lt(low.x) | x.y.lt(low.y) | x.z.lt(low.z);
+        let outside = outside | x.x.gt(high.x) | x.y.gt(high.y) | x.z.gt(high.z);
+        let finite = x.is_finite();
+        let take = V::Wide::bits(finite & !outside);
+        let t_x = (x - splat(lattice.origin())).mul_each(self.inv_h);
+        let cell_x = self.clamped_cells::<V::Wide>(t_x);
+        if take != 0 {
+            front.maps = self.maps_of::<V>(&cell_x);
+        }
+        *front = Front {
+            x,
+            t_x,
+            cell_x,
+            inside_tol,
+            take,
+            finite: V::Wide::bits(finite),
+            maps: front.maps,
+        };
+    }
+
+    /// `Lattice::clamped_cell` in f64 lanes: max(0), then min(cells − 1) before truncating, which
+    /// is the same (MAXPD maps NaN to 0, as `f64::max` does).
+    #[inline(always)]
+    fn clamped_cells<D: Wide>(&self, t: V3<D>) -> V3<D> {
+        let last = DVec3::from(self.body.lattice().cells().map(|n| f64::from(n - 1)));
+        let clamp = |t: D, last: f64| t.max(D::splat(0.0)).min(D::splat(last)).trunc();
+        V3 {
+            x: clamp(t.x, last.x),
+            y: clamp(t.y, last.y),
+            z: clamp(t.z, last.z),
+        }
+    }
+
+    /// `Lattice::node_index` (`nodes`) or `Lattice::cell_id` (`cells`) of each lane's cell, exactly
+    /// (integers below 2^32 in f64).
+    #[inline(always)]
+    fn lane_indices<D: Wide>(cell: &V3<D>, [nx, ny, _]: [u32; 3]) -> [usize; MAX_W] {
+        let index = cell.x + D::splat(f64::from(nx)) * (cell.y + D::splat(f64::from(ny)) * cell.z);
+        let mut lanes = [0; MAX_W];
+        index.indices_into(&mut lanes);
+        lanes
+    }
+
+    /// The displacement maps of each lane's cell (zero where a corner has none).
+    #[inline(always)]
+    fn maps_of<V: Lanes>(&self, cell: &V3<V::Wide>) -> Maps<V>
+    where
+        V::Node: Nodes,
+    {
+        let base = Self::lane_indices(cell, self.body.lattice().nodes());
+        let nodes = V::Node::of(self);
+        let zero = V::Node::ZERO;
+        Maps::from_nodes(|l, c| self.body.corner_entry(nodes, base[l], c, &zero))
+    }
+
+    /// The rest of the common path for W points: the predicted cell and one Newton inversion there.
+    /// A point refused by `admit` gets `admit`'s answer; one leaving the common path, the scalar
+    /// search's.
+    #[inline(always)]
+    fn back<V: Lanes>(&self, points: &[DVec3], front: &Front<V>, out: &mut [Answer])
+    where
+        V::Node: Nodes,
+    {
+        let (finite, take) = (front.finite, front.take);
+        let found = if take != 0 {
+            self.invert_lanes(front, out)
+        } else {
+            0
+        };
+        for (l, out) in out.iter_mut().enumerate() {
+            let bit = 1 << l;
+            if found & bit != 0 {
+                continue;
+            }
+            *out = if take & bit != 0 {
+                self.locate(points[l])
+            } else if finite & bit != 0 {
+                Ok(None)
+            } else {
+                Err(PointError::NonFinite)
+            };
+        }
+    }
+
+    /// The predicted cells and one Newton inversion there, for the lanes `front` takes: writes the
+    /// answer of every lane it finds and returns their bits.
+    #[inline(always)]
+    fn invert_lanes<V: Lanes>(&self, front: &Front<V>, out: &mut [Answer]) -> u32
+    where
+        V::Node: Nodes,
+    {
+        let lattice = self.body.lattice();
+        let splat = V3::<V::Wide>::splat;
+        let Front {
+            x,
+            t_x,
+            cell_x,
+            inside_tol,
+            mut take,
+            mut maps,
+            ..
+        } = *front;
+        // The guess x − ũ, ũ interpolated at x in the cell holding x (`guess`).
+        let t_guess = match self.settings.order {
+            CandidateOrder::Predicted => {
+                let two = V::Wide::splat(2.0);
+                let xi = ((t_x - cell_x).scale(two) - splat(DVec3::ONE)).clamp(-1.0, 1.0);
+                t_x - maps.map(V3::narrow(xi)).widen().mul_each(self.inv_h)
+            }
+            CandidateOrder::Undeformed => t_x,
+        };
+        let first = self.clamped_cells(t_guess);
+        let cell = Self::lane_indices(&first, lattice.cells());
+        if !self.all_active {
+            for (l, &cell) in cell.iter().enumerate().take(V::W) {
+                if !self.body.is_active(CellId(cell as u32)) {
+                    take &= !(1 << l);
+                }
+            }
+        }
+        let moved = first.x.lt(cell_x.x) | first.x.gt(cell_x.x) | first.y.lt(cell_x.y);
+        let moved = moved | first.y.gt(cell_x.y) | first.z.lt(cell_x.z) | first.z.gt(cell_x.z);
+        if V::Wide::bits(moved) & take != 0 {
+            maps = self.maps_of(&first);
+        }
+        maps.add_lattice(lattice.h());
+        let x_local = x - (splat(lattice.origin()) + first.mul_each(lattice.h()));
+        let xi0 = (t_guess - first).scale(V::Wide::splat(2.0)) - splat(DVec3::ONE);
+        let inside = V::splat(V::S::of(1.0)) + V::narrow(inside_tol);
+        let (xi, rr, iterations, found) = maps.invert(
+            V3::narrow(x_local),
+            V3::narrow(xi0),
+            inside,
+            V::mask_from_bits(take),
+            &self.newton,
+        );
+        let xi = xi.widen().clamp(-1.0, 1.0);
+        let residual = rr.widen().sqrt();
+        for (l, out) in out.iter_mut().enumerate() {
+            if found & (1 << l) != 0 {
+                *out = Ok(Some(Hit {
+                    cell: CellId(cell[l] as u32),
+                    xi: xi.lane(l),
+                    iterations: iterations[l],
+                    residual: residual.lane(l),
+                    inversions: 1,
+                }));
+            }
+        }
+        found
+    }
+
+    /// [`Locator::locate`] for a chunk of points: batched where that measured faster (with AVX2,
+    /// detected at run time: 4 f64 or 8 f32 lanes; without it, 4 f32 lanes of glam's SSE2 `Vec4`),
+    /// one point at a time otherwise (f64 without AVX2: SSE2 pairs measured slower than scalar).
+    pub(super) fn locate_chunk(&self, points: &[DVec3], out: &mut [Answer]) {
+        #[cfg(target_arch = "x86_64")]
+        match Isa::get() {
+            // SAFETY: `Isa::get` answers `Avx512` only where AVX2, AVX-512F and AVX-512VL were
+            // detected on this CPU, `Avx2` only where AVX2 was; these are the only ways in to the
+            // AVX lanes (`batch::avx`).
+            #[allow(unsafe_code)]
+            Isa::Avx512 => return unsafe { self.locate_chunk_avx512(points, out) },
+            #[allow(unsafe_code)]
+            Isa::Avx2 => return unsafe { self.locate_chunk_avx2(points, out) },
+            Isa::Portable => {}
+        }
+        match self.settings.precision {
+            Precision::F32 => self.locate_chunk_with::<glam::Vec4>(points, out),
+            Precision::F64 => {
+                for (o, &x) in out.iter_mut().zip(points) {
+                    *o = self.locate(x);
+                }
+            }
+        }
+    }
+
+    /// The batch in AVX registers, the whole of it compiled for AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    pub(super) fn locate_chunk_avx2(&self, points: &[DVec3], out: &mut [Answer]) {
+        self.locate_chunk_avx(points, out);
+    }
+
+    /// The same 256-bit lanes compiled with AVX-512VL as well: the compiler then has 32 vector
+    /// registers instead of 16, and spills less (docs/benchmarks.md has the measured gain). The
+    /// operations are the same IEEE operations, so the answers are the same bits.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,avx512f,avx512vl")]
+    pub(super) fn locate_chunk_avx512(&self, points: &[DVec3], out: &mut [Answer]) {
+        self.locate_chunk_avx(points, out);
+    }
+
+    /// The AVX lanes of the settings' precision; inlined into the caller's instruction set.
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    fn locate_chunk_avx(&self, points: &[DVec3], out: &mut [Answer]) {
+        use crate::batch::avx::{F32x8, F64x4};
+        match self.settings.precision {
+            Precision::F32 => self.locate_chunk_with::<F32x8>(points, out),
+            Precision::F64 => self.locate_chunk_with::<F64x4>(points, out),
+        }
+    }
+}
+
+/// The instruction sets the batched path can be compiled for, least first.
+#[cfg(target_arch = "x86_64")]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+enum Isa {
+    /// glam's SSE2 `Vec4` for f32, the scalar search for f64.
+    Portable,
+    Avx2,
+    /// AVX2's lanes with AVX-512VL's 32 registers.
+    Avx512,
+}
+
+#[cfg(target_arch = "x86_64")]
+impl Isa {
+    /// The best this CPU has, capped by the environment variable `CGCONTACT_SIMD` (`avx2` or
+    /// `portable`; any other value caps nothing), once per process. The answers are the same bits
+    /// whichever is used: the cap is there to measure and compare speeds.
+    fn get() -> Self {
+        static ISA: std::sync::OnceLock<Isa> = std::sync::OnceLock::new();
+        *ISA.get_or_init(|| {
+            let cap = match std::env::var("CGCONTACT_SIMD").as_deref() {
+                Ok("avx2") => Isa::Avx2,
+                Ok("portable") => Isa::Portable,
+                _ => Isa::Avx512,
+            };
+            Self::detected().min(cap)
+        })
+    }
+
+    /// The best this CPU has.
+    fn detected() -> Self {
+        use std::is_x86_feature_detected as has;
+        if !has!("avx2") {
+            Isa::Portable
+        } else if has!("avx512f") && has!("avx512vl") {
+            Isa::Avx512
+        } else {
+            Isa::Avx2
+        }
+    }
+}

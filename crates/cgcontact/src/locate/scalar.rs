@@ -1,0 +1,190 @@
+//! The search one point at a time: admit the point, predict its cell, invert that cell; after a
+//! miss, `rings.rs` visits the other cells that can hold it.
+
+use glam::DVec3;
+
+use super::{Hit, LatticeLocator, Owners};
+use crate::PointError;
+use crate::hex8::{Hex8Map, Hex8Map32, Inversion, Kernel, NewtonOptions, Status};
+use crate::settings::{CandidateOrder, Precision};
+
+/// Lattice coordinates of a cell's lowest node.
+#[inline]
+pub(super) fn lattice_point(ijk: [u32; 3]) -> DVec3 {
+    DVec3::new(f64::from(ijk[0]), f64::from(ijk[1]), f64::from(ijk[2]))
+}
+
+/// Local coordinates in cell `ijk` of the undeformed point at lattice coordinates `t`.
+#[inline]
+pub(super) fn undeformed_xi(t: DVec3, ijk: [u32; 3]) -> DVec3 {
+    2.0 * (t - lattice_point(ijk)) - 1.0
+}
+
+/// What a candidate search does with each inside hit.
+pub(super) enum Collect<'o> {
+    First,
+    All(&'o mut Owners),
+}
+
+impl LatticeLocator<'_> {
+    /// Whether `x` can be held by a cell at all: its inside tolerance when it can, `Ok(None)` when it
+    /// lies outside the lattice's box shifted by the displacement range (and widened by the
+    /// tolerance), an error when not finite.
+    /// The first step of every search, batched or not.
+    #[inline(always)]
+    fn admit(&self, x: DVec3) -> Result<Option<f64>, PointError> {
+        if !x.is_finite() {
+            return Err(PointError::NonFinite);
+        }
+        let inside_tol = self.inside_tol.at(x);
+        let slack = self.reach_pad * inside_tol;
+        if x.cmplt(self.reach_low - slack).any() || x.cmpgt(self.reach_high + slack).any() {
+            return Ok(None);
+        }
+        Ok(Some(inside_tol))
+    }
+
+    /// The search for `x`, and the inversions it tried.
+    pub(super) fn search(
+        &self,
+        x: DVec3,
+        mut collect: Collect<'_>,
+    ) -> Result<(Option<Hit>, u32), PointError> {
+        let Some(inside_tol) = self.admit(x)? else {
+            return Ok((None, 0));
+        };
+        let options = NewtonOptions {
+            inside_tol,
+            ..self.newton
+        };
+        Ok(match self.settings.precision {
+            Precision::F64 => self.search_with::<Hex8Map>(x, &options, &mut collect),
+            Precision::F32 => self.search_with::<Hex8Map32>(x, &options, &mut collect),
+        })
+    }
+
+    /// Invert candidate cell `ijk` (active) for `x`; `t_guess` is the predicted undeformed position in
+    /// lattice coordinates (gives the starting ξ), `u_map` the cell's displacement map when the caller
+    /// already has it.
+    #[inline]
+    fn try_cell<K: Kernel>(
+        &self,
+        x: DVec3,
+        ijk: [u32; 3],
+        t_guess: DVec3,
+        u_map: Option<K>,
+        options: &NewtonOptions,
+    ) -> Inversion {
+        let lattice = self.body.lattice();
+        let map = match u_map {
+            Some(mut map) => {
+                map.add_lattice(lattice.h());
+                map
+            }
+            None => K::lattice_cell(lattice.h(), &self.body.corner_displacements(ijk)),
+        };
+        let xi0 = undeformed_xi(t_guess, ijk);
+        map.invert_f64(x - lattice.node_position(ijk), xi0, options)
+    }
+
+    /// The guess x − ũ in lattice coordinates, ũ the displacement map `u_map` of `cell` evaluated at
+    /// lattice coordinates `t_at` (clamped into the cell).
+    #[inline]
+    fn guess<K: Kernel>(&self, t_x: DVec3, cell: [u32; 3], t_at: DVec3, u_map: &K) -> DVec3 {
+        let xi = undeformed_xi(t_at, cell).clamp(DVec3::NEG_ONE, DVec3::ONE);
+        t_x - u_map.map_f64(xi) * self.inv_h
+    }
+
+    /// Two steps of the fixed point X ← x − ũ(X) in lattice coordinates (ũ interpolated on the
+    /// undeformed lattice, inactive corners as zero), from `t_guess`.
+    pub(super) fn refine_guess<K: Kernel>(&self, t_x: DVec3, mut t_guess: DVec3) -> DVec3 {
+        let lattice = self.body.lattice();
+        for _ in 0..2 {
+            let cell = lattice.clamped_cell(t_guess);
+            let u_map = K::displacement_map(&self.body.corner_displacements_or_zero(cell));
+            t_guess = self.guess(t_x, cell, t_guess, &u_map);
+        }
+        t_guess
+    }
+
+    /// Invert `ijk` (active) for `x` and collect the hit: true when the search is over (the first
+    /// hit wanted and found, written to `found`).
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    pub(super) fn visit<K: Kernel>(
+        &self,
+        x: DVec3,
+        ijk: [u32; 3],
+        u_map: Option<K>,
+        t_guess: DVec3,
+        options: &NewtonOptions,
+        collect: &mut Collect<'_>,
+        inversions: &mut u32,
+        found: &mut Option<Hit>,
+    ) -> bool {
+        let inversion = self.try_cell::<K>(x, ijk, t_guess, u_map, options);
+        *inversions += 1;
+        if inversion.status != Status::Inside {
+            return false;
+        }
+        let hit = Hit {
+            cell: self.body.lattice().cell_id(ijk),
+            xi: inversion.xi.clamp(DVec3::NEG_ONE, DVec3::ONE),
+            iterations: inversion.iterations,
+            residual: inversion.residual,
+            inversions: *inversions,
+        };
+        match collect {
+            Collect::First => {
+                *found = Some(hit);
+                true
+            }
+            Collect::All(owners) => {
+                owners.push(hit);
+                false
+            }
+        }
+    }
+
+    fn search_with<K: Kernel>(
+        &self,
+        x: DVec3,
+        options: &NewtonOptions,
+        collect: &mut Collect<'_>,
+    ) -> (Option<Hit>, u32) {
+        let lattice = self.body.lattice();
+        let t_x = (x - lattice.origin()) * self.inv_h;
+        let cell_x = lattice.clamped_cell(t_x);
+        // The displacement map of the cell holding x (corners of inactive cells count as undisplaced:
+        // it only serves the guess), and the predicted undeformed position x − ũ, ũ interpolated at x.
+        // Kept in one place, never moved: it is 192 bytes, and moves cost a memcpy call each.
+        let u_map_x = K::displacement_map(&self.body.corner_displacements_or_zero(cell_x));
+        let t_guess = match self.settings.order {
+            CandidateOrder::Predicted => self.guess(t_x, cell_x, t_x, &u_map_x),
+            CandidateOrder::Undeformed => t_x,
+        };
+        let first = lattice.clamped_cell(t_guess);
+        let mut inversions = 0u32;
+        let mut found = None;
+        // The predicted cell first, without the range test: it holds the point almost always, and
+        // when it is the cell holding x its displacement map is already built.
+        if self.body.is_active(lattice.cell_id(first)) {
+            let reuse = (first == cell_x).then_some(u_map_x);
+            let (c, n, f) = (&mut *collect, &mut inversions, &mut found);
+            if self.visit(x, first, reuse, t_guess, options, c, n, f) {
+                return (found, inversions);
+            }
+        }
+        self.search_rings::<K>(
+            x,
+            t_x,
+            t_guess,
+            first,
+            options,
+            collect,
+            &mut inversions,
+            &mut found,
+        );
+        (found, inversions)
+    }
+}
