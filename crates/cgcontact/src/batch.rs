@@ -725,8 +725,11 @@ impl<V: Lanes> Maps<V> {
     ) -> (V3<V>, V, [u32; MAX_W], u32) {
         let tol = V::splat(V::S::of(options.tol));
         let det_floor = V::splat(V::S::of(options.det_ratio_min)) * self.det_at_center().abs();
-        let line_search_above = V::splat(V::S::of(1e-3));
-        let early_outside = inside + V::splat(V::S::of(1e-2));
+        // The scalar kernel's safeguards (`hex8`), so that both loops take the same decisions.
+        let line_search_above = V::splat(V::S::of(hex8::LINE_SEARCH_ABOVE));
+        let early_outside_step = V::splat(V::S::of(hex8::EARLY_OUTSIDE_STEP));
+        let early_outside = inside + V::splat(V::S::of(hex8::EARLY_OUTSIDE_MARGIN));
+        let (low, high) = (V::S::of(-hex8::NEWTON_BOX), V::S::of(hex8::NEWTON_BOX));
         let magnitude = self.magnitude(x);
         let mut xi = xi0.clamp(V::S::of(-1.0), V::S::of(1.0));
         let (fx, mut jac) = self.map_and_jacobian(xi);
@@ -753,7 +756,7 @@ impl<V: Lanes> Maps<V> {
                 size.le(tol) | size.le(self.step_noise(magnitude, [k0, k1, k2], inv_det));
             // The converged lanes take the full step; the others the step clamped to the box.
             let sum = xi + delta;
-            let trial = V3::select(converged, sum, sum.clamp(V::S::of(-4.0), V::S::of(4.0)));
+            let trial = V3::select(converged, sum, sum.clamp(low, high));
             let (f_trial, jac_trial) = self.map_and_jacobian(trial);
             let r_trial = x - f_trial;
             let rr_trial = r_trial.dot(r_trial);
@@ -765,7 +768,7 @@ impl<V: Lanes> Maps<V> {
             // or an early Outside all leave the common path.
             let line_search = rr_trial.gt(rr) & size.gt(line_search_above);
             let moved = (trial - xi).abs().max_element();
-            let early_out = moved.lt(line_search_above) & far.gt(early_outside);
+            let early_out = moved.lt(early_outside_step) & far.gt(early_outside);
             let go_on = pending & !(converged | singular | line_search | early_out) & finite;
             let keep = inside_now | go_on;
             xi = V3::select(keep, trial, xi);

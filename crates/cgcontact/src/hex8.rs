@@ -17,6 +17,16 @@ use std::ops::{Add, Sub};
 
 use glam::{DVec3, Vec3A};
 
+/// Newton's safeguards, shared by the scalar kernel and the SIMD lanes (`batch.rs`) so that the two
+/// loops cannot drift apart: iterates are kept in [−`NEWTON_BOX`, `NEWTON_BOX`]³, a step larger
+/// than `LINE_SEARCH_ABOVE` that does not reduce the residual is backtracked, and an iterate
+/// moving by less than `EARLY_OUTSIDE_STEP` while more than `EARLY_OUTSIDE_MARGIN` past the inside
+/// limit is `Outside` at once.
+pub(crate) const NEWTON_BOX: f64 = 4.0;
+pub(crate) const LINE_SEARCH_ABOVE: f64 = 1e-3;
+pub(crate) const EARLY_OUTSIDE_STEP: f64 = 1e-3;
+pub(crate) const EARLY_OUTSIDE_MARGIN: f64 = 1e-2;
+
 /// Sign of each corner's local coordinate, VTK order: corner `c` sits at `CORNER_XI[c]`.
 pub const CORNER_XI: [[f64; 3]; 8] = [
     [-1.0, -1.0, -1.0],
@@ -239,10 +249,11 @@ macro_rules! stamp_hex8 {
             #[must_use]
             #[inline]
             pub fn invert(&self, x: $V, xi0: $V, options: &NewtonOptions) -> Inversion {
-                const BOX: $S = 4.0;
-                const LINE_SEARCH_ABOVE: $S = 1e-3;
-                const EARLY_OUTSIDE_STEP: $S = 1e-3;
-                const EARLY_OUTSIDE_MARGIN: $S = 1e-2;
+                // The same values in f64 and f32: each is exact or rounds as its literal would.
+                const BOX: $S = NEWTON_BOX as $S;
+                const LINE_SEARCH_ABOVE: $S = crate::hex8::LINE_SEARCH_ABOVE as $S;
+                const EARLY_OUTSIDE_STEP: $S = crate::hex8::EARLY_OUTSIDE_STEP as $S;
+                const EARLY_OUTSIDE_MARGIN: $S = crate::hex8::EARLY_OUTSIDE_MARGIN as $S;
                 let tol = options.tol as $S;
                 let inside = 1.0 + options.inside_tol as $S;
                 let det_floor = options.det_ratio_min as $S * self.det_at_center().abs();

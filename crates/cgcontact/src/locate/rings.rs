@@ -72,51 +72,142 @@ impl LatticeLocator<'_> {
             }
             return;
         }
-        let s = center.map(i64::from);
-        let (lo, hi) = (low.map(i64::from), high.map(i64::from));
+        for ijk in Rings::new(low, high, center) {
+            if ijk == first || !self.body.is_active(lattice.cell_id(ijk)) {
+                continue;
+            }
+            let u = self.body.corner_displacements(ijk);
+            if !reaches(ijk, &u) {
+                continue;
+            }
+            let map = Some(K::displacement_map(&u));
+            if self.visit(x, ijk, map, t_guess, options, collect, inversions, found) {
+                return;
+            }
+        }
+    }
+}
+
+/// The cells of the box [`low`, `high`] in rings of growing Chebyshev distance around `center` (a
+/// cell of the box): each cell once, nearest shell first, and within a shell by z, then y, then x
+/// (the order of `reach::ring_key`, which the block-range candidates are sorted by).
+#[derive(Clone, Debug)]
+pub(crate) struct Rings {
+    center: [i64; 3],
+    low: [i64; 3],
+    high: [i64; 3],
+    radius: i64,
+    /// The current shell, row (k, j), next x to look at, and the step along x.
+    r: i64,
+    k: i64,
+    j: i64,
+    i: i64,
+    step: i64,
+}
+
+impl Rings {
+    pub(crate) fn new(low: [u32; 3], high: [u32; 3], center: [u32; 3]) -> Self {
+        let (center, low, high) = (
+            center.map(i64::from),
+            low.map(i64::from),
+            high.map(i64::from),
+        );
         let radius = (0..3)
-            .map(|a| (s[a] - lo[a]).max(hi[a] - s[a]))
+            .map(|a| (center[a] - low[a]).max(high[a] - center[a]))
             .max()
             .unwrap_or(0);
-        for r in 0..=radius {
-            for k in (s[2] - r).max(lo[2])..=(s[2] + r).min(hi[2]) {
-                for j in (s[1] - r).max(lo[1])..=(s[1] + r).min(hi[1]) {
-                    // On the shell's top, bottom and sides the whole row is at distance r; elsewhere
-                    // only its two ends are.
-                    let whole_row = (k - s[2]).abs() == r || (j - s[1]).abs() == r;
-                    let (from, to) = ((s[0] - r).max(lo[0]), (s[0] + r).min(hi[0]));
-                    let step = if whole_row {
-                        1
-                    } else {
-                        (2 * r).max(1) as usize
-                    };
-                    for i in (s[0] - r..=s[0] + r).step_by(step) {
-                        let ijk = [i as u32, j as u32, k as u32];
-                        if i < from || i > to || ijk == first {
-                            continue;
-                        }
-                        if !self.body.is_active(lattice.cell_id(ijk)) {
-                            continue;
-                        }
-                        let u = self.body.corner_displacements(ijk);
-                        if !reaches(ijk, &u) {
-                            continue;
-                        }
-                        if self.visit(
-                            x,
-                            ijk,
-                            Some(K::displacement_map(&u)),
-                            t_guess,
-                            options,
-                            collect,
-                            inversions,
-                            found,
-                        ) {
-                            return;
-                        }
+        let mut rings = Self {
+            center,
+            low,
+            high,
+            radius,
+            r: 0,
+            k: center[2],
+            j: center[1],
+            i: 0,
+            step: 1,
+        };
+        rings.start_row();
+        rings
+    }
+
+    /// Start row (k, j) of shell r: on the shell's top, bottom and sides the whole row is at
+    /// distance r; elsewhere only its two ends are.
+    fn start_row(&mut self) {
+        let (c, r) = (self.center, self.r);
+        let whole_row = (self.k - c[2]).abs() == r || (self.j - c[1]).abs() == r;
+        self.step = if whole_row { 1 } else { (2 * r).max(1) };
+        self.i = c[0] - r;
+    }
+}
+
+impl Iterator for Rings {
+    type Item = [u32; 3];
+
+    fn next(&mut self) -> Option<[u32; 3]> {
+        let (c, lo, hi) = (self.center, self.low, self.high);
+        loop {
+            if self.r > self.radius {
+                return None;
+            }
+            let r = self.r;
+            if self.i <= c[0] + r {
+                let i = self.i;
+                self.i += self.step;
+                if i >= (c[0] - r).max(lo[0]) && i <= (c[0] + r).min(hi[0]) {
+                    // In the box: every index is between 0 and a u32 bound.
+                    return Some([i as u32, self.j as u32, self.k as u32]);
+                }
+                continue;
+            }
+            // The next row of this shell, or the next shell.
+            self.j += 1;
+            if self.j > (c[1] + r).min(hi[1]) {
+                self.k += 1;
+                self.j = (c[1] - r).max(lo[1]);
+            }
+            if self.k > (c[2] + r).min(hi[2]) {
+                self.r += 1;
+                let r = self.r;
+                self.k = (c[2] - r).max(lo[2]);
+                self.j = (c[1] - r).max(lo[1]);
+            }
+            self.start_row();
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Each cell of the box exactly once, nearest shell first, z then y then x within a shell: the
+    /// box's cells sorted by their ring key, for boxes and centres of every shape.
+    #[test]
+    fn rings_visit_each_cell_once_nearest_shell_first() {
+        let mut state = 11u64;
+        let mut next = |n: u32| {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            ((state >> 33) % u64::from(n)) as u32
+        };
+        for _ in 0..300 {
+            let low = [next(5), next(5), next(5)];
+            let high = low.map(|l| l + next(6));
+            let center = [0, 1, 2].map(|a| low[a] + next(high[a] - low[a] + 1));
+            let walked: Vec<[u32; 3]> = Rings::new(low, high, center).collect();
+            let mut expected = Vec::new();
+            for k in low[2]..=high[2] {
+                for j in low[1]..=high[1] {
+                    for i in low[0]..=high[0] {
+                        expected.push([i, j, k]);
                     }
                 }
             }
+            expected.sort_by_key(|&ijk| reach::ring_key(ijk, center));
+            assert_eq!(walked, expected, "box {low:?}..{high:?} around {center:?}");
         }
+        assert_eq!(Rings::new([3, 3, 3], [3, 3, 3], [3, 3, 3]).count(), 1);
     }
 }
