@@ -17,7 +17,7 @@
 //!
 //! An AVX intrinsic is `unsafe` to call from a function not compiled with AVX enabled, and the lane
 //! methods are plain `#[inline(always)]` functions (inlined into the `#[target_feature]` entry
-//! points of `locate.rs`), so each call is wrapped. It is sound because AVX lane values exist only
+//! points of `locate/batched.rs`), so each call is wrapped. It is sound because AVX lane values exist only
 //! behind those entry points, which run only after detection found AVX2 (and AVX-512VL for the
 //! second); each wrapped call is one register operation.
 
