@@ -274,8 +274,7 @@ impl LatticeLocator<'_> {
         #[cfg(target_arch = "x86_64")]
         match Isa::get() {
             // SAFETY: `Isa::get` answers `Avx512` only where AVX2, AVX-512F and AVX-512VL were
-            // detected on this CPU, `Avx2` only where AVX2 was; these are the only ways in to the
-            // AVX lanes (`batch::avx`).
+            // detected on this CPU, `Avx2` only where AVX2 was: the entry points' requirements.
             #[allow(unsafe_code)]
             Isa::Avx512 => return unsafe { self.locate_chunk_avx512(points, out) },
             #[allow(unsafe_code)]
@@ -289,33 +288,6 @@ impl LatticeLocator<'_> {
                     *o = self.locate(x);
                 }
             }
-        }
-    }
-
-    /// The batch in AVX registers, the whole of it compiled for AVX2.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    pub(super) fn locate_chunk_avx2(&self, points: &[DVec3], out: &mut [Answer]) {
-        self.locate_chunk_avx(points, out);
-    }
-
-    /// The same 256-bit lanes compiled with AVX-512VL as well: the compiler then has 32 vector
-    /// registers instead of 16, and spills less (docs/benchmarks.md has the measured gain). The
-    /// operations are the same IEEE operations, so the answers are the same bits.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,avx512f,avx512vl")]
-    pub(super) fn locate_chunk_avx512(&self, points: &[DVec3], out: &mut [Answer]) {
-        self.locate_chunk_avx(points, out);
-    }
-
-    /// The AVX lanes of the settings' precision; inlined into the caller's instruction set.
-    #[cfg(target_arch = "x86_64")]
-    #[inline(always)]
-    fn locate_chunk_avx(&self, points: &[DVec3], out: &mut [Answer]) {
-        use crate::batch::avx::{F32x8, F64x4};
-        match self.settings.precision {
-            Precision::F32 => self.locate_chunk_with::<F32x8>(points, out),
-            Precision::F64 => self.locate_chunk_with::<F64x4>(points, out),
         }
     }
 }

@@ -6,6 +6,7 @@
 //! | `scalar.rs` | the search one point at a time: admit, predict, invert the predicted cell |
 //! | `rings.rs` | after a miss: every other cell that can hold the point, nearest shell first ([`rings::Rings`]) |
 //! | `batched.rs` | `locate_all`'s common path, 4 or 8 points per SIMD lane set, and the instruction-set dispatch |
+//! | `avx.rs` | the AVX lane types, private to the `#[target_feature]` entry points that use them |
 //!
 //! # Why the lattice search is complete
 //! A point x inside deformed cell c satisfies x = X(ξ) + u(ξ), with X(ξ) the undeformed point of c and
@@ -16,6 +17,8 @@
 //! cell holding x − ũ, ũ the displacement interpolated at x on the undeformed lattice, which is the
 //! containing cell for almost every point.
 
+#[cfg(target_arch = "x86_64")]
+mod avx;
 mod batched;
 mod rings;
 mod scalar;
