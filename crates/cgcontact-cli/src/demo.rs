@@ -3,13 +3,13 @@
 use std::path::PathBuf;
 
 use anyhow::Result;
-use cgcontact_io::{CellMap, write_deformed_vtu, write_points_vtu, write_results};
+use cgcontact_io::{CellMap, write_deformed_vtu, write_points_vtu, write_results_counted};
 use cgcontact_scenes::SphereOnBlock;
 use clap::Args;
 
 use crate::output::{prepare_folder, say};
 use crate::picture::contact_patch_svg;
-use crate::run::{SearchArgs, search};
+use crate::run::{SearchArgs, Searched, search};
 
 /// The seed's case, no files needed: a 5 × 10 × 5 mm block (h = 0.25 mm) indented by a 1 mm sphere;
 /// locate the sphere's 6,700 contact points in the deformed block.
@@ -45,12 +45,16 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         ..knobs
     }
     .build(name)?;
-    let (answers, mut summary) = search(&scene.body, &scene.contact_points, &args.search, &pool)?;
+    let Searched {
+        answers,
+        tried,
+        mut summary,
+    } = search(&scene.body, &scene.contact_points, &args.search, &pool)?;
 
     let dir = &args.out;
     let cells = CellMap::ascending(&scene.body);
     let results = dir.join("results.csv");
-    write_results(&results, &answers, &cells)?;
+    write_results_counted(&results, &answers, &tried, &cells)?;
     let block = dir.join("block.vtu");
     write_deformed_vtu(&block, &scene.body, &cells, &answers, false)?;
     let points = dir.join("points.vtu");

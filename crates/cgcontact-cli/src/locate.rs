@@ -4,12 +4,13 @@ use std::path::PathBuf;
 
 use anyhow::Result;
 use cgcontact_io::{
-    DisplacementArray, read_mesh, read_points, write_deformed_vtu, write_points_vtu, write_results,
+    DisplacementArray, read_mesh, read_points, write_deformed_vtu, write_points_vtu,
+    write_results_counted,
 };
 use clap::Args;
 
 use crate::output::{check_outputs, prepare_folder};
-use crate::run::{SearchArgs, search};
+use crate::run::{SearchArgs, Searched, search};
 
 /// Locate the points of a CSV file in a VTK mesh of hexahedra on a cartesian lattice.
 #[derive(Args, Debug)]
@@ -77,7 +78,11 @@ pub fn run(args: &LocateArgs) -> Result<()> {
         &DisplacementArray::from_option(args.displacement.as_deref()),
     )?;
     let points = read_points(&args.points)?;
-    let (answers, mut summary) = search(&mesh.body, &points, &args.search, &pool)?;
+    let Searched {
+        answers,
+        tried,
+        mut summary,
+    } = search(&mesh.body, &points, &args.search, &pool)?;
     summary.displacement = mesh.has_displacement.then(|| {
         args.displacement
             .clone()
@@ -91,7 +96,7 @@ pub fn run(args: &LocateArgs) -> Result<()> {
             .unwrap_or(*cell);
     }
     if let Some(out) = &args.out {
-        write_results(out, &answers, &mesh.cells)?;
+        write_results_counted(out, &answers, &tried, &mesh.cells)?;
         summary.files.push(out.display().to_string());
     }
     if let Some([mesh_path, points_path]) = &vtk_files {

@@ -262,7 +262,7 @@ pub fn search(
     points: &[DVec3],
     args: &SearchArgs,
     pool: &rayon::ThreadPool,
-) -> Result<(Vec<Answer>, Summary)> {
+) -> Result<Searched> {
     let settings = args.settings()?;
     let setup = Instant::now();
     let locator: Box<dyn Locator + '_> = match args.strategy {
@@ -326,12 +326,13 @@ pub fn search(
     let invalid_points = answers.iter().filter(|a| a.is_err()).count();
     // Counted in a second, untimed pass: the lattice locator counts the inversions of the points it
     // does not find too (the baselines count those of located points only).
-    let inversions: u64 = pool.install(|| {
+    let tried: Vec<u32> = pool.install(|| {
         points
             .par_iter()
-            .map(|&x| u64::from(locator.locate_counted(x).1))
-            .sum()
+            .map(|&x| locator.locate_counted(x).1)
+            .collect()
     });
+    let inversions: u64 = tried.iter().map(|&t| u64::from(t)).sum();
     let summary = Summary {
         points: points.len(),
         located: located.len(),
@@ -364,7 +365,19 @@ pub fn search(
             .collect(),
         files: Vec::new(),
     };
-    Ok((answers, summary))
+    Ok(Searched {
+        answers,
+        tried,
+        summary,
+    })
+}
+
+/// What [`search`] found: the answers, the Newton inversions each point's search tried (failed
+/// ones included), and the summary.
+pub struct Searched {
+    pub answers: Vec<Answer>,
+    pub tried: Vec<u32>,
+    pub summary: Summary,
 }
 
 /// A progress bar on stderr, hidden until shown (by the caller, after a second) and never shown

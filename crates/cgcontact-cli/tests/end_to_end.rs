@@ -210,3 +210,38 @@ fn repeat_reports_min_and_median() {
     let once = json(&[]);
     assert!(once.get("query_seconds_min").is_none(), "{once}");
 }
+
+/// Rows not located had `NaN` for ξ but an empty `inversions`: now every row carries its count,
+/// and the lattice strategy's misses show the inversions they cost.
+#[test]
+fn rows_not_located_carry_their_inversions() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().to_str().unwrap();
+    let demo = cgcontact(&["demo", "--coarse", "--out", out, "--quiet"]);
+    assert!(
+        demo.status.success(),
+        "{}",
+        String::from_utf8_lossy(&demo.stderr)
+    );
+    let text = std::fs::read_to_string(dir.path().join("results.csv")).unwrap();
+    let mut missed_with_work = 0;
+    for line in text.lines().skip(1) {
+        let fields: Vec<&str> = line.split(',').collect();
+        assert_eq!(fields.len(), 8, "{line}");
+        let inversions: u32 = fields[7].parse().unwrap_or_else(|_| panic!("{line}"));
+        if fields[1] == "-1" {
+            assert!(
+                fields[2..5].iter().all(|f| *f == "NaN") && fields[5] == "0",
+                "{line}"
+            );
+            missed_with_work += usize::from(inversions > 0);
+        } else {
+            assert!(inversions >= 1, "{line}");
+        }
+    }
+    assert!(
+        missed_with_work > 0,
+        "no miss near the body cost an inversion"
+    );
+    assert!(read_results(dir.path().join("results.csv")).is_ok());
+}

@@ -118,13 +118,15 @@ pub struct ResultRow {
     pub iterations: u32,
     /// Residual |x − x(ξ)| (NaN when not located).
     pub residual: f64,
-    /// Newton inversions tried (0 when not located: the file leaves it empty).
+    /// Newton inversions tried for the point, failed ones included (for a point not located: the
+    /// count its strategy reported, 0 where none was).
     pub inversions: u32,
 }
 
 /// Write results as CSV: header [`RESULTS_HEADER`], one row per answer, `cell` as the input mesh's
-/// cell index (via `cells`) or −1, floating point values in shortest round-trip form (`NaN` for ξ
-/// and the residual of points not located).
+/// cell index (via `cells`) or −1, floating point values in shortest round-trip form. A point not
+/// located has ξ and the residual `NaN`, 0 iterations, and 0 inversions (see [`write_results_counted`]
+/// for the inversions its search tried).
 pub fn write_results(
     path: impl AsRef<Path>,
     answers: &[Answer],
@@ -133,10 +135,32 @@ pub fn write_results(
     crate::atomic::write_file(path, |out| Ok(write_results_to(out, answers, cells)?))
 }
 
+/// [`write_results`] with the Newton inversions each point's search tried, failed ones included
+/// (`Locator::locate_counted`), so that points not located carry their cost too.
+pub fn write_results_counted(
+    path: impl AsRef<Path>,
+    answers: &[Answer],
+    tried: &[u32],
+    cells: &CellMap,
+) -> Result<(), IoError> {
+    crate::atomic::write_file(path, |out| {
+        Ok(write_rows(out, answers, Some(tried), cells)?)
+    })
+}
+
 /// [`write_results`] to any writer.
 pub fn write_results_to(
+    out: impl Write,
+    answers: &[Answer],
+    cells: &CellMap,
+) -> std::io::Result<()> {
+    write_rows(out, answers, None, cells)
+}
+
+fn write_rows(
     mut out: impl Write,
     answers: &[Answer],
+    tried: Option<&[u32]>,
     cells: &CellMap,
 ) -> std::io::Result<()> {
     writeln!(out, "{}", RESULTS_HEADER.join(","))?;
@@ -150,8 +174,10 @@ pub fn write_results_to(
                     hit.xi.x, hit.xi.y, hit.xi.z, hit.iterations, hit.residual, hit.inversions
                 )?;
             }
-            // The inversions tried are not reported without a hit: left empty.
-            Ok(None) | Err(_) => writeln!(out, "{point},-1,NaN,NaN,NaN,0,NaN,")?,
+            Ok(None) | Err(_) => {
+                let inversions = tried.and_then(|t| t.get(point)).copied().unwrap_or(0);
+                writeln!(out, "{point},-1,NaN,NaN,NaN,0,NaN,{inversions}")?;
+            }
         }
     }
     Ok(())
