@@ -13,7 +13,7 @@ use plotters::prelude::*;
 /// the x–y plane. Only the region around the sphere is drawn.
 pub fn contact_patch_svg(path: &Path, scene: &Scene, answers: &[Answer]) -> Result<()> {
     let mut svg = String::new();
-    let root = SVGBackend::with_string(&mut svg, (800, 800)).into_drawing_area();
+    let root = SVGBackend::with_string(&mut svg, (800, 880)).into_drawing_area();
     draw_contact_patch(root, path, scene, answers)?;
     crate::output::write_text(path, &svg)
 }
@@ -47,7 +47,15 @@ fn draw_contact_patch(
     let fail =
         |e: &dyn std::fmt::Display| anyhow!("{}: cannot draw the picture: {e}", path.display());
     root.fill(&WHITE).map_err(|e| fail(&e))?;
+    let (root, key) = root.split_vertically(800);
     let mut chart = ChartBuilder::on(&root)
+        .caption(
+            format!(
+                "{}: the block's top seen from above, cells shaded by the contact points they hold",
+                scene.name
+            ),
+            ("sans-serif", 16),
+        )
         .margin(10)
         .build_cartesian_2d(x0..x1, y0..y1)
         .map_err(|e| fail(&e))?;
@@ -70,17 +78,7 @@ fn draw_contact_patch(
                 continue;
             }
             let count = held[(i + nx * j) as usize];
-            let shade = if count == 0 {
-                RGBColor(245, 245, 245)
-            } else {
-                let t = 0.3 + 0.7 * f64::from(count) / f64::from(most);
-                RGBColor(
-                    255,
-                    (230.0 * (1.0 - t)) as u8 + 20,
-                    (120.0 * (1.0 - t)) as u8,
-                )
-            };
-            faces.push((quad, shade));
+            faces.push((quad, shade(count, most)));
         }
     }
     chart
@@ -118,6 +116,90 @@ fn draw_contact_patch(
                 .map(|(x, _)| Circle::new((x.x, x.y), 2, RGBColor(200, 0, 0).filled())),
         )
         .map_err(|e| fail(&e))?;
+    // A length scale: a bar of a round length, a fifth of the width or less, in the bottom left.
+    let width = x1 - x0;
+    let bar = 10f64.powf((width / 5.0).log10().floor());
+    let bar = [5.0, 2.0, 1.0]
+        .into_iter()
+        .map(|m| m * bar)
+        .find(|&b| b <= width / 5.0)
+        .unwrap_or(bar);
+    let (bx, by) = (x0 + 0.05 * width, y0 + 0.05 * (y1 - y0));
+    chart
+        .draw_series([PathElement::new(
+            vec![(bx, by), (bx + bar, by)],
+            BLACK.stroke_width(3),
+        )])
+        .map_err(|e| fail(&e))?;
+    chart
+        .draw_series([Text::new(
+            format!("{bar} (model units: h = {})", lattice.h().x),
+            (bx, by + 0.02 * (y1 - y0)),
+            ("sans-serif", 13).into_font(),
+        )])
+        .map_err(|e| fail(&e))?;
+
+    // The key: the shades of the cells, and the points.
+    let entries: Vec<(String, ShapeStyle, bool)> = [0, 1, most.div_ceil(2), most]
+        .into_iter()
+        .filter(|&n| n <= most)
+        .map(|n| {
+            let label = if n == 0 {
+                "no point".to_owned()
+            } else {
+                format!("{n} point{}", if n == 1 { "" } else { "s" })
+            };
+            (label, shade(n, most).filled(), false)
+        })
+        .chain([
+            (
+                "contact point located".to_owned(),
+                RGBColor(200, 0, 0).filled(),
+                true,
+            ),
+            (
+                "not located".to_owned(),
+                RGBColor(150, 150, 150).filled(),
+                true,
+            ),
+        ])
+        .collect();
+    let mut at = 20;
+    for (label, style, point) in entries {
+        if point {
+            key.draw(&Circle::new((at + 8, 30), 4, style))
+                .map_err(|e| fail(&e))?;
+        } else {
+            key.draw(&Rectangle::new([(at, 22), (at + 16, 38)], style))
+                .map_err(|e| fail(&e))?;
+            key.draw(&Rectangle::new(
+                [(at, 22), (at + 16, 38)],
+                RGBColor(120, 120, 120).stroke_width(1),
+            ))
+            .map_err(|e| fail(&e))?;
+        }
+        key.draw(&Text::new(
+            label.clone(),
+            (at + 22, 24),
+            ("sans-serif", 13).into_font(),
+        ))
+        .map_err(|e| fail(&e))?;
+        at += 30 + 7 * label.len() as i32;
+    }
     root.present().map_err(|e| fail(&e))?;
     Ok(())
+}
+
+/// The shade of a column holding `count` of at most `most` located points.
+fn shade(count: u32, most: u32) -> RGBColor {
+    if count == 0 {
+        RGBColor(245, 245, 245)
+    } else {
+        let t = 0.3 + 0.7 * f64::from(count) / f64::from(most.max(1));
+        RGBColor(
+            255,
+            (230.0 * (1.0 - t)) as u8 + 20,
+            (120.0 * (1.0 - t)) as u8,
+        )
+    }
 }
