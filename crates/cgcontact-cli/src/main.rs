@@ -116,3 +116,29 @@ fn parse_error(error: &clap::Error) -> ExitCode {
     );
     ExitCode::from(2)
 }
+
+#[cfg(test)]
+mod tests {
+    use clap::CommandFactory;
+
+    use super::Cli;
+
+    /// The help's defaults are the library's (`Settings`), not copies that could drift.
+    #[test]
+    fn help_states_the_library_defaults() {
+        use cgcontact::Settings;
+        let mut cli = Cli::command();
+        let locate = cli
+            .find_subcommand_mut("locate")
+            .expect("locate")
+            .render_long_help();
+        let help = locate.to_string();
+        let tol = format!(
+            "default: {:e} in f64, {:e} in f32",
+            Settings::NEWTON_TOL,
+            Settings::NEWTON_TOL_F32
+        );
+        assert!(help.contains(&tol), "{tol} not in the help");
+        assert!(help.contains(&format!("[default: {}]", Settings::MAX_ITER)));
+    }
+}

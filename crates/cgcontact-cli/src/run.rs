@@ -62,7 +62,7 @@ pub struct SearchArgs {
     #[arg(long, value_name = "T")]
     pub tol: Option<f64>,
     /// Newton iteration limit per candidate cell.
-    #[arg(long, value_name = "N", default_value_t = 20)]
+    #[arg(long, value_name = "N", default_value_t = Settings::MAX_ITER)]
     pub max_iter: u32,
     /// Worker threads [default: all cores].
     #[arg(long, value_name = "N")]

@@ -825,6 +825,11 @@ fn report(
             scene.points.len()
         );
     }
+    let (newton_tol, max_iter, inside_tol) = (
+        Settings::NEWTON_TOL,
+        Settings::MAX_ITER,
+        Settings::INSIDE_TOL,
+    );
     let _ = writeln!(
         s,
         "\n## Columns\n\n\
@@ -843,8 +848,8 @@ fn report(
          - *max residual*: |x − x(ξ)| of the answers, recomputed in f64 (length units; h = 0.25 on fine/sphere/far, \
          0.125 on the blocks; coarse 0.5 in --quick).\n\
          \n\
-         Settings (`Settings::default()`): f64, Newton tolerance 1e-10 on the step, 20 iterations, inside \
-         tolerance 1e-12, predicted candidate order. Baselines run at the defaults; the seed-faithful mode \
+         Settings (`Settings::default()`): f64, Newton tolerance {newton_tol:e} on the step, {max_iter} iterations, \
+         inside tolerance {inside_tol:e}, predicted candidate order. Baselines run at the defaults; the seed-faithful mode \
          uses the seed's own Newton (0.1 absolute residual).\n"
     );
     let _ = writeln!(s, "## Results\n");

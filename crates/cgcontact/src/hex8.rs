@@ -62,9 +62,9 @@ pub struct NewtonOptions {
 impl Default for NewtonOptions {
     fn default() -> Self {
         Self {
-            tol: 1e-10,
-            max_iter: 20,
-            inside_tol: 1e-12,
+            tol: crate::Settings::NEWTON_TOL,
+            max_iter: crate::Settings::MAX_ITER,
+            inside_tol: crate::Settings::INSIDE_TOL,
             det_ratio_min: 1e-12,
         }
     }

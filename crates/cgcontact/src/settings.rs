@@ -52,22 +52,34 @@ impl Default for Settings {
     fn default() -> Self {
         Self {
             precision: Precision::F64,
-            newton_tol: 1e-10,
-            max_iter: 20,
-            inside_tol: 1e-12,
+            newton_tol: Self::NEWTON_TOL,
+            max_iter: Self::MAX_ITER,
+            inside_tol: Self::INSIDE_TOL,
             order: CandidateOrder::Predicted,
         }
     }
 }
 
 impl Settings {
+    /// Default Newton tolerance on the step, ξ units (f64): the knee of the measured trade
+    /// (docs/tradeoff.md).
+    pub const NEWTON_TOL: f64 = 1e-10;
+    /// Default Newton iteration limit per candidate cell.
+    pub const MAX_ITER: u32 = 20;
+    /// Default inside tolerance, ξ units (f64).
+    pub const INSIDE_TOL: f64 = 1e-12;
+    /// Default Newton tolerance of [`Settings::f32`].
+    pub const NEWTON_TOL_F32: f64 = 1e-5;
+    /// Default inside tolerance of [`Settings::f32`].
+    pub const INSIDE_TOL_F32: f64 = 1e-6;
+
     /// Defaults for f32: a Newton tolerance and inside tolerance suited to single precision.
     #[must_use]
     pub fn f32() -> Self {
         Self {
             precision: Precision::F32,
-            newton_tol: 1e-5,
-            inside_tol: 1e-6,
+            newton_tol: Self::NEWTON_TOL_F32,
+            inside_tol: Self::INSIDE_TOL_F32,
             ..Self::default()
         }
     }
