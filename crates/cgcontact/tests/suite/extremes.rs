@@ -6,13 +6,11 @@
 //! Every test prints its measured bound on one `MEASURED` line (`cargo test --test extremes --
 //! --nocapture`); docs/numerics.md records them with the name of the test that backs each.
 
-mod common;
-
+use crate::common::{Rng, body, point_at};
 use cgcontact::hex8::{Hex8Map, Kernel, min_corner_det};
 use cgcontact::{
     Body, CellId, Error, Lattice, LatticeLocator, Locator, PointError, Precision, Settings,
 };
-use common::{Rng, body, point_at};
 use glam::DVec3;
 
 /// Both precisions with their default settings.

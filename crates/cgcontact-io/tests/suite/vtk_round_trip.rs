@@ -1,17 +1,15 @@
 //! Round trips: a body written in each flavour reads back as the same lattice, cells and
 //! displacements; so do shuffled meshes in files written the way VTK and ParaView write them.
 
-mod common;
-
+use crate::common::{
+    LegacyData, body_with_holes, expected_cells, legacy_ascii, shuffled, vtu_ascii,
+    vtu_raw_appended,
+};
 use cgcontact::glam::DVec3;
 use cgcontact::{Body, LatticeLocator, Locator, Settings};
 use cgcontact_io::{
     CellMap, DisplacementArray, HexMesh, LatticeMesh, MeshFormat, read_mesh, write_deformed_vtu,
     write_mesh, write_points_vtu,
-};
-use common::{
-    LegacyData, body_with_holes, expected_cells, legacy_ascii, shuffled, vtu_ascii,
-    vtu_raw_appended,
 };
 
 const FORMATS: [MeshFormat; 4] = [

@@ -1,7 +1,7 @@
 //! A displacement array that is in the file but cannot be decoded is an error naming it. vtkio
 //! drops such an array silently, and the mesh was then solved as undeformed with exit code 0.
 
-mod common;
+use crate::common;
 
 use cgcontact::glam::DVec3;
 use cgcontact_io::{DisplacementArray, HexMesh, MeshFormat, parse_hex_mesh, write_mesh};

@@ -1,13 +1,13 @@
 //! Error messages that name the file, the place and the fault in words a user understands, and
 //! never echo raw bytes.
 
-mod common;
+use crate::common;
 
+use crate::common::{LegacyData, body_with_holes, legacy_ascii};
 use cgcontact::glam::DVec3;
 use cgcontact_io::{
     DisplacementArray, HexMesh, parse_hex_mesh, parse_points, parse_results, read_points,
 };
-use common::{LegacyData, body_with_holes, legacy_ascii};
 
 fn points_error(text: &[u8]) -> String {
     parse_points(text).unwrap_err().to_string()

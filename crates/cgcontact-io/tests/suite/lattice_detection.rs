@@ -1,11 +1,9 @@
 //! Lattice detection on shifted, scaled and anisotropic lattices with holes and shuffled order, and
 //! the errors for meshes that are not lattices (each naming the cell or node).
 
-mod common;
-
+use crate::common::{LegacyData, body_with_holes, expected_cells, legacy_ascii, shuffled};
 use cgcontact::glam::DVec3;
 use cgcontact_io::{DisplacementArray, ErrorKind, HexMesh, read_mesh};
-use common::{LegacyData, body_with_holes, expected_cells, legacy_ascii, shuffled};
 
 fn cases() -> Vec<(DVec3, DVec3)> {
     vec![

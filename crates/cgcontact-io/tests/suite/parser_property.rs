@@ -2,7 +2,7 @@
 //! bytes and mutated valid files never panic (an error value or a parse, nothing else), and valid
 //! files round-trip. Case counts are bounded so the file runs in a few seconds in the test profile.
 
-mod common;
+use crate::common;
 
 use bitvec::vec::BitVec;
 use cgcontact::glam::DVec3;

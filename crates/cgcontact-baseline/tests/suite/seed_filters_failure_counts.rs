@@ -6,16 +6,16 @@
 //! Reproduce (and print the table to paste into the docs):
 //! `cargo test -p cgcontact-baseline --test seed_filters_failure_counts -- --nocapture`
 
-mod common;
+use crate::common;
 
+use crate::common::Spec;
 use cgcontact::glam::DVec3;
 use cgcontact::{Body, LatticeLocator, Locator, Settings};
 use cgcontact_baseline::{
     BruteForce, CentroidRadius, Inversion, NodeRadius, NodeRadiusOptions, RTree, RadiusRule,
 };
-use common::Spec;
 
-const DOC: &str = include_str!("../../../docs/baselines.md");
+const DOC: &str = include_str!("../../../../docs/baselines.md");
 const BEGIN: &str = "<!-- baseline-counts:begin -->";
 const END: &str = "<!-- baseline-counts:end -->";
 

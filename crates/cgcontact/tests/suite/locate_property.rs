@@ -1,11 +1,9 @@
 //! Property tests of the lattice locator against known answers and an exhaustive oracle.
 
-mod common;
-
+use crate::common::{Rng, body, brute_owners, point_at};
 use cgcontact::{
     Answer, CandidateOrder, CellId, Lattice, LatticeLocator, Locator, PointError, Settings,
 };
-use common::{Rng, body, brute_owners, point_at};
 use glam::DVec3;
 use proptest::prelude::*;
 

@@ -2,12 +2,12 @@
 //! known answers, points on shared faces/edges/nodes, points within 1e-9 h of the outer boundary (both
 //! sides), points anywhere in the body's box, and points far outside.
 
-mod common;
+use crate::common;
 
+use crate::common::{Kind, Spec};
 use cgcontact::glam::DVec3;
 use cgcontact::{LatticeLocator, Locator, PointError, Settings};
 use cgcontact_baseline::{BruteForce, RTree};
-use common::{Kind, Spec};
 
 /// Checks every point; returns how many were located (so callers can check the scene is not trivial).
 ///

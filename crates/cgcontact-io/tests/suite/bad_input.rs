@@ -1,12 +1,10 @@
 //! Truncated and corrupted VTK files, in every flavour: always an error value, never a panic.
 
-mod common;
-
+use crate::common::{LegacyData, body_with_holes, legacy_ascii, vtu_ascii, vtu_raw_appended};
 use cgcontact::glam::DVec3;
 use cgcontact_io::{
     DisplacementArray, ErrorKind, HexMesh, MeshFormat, parse_hex_mesh, read_mesh, write_mesh,
 };
-use common::{LegacyData, body_with_holes, legacy_ascii, vtu_ascii, vtu_raw_appended};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 

@@ -7,7 +7,7 @@ use cgcontact_io::{DisplacementArray, parse_hex_mesh};
 
 #[test]
 fn corrupt_zlib_block_header_is_an_error_not_an_abort() {
-    let bytes = include_bytes!("../../../fixtures/regressions/corrupt-zlib-block-header.vtu");
+    let bytes = include_bytes!("../../../../fixtures/regressions/corrupt-zlib-block-header.vtu");
     let error = parse_hex_mesh(bytes, &DisplacementArray::Default).unwrap_err();
     assert!(error.to_string().contains("compressed array"), "{error}");
 }

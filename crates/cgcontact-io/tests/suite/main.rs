@@ -1,0 +1,13 @@
+//! The crate's integration tests in one binary: one link instead of one per file (the build
+//! time that matters on 2 cores). Each file is a module, named as the file.
+
+mod bad_input;
+mod common;
+mod csv_files;
+mod lattice_detection;
+mod messages;
+mod parser_property;
+mod regression_corrupt_block_header_aborted;
+mod regression_corrupt_displacement_dropped;
+mod vtk_round_trip;
+mod written_by_vtk;

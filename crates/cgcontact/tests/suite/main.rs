@@ -1,0 +1,6 @@
+//! The crate's integration tests in one binary: one link instead of one per file (the build
+//! time that matters on 2 cores). Each file is a module, named as the file.
+
+mod common;
+mod extremes;
+mod locate_property;
