@@ -18,7 +18,7 @@ use serde::Serialize;
 use crate::output::say;
 
 /// Search strategy.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, ValueEnum)]
 pub enum StrategyName {
     /// The lattice locator (this project): complete, about one inversion per point.
     Lattice,
@@ -255,6 +255,33 @@ impl Summary {
     }
 }
 
+/// The one place where a strategy is built: the command line's `--strategy` and the tradeoff's
+/// configurations both come here.
+pub fn build_locator<'a>(
+    strategy: StrategyName,
+    body: &'a Body,
+    settings: Settings,
+) -> Result<Box<dyn Locator + 'a>> {
+    let node_radius = |inversion| {
+        NodeRadius::with_options(
+            body,
+            settings,
+            NodeRadiusOptions {
+                inversion,
+                ..Default::default()
+            },
+        )
+    };
+    Ok(match strategy {
+        StrategyName::Lattice => Box::new(LatticeLocator::new(body, settings)?),
+        StrategyName::Brute => Box::new(BruteForce::new(body, settings)?),
+        StrategyName::Centroid => Box::new(CentroidRadius::new(body, settings)?),
+        StrategyName::Noderad => Box::new(node_radius(Inversion::Exact)?),
+        StrategyName::NoderadSeed => Box::new(node_radius(Inversion::SeedFaithful)?),
+        StrategyName::Rtree => Box::new(RTree::new(body, settings)?),
+    })
+}
+
 /// Build the strategy, locate every point on `pool` with a progress bar (on a terminal, for long
 /// work), and time both steps.
 pub fn search(
@@ -265,21 +292,7 @@ pub fn search(
 ) -> Result<Searched> {
     let settings = args.settings()?;
     let setup = Instant::now();
-    let locator: Box<dyn Locator + '_> = match args.strategy {
-        StrategyName::Lattice => Box::new(LatticeLocator::new(body, settings)?),
-        StrategyName::Brute => Box::new(BruteForce::new(body, settings)?),
-        StrategyName::Centroid => Box::new(CentroidRadius::new(body, settings)?),
-        StrategyName::Noderad => Box::new(NodeRadius::new(body, settings)?),
-        StrategyName::NoderadSeed => Box::new(NodeRadius::with_options(
-            body,
-            settings,
-            NodeRadiusOptions {
-                inversion: Inversion::SeedFaithful,
-                ..Default::default()
-            },
-        )?),
-        StrategyName::Rtree => Box::new(RTree::new(body, settings)?),
-    };
+    let locator = build_locator(args.strategy, body, settings)?;
     let setup_seconds = setup.elapsed().as_secs_f64();
 
     // Chunks keep the progress bar moving; each chunk is split over the pool, answers stay in order.

@@ -14,16 +14,14 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, Result, anyhow, bail};
 use cgcontact::glam::DVec3;
 use cgcontact::hex8::{Hex8Map, Kernel, NewtonOptions};
-use cgcontact::{
-    Answer, Body, CandidateOrder, CellId, LatticeLocator, Locator, Precision, Settings,
-};
-use cgcontact_baseline::{
-    BruteForce, CentroidRadius, Inversion, NodeRadius, NodeRadiusOptions, RTree,
-};
+use cgcontact::{Answer, Body, CandidateOrder, CellId, Locator, Precision, Settings};
+use cgcontact_baseline::BruteForce;
 use cgcontact_scenes::{SphereOnBlock, indented_block};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use plotters::prelude::*;
+
+use crate::run::{StrategyName, build_locator};
 
 /// Measure the accuracy/speed trade of every strategy and setting on generated scenes.
 #[derive(Args, Debug)]
@@ -46,42 +44,33 @@ pub struct TradeoffArgs {
     threads: Option<usize>,
 }
 
-/// Which strategy a configuration runs.
-#[derive(Clone, Copy, Debug, PartialEq)]
-enum Strategy {
-    Lattice,
-    Rtree,
-    Centroid,
-    NodeRadius(Inversion),
-    Brute,
+/// O(cells) per point: runs on a subsample of big scenes.
+fn is_slow(strategy: StrategyName) -> bool {
+    matches!(
+        strategy,
+        StrategyName::Centroid
+            | StrategyName::Noderad
+            | StrategyName::NoderadSeed
+            | StrategyName::Brute
+    )
 }
 
-impl Strategy {
-    /// O(cells) per point: runs on a subsample of big scenes.
-    fn is_slow(self) -> bool {
-        matches!(
-            self,
-            Strategy::Centroid | Strategy::NodeRadius(_) | Strategy::Brute
-        )
-    }
-
-    /// Points a slow strategy runs on a scene of `cells` active cells: about the same work (and time)
-    /// everywhere. Brute force inverts every cell; the filters only scan them.
-    fn subsample(self, cells: usize, quick: bool) -> usize {
-        let (cap, work) = match self {
-            Strategy::Brute => (2_000, 2.0e7),
-            _ => (2_000, 2.5e8),
-        };
-        let cap = if quick { cap / 10 } else { cap };
-        ((work / cells.max(1) as f64) as usize).clamp(50, cap)
-    }
+/// Points a slow strategy runs on a scene of `cells` active cells: about the same work (and time)
+/// everywhere. Brute force inverts every cell; the filters only scan them.
+fn subsample(strategy: StrategyName, cells: usize, quick: bool) -> usize {
+    let (cap, work) = match strategy {
+        StrategyName::Brute => (2_000, 2.0e7),
+        _ => (2_000, 2.5e8),
+    };
+    let cap = if quick { cap / 10 } else { cap };
+    ((work / cells.max(1) as f64) as usize).clamp(50, cap)
 }
 
 /// One strategy with its settings.
 #[derive(Clone, Debug)]
 struct Config {
     label: String,
-    strategy: Strategy,
+    strategy: StrategyName,
     settings: Settings,
 }
 
@@ -90,7 +79,7 @@ fn configs() -> Vec<Config> {
     let d = Settings::default();
     let lattice = |label: &str, settings: Settings| Config {
         label: label.to_owned(),
-        strategy: Strategy::Lattice,
+        strategy: StrategyName::Lattice,
         settings,
     };
     let baseline = |label: &str, strategy| Config {
@@ -144,14 +133,11 @@ fn configs() -> Vec<Config> {
                 ..Settings::f32()
             },
         ),
-        baseline("rtree f64", Strategy::Rtree),
-        baseline("centroid f64", Strategy::Centroid),
-        baseline("noderad exact f64", Strategy::NodeRadius(Inversion::Exact)),
-        baseline(
-            "noderad seed-faithful",
-            Strategy::NodeRadius(Inversion::SeedFaithful),
-        ),
-        baseline("brute f64", Strategy::Brute),
+        baseline("rtree f64", StrategyName::Rtree),
+        baseline("centroid f64", StrategyName::Centroid),
+        baseline("noderad exact f64", StrategyName::Noderad),
+        baseline("noderad seed-faithful", StrategyName::NoderadSeed),
+        baseline("brute f64", StrategyName::Brute),
     ]
 }
 
@@ -357,7 +343,7 @@ fn scenes(quick: bool, pool: &rayon::ThreadPool) -> Result<Vec<TradeScene>> {
 struct Row {
     scene: &'static str,
     label: String,
-    strategy: Strategy,
+    strategy: StrategyName,
     settings: String,
     cells: usize,
     points_run: usize,
@@ -408,27 +394,6 @@ fn best_time(
     best
 }
 
-fn build<'a>(
-    strategy: Strategy,
-    body: &'a Body,
-    settings: Settings,
-) -> Result<Box<dyn Locator + 'a>> {
-    Ok(match strategy {
-        Strategy::Lattice => Box::new(LatticeLocator::new(body, settings)?),
-        Strategy::Rtree => Box::new(RTree::new(body, settings)?),
-        Strategy::Centroid => Box::new(CentroidRadius::new(body, settings)?),
-        Strategy::NodeRadius(inversion) => Box::new(NodeRadius::with_options(
-            body,
-            settings,
-            NodeRadiusOptions {
-                inversion,
-                ..Default::default()
-            },
-        )?),
-        Strategy::Brute => Box::new(BruteForce::new(body, settings)?),
-    })
-}
-
 /// Physical residual |x − x(ξ)| of an answer, recomputed in f64 in the cell's local frame.
 fn residual(body: &Body, cell: CellId, xi: DVec3, x: DVec3) -> f64 {
     let lattice = body.lattice();
@@ -449,8 +414,8 @@ fn measure(
     quick: bool,
 ) -> Result<Row> {
     let active = scene.body.active_count();
-    let n = if config.strategy.is_slow() {
-        config.strategy.subsample(active, quick)
+    let n = if is_slow(config.strategy) {
+        subsample(config.strategy, active, quick)
     } else {
         scene.points.len()
     };
@@ -471,7 +436,7 @@ fn measure(
         },
     )?;
     let setup = Instant::now();
-    let locator = build(config.strategy, &scene.body, config.settings)
+    let locator = build_locator(config.strategy, &scene.body, config.settings)
         .with_context(|| format!("{} on {}", config.label, scene.name))?;
     let setup_seconds = setup.elapsed().as_secs_f64();
 
@@ -485,7 +450,7 @@ fn measure(
         label: config.label.clone(),
         strategy: config.strategy,
         settings: match config.strategy {
-            Strategy::NodeRadius(Inversion::SeedFaithful) => {
+            StrategyName::NoderadSeed => {
                 "seed's Newton: from ξ = 0, stop at residual ≤ 0.1, inside ξ ∈ [−1, 1]³".to_owned()
             }
             _ => settings_text(&config.settings),
@@ -898,15 +863,15 @@ fn report(
 }
 
 /// Colour of a strategy's marks.
-fn colour(strategy: Strategy, settings: &Settings) -> RGBColor {
+fn colour(strategy: StrategyName, settings: &Settings) -> RGBColor {
     match (strategy, settings.precision) {
-        (Strategy::Lattice, Precision::F64) => RGBColor(31, 119, 180),
-        (Strategy::Lattice, Precision::F32) => RGBColor(44, 160, 44),
-        (Strategy::Rtree, _) => RGBColor(255, 127, 14),
-        (Strategy::Centroid, _) => RGBColor(148, 103, 189),
-        (Strategy::NodeRadius(Inversion::Exact), _) => RGBColor(214, 39, 40),
-        (Strategy::NodeRadius(Inversion::SeedFaithful), _) => RGBColor(140, 86, 75),
-        (Strategy::Brute, _) => RGBColor(127, 127, 127),
+        (StrategyName::Lattice, Precision::F64) => RGBColor(31, 119, 180),
+        (StrategyName::Lattice, Precision::F32) => RGBColor(44, 160, 44),
+        (StrategyName::Rtree, _) => RGBColor(255, 127, 14),
+        (StrategyName::Centroid, _) => RGBColor(148, 103, 189),
+        (StrategyName::Noderad, _) => RGBColor(214, 39, 40),
+        (StrategyName::NoderadSeed, _) => RGBColor(140, 86, 75),
+        (StrategyName::Brute, _) => RGBColor(127, 127, 127),
     }
 }
 
