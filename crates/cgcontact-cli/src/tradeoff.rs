@@ -13,7 +13,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, anyhow, bail};
 use cgcontact::glam::DVec3;
-use cgcontact::hex8::{Hex8Map, Kernel, NewtonOptions};
+use cgcontact::hex8::{Kernel, NewtonOptions};
 use cgcontact::{Answer, Body, CandidateOrder, CellId, Locator, Precision, Settings};
 use cgcontact_baseline::BruteForce;
 use cgcontact_scenes::{SphereOnBlock, indented_block};
@@ -314,7 +314,6 @@ fn scenes(quick: bool, pool: &rayon::ThreadPool) -> Result<Vec<TradeScene>> {
         ),
         far,
     );
-    let lattice = *far.body.lattice();
     let tight = NewtonOptions {
         tol: 1e-16,
         max_iter: 50,
@@ -323,16 +322,10 @@ fn scenes(quick: bool, pool: &rayon::ThreadPool) -> Result<Vec<TradeScene>> {
     };
     for (x, reference) in far.points.iter().zip(&mut far.reference) {
         let Some(r) = reference else { continue };
-        let (Some(ijk), Some(u)) = (
-            lattice.cell_ijk(r.cell),
-            far.body.cell_displacements(r.cell),
-        ) else {
+        let Some((map, origin)) = far.body.cell_map(r.cell) else {
             bail!("far scene: known cell {} is not an active cell", r.cell);
         };
-        let map = Hex8Map::lattice_cell(lattice.h(), &u);
-        r.xi = map
-            .invert_f64(*x - lattice.node_position(ijk), r.xi, &tight)
-            .xi;
+        r.xi = map.invert_f64(*x - origin, r.xi, &tight).xi;
     }
     out.push(far);
     Ok(out)
@@ -396,13 +389,9 @@ fn best_time(
 
 /// Physical residual |x − x(ξ)| of an answer, recomputed in f64 in the cell's local frame.
 fn residual(body: &Body, cell: CellId, xi: DVec3, x: DVec3) -> f64 {
-    let lattice = body.lattice();
-    match (lattice.cell_ijk(cell), body.cell_displacements(cell)) {
-        (Some(ijk), Some(u)) => {
-            let map = Hex8Map::lattice_cell(lattice.h(), &u);
-            (x - lattice.node_position(ijk) - map.map(xi)).length()
-        }
-        _ => f64::INFINITY,
+    match body.cell_map(cell) {
+        Some((map, origin)) => (x - origin - map.map(xi)).length(),
+        None => f64::INFINITY,
     }
 }
 

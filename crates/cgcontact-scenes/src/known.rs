@@ -1,7 +1,6 @@
 //! Query points built from known (cell, ξ): every answer is checkable.
 
 use cgcontact::glam::DVec3;
-use cgcontact::hex8::{Hex8Map, Kernel};
 use cgcontact::{Body, CellId};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -22,7 +21,6 @@ pub struct KnownPoint {
 pub fn known_points(body: &Body, count: usize, seed: u64) -> Vec<KnownPoint> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let active: Vec<CellId> = body.active_cells().collect();
-    let lattice = body.lattice();
     (0..count)
         .map(|_| {
             let cell = active[rng.random_range(0..active.len())];
@@ -31,14 +29,7 @@ pub fn known_points(body: &Body, count: usize, seed: u64) -> Vec<KnownPoint> {
                 rng.random_range(-1.0..=1.0),
                 rng.random_range(-1.0..=1.0),
             );
-            let ijk = lattice
-                .cell_ijk(cell)
-                .expect("active cells are in the lattice");
-            let u = lattice.corner_nodes(ijk).map(|n| {
-                body.displacement(n)
-                    .expect("corners of active cells carry displacements")
-            });
-            let x = lattice.node_position(ijk) + Hex8Map::lattice_cell(lattice.h(), &u).map(xi);
+            let x = body.point_at(cell, xi).expect("an active cell");
             KnownPoint { x, cell, xi }
         })
         .collect()

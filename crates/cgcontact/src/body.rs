@@ -462,6 +462,30 @@ impl Body {
         Some(self.local_corners(ijk).map(|c| low + c))
     }
 
+    /// The trilinear map of active cell `cell` in its local frame, and that frame's origin (the
+    /// cell's lowest undeformed node): the deformed point at ξ is `origin + map.map(ξ)`, and a point
+    /// x is inverted as `map.invert(x − origin, ...)`, magnitudes of order h whatever the global
+    /// coordinates (parry's local/global pair). `None` when the cell is inactive or out of range.
+    #[must_use]
+    pub fn cell_map(&self, cell: CellId) -> Option<(hex8::Hex8Map, DVec3)> {
+        use hex8::Kernel;
+        let u = self.cell_displacements(cell)?;
+        let ijk = self.lattice.cell_ijk(cell)?;
+        Some((
+            hex8::Hex8Map::lattice_cell(self.lattice.h(), &u),
+            self.lattice.node_position(ijk),
+        ))
+    }
+
+    /// The deformed point of active cell `cell` at local coordinates `xi`, computed in the cell's
+    /// local frame and then placed (one rounding of the global coordinates); `None` when the cell
+    /// is inactive or out of range.
+    #[must_use]
+    pub fn point_at(&self, cell: CellId, xi: DVec3) -> Option<DVec3> {
+        let (map, origin) = self.cell_map(cell)?;
+        Some(origin + map.map(xi))
+    }
+
     /// Active cells whose Jacobian determinant is not positive at some corner, with the smallest
     /// corner determinant divided by the undeformed one (≤ 0), ascending by cell.
     #[must_use]
@@ -575,6 +599,43 @@ mod tests {
             Err(Error::CellOutOfRange { .. })
         ));
         assert!(matches!(Body::from_cells(l, []), Err(Error::EmptyBody)));
+    }
+
+    /// `point_at` against the shape functions on the deformed corners (an independent formula):
+    /// corners at the corners, and any ξ at Σ N_c(ξ) x_c.
+    #[test]
+    fn point_at_is_the_trilinear_map_of_the_deformed_corners() {
+        let l = lattice();
+        let mut body = Body::full(l);
+        body.update_displacements(|n, x, u| {
+            *u = DVec3::new(0.01 * x.y, -0.02 * n as f64 * 1e-2, 0.03 * x.x)
+        })
+        .unwrap();
+        let cell = l.cell_id([1, 0, 1]);
+        let corners = body.corners(cell).unwrap();
+        for (c, sign) in hex8::CORNER_XI.iter().enumerate() {
+            let p = body.point_at(cell, DVec3::from_array(*sign)).unwrap();
+            assert!((p - corners[c]).abs().max_element() < 1e-14, "corner {c}");
+        }
+        let xi = DVec3::new(0.3, -0.7, 0.1);
+        let expected: DVec3 = hex8::CORNER_XI
+            .iter()
+            .zip(corners)
+            .map(|(s, x)| {
+                x * ((1.0 + xi.x * s[0]) * (1.0 + xi.y * s[1]) * (1.0 + xi.z * s[2]) / 8.0)
+            })
+            .sum();
+        assert!(
+            (body.point_at(cell, xi).unwrap() - expected)
+                .abs()
+                .max_element()
+                < 1e-14
+        );
+        let mut holed = BitVec::repeat(true, l.cell_count());
+        holed.set(0, false);
+        let holed = Body::undeformed(l, holed).unwrap();
+        assert!(holed.point_at(CellId(0), DVec3::ZERO).is_none());
+        assert!(holed.cell_map(CellId(u32::MAX)).is_none());
     }
 
     #[test]

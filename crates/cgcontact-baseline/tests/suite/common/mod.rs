@@ -4,7 +4,7 @@
 
 use bitvec::vec::BitVec;
 use cgcontact::glam::DVec3;
-use cgcontact::hex8::{Hex8Map, Kernel};
+use cgcontact::hex8::Hex8Map;
 use cgcontact::{Body, CellId, Lattice};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -81,15 +81,7 @@ pub fn body(spec: &Spec) -> Body {
 
 /// Map of active `cell` in its local frame (with the core kernel) and the cell's lowest node.
 pub fn cell_map(body: &Body, cell: CellId) -> (Hex8Map, DVec3) {
-    let lattice = body.lattice();
-    let ijk = lattice.cell_ijk(cell).expect("cell in range");
-    let u = lattice
-        .corner_nodes(ijk)
-        .map(|n| body.displacement(n).expect("node of an active cell"));
-    (
-        Hex8Map::lattice_cell(lattice.h(), &u),
-        lattice.node_position(ijk),
-    )
+    body.cell_map(cell).expect("an active cell")
 }
 
 /// The point at local coordinates `xi` of active `cell`.

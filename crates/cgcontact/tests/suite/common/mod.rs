@@ -82,9 +82,7 @@ pub fn corner_u(body: &Body, cell: CellId) -> [DVec3; 8] {
 
 /// The deformed point of `cell` at `xi`, computed in the cell's local frame.
 pub fn point_at(body: &Body, cell: CellId, xi: DVec3) -> DVec3 {
-    let l = body.lattice();
-    let ijk = l.cell_ijk(cell).unwrap();
-    l.node_position(ijk) + Hex8Map::lattice_cell(l.h(), &corner_u(body, cell)).map(xi)
+    body.point_at(cell, xi).unwrap()
 }
 
 /// The oracle: every active cell that holds `x`, by exhaustive exact inversion.
