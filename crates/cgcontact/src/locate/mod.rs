@@ -199,20 +199,19 @@ impl Locator for LatticeLocator<'_> {
 
     #[inline]
     fn locate(&self, x: DVec3) -> Answer {
-        self.search(x, Collect::First).map(|(hit, _)| hit)
+        self.search(x, Collect::First, &mut 0)
     }
 
     /// Every inversion counted, failed ones included (0 for a point refused before any).
     fn locate_counted(&self, x: DVec3) -> (Answer, u32) {
-        match self.search(x, Collect::First) {
-            Ok((answer, tried)) => (Ok(answer), tried),
-            Err(error) => (Err(error), 0),
-        }
+        let mut tried = 0;
+        let answer = self.search(x, Collect::First, &mut tried);
+        (answer, tried)
     }
 
     fn locate_owners(&self, x: DVec3) -> Result<Owners, PointError> {
         let mut owners = Owners::new();
-        self.search(x, Collect::All(&mut owners))?;
+        self.search(x, Collect::All(&mut owners), &mut 0)?;
         owners.sort_unstable_by_key(|hit| hit.cell);
         Ok(owners)
     }

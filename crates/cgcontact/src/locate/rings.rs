@@ -24,8 +24,7 @@ impl LatticeLocator<'_> {
         options: &NewtonOptions,
         collect: &mut Collect<'_>,
         inversions: &mut u32,
-        found: &mut Option<Hit>,
-    ) {
+    ) -> Option<Hit> {
         let lattice = self.body.lattice();
         let h = lattice.h();
         // A miss: where the displacement varies fast, ũ(x) is a poor estimate of u at the undeformed
@@ -57,20 +56,13 @@ impl LatticeLocator<'_> {
             candidates.sort_unstable_by_key(|(key, _)| *key);
             for (_, ijk) in candidates {
                 let u = self.body.corner_displacements(ijk);
-                if self.visit(
-                    x,
-                    ijk,
-                    Some(K::displacement_map(&u)),
-                    t_guess,
-                    options,
-                    collect,
-                    inversions,
-                    found,
-                ) {
-                    return;
+                let map = Some(K::displacement_map(&u));
+                let hit = self.visit(x, ijk, map, t_guess, options, collect, inversions);
+                if hit.is_some() {
+                    return hit;
                 }
             }
-            return;
+            return None;
         }
         for ijk in Rings::new(low, high, center) {
             if ijk == first || !self.body.is_active(lattice.cell_id(ijk)) {
@@ -81,10 +73,12 @@ impl LatticeLocator<'_> {
                 continue;
             }
             let map = Some(K::displacement_map(&u));
-            if self.visit(x, ijk, map, t_guess, options, collect, inversions, found) {
-                return;
+            let hit = self.visit(x, ijk, map, t_guess, options, collect, inversions);
+            if hit.is_some() {
+                return hit;
             }
         }
+        None
     }
 }
 

@@ -44,22 +44,23 @@ impl LatticeLocator<'_> {
         Ok(Some(inside_tol))
     }
 
-    /// The search for `x`, and the inversions it tried.
+    /// The search for `x`; the inversions it tried go to `tried`.
     pub(super) fn search(
         &self,
         x: DVec3,
         mut collect: Collect<'_>,
-    ) -> Result<(Option<Hit>, u32), PointError> {
+        tried: &mut u32,
+    ) -> Result<Option<Hit>, PointError> {
         let Some(inside_tol) = self.admit(x)? else {
-            return Ok((None, 0));
+            return Ok(None);
         };
         let options = NewtonOptions {
             inside_tol,
             ..self.newton
         };
         Ok(match self.settings.precision {
-            Precision::F64 => self.search_with::<Hex8Map>(x, &options, &mut collect),
-            Precision::F32 => self.search_with::<Hex8Map32>(x, &options, &mut collect),
+            Precision::F64 => self.search_with::<Hex8Map>(x, &options, &mut collect, tried),
+            Precision::F32 => self.search_with::<Hex8Map32>(x, &options, &mut collect, tried),
         })
     }
 
@@ -107,8 +108,8 @@ impl LatticeLocator<'_> {
         t_guess
     }
 
-    /// Invert `ijk` (active) for `x` and collect the hit: true when the search is over (the first
-    /// hit wanted and found, written to `found`).
+    /// Invert `ijk` (active) for `x` and collect the hit: `Some` when the search is over (the first
+    /// hit wanted, and found).
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     pub(super) fn visit<K: Kernel>(
@@ -120,12 +121,11 @@ impl LatticeLocator<'_> {
         options: &NewtonOptions,
         collect: &mut Collect<'_>,
         inversions: &mut u32,
-        found: &mut Option<Hit>,
-    ) -> bool {
+    ) -> Option<Hit> {
         let inversion = self.try_cell::<K>(x, ijk, t_guess, u_map, options);
         *inversions += 1;
         if inversion.status != Status::Inside {
-            return false;
+            return None;
         }
         let hit = Hit {
             cell: self.body.lattice().cell_id(ijk),
@@ -135,13 +135,10 @@ impl LatticeLocator<'_> {
             inversions: *inversions,
         };
         match collect {
-            Collect::First => {
-                *found = Some(hit);
-                true
-            }
+            Collect::First => Some(hit),
             Collect::All(owners) => {
                 owners.push(hit);
-                false
+                None
             }
         }
     }
@@ -151,7 +148,8 @@ impl LatticeLocator<'_> {
         x: DVec3,
         options: &NewtonOptions,
         collect: &mut Collect<'_>,
-    ) -> (Option<Hit>, u32) {
+        inversions: &mut u32,
+    ) -> Option<Hit> {
         let lattice = self.body.lattice();
         let t_x = (x - lattice.origin()) * self.inv_h;
         let cell_x = lattice.clamped_cell(t_x);
@@ -164,27 +162,15 @@ impl LatticeLocator<'_> {
             CandidateOrder::Undeformed => t_x,
         };
         let first = lattice.clamped_cell(t_guess);
-        let mut inversions = 0u32;
-        let mut found = None;
         // The predicted cell first, without the range test: it holds the point almost always, and
         // when it is the cell holding x its displacement map is already built.
         if self.body.is_active(lattice.cell_id(first)) {
             let reuse = (first == cell_x).then_some(u_map_x);
-            let (c, n, f) = (&mut *collect, &mut inversions, &mut found);
-            if self.visit(x, first, reuse, t_guess, options, c, n, f) {
-                return (found, inversions);
+            let hit = self.visit(x, first, reuse, t_guess, options, &mut *collect, inversions);
+            if hit.is_some() {
+                return hit;
             }
         }
-        self.search_rings::<K>(
-            x,
-            t_x,
-            t_guess,
-            first,
-            options,
-            collect,
-            &mut inversions,
-            &mut found,
-        );
-        (found, inversions)
+        self.search_rings::<K>(x, t_x, t_guess, first, options, collect, inversions)
     }
 }
