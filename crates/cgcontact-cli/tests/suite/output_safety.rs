@@ -31,6 +31,17 @@ fn s(path: &Path) -> &str {
     path.to_str().unwrap()
 }
 
+/// `cgcontact locate --mesh MESH --points POINTS` and `extra`.
+fn locate(mesh: &Path, points: &Path, extra: &[&str]) -> Output {
+    cgcontact(
+        &[
+            &["locate", "--mesh", s(mesh), "--points", s(points)][..],
+            extra,
+        ]
+        .concat(),
+    )
+}
+
 fn stderr(output: &Output) -> String {
     String::from_utf8_lossy(&output.stderr).into_owned()
 }
@@ -57,15 +68,7 @@ fn refused(output: &Output, names: &[&str], kept: &[(&Path, &[u8])]) {
 fn out_equal_to_the_points_is_refused_and_the_points_kept() {
     let (_dir, mesh, points) = scene();
     let before = std::fs::read(&points).unwrap();
-    let run = cgcontact(&[
-        "locate",
-        "--mesh",
-        s(&mesh),
-        "--points",
-        s(&points),
-        "--out",
-        s(&points),
-    ]);
+    let run = locate(&mesh, &points, &["--out", s(&points)]);
     refused(
         &run,
         &["--out", "--points", "points.csv"],
@@ -80,15 +83,7 @@ fn out_through_a_symlink_or_a_hard_link_to_the_mesh_is_refused() {
     let before = std::fs::read(&mesh).unwrap();
     let link = dir.path().join("link.csv");
     std::os::unix::fs::symlink(&mesh, &link).unwrap();
-    let run = cgcontact(&[
-        "locate",
-        "--mesh",
-        s(&mesh),
-        "--points",
-        s(&points),
-        "--out",
-        s(&link),
-    ]);
+    let run = locate(&mesh, &points, &["--out", s(&link)]);
     refused(
         &run,
         &["link.csv", "--mesh", "mesh.vtu"],
@@ -96,15 +91,7 @@ fn out_through_a_symlink_or_a_hard_link_to_the_mesh_is_refused() {
     );
     let hard = dir.path().join("hard.csv");
     std::fs::hard_link(&mesh, &hard).unwrap();
-    let run = cgcontact(&[
-        "locate",
-        "--mesh",
-        s(&mesh),
-        "--points",
-        s(&points),
-        "--out",
-        s(&hard),
-    ]);
+    let run = locate(&mesh, &points, &["--out", s(&hard)]);
     refused(&run, &["hard.csv", "--mesh"], &[(&mesh, &before)]);
 }
 
@@ -112,15 +99,7 @@ fn out_through_a_symlink_or_a_hard_link_to_the_mesh_is_refused() {
 fn vtk_folder_holding_the_input_mesh_is_refused() {
     let (dir, mesh, points) = scene();
     let before = std::fs::read(&mesh).unwrap();
-    let run = cgcontact(&[
-        "locate",
-        "--mesh",
-        s(&mesh),
-        "--points",
-        s(&points),
-        "--vtk",
-        s(dir.path()),
-    ]);
+    let run = locate(&mesh, &points, &["--vtk", s(dir.path())]);
     refused(&run, &["--vtk", "--mesh", "mesh.vtu"], &[(&mesh, &before)]);
 }
 
@@ -132,17 +111,11 @@ fn vtk_naming_a_file_fails_before_the_results_are_written() {
     std::fs::write(&results, "previous results\n").unwrap();
     let not_a_folder = dir.path().join("a-file");
     std::fs::write(&not_a_folder, "x").unwrap();
-    let run = cgcontact(&[
-        "locate",
-        "--mesh",
-        s(&mesh),
-        "--points",
-        s(&points),
-        "--out",
-        s(&results),
-        "--vtk",
-        s(&not_a_folder),
-    ]);
+    let run = locate(
+        &mesh,
+        &points,
+        &["--out", s(&results), "--vtk", s(&not_a_folder)],
+    );
     refused(
         &run,
         &["a-file", "not a folder"],
@@ -154,39 +127,23 @@ fn vtk_naming_a_file_fails_before_the_results_are_written() {
 fn out_in_a_missing_folder_fails_before_the_mesh_is_read() {
     let (dir, _mesh, points) = scene();
     let missing = dir.path().join("no-such-folder").join("results.csv");
-    let run = cgcontact(&[
-        "locate",
-        "--mesh",
-        "/no/such/mesh.vtu",
-        "--points",
-        s(&points),
-        "--out",
-        s(&missing),
-    ]);
+    let no_mesh = Path::new("/no/such/mesh.vtu");
+    let run = locate(no_mesh, &points, &["--out", s(&missing)]);
     refused(&run, &["no-such-folder", "does not exist"], &[]);
 }
 
 #[test]
 fn settings_are_checked_before_any_file_is_read() {
-    let run = cgcontact(&[
-        "locate",
-        "--mesh",
-        "/no/such/mesh.vtu",
-        "--points",
-        "/no/such/points.csv",
-        "--threads",
-        "0",
-    ]);
-    refused(&run, &["--threads"], &[]);
-    let run = cgcontact(&[
-        "locate",
-        "--mesh",
-        "/no/such/mesh.vtu",
-        "--points",
-        "/no/such/points.csv",
-        "--tol=-1",
-    ]);
-    refused(&run, &["--tol"], &[]);
+    let (no_mesh, no_points) = (
+        Path::new("/no/such/mesh.vtu"),
+        Path::new("/no/such/points.csv"),
+    );
+    refused(
+        &locate(no_mesh, no_points, &["--threads", "0"]),
+        &["--threads"],
+        &[],
+    );
+    refused(&locate(no_mesh, no_points, &["--tol=-1"]), &["--tol"], &[]);
 }
 
 /// A full disk under the VTK writer is named as such (it read "Deserialization error"), and the
@@ -198,27 +155,11 @@ fn full_disk_is_reported_as_no_space_left() {
     let vtk = dir.path().join("vtk");
     std::fs::create_dir(&vtk).unwrap();
     std::os::unix::fs::symlink("/dev/full", vtk.join("mesh.vtu")).unwrap();
-    let run = cgcontact(&[
-        "locate",
-        "--mesh",
-        s(&mesh),
-        "--points",
-        s(&points),
-        "--vtk",
-        s(&vtk),
-    ]);
+    let run = locate(&mesh, &points, &["--vtk", s(&vtk)]);
     refused(&run, &["mesh.vtu", "No space left on device"], &[]);
     let full = dir.path().join("full.csv");
     std::os::unix::fs::symlink("/dev/full", &full).unwrap();
-    let run = cgcontact(&[
-        "locate",
-        "--mesh",
-        s(&mesh),
-        "--points",
-        s(&points),
-        "--out",
-        s(&full),
-    ]);
+    let run = locate(&mesh, &points, &["--out", s(&full)]);
     refused(&run, &["full.csv", "No space left on device"], &[]);
 }
 
@@ -274,16 +215,7 @@ fn full_stdout_is_an_error() {
 #[test]
 fn absurd_thread_counts_are_capped_with_a_warning() {
     let (_dir, mesh, points) = scene();
-    let run = cgcontact(&[
-        "locate",
-        "--mesh",
-        s(&mesh),
-        "--points",
-        s(&points),
-        "--threads",
-        "100000",
-        "--json",
-    ]);
+    let run = locate(&mesh, &points, &["--threads", "100000", "--json"]);
     assert!(run.status.success(), "{}", stderr(&run));
     assert!(stderr(&run).contains("capped"), "{}", stderr(&run));
     let summary: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
@@ -297,30 +229,14 @@ fn absurd_thread_counts_are_capped_with_a_warning() {
 #[test]
 fn loose_newton_tolerance_is_warned() {
     let (_dir, mesh, points) = scene();
-    let run = cgcontact(&[
-        "locate",
-        "--mesh",
-        s(&mesh),
-        "--points",
-        s(&points),
-        "--tol",
-        "10",
-    ]);
+    let run = locate(&mesh, &points, &["--tol", "10"]);
     assert!(run.status.success(), "{}", stderr(&run));
     assert!(
         stderr(&run).contains("warning: --tol 10"),
         "{}",
         stderr(&run)
     );
-    let quiet = cgcontact(&[
-        "locate",
-        "--mesh",
-        s(&mesh),
-        "--points",
-        s(&points),
-        "--tol",
-        "1e-8",
-    ]);
+    let quiet = locate(&mesh, &points, &["--tol", "1e-8"]);
     assert!(stderr(&quiet).is_empty(), "{}", stderr(&quiet));
 }
 
@@ -330,16 +246,7 @@ fn results_replace_the_old_file_whole() {
     let (dir, mesh, points) = scene();
     let results = dir.path().join("results.csv");
     std::fs::write(&results, "previous results\n").unwrap();
-    let run = cgcontact(&[
-        "locate",
-        "--mesh",
-        s(&mesh),
-        "--points",
-        s(&points),
-        "--out",
-        s(&results),
-        "-q",
-    ]);
+    let run = locate(&mesh, &points, &["--out", s(&results), "-q"]);
     assert!(run.status.success(), "{}", stderr(&run));
     let rows = cgcontact_io::read_results(&results).unwrap();
     assert_eq!(
@@ -371,29 +278,15 @@ fn mesh_read_without_displacement_says_so() {
     let mesh = dir.path().join("cut.vtk");
     std::fs::write(&mesh, cut).unwrap();
     let points = dir.path().join("points.csv");
-    let run = cgcontact(&[
-        "locate",
-        "--mesh",
-        s(&mesh),
-        "--points",
-        s(&points),
-        "--json",
-    ]);
+    let run = locate(&mesh, &points, &["--json"]);
     assert!(run.status.success(), "{}", stderr(&run));
     let summary: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
     assert!(summary["displacement"].is_null(), "{summary}");
-    let run = cgcontact(&["locate", "--mesh", s(&mesh), "--points", s(&points)]);
+    let run = locate(&mesh, &points, &[]);
     let stdout = String::from_utf8_lossy(&run.stdout);
     assert!(stdout.contains("no displacement array"), "{stdout}");
     let whole = dir.path().join("mesh.vtk");
-    let run = cgcontact(&[
-        "locate",
-        "--mesh",
-        s(&whole),
-        "--points",
-        s(&points),
-        "--json",
-    ]);
+    let run = locate(&whole, &points, &["--json"]);
     let summary: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
     assert_eq!(summary["displacement"], "displacement", "{summary}");
 }
