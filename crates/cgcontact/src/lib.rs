@@ -36,11 +36,11 @@
 #![deny(missing_docs)]
 #![deny(unsafe_code)]
 
-mod batch;
 mod body;
 mod error;
 pub mod hex8;
 mod idmap;
+mod lanes;
 mod lattice;
 mod locate;
 mod reach;

@@ -2,7 +2,7 @@
 
 use glam::DVec3;
 
-use crate::batch::Lanes;
+use crate::lanes::Lanes;
 
 use crate::hex8::NewtonOptions;
 use crate::{Error, Lattice};

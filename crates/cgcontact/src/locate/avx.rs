@@ -25,7 +25,7 @@ use std::ops::{Add, BitAnd, BitOr, Mul, Not, Sub};
 
 use glam::{DVec3, Vec3A};
 
-use crate::batch::{Lanes, Pair, V3, Wide};
+use crate::lanes::{Lanes, Pair, V3, Wide};
 
 /// Calls an AVX intrinsic.
 macro_rules! avx {

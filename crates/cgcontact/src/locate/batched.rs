@@ -1,12 +1,13 @@
 //! `locate_all`'s common path: 4 or 8 points per SIMD lane set through the predicted cell and one
-//! Newton inversion there (`crate::batch` has the lanes), the scalar search for the rest, and the
+//! Newton inversion there (`crate::lanes` has the lane types, `hex8/lanes.rs` the lane Newton), the scalar search for the rest, and the
 //! one place where the instruction set is chosen.
 
 use glam::{DVec3, Vec3A};
 
 use super::{Answer, Hit, LatticeLocator, Locator};
 use crate::PointError;
-use crate::batch::{Lanes, MAX_W, Maps, Real, V3, Wide};
+use crate::hex8::lanes::Maps;
+use crate::lanes::{Lanes, MAX_W, Real, V3, Wide};
 use crate::lattice::CellId;
 use crate::settings::{CandidateOrder, Precision};
 
@@ -67,7 +68,7 @@ impl<V: Lanes> Front<V> {
 
 impl LatticeLocator<'_> {
     /// Answers for `points` into `out` (same length), W points at a time through the batched common
-    /// path ([`crate::batch`]); the remainder and every point that leaves the common path go through
+    /// path (`hex8/lanes.rs` over `crate::lanes`); the remainder and every point that leaves the common path go through
     /// the scalar search. The answers are bitwise those of [`Locator::locate`].
     ///
     /// Software-pipelined: the first half of the next W points (their cells and the loads of their

@@ -8,6 +8,11 @@
 //! | `batched.rs` | `locate_all`'s common path, 4 or 8 points per SIMD lane set, and the instruction-set dispatch |
 //! | `avx.rs` | the AVX lane types, private to the `#[target_feature]` entry points that use them |
 //!
+//! The batched path is written once: the lane traits and the portable lanes are in `crate::lanes`,
+//! the lane Newton in `hex8/lanes.rs` beside the scalar Newton it copies (`hex8/mod.rs`), the AVX
+//! lanes and their entry points in `avx.rs`, and the dispatch between them in `batched.rs`, as
+//! memchr splits its generic algorithm, per-ISA wrappers and dispatch.
+//!
 //! # Why the lattice search is complete
 //! A point x inside deformed cell c satisfies x = X(ξ) + u(ξ), with X(ξ) the undeformed point of c and
 //! u(ξ) a convex combination of c's corner displacements. So the undeformed point X = x − u(ξ) lies in
@@ -354,53 +359,93 @@ mod tests {
         }
     }
 
-    /// Every lane type and instruction set, forced in turn (the dispatch picks one per machine):
-    /// answers bitwise those of the scalar search.
-    #[test]
-    fn every_lane_type_answers_bitwise_as_the_scalar_search() {
-        for (cells, order) in [
+    /// The scenes of the lane tests: every cell; every fifth removed (a slot table); every 40th
+    /// kept (hash maps); each with both candidate orders where they differ.
+    fn lane_scenes() -> Vec<(Body, Vec<DVec3>, CandidateOrder)> {
+        [
             (0, CandidateOrder::Predicted),
             (5, CandidateOrder::Predicted),
             (5, CandidateOrder::Undeformed),
             (40, CandidateOrder::Predicted),
-        ] {
-            // Every cell; every fifth removed (a slot table); every 40th kept (hash maps).
+        ]
+        .into_iter()
+        .map(|(cells, order)| {
             let (body, points) = scene_keeping(|c| match cells {
                 0 => true,
                 5 => c % 5 != 2,
                 _ => c % cells == 2,
             });
-            let locator =
-                |base: Settings| LatticeLocator::new(&body, Settings { order, ..base }).unwrap();
-            // Every answer overwritten by each run: a point is never non-finite here.
-            let mut out = vec![Err(PointError::NonFinite); points.len()];
-            let f32 = locator(Settings::f32());
-            f32.locate_chunk_with::<glam::Vec4>(&points, &mut out);
-            check(&f32, &points, &out);
-            #[cfg(target_arch = "x86_64")]
-            for locator in [f32, locator(Settings::default())] {
-                use std::is_x86_feature_detected as has;
-                // SAFETY (both blocks): each entry is run only where its instruction sets were
-                // detected, just before.
-                if has!("avx2") {
-                    out.fill(Err(PointError::NonFinite));
-                    #[allow(unsafe_code)]
-                    unsafe {
-                        locator.locate_chunk_avx2(&points, &mut out);
-                    }
-                    check(&locator, &points, &out);
-                }
-                if has!("avx2") && has!("avx512f") && has!("avx512vl") {
-                    out.fill(Err(PointError::NonFinite));
-                    #[allow(unsafe_code)]
-                    unsafe {
-                        locator.locate_chunk_avx512(&points, &mut out);
-                    }
-                    check(&locator, &points, &out);
-                } else {
-                    eprintln!("no AVX-512VL here: its path is not checked");
-                }
+            (body, points, order)
+        })
+        .collect()
+    }
+
+    /// Runs `entry` on every lane scene with f64 and f32 locators (`f64_too` false: f32 only) and
+    /// checks its answers bitwise against the scalar search. Every answer starts as a sentinel
+    /// (`NonFinite`, which no point here is), so an entry that skipped a point fails.
+    fn check_lanes(f64_too: bool, entry: impl Fn(&LatticeLocator<'_>, &[DVec3], &mut [Answer])) {
+        for (body, points, order) in lane_scenes() {
+            let precisions: &[Settings] = if f64_too {
+                &[Settings::default(), Settings::f32()]
+            } else {
+                &[Settings::f32()]
+            };
+            for &base in precisions {
+                let locator = LatticeLocator::new(&body, Settings { order, ..base }).unwrap();
+                let mut out = vec![Err(PointError::NonFinite); points.len()];
+                entry(&locator, &points, &mut out);
+                check(&locator, &points, &out);
             }
         }
+    }
+
+    /// The portable lanes (glam's `Vec4`, 4 × f32), on every target: answers bitwise those of the
+    /// scalar search.
+    #[test]
+    fn portable_lanes_answer_bitwise_as_the_scalar_search() {
+        check_lanes(false, |locator, points, out| {
+            locator.locate_chunk_with::<glam::Vec4>(points, out)
+        });
+    }
+
+    /// The AVX2 entry point, forced (the dispatch picks one per machine). Ignored where the build
+    /// machine has no AVX2 (build.rs).
+    #[test]
+    #[cfg(target_arch = "x86_64")]
+    #[cfg_attr(not(cgcontact_host_avx2), ignore = "this CPU has no AVX2")]
+    fn avx2_lanes_answer_bitwise_as_the_scalar_search() {
+        assert!(
+            std::is_x86_feature_detected!("avx2"),
+            "built where AVX2 was detected, run where it is not"
+        );
+        check_lanes(true, |locator, points, out| {
+            // SAFETY: AVX2 was detected just above.
+            #[allow(unsafe_code)]
+            unsafe {
+                locator.locate_chunk_avx2(points, out)
+            }
+        });
+    }
+
+    /// The AVX-512VL entry point, forced. Ignored where the build machine lacks AVX-512F/VL.
+    #[test]
+    #[cfg(target_arch = "x86_64")]
+    #[cfg_attr(
+        not(cgcontact_host_avx512),
+        ignore = "this CPU has no AVX-512F and AVX-512VL"
+    )]
+    fn avx512_lanes_answer_bitwise_as_the_scalar_search() {
+        use std::is_x86_feature_detected as has;
+        assert!(
+            has!("avx2") && has!("avx512f") && has!("avx512vl"),
+            "built where AVX-512VL was detected, run where it is not"
+        );
+        check_lanes(true, |locator, points, out| {
+            // SAFETY: AVX2, AVX-512F and AVX-512VL were detected just above.
+            #[allow(unsafe_code)]
+            unsafe {
+                locator.locate_chunk_avx512(points, out)
+            }
+        });
     }
 }

@@ -17,7 +17,9 @@ use std::ops::{Add, Sub};
 
 use glam::{DVec3, Vec3A};
 
-/// Newton's safeguards, shared by the scalar kernel and the SIMD lanes (`batch.rs`) so that the two
+pub(crate) mod lanes;
+
+/// Newton's safeguards, shared by the scalar kernel and the SIMD lanes (`hex8/lanes.rs`) so that the two
 /// loops cannot drift apart: iterates are kept in [−`NEWTON_BOX`, `NEWTON_BOX`]³, a step larger
 /// than `LINE_SEARCH_ABOVE` that does not reduce the residual is backtracked, and an iterate
 /// moving by less than `EARLY_OUTSIDE_STEP` while more than `EARLY_OUTSIDE_MARGIN` past the inside
@@ -120,7 +122,7 @@ pub trait Kernel: Copy + Send + Sync {
 /// order); `eighth(v)` is v / 8. A Haar butterfly along ξ, η, ζ in turn, (lo, hi) → (hi + lo, hi − lo),
 /// written out (binary corner b = VTK corner with bit 0: +ξ, bit 1: +η, bit 2: +ζ) so that it inlines
 /// without copies; the three halvings are one scaling at the end. Generic, so that the scalar kernels
-/// and the batched lanes (`crate::batch`) run the same operations in the same order: that is what makes
+/// and the batched lanes (`hex8/lanes.rs`) run the same operations in the same order: that is what makes
 /// their answers bitwise equal.
 #[inline(always)]
 pub(crate) fn monomials<T>(c: &[T; 8], eighth: impl Fn(T) -> T) -> [T; 8]
