@@ -1,0 +1,133 @@
+//! `cgcontact tradeoff`: the accuracy/speed trade over strategies × settings × scenes, measured on
+//! this machine; writes a markdown table (`tradeoff.md`) and a plot (`tradeoff.svg`).
+//!
+//! Every answer is checked against one obtained independently: the known (cell, ξ) of generated
+//! points (random ξ in the open cube, so a point on a shared face has probability zero; a differing
+//! cell still counts as right when brute force lists it among the owners), or brute force in f64 for
+//! the sphere's contact points.
+//!
+//! | module | holds |
+//! |---|---|
+//! | `grid` | the configurations, one `ConfigId` each |
+//! | `scenes` | the scenes and their reference answers |
+//! | `measure` | timing and accuracy of one configuration on one scene: a `Row` |
+//! | `report` | the markdown |
+//! | `plot` | the svg |
+//!
+//! This module holds the command line, the loop over scenes × configurations and its progress bar.
+
+mod grid;
+mod measure;
+mod plot;
+mod report;
+mod scenes;
+
+use std::io::IsTerminal;
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, Result, bail};
+use clap::Args;
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+
+use grid::configs;
+use measure::measure;
+use plot::plot;
+use report::{kept_reading, report};
+use scenes::scenes;
+
+/// Measure the accuracy/speed trade of every strategy and setting on generated scenes.
+#[derive(Args, Debug)]
+#[command(after_help = "Example:
+  cgcontact tradeoff                 # the full report into docs/ (about 3 minutes on 2 cores)
+  cgcontact tradeoff --quick --out /tmp/report
+
+Writes DIR/tradeoff.md (the table, the machine, the command) and DIR/tradeoff.svg (throughput
+against ξ error on the fine-jitter scene, one mark per configuration). A block between the markers
+<!-- reading --> and <!-- /reading --> of an existing DIR/tradeoff.md is kept.")]
+pub struct TradeoffArgs {
+    /// Folder for tradeoff.md and tradeoff.svg.
+    #[arg(long, value_name = "DIR", default_value = "docs")]
+    out: PathBuf,
+    /// Tiny scenes and subsamples: finishes in seconds (CI checks that the report still builds).
+    #[arg(long)]
+    quick: bool,
+    /// Worker threads of the "all threads" column [default: all cores].
+    #[arg(long, value_name = "N")]
+    threads: Option<usize>,
+}
+
+pub fn run(args: &TradeoffArgs) -> Result<()> {
+    let threads = match args.threads {
+        Some(0) => bail!("--threads must be at least 1"),
+        Some(n) => n,
+        None => std::thread::available_parallelism().map_or(1, |n| n.get()),
+    };
+    let pool = |n: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build()
+            .context("cannot start the worker threads")
+    };
+    let (one, all) = (pool(1)?, pool(threads)?);
+    crate::output::prepare_folder("--out", &args.out)?;
+
+    let started = Instant::now();
+    let configs = configs();
+    let bar = progress_bar();
+    bar.set_message("building scenes (brute force for the sphere's reference)");
+    let scenes = scenes(args.quick, &all)?;
+    bar.set_length((scenes.len() * configs.len()) as u64);
+    let mut rows = Vec::new();
+    for scene in &scenes {
+        for config in &configs {
+            bar.set_message(format!("{} / {}", scene.name, config.id.label()));
+            rows.push(measure(config, scene, (&one, &all), args.quick)?);
+            bar.inc(1);
+        }
+    }
+    bar.finish_and_clear();
+
+    let svg = args.out.join("tradeoff.svg");
+    let plotted = plot(&svg, &rows)?;
+    let md = args.out.join("tradeoff.md");
+    let reading = std::fs::read_to_string(&md)
+        .ok()
+        .and_then(|text| kept_reading(&text));
+    let report = report(
+        &rows,
+        &scenes,
+        threads,
+        args,
+        started.elapsed(),
+        plotted,
+        reading,
+    );
+    crate::output::write_text(&md, &report)?;
+    crate::output::say!(
+        "{} configurations × {} scenes in {:.1} s; wrote {} and {}",
+        configs.len(),
+        scenes.len(),
+        started.elapsed().as_secs_f64(),
+        md.display(),
+        svg.display()
+    )?;
+    Ok(())
+}
+
+/// A bar on stderr, only on a terminal.
+fn progress_bar() -> ProgressBar {
+    let target = if std::io::stderr().is_terminal() {
+        ProgressDrawTarget::stderr()
+    } else {
+        ProgressDrawTarget::hidden()
+    };
+    let bar = ProgressBar::with_draw_target(None, target);
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} [{bar:30}] {pos}/{len} runs, {elapsed} {msg}")
+            .expect("the template is valid")
+            .progress_chars("=> "),
+    );
+    bar.enable_steady_tick(Duration::from_millis(200));
+    bar
+}
