@@ -36,6 +36,22 @@ pub enum Error {
     /// A setting is out of its range.
     #[error("invalid setting: {0}")]
     InvalidSettings(String),
+    /// A leaf of an adaptive body that cannot be: too deep, or outside the base lattice.
+    #[error("leaf {cell}: {reason}")]
+    InvalidLeaf {
+        /// The leaf's id (its position in the list given).
+        cell: CellId,
+        /// What is wrong with it.
+        reason: String,
+    },
+    /// Two leaves of an adaptive body cover the same region.
+    #[error("leaf {cell} overlaps leaf {other}: a region is covered twice")]
+    OverlappingCells {
+        /// The leaf found overlapping.
+        cell: CellId,
+        /// A leaf listed before it that covers part of the same region.
+        other: CellId,
+    },
     /// A cell id beyond the lattice's cells.
     #[error("{cell} is outside the lattice's {cells} cells")]
     CellOutOfRange {

@@ -36,6 +36,7 @@
 #![deny(missing_docs)]
 #![deny(unsafe_code)]
 
+pub mod adaptive;
 mod body;
 mod error;
 pub mod hex8;
@@ -46,6 +47,7 @@ mod locate;
 mod reach;
 mod settings;
 
+pub use adaptive::{AdaptiveBody, AdaptiveLocator, Leaf};
 pub use body::Body;
 pub use error::{Error, PointError};
 pub use glam;

@@ -154,11 +154,17 @@ impl InsideTolerance {
     /// The constants of [`Settings::inside_tolerance`] for a body on `lattice` with `u_max`.
     #[must_use]
     pub fn new(settings: &Settings, lattice: &Lattice, u_max: f64) -> Self {
-        let h_min = lattice.h().min_element();
+        Self::with_h_min(settings, lattice.origin(), lattice.h().min_element(), u_max)
+    }
+
+    /// The same constants for a body whose lattice starts at `origin` and whose smallest cell
+    /// edge is `h_min` (an adaptive body's finest spacing).
+    #[must_use]
+    pub fn with_h_min(settings: &Settings, origin: DVec3, h_min: f64, u_max: f64) -> Self {
         Self {
             base: settings.inside_tol + 8.0 * settings.epsilon() * (2.0 + u_max / h_min),
             per_magnitude: 8.0 * f64::EPSILON / h_min,
-            origin_magnitude: lattice.origin().abs().max_element(),
+            origin_magnitude: origin.abs().max_element(),
         }
     }
 

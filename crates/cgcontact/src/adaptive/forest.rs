@@ -1,0 +1,227 @@
+//! Where the leaves are: one entry per base cell (dense, or a hash map on a sparse body), and under
+//! each refined base cell an octree of entries, down to the leaves. A point is hashed to its base
+//! cell and descends one level per step; a box visits the entries that meet it. Memory grows with
+//! the leaves (about 32 bytes per 7 leaves of tree, plus the base index), never with the finest
+//! level's lattice.
+
+use std::collections::HashMap;
+
+use glam::DVec3;
+
+use super::Leaf;
+use crate::idmap::IdMap;
+
+/// An entry no leaf covers.
+pub(super) const EMPTY: u32 = u32::MAX;
+/// Tag of an entry that is a tree node (its index in `tree`); an entry without it is a leaf id.
+const NODE: u32 = 1 << 31;
+
+/// The base cell index: dense while the body fills at least 1/32 of the base lattice.
+#[derive(Clone, Debug)]
+enum Base {
+    Dense(Vec<u32>),
+    Sparse(IdMap),
+}
+
+/// Base cells and their octrees.
+#[derive(Clone, Debug)]
+pub(super) struct Forest {
+    base: Base,
+    /// Children of each tree node, binary order (bit 0: +x, bit 1: +y, bit 2: +z).
+    tree: Vec<[u32; 8]>,
+    /// Base cells per axis.
+    cells: [u32; 3],
+}
+
+/// Why a leaf cannot be inserted: the leaf id already covering (part of) its region.
+pub(super) struct Overlap(pub u32);
+
+impl Forest {
+    /// The forest of `leaves` (ids are their positions); the leaves are in range (checked by the
+    /// caller). Errors with the first pair of leaves that overlap.
+    pub(super) fn new(cells: [u32; 3], leaves: &[Leaf]) -> Result<Self, (u32, Overlap)> {
+        let mut base: HashMap<u32, u32> = HashMap::with_capacity(leaves.len().min(1 << 20));
+        let mut tree: Vec<[u32; 8]> = Vec::new();
+        for (id, leaf) in leaves.iter().enumerate() {
+            let id = id as u32;
+            let l = u32::from(leaf.level);
+            let b = leaf.ijk.map(|v| v >> l);
+            let key = b[0] + cells[0] * (b[1] + cells[1] * b[2]);
+            let mut entry = *base.entry(key).or_insert(EMPTY);
+            if l == 0 {
+                if entry != EMPTY {
+                    return Err((id, Overlap(Self::any_leaf(&tree, entry))));
+                }
+                base.insert(key, id);
+                continue;
+            }
+            if entry == EMPTY {
+                tree.push([EMPTY; 8]);
+                entry = NODE | (tree.len() as u32 - 1);
+                base.insert(key, entry);
+            } else if entry & NODE == 0 {
+                return Err((id, Overlap(entry)));
+            }
+            // Descend from level 0 to the leaf's parent, making tree nodes where there are none.
+            for depth in 1..=l {
+                let node = (entry & !NODE) as usize;
+                let shift = l - depth;
+                let child = ((leaf.ijk[0] >> shift) & 1)
+                    | (((leaf.ijk[1] >> shift) & 1) << 1)
+                    | (((leaf.ijk[2] >> shift) & 1) << 2);
+                let slot = tree[node][child as usize];
+                if depth == l {
+                    if slot != EMPTY {
+                        return Err((id, Overlap(Self::any_leaf(&tree, slot))));
+                    }
+                    tree[node][child as usize] = id;
+                } else if slot == EMPTY {
+                    tree.push([EMPTY; 8]);
+                    let new = NODE | (tree.len() as u32 - 1);
+                    tree[node][child as usize] = new;
+                    entry = new;
+                } else if slot & NODE == 0 {
+                    return Err((id, Overlap(slot)));
+                } else {
+                    entry = slot;
+                }
+            }
+        }
+        let base_cells = cells.iter().map(|&n| n as usize).product::<usize>();
+        let base = if base_cells <= 32 * base.len().max(1) {
+            let mut dense = vec![EMPTY; base_cells];
+            for (&key, &entry) in &base {
+                dense[key as usize] = entry;
+            }
+            Base::Dense(dense)
+        } else {
+            Base::Sparse(IdMap::new(base.into_iter()))
+        };
+        tree.shrink_to_fit();
+        Ok(Self { base, tree, cells })
+    }
+
+    /// Some leaf under `entry` (a leaf id or a tree node), for an overlap message.
+    fn any_leaf(tree: &[[u32; 8]], mut entry: u32) -> u32 {
+        while entry & NODE != 0 && entry != EMPTY {
+            let children = &tree[(entry & !NODE) as usize];
+            entry = children
+                .iter()
+                .copied()
+                .find(|&c| c != EMPTY)
+                .unwrap_or(EMPTY);
+        }
+        entry
+    }
+
+    /// The entry of base cell `b` (in range).
+    #[inline(always)]
+    fn base_entry(&self, b: [u32; 3]) -> u32 {
+        let key = b[0] + self.cells[0] * (b[1] + self.cells[1] * b[2]);
+        match &self.base {
+            Base::Dense(dense) => dense[key as usize],
+            Base::Sparse(map) => map.get(key).unwrap_or(EMPTY),
+        }
+    }
+
+    /// The leaf whose undeformed box holds `t` (base lattice coordinates), with `t` clamped into
+    /// the lattice's box first; on a boundary between leaves, the upper one. `None` in a hole.
+    #[inline]
+    pub(super) fn leaf_at(&self, t: DVec3) -> Option<u32> {
+        let mut ijk = [0u32; 3];
+        for axis in 0..3 {
+            // As `Lattice::clamped_cell`: `max` maps negatives and NaN to 0, `as` saturates.
+            ijk[axis] = (t[axis].max(0.0) as u32).min(self.cells[axis] - 1);
+        }
+        let mut entry = self.base_entry(ijk);
+        let mut scale = 1.0;
+        while entry & NODE != 0 && entry != EMPTY {
+            scale *= 2.0;
+            let mut child = 0;
+            for axis in 0..3 {
+                // The child's half along this axis: t · 2^(l+1) against 2 ijk + 1 (exact: dyadic).
+                let upper = t[axis] * scale >= f64::from(2 * ijk[axis] + 1);
+                ijk[axis] = 2 * ijk[axis] + u32::from(upper);
+                child |= u32::from(upper) << axis;
+            }
+            entry = self.tree[(entry & !NODE) as usize][child as usize];
+        }
+        (entry != EMPTY).then_some(entry)
+    }
+
+    /// The leaf holding the finest-level cell `q` (indices at level `finest`), if any.
+    pub(super) fn leaf_at_finest(&self, q: [u32; 3], finest: u8) -> Option<u32> {
+        let f = u32::from(finest);
+        let mut entry = self.base_entry(q.map(|v| v >> f));
+        let mut depth = 0;
+        while entry & NODE != 0 && entry != EMPTY {
+            depth += 1;
+            let shift = f - depth;
+            let child =
+                ((q[0] >> shift) & 1) | (((q[1] >> shift) & 1) << 1) | (((q[2] >> shift) & 1) << 2);
+            entry = self.tree[(entry & !NODE) as usize][child as usize];
+        }
+        (entry != EMPTY).then_some(entry)
+    }
+
+    /// Calls `visit(leaf)` for every leaf whose closed undeformed box meets the box [`low`, `high`]
+    /// (base lattice coordinates), each once, in base cell order and depth first.
+    pub(super) fn for_each_in_box(&self, low: DVec3, high: DVec3, mut visit: impl FnMut(u32)) {
+        let mut lo = [0u32; 3];
+        let mut hi = [0u32; 3];
+        for axis in 0..3 {
+            // A NaN or a box beyond the lattice visits nothing.
+            if !(high[axis] >= 0.0 && low[axis] <= f64::from(self.cells[axis])) {
+                return;
+            }
+            // The cell whose upper face is at `low` meets the closed box too.
+            lo[axis] = ((low[axis] - 1.0).ceil().max(0.0) as u32).min(self.cells[axis] - 1);
+            // The cell whose lower face is at `high` meets the closed box too.
+            hi[axis] = (high[axis].floor().max(0.0) as u32).min(self.cells[axis] - 1);
+        }
+        // (entry, level, ijk) still to look at.
+        let mut stack: smallvec::SmallVec<[(u32, u32, [u32; 3]); 64]> = smallvec::SmallVec::new();
+        for k in lo[2]..=hi[2] {
+            for j in lo[1]..=hi[1] {
+                for i in lo[0]..=hi[0] {
+                    stack.push((self.base_entry([i, j, k]), 0, [i, j, k]));
+                    while let Some((entry, level, ijk)) = stack.pop() {
+                        if entry == EMPTY {
+                            continue;
+                        }
+                        if entry & NODE == 0 {
+                            visit(entry);
+                            continue;
+                        }
+                        let size = 0.5f64.powi(level as i32 + 1);
+                        let children = &self.tree[(entry & !NODE) as usize];
+                        // Pushed high to low so that they pop in binary order.
+                        for child in (0..8u32).rev() {
+                            let c = children[child as usize];
+                            if c == EMPTY {
+                                continue;
+                            }
+                            let cijk = [0, 1, 2].map(|a| 2 * ijk[a] + ((child >> a) & 1));
+                            let meets = (0..3).all(|a| {
+                                let start = f64::from(cijk[a]) * size;
+                                start <= high[a] && start + size >= low[a]
+                            });
+                            if meets {
+                                stack.push((c, level + 1, cijk));
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// Bytes on the heap.
+    pub(super) fn heap_bytes(&self) -> usize {
+        self.tree.capacity() * size_of::<[u32; 8]>()
+            + match &self.base {
+                Base::Dense(dense) => dense.capacity() * size_of::<u32>(),
+                Base::Sparse(map) => map.heap_bytes(),
+            }
+    }
+}

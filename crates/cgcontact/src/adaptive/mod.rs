@@ -1,0 +1,507 @@
+//! h-adaptive bodies: leaf cells at several refinement levels of one base lattice, hanging nodes
+//! and their Q1 constraints, and the locator that searches them.
+//!
+//! A cell of level l has edges h/2^l and its lowest corner at o + (i, j, k)·h/2^l: a [`Leaf`]. The
+//! body lists its leaves (they tile it without overlap; regions no leaf covers are outside, as
+//! inactive cells of a uniform body are). Nodes are shared by the leaves that meet there and are
+//! numbered in ascending finest-level lattice order (z, then y, then x), the order of a uniform
+//! body's nodes when there is one level.
+//!
+//! | file | what |
+//! |---|---|
+//! | `mod.rs` | [`AdaptiveBody`]: leaves, nodes, displacements, the constraint API |
+//! | `forest.rs` | the base cell index and the octrees under it: point → leaf, box → leaves |
+//! | `hanging.rs` | hanging nodes and their constraints, flattened to independent nodes |
+//! | `locate.rs` | [`AdaptiveLocator`]: predicted leaf first, then every leaf that can hold the point |
+//!
+//! Memory grows with the leaves and their nodes (per node: its displacement and its finest-level
+//! key, 32 bytes; per leaf: its level and indices and its 8 corner nodes, 48 bytes; the octree,
+//! about 5 bytes per leaf): a body refined 6 levels in one corner allocates nothing of the
+//! finest level's lattice.
+
+mod forest;
+mod hanging;
+mod locate;
+
+use glam::DVec3;
+
+use crate::Error;
+use crate::hex8::{self, Kernel};
+use crate::lattice::{CORNER_OFFSETS, CellId, Lattice};
+use forest::{Forest, Overlap};
+use hanging::{Constraints, Direct, corner_weights};
+
+pub use hanging::ConstraintReport;
+pub use locate::AdaptiveLocator;
+
+/// The deepest level: node keys pack each finest-level coordinate in 21 bits.
+pub const MAX_LEVEL: u8 = 20;
+/// Bits per axis of a node key.
+const KEY_BITS: u32 = 21;
+
+/// A leaf cell: its refinement level and its indices on that level's lattice (spacing h/2^level).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct Leaf {
+    /// Refinement level, 0 for a base cell.
+    pub level: u8,
+    /// Indices of the lowest corner on the level's lattice.
+    pub ijk: [u32; 3],
+}
+
+impl Leaf {
+    /// A leaf of `level` at `ijk`.
+    #[must_use]
+    pub fn new(level: u8, ijk: [u32; 3]) -> Self {
+        Self { level, ijk }
+    }
+
+    /// The 8 leaves of the next level that refine this one, in binary order (bit 0: +x, ...).
+    #[must_use]
+    pub fn children(self) -> [Leaf; 8] {
+        std::array::from_fn(|c| Leaf {
+            level: self.level + 1,
+            ijk: [0, 1, 2].map(|a| 2 * self.ijk[a] + ((c as u32 >> a) & 1)),
+        })
+    }
+}
+
+/// A body meshed by leaf cells of several refinement levels of a base lattice, deformed by nodal
+/// displacements that obey (or are reported against) the hanging nodes' constraints.
+#[derive(Clone, Debug)]
+pub struct AdaptiveBody {
+    /// The base lattice (level 0).
+    lattice: Lattice,
+    /// The deepest level of any leaf.
+    finest: u8,
+    leaves: Vec<Leaf>,
+    /// Node of each corner of each leaf, VTK order.
+    corners: Vec<[u32; 8]>,
+    /// Each node's finest-level lattice coordinates, packed (x | y << 21 | z << 42), ascending.
+    keys: Vec<u64>,
+    u: Vec<DVec3>,
+    forest: Forest,
+    hanging: Constraints,
+}
+
+fn pack(q: [u32; 3]) -> u64 {
+    u64::from(q[0]) | (u64::from(q[1]) << KEY_BITS) | (u64::from(q[2]) << (2 * KEY_BITS))
+}
+
+fn unpack(key: u64) -> [u32; 3] {
+    let mask = (1u64 << KEY_BITS) - 1;
+    [0, 1, 2].map(|a| ((key >> (a as u32 * KEY_BITS)) & mask) as u32)
+}
+
+impl AdaptiveBody {
+    /// An undeformed body of `leaves` on the base `lattice`; a leaf's id ([`CellId`]) is its
+    /// position in `leaves`.
+    ///
+    /// Errors, naming the leaf, when a leaf is deeper than [`MAX_LEVEL`], lies outside the
+    /// lattice, or overlaps another, when the finest level's lattice exceeds 2^21 − 1 cells per
+    /// axis, or when there is no leaf.
+    pub fn from_leaves(lattice: Lattice, leaves: Vec<Leaf>) -> Result<Self, Error> {
+        if leaves.is_empty() {
+            return Err(Error::EmptyBody);
+        }
+        if leaves.len() >= (1 << 31) {
+            return Err(Error::InvalidLeaf {
+                cell: CellId(u32::MAX),
+                reason: format!(
+                    "{} leaves exceed the 2^31 this library indexes",
+                    leaves.len()
+                ),
+            });
+        }
+        let counts = lattice.cells();
+        let mut finest = 0;
+        for (id, leaf) in leaves.iter().enumerate() {
+            let bad = |reason: String| Error::InvalidLeaf {
+                cell: CellId(id as u32),
+                reason,
+            };
+            if leaf.level > MAX_LEVEL {
+                return Err(bad(format!(
+                    "level {} is deeper than {MAX_LEVEL}",
+                    leaf.level
+                )));
+            }
+            let l = u32::from(leaf.level);
+            for a in 0..3 {
+                if u64::from(leaf.ijk[a]) >= u64::from(counts[a]) << l {
+                    return Err(bad(format!(
+                        "indices {:?} at level {} lie outside the base lattice's {:?} cells",
+                        leaf.ijk, leaf.level, counts
+                    )));
+                }
+            }
+            finest = finest.max(leaf.level);
+        }
+        if let Some(&n) = counts.iter().max() {
+            if u64::from(n) << finest >= 1 << KEY_BITS {
+                return Err(Error::InvalidLattice(format!(
+                    "{n} base cells refined {finest} levels exceed the 2^{KEY_BITS} - 1 finest cells per axis this library indexes"
+                )));
+            }
+        }
+        let forest = Forest::new(counts, &leaves).map_err(|(id, Overlap(other))| {
+            Error::OverlappingCells {
+                cell: CellId(id),
+                other: CellId(other),
+            }
+        })?;
+
+        // Nodes: every corner's finest-level key, deduplicated by sorting.
+        let mut keyed: Vec<(u64, u32)> = Vec::with_capacity(8 * leaves.len());
+        for (id, leaf) in leaves.iter().enumerate() {
+            let s = finest - leaf.level;
+            for (c, off) in CORNER_OFFSETS.iter().enumerate() {
+                let q = [0, 1, 2].map(|a| (leaf.ijk[a] + off[a]) << s);
+                keyed.push((pack(q), (8 * id + c) as u32));
+            }
+        }
+        keyed.sort_unstable();
+        let mut keys: Vec<u64> = Vec::new();
+        let mut corners = vec![[0u32; 8]; leaves.len()];
+        for &(key, slot) in &keyed {
+            if keys.last() != Some(&key) {
+                keys.push(key);
+            }
+            corners[slot as usize / 8][slot as usize % 8] = keys.len() as u32 - 1;
+        }
+        drop(keyed);
+        keys.shrink_to_fit();
+        let mut body = Self {
+            lattice,
+            finest,
+            u: vec![DVec3::ZERO; keys.len()],
+            leaves,
+            corners,
+            keys,
+            forest,
+            hanging: Constraints::default(),
+        };
+        body.hanging = body.find_hanging();
+        Ok(body)
+    }
+
+    /// Every hanging node's constraint, flattened.
+    fn find_hanging(&self) -> Constraints {
+        let finest = u32::from(self.finest);
+        let limit = self.lattice.cells().map(|n| n << finest);
+        let mut direct = Vec::new();
+        for (node, &key) in self.keys.iter().enumerate() {
+            let p = unpack(key);
+            // The coarsest leaf that holds p without having it as a corner, and p's ξ there.
+            let mut binding: Option<(u8, u32, DVec3)> = None;
+            for octant in 0..8u32 {
+                let mut q = [0u32; 3];
+                let mut inside = true;
+                for a in 0..3 {
+                    let upper = (octant >> a) & 1 == 1;
+                    if upper {
+                        inside &= p[a] < limit[a];
+                        q[a] = p[a];
+                    } else {
+                        inside &= p[a] > 0;
+                        q[a] = p[a].wrapping_sub(1);
+                    }
+                }
+                if !inside {
+                    continue;
+                }
+                let Some(id) = self.forest.leaf_at_finest(q, self.finest) else {
+                    continue;
+                };
+                let leaf = self.leaves[id as usize];
+                let s = finest - u32::from(leaf.level);
+                let size = 1u32 << s;
+                let rel = [0, 1, 2].map(|a| p[a] - (leaf.ijk[a] << s));
+                if rel.iter().all(|&r| r == 0 || r == size) {
+                    continue;
+                }
+                if binding.is_none_or(|(level, best, _)| (leaf.level, id) < (level, best)) {
+                    let xi = DVec3::new(f64::from(rel[0]), f64::from(rel[1]), f64::from(rel[2]))
+                        * (2.0 / f64::from(size))
+                        - 1.0;
+                    binding = Some((leaf.level, id, xi));
+                }
+            }
+            if let Some((level, id, xi)) = binding {
+                direct.push(Direct {
+                    node: node as u32,
+                    level,
+                    parents: corner_weights(&self.corners[id as usize], xi),
+                });
+            }
+        }
+        Constraints::flatten(self.keys.len(), direct)
+    }
+
+    /// The base lattice.
+    #[must_use]
+    pub fn lattice(&self) -> &Lattice {
+        &self.lattice
+    }
+
+    /// The deepest level of any leaf.
+    #[must_use]
+    pub fn finest_level(&self) -> u8 {
+        self.finest
+    }
+
+    /// The leaves, in id order.
+    #[must_use]
+    pub fn leaves(&self) -> &[Leaf] {
+        &self.leaves
+    }
+
+    /// Number of leaves.
+    #[must_use]
+    pub fn cell_count(&self) -> usize {
+        self.leaves.len()
+    }
+
+    /// Number of nodes (hanging ones included).
+    #[must_use]
+    pub fn node_count(&self) -> usize {
+        self.keys.len()
+    }
+
+    /// The spacing of level `level`'s lattice, h / 2^level (exact).
+    #[must_use]
+    pub fn spacing(&self, level: u8) -> DVec3 {
+        self.lattice.h() * 0.5f64.powi(i32::from(level))
+    }
+
+    /// The undeformed lowest corner of `leaf`: o + ijk · h/2^level.
+    #[must_use]
+    pub fn leaf_origin(&self, leaf: Leaf) -> DVec3 {
+        let [i, j, k] = leaf.ijk;
+        self.lattice.origin() + self.spacing(leaf.level) * DVec3::new(i as f64, j as f64, k as f64)
+    }
+
+    /// The undeformed position of `node`, `None` when out of range.
+    #[must_use]
+    pub fn node_position(&self, node: usize) -> Option<DVec3> {
+        let q = unpack(*self.keys.get(node)?);
+        let h = self.spacing(self.finest);
+        Some(self.lattice.origin() + h * DVec3::new(q[0] as f64, q[1] as f64, q[2] as f64))
+    }
+
+    /// The node at the finest-level lattice coordinates `q`, if the body has one there.
+    #[must_use]
+    pub fn node_at_finest(&self, q: [u32; 3]) -> Option<usize> {
+        if q.iter().any(|&v| v >= 1 << KEY_BITS) {
+            return None;
+        }
+        self.keys.binary_search(&pack(q)).ok()
+    }
+
+    /// The nodes of `cell`'s 8 corners, VTK order.
+    #[must_use]
+    pub fn cell_nodes(&self, cell: CellId) -> Option<[usize; 8]> {
+        Some(self.corners.get(cell.index())?.map(|n| n as usize))
+    }
+
+    /// The leaf whose undeformed box holds `x` (on a boundary, the upper one), if any.
+    #[must_use]
+    pub fn leaf_at(&self, x: DVec3) -> Option<CellId> {
+        let t = (x - self.lattice.origin()) / self.lattice.h();
+        let inside = t.cmpge(DVec3::ZERO).all() && t.cmple(self.upper_t()).all();
+        inside.then(|| self.forest.leaf_at(t)).flatten().map(CellId)
+    }
+
+    /// The base lattice's upper corner in lattice coordinates.
+    fn upper_t(&self) -> DVec3 {
+        let [a, b, c] = self.lattice.cells();
+        DVec3::new(f64::from(a), f64::from(b), f64::from(c))
+    }
+
+    /// Every node's displacement, in node order.
+    #[must_use]
+    pub fn displacements(&self) -> &[DVec3] {
+        &self.u
+    }
+
+    /// Sets every node's displacement (hanging ones included, as given: see
+    /// [`AdaptiveBody::check_constraints`] and [`AdaptiveBody::fill_hanging`]).
+    ///
+    /// Errors on a length mismatch or a non-finite value (naming the node); the body is then
+    /// unchanged.
+    pub fn set_displacements(&mut self, u: &[DVec3]) -> Result<(), Error> {
+        if u.len() != self.u.len() {
+            return Err(Error::LengthMismatch {
+                what: "node displacements",
+                expected: self.u.len(),
+                got: u.len(),
+            });
+        }
+        if let Some(node) = u.iter().position(|v| !v.is_finite()) {
+            return Err(Error::NonFiniteDisplacement {
+                node,
+                value: u[node].to_array(),
+            });
+        }
+        self.u.copy_from_slice(u);
+        Ok(())
+    }
+
+    /// Sets each independent node's displacement with `f(node, undeformed position, &mut u)`, then
+    /// fills the hanging nodes from their constraints: the solver-facing update, conforming by
+    /// construction.
+    ///
+    /// Errors on a non-finite value (naming the node); the body then keeps its previous
+    /// displacements.
+    pub fn update_independent(
+        &mut self,
+        mut f: impl FnMut(usize, DVec3, &mut DVec3),
+    ) -> Result<(), Error> {
+        let mut u = self.u.clone();
+        let mut row = 0;
+        for (node, u) in u.iter_mut().enumerate() {
+            if self.hanging.nodes.get(row) == Some(&(node as u32)) {
+                row += 1;
+                continue;
+            }
+            let x = self.node_position(node).expect("node in range");
+            f(node, x, u);
+            if !u.is_finite() {
+                return Err(Error::NonFiniteDisplacement {
+                    node,
+                    value: u.to_array(),
+                });
+            }
+        }
+        self.u = u;
+        self.fill_hanging();
+        Ok(())
+    }
+
+    /// Sets every hanging node's displacement to its constraint's value.
+    pub fn fill_hanging(&mut self) {
+        for r in 0..self.hanging.nodes.len() {
+            let value = self.hanging.interpolate(r, &self.u);
+            self.u[self.hanging.nodes[r] as usize] = value;
+        }
+    }
+
+    /// How far the hanging nodes are from their constraints: the count farther than `tol`
+    /// (largest component, length units), and the worst node.
+    #[must_use]
+    pub fn check_constraints(&self, tol: f64) -> ConstraintReport {
+        let mut report = ConstraintReport {
+            hanging: self.hanging.nodes.len(),
+            violating: 0,
+            worst: None,
+        };
+        for r in 0..self.hanging.nodes.len() {
+            let node = self.hanging.nodes[r] as usize;
+            let off = (self.u[node] - self.hanging.interpolate(r, &self.u))
+                .abs()
+                .max_element();
+            if off > tol {
+                report.violating += 1;
+            }
+            if report.worst.is_none_or(|(_, w)| off > w) {
+                report.worst = Some((node, off));
+            }
+        }
+        report
+    }
+
+    /// Whether `node` is hanging.
+    #[must_use]
+    pub fn is_hanging(&self, node: usize) -> bool {
+        u32::try_from(node).is_ok_and(|n| self.hanging.contains(n))
+    }
+
+    /// The hanging nodes, ascending.
+    pub fn hanging_nodes(&self) -> impl Iterator<Item = usize> + '_ {
+        self.hanging.nodes.iter().map(|&n| n as usize)
+    }
+
+    /// The independent nodes and weights whose combination a hanging node's displacement must
+    /// be, `None` when the node is not hanging.
+    #[must_use]
+    pub fn constraint(&self, node: usize) -> Option<Vec<(usize, f64)>> {
+        let r = self
+            .hanging
+            .nodes
+            .binary_search(&u32::try_from(node).ok()?)
+            .ok()?;
+        Some(
+            self.hanging
+                .row(r)
+                .1
+                .iter()
+                .map(|&(p, w)| (p as usize, w))
+                .collect(),
+        )
+    }
+
+    /// Largest displacement component per axis (absolute).
+    #[must_use]
+    pub fn max_displacement(&self) -> DVec3 {
+        self.u.iter().fold(DVec3::ZERO, |m, u| m.max(u.abs()))
+    }
+
+    /// The corner displacements of `cell`, VTK order.
+    #[must_use]
+    pub fn cell_displacements(&self, cell: CellId) -> Option<[DVec3; 8]> {
+        let corners = self.corners.get(cell.index())?;
+        Some(corners.map(|n| self.u[n as usize]))
+    }
+
+    /// The trilinear map of `cell` in its local frame and that frame's origin (the leaf's lowest
+    /// undeformed corner), as [`crate::Body::cell_map`].
+    #[must_use]
+    pub fn cell_map(&self, cell: CellId) -> Option<(hex8::Hex8Map, DVec3)> {
+        let leaf = *self.leaves.get(cell.index())?;
+        let u = self.cell_displacements(cell)?;
+        Some((
+            hex8::Hex8Map::lattice_cell(self.spacing(leaf.level), &u),
+            self.leaf_origin(leaf),
+        ))
+    }
+
+    /// The deformed point of `cell` at local coordinates `xi`.
+    #[must_use]
+    pub fn point_at(&self, cell: CellId, xi: DVec3) -> Option<DVec3> {
+        let (map, origin) = self.cell_map(cell)?;
+        Some(origin + map.map(xi))
+    }
+
+    /// Deformed corner positions of `cell`, global coordinates, VTK order.
+    #[must_use]
+    pub fn corners(&self, cell: CellId) -> Option<[DVec3; 8]> {
+        let leaf = *self.leaves.get(cell.index())?;
+        let u = self.cell_displacements(cell)?;
+        let (h, low) = (self.spacing(leaf.level), self.leaf_origin(leaf));
+        Some(std::array::from_fn(|c| {
+            let [a, b, d] = CORNER_OFFSETS[c];
+            low + (DVec3::new(a as f64, b as f64, d as f64) * h + u[c])
+        }))
+    }
+
+    /// Bytes on the heap.
+    #[must_use]
+    pub fn heap_bytes(&self) -> usize {
+        self.leaves.capacity() * size_of::<Leaf>()
+            + self.corners.capacity() * size_of::<[u32; 8]>()
+            + self.keys.capacity() * size_of::<u64>()
+            + self.u.capacity() * size_of::<DVec3>()
+            + self.forest.heap_bytes()
+            + self.hanging.heap_bytes()
+    }
+
+    /// The corner displacements of leaf `id` (unchecked id).
+    #[inline(always)]
+    pub(crate) fn leaf_displacements(&self, id: u32) -> [DVec3; 8] {
+        let corners = &self.corners[id as usize];
+        let mut u = [DVec3::ZERO; 8];
+        for (c, u) in u.iter_mut().enumerate() {
+            *u = self.u[corners[c] as usize];
+        }
+        u
+    }
+}

@@ -1,0 +1,571 @@
+//! Adaptive bodies against independent answers: points made from known (leaf, ξ), a brute-force
+//! oracle that inverts every leaf, the leaves that geometrically meet a hanging node, hand-counted
+//! hanging nodes, and the uniform locator on single-level bodies.
+
+use std::collections::BTreeSet;
+
+use cgcontact::adaptive::MAX_LEVEL;
+use cgcontact::hex8::{NewtonOptions, Status};
+use cgcontact::{
+    AdaptiveBody, AdaptiveLocator, Body, CellId, Error, InsideTolerance, Lattice, LatticeLocator,
+    Leaf, Locator, Settings,
+};
+use glam::DVec3;
+
+use crate::common::Rng;
+
+/// The leaf of `leaves` holding the finest cell `q` (level `finest`), by walking up its ancestors.
+fn holder(leaves: &BTreeSet<Leaf>, q: [u32; 3], finest: u8) -> Option<Leaf> {
+    (0..=finest).find_map(|level| {
+        let leaf = Leaf::new(level, q.map(|v| v >> (finest - level)));
+        leaves.contains(&leaf).then_some(leaf)
+    })
+}
+
+/// A random refinement of a full `cells` lattice: `splits` times a random leaf above `levels` is
+/// split in 8; `balanced` then splits every leaf more than one level coarser than a leaf touching
+/// it (faces, edges or corners) until none is; `holes` removes about that share of the leaves.
+fn refine(
+    cells: [u32; 3],
+    levels: u8,
+    splits: usize,
+    balanced: bool,
+    holes: f64,
+    seed: u64,
+) -> Vec<Leaf> {
+    let mut rng = Rng(seed);
+    let mut leaves: BTreeSet<Leaf> = BTreeSet::new();
+    for k in 0..cells[2] {
+        for j in 0..cells[1] {
+            for i in 0..cells[0] {
+                leaves.insert(Leaf::new(0, [i, j, k]));
+            }
+        }
+    }
+    for _ in 0..splits {
+        let all: Vec<Leaf> = leaves
+            .iter()
+            .copied()
+            .filter(|l| l.level < levels)
+            .collect();
+        if all.is_empty() {
+            break;
+        }
+        let leaf = all[rng.below(all.len())];
+        leaves.remove(&leaf);
+        leaves.extend(leaf.children());
+    }
+    if balanced {
+        let finest = levels;
+        let limit = cells.map(|n| i64::from(n << finest));
+        loop {
+            let mut coarse: Option<Leaf> = None;
+            'scan: for leaf in &leaves {
+                let s = finest - leaf.level;
+                let lo = leaf.ijk.map(|v| i64::from(v << s));
+                let size = 1i64 << s;
+                // The finest cells just outside each face, edge and corner.
+                for d in 0..27 {
+                    let off = [d % 3, (d / 3) % 3, d / 9].map(|o| o as i64 - 1);
+                    if off == [0, 0, 0] {
+                        continue;
+                    }
+                    let q: [i64; 3] = [0, 1, 2].map(|a| match off[a] {
+                        -1 => lo[a] - 1,
+                        0 => lo[a],
+                        _ => lo[a] + size,
+                    });
+                    if (0..3).any(|a| q[a] < 0 || q[a] >= limit[a]) {
+                        continue;
+                    }
+                    let q = q.map(|v| v as u32);
+                    if let Some(n) = holder(&leaves, q, finest) {
+                        if n.level + 1 < leaf.level {
+                            coarse = Some(n);
+                            break 'scan;
+                        }
+                    }
+                }
+            }
+            match coarse {
+                Some(n) => {
+                    leaves.remove(&n);
+                    leaves.extend(n.children());
+                }
+                None => break,
+            }
+        }
+    }
+    let mut out: Vec<Leaf> = leaves
+        .into_iter()
+        .filter(|_| rng.uniform(0.0, 1.0) >= holes)
+        .collect();
+    if out.is_empty() {
+        out.push(Leaf::new(0, [0, 0, 0]));
+    }
+    // Any order: shuffled.
+    for i in (1..out.len()).rev() {
+        out.swap(i, rng.below(i + 1));
+    }
+    out
+}
+
+/// A smooth field of gradient about `strain`, plus nodal jitter of `jitter` finest spacings on the
+/// independent nodes, hanging nodes filled from their constraints.
+fn deform(body: &mut AdaptiveBody, strain: f64, jitter: f64, seed: u64) {
+    let mut rng = Rng(seed);
+    let h = body.spacing(0);
+    let fine = body.spacing(body.finest_level()).min_element();
+    let o = body.lattice().origin();
+    body.update_independent(|_, x, u| {
+        let t = (x - o) / h;
+        *u = strain
+            * h
+            * DVec3::new(
+                (0.7 * t.y + 0.3 * t.z).sin(),
+                (0.5 * t.z - 0.4 * t.x).cos(),
+                (0.6 * t.x + 0.2 * t.y).sin(),
+            )
+            + rng.vec(-jitter, jitter) * fine;
+    })
+    .unwrap();
+}
+
+/// Every leaf holding `x` by inverting each one (the oracle), ascending.
+fn brute_owners(body: &AdaptiveBody, settings: &Settings, x: DVec3) -> Vec<u32> {
+    let h_min = body.spacing(body.finest_level()).min_element();
+    let tol = InsideTolerance::with_h_min(
+        settings,
+        body.lattice().origin(),
+        h_min,
+        body.max_displacement().max_element(),
+    );
+    let options = NewtonOptions {
+        inside_tol: tol.at(x),
+        ..settings.newton()
+    };
+    (0..body.cell_count() as u32)
+        .filter(|&c| {
+            let (map, origin) = body.cell_map(CellId(c)).unwrap();
+            map.invert(x - origin, DVec3::ZERO, &options).status == Status::Inside
+        })
+        .collect()
+}
+
+fn scene(balanced: bool, holes: f64, seed: u64) -> AdaptiveBody {
+    let lattice = Lattice::new(
+        DVec3::new(-3.5, 1.0, 0.25),
+        DVec3::new(0.5, 0.25, 0.4),
+        [3, 4, 2],
+    )
+    .unwrap();
+    let leaves = refine([3, 4, 2], 3, 14, balanced, holes, seed);
+    let mut body = AdaptiveBody::from_leaves(lattice, leaves).unwrap();
+    deform(&mut body, 0.04, 0.05, seed ^ 7);
+    body
+}
+
+#[test]
+fn known_points_are_found_in_their_leaf_with_exact_xi() {
+    for seed in 0..12 {
+        for balanced in [false, true] {
+            let body = scene(balanced, if seed % 3 == 0 { 0.2 } else { 0.0 }, seed);
+            assert!(
+                body.finest_level() >= 2,
+                "seed {seed}: a refinement to test"
+            );
+            let locator = AdaptiveLocator::new(&body, Settings::default()).unwrap();
+            let f32 = AdaptiveLocator::new(&body, Settings::f32()).unwrap();
+            let mut rng = Rng(seed + 100);
+            let mut inversions = 0;
+            let n = 400;
+            for _ in 0..n {
+                let cell = CellId(rng.below(body.cell_count()) as u32);
+                // Open cube: a point on a shared face has probability zero.
+                let xi = rng.vec(-0.999, 0.999);
+                let x = body.point_at(cell, xi).unwrap();
+                let (answer, tried) = locator.locate_counted(x);
+                let hit = answer
+                    .unwrap()
+                    .unwrap_or_else(|| panic!("seed {seed}: {x} in {cell} missed"));
+                inversions += tried;
+                assert_eq!(hit.cell, cell, "seed {seed} at {x}");
+                assert!(
+                    (hit.xi - xi).abs().max_element() <= 1e-12,
+                    "seed {seed}: ξ {} vs {xi}",
+                    hit.xi
+                );
+                let hit32 = f32.locate(x).unwrap().unwrap();
+                assert_eq!(hit32.cell, cell, "f32, seed {seed} at {x}");
+                assert!(
+                    (hit32.xi - xi).abs().max_element() <= 1e-5,
+                    "f32 ξ {}",
+                    hit32.xi
+                );
+            }
+            // One inversion for almost every point.
+            assert!(
+                f64::from(inversions) / f64::from(n) < 1.3,
+                "seed {seed}: {inversions} inversions"
+            );
+        }
+    }
+}
+
+#[test]
+fn random_points_agree_with_brute_force() {
+    for seed in 0..8 {
+        let body = scene(
+            seed % 2 == 0,
+            if seed % 4 == 1 { 0.25 } else { 0.0 },
+            seed + 50,
+        );
+        let settings = Settings::default();
+        let locator = AdaptiveLocator::new(&body, settings).unwrap();
+        let mut rng = Rng(seed);
+        let low = body.lattice().origin() - body.spacing(0);
+        let high = body.lattice().upper() + body.spacing(0);
+        let mut found = 0;
+        for _ in 0..600 {
+            let x = DVec3::new(
+                rng.uniform(low.x, high.x),
+                rng.uniform(low.y, high.y),
+                rng.uniform(low.z, high.z),
+            );
+            let oracle = brute_owners(&body, &settings, x);
+            let owners: Vec<u32> = locator
+                .locate_owners(x)
+                .unwrap()
+                .iter()
+                .map(|h| h.cell.0)
+                .collect();
+            assert_eq!(owners, oracle, "seed {seed} at {x}");
+            match locator.locate(x).unwrap() {
+                Some(hit) => {
+                    found += 1;
+                    assert!(oracle.contains(&hit.cell.0), "seed {seed} at {x}");
+                }
+                None => assert!(
+                    oracle.is_empty(),
+                    "seed {seed}: {x} missed, held by {oracle:?}"
+                ),
+            }
+        }
+        assert!(found > 50, "seed {seed}: {found} points inside");
+    }
+}
+
+/// The leaves whose closed undeformed box holds the finest-lattice point `p` (independent of the
+/// body's own neighbour search).
+fn leaves_meeting(body: &AdaptiveBody, p: [u32; 3]) -> Vec<u32> {
+    let finest = body.finest_level();
+    (0..body.cell_count() as u32)
+        .filter(|&c| {
+            let leaf = body.leaves()[c as usize];
+            let s = finest - leaf.level;
+            (0..3).all(|a| {
+                let lo = leaf.ijk[a] << s;
+                lo <= p[a] && p[a] <= lo + (1 << s)
+            })
+        })
+        .collect()
+}
+
+#[test]
+fn hanging_nodes_edges_and_faces_are_held_by_every_leaf_meeting_them() {
+    for seed in 0..6 {
+        let body = scene(seed % 2 == 1, 0.0, seed + 300);
+        let settings = Settings::default();
+        let locator = AdaptiveLocator::new(&body, settings).unwrap();
+        let finest = body.finest_level();
+        let h = body.spacing(finest);
+        let o = body.lattice().origin();
+        let hanging: Vec<usize> = body.hanging_nodes().collect();
+        assert!(
+            !hanging.is_empty(),
+            "seed {seed}: a refinement has hanging nodes"
+        );
+        for &node in &hanging {
+            let x0 = body.node_position(node).unwrap();
+            let p = ((x0 - o) / h).round().to_array().map(|v| v as u32);
+            let x = x0 + body.displacements()[node];
+            let meeting = leaves_meeting(&body, p);
+            let owners: Vec<u32> = locator
+                .locate_owners(x)
+                .unwrap()
+                .iter()
+                .map(|h| h.cell.0)
+                .collect();
+            for leaf in &meeting {
+                assert!(
+                    owners.contains(leaf),
+                    "seed {seed}: hanging node {node} at {x}: {leaf} missing from {owners:?}"
+                );
+            }
+            assert_eq!(
+                owners,
+                brute_owners(&body, &settings, x),
+                "seed {seed} node {node}"
+            );
+            assert!(locator.locate(x).unwrap().is_some());
+        }
+        // Points on the faces and edges of fine leaves: each is held by its own leaf at ξ on the
+        // boundary, and by whatever coarse leaf lies across.
+        let mut rng = Rng(seed);
+        for _ in 0..300 {
+            let cell = CellId(rng.below(body.cell_count()) as u32);
+            let mut xi = rng.vec(-1.0, 1.0);
+            xi[rng.below(3)] = if rng.below(2) == 0 { -1.0 } else { 1.0 };
+            if rng.below(2) == 0 {
+                xi[rng.below(3)] = 1.0;
+            }
+            let x = body.point_at(cell, xi).unwrap();
+            let owners: Vec<u32> = locator
+                .locate_owners(x)
+                .unwrap()
+                .iter()
+                .map(|h| h.cell.0)
+                .collect();
+            assert!(
+                owners.contains(&cell.0),
+                "seed {seed}: {x} on the boundary of {cell}: {owners:?}"
+            );
+            assert_eq!(
+                owners,
+                brute_owners(&body, &settings, x),
+                "seed {seed} at {x}"
+            );
+        }
+    }
+}
+
+#[test]
+fn one_refined_cell_beside_a_coarse_one_has_five_hanging_nodes() {
+    // Two base cells along x; the second split once: its face against the first has 4 edge
+    // midpoints and 1 face centre that are not corners of the coarse cell.
+    let lattice = Lattice::new(DVec3::ZERO, DVec3::ONE, [2, 1, 1]).unwrap();
+    let mut leaves = vec![Leaf::new(0, [0, 0, 0])];
+    leaves.extend(Leaf::new(0, [1, 0, 0]).children());
+    let body = AdaptiveBody::from_leaves(lattice, leaves).unwrap();
+    assert_eq!(body.node_count(), 8 + 27 - 4);
+    let hanging: Vec<DVec3> = body
+        .hanging_nodes()
+        .map(|n| body.node_position(n).unwrap())
+        .collect();
+    assert_eq!(hanging.len(), 5);
+    for x in &hanging {
+        assert_eq!(x.x, 1.0, "on the shared face: {x}");
+    }
+    let centre = body.node_at_finest([2, 1, 1]).unwrap();
+    let weights = body.constraint(centre).unwrap();
+    assert_eq!(weights.len(), 4);
+    assert!(weights.iter().all(|&(_, w)| w == 0.25));
+    let edge = body.node_at_finest([2, 0, 1]).unwrap();
+    assert_eq!(
+        body.constraint(edge)
+            .unwrap()
+            .iter()
+            .map(|&(_, w)| w)
+            .collect::<Vec<_>>(),
+        [0.5, 0.5]
+    );
+    // Not hanging: the corners of the coarse cell, and the fine cells' own interior nodes.
+    assert!(
+        body.constraint(body.node_at_finest([2, 2, 2]).unwrap())
+            .is_none()
+    );
+    assert!(
+        body.constraint(body.node_at_finest([3, 1, 1]).unwrap())
+            .is_none()
+    );
+}
+
+#[test]
+fn a_level_jump_of_two_constrains_to_the_coarsest_leaf() {
+    // Base cell 1 split twice in its corner against base cell 0: nodes of the level-2 leaves on the
+    // shared face interpolate base cell 0's corners (weights of 1/4, 3/4 · 1/4 ...), summing to 1.
+    let lattice = Lattice::new(DVec3::ZERO, DVec3::ONE, [2, 1, 1]).unwrap();
+    let mut leaves = vec![Leaf::new(0, [0, 0, 0])];
+    let children = Leaf::new(0, [1, 0, 0]).children();
+    leaves.extend(children[1..].iter().copied());
+    leaves.extend(children[0].children());
+    let mut body = AdaptiveBody::from_leaves(lattice, leaves).unwrap();
+    let coarse: BTreeSet<usize> = body.cell_nodes(CellId(0)).unwrap().into_iter().collect();
+    // On the face x = 1 at finest coords (4, 1, 1): ξ = (−1/2, −1/2) on the coarse face.
+    let node = body.node_at_finest([4, 1, 1]).unwrap();
+    let weights = body.constraint(node).unwrap();
+    assert!(
+        weights.iter().all(|(p, _)| coarse.contains(p)),
+        "{weights:?}"
+    );
+    let mut w: Vec<f64> = weights.iter().map(|&(_, w)| w).collect();
+    w.sort_by(f64::total_cmp);
+    assert_eq!(w, [0.0625, 0.1875, 0.1875, 0.5625]);
+    for node in body.hanging_nodes().collect::<Vec<_>>() {
+        let sum: f64 = body.constraint(node).unwrap().iter().map(|&(_, w)| w).sum();
+        assert_eq!(sum, 1.0, "node {node}");
+        assert!(
+            body.constraint(node)
+                .unwrap()
+                .iter()
+                .all(|&(p, _)| !body.is_hanging(p))
+        );
+    }
+    // Filled from the constraints, they hold; one moved, it is reported with its offset.
+    deform(&mut body, 0.05, 0.05, 3);
+    let report = body.check_constraints(1e-14);
+    assert!(report.holds() && report.hanging > 0, "{report:?}");
+    let mut u = body.displacements().to_vec();
+    u[node].y += 1e-3;
+    body.set_displacements(&u).unwrap();
+    let report = body.check_constraints(1e-9);
+    assert_eq!(report.violating, 1);
+    let (worst, by) = report.worst.unwrap();
+    assert_eq!(worst, node);
+    assert!((by - 1e-3).abs() < 1e-12, "{by}");
+    body.fill_hanging();
+    assert!(body.check_constraints(1e-14).holds());
+}
+
+#[test]
+fn a_single_level_body_answers_as_the_uniform_one() {
+    let lattice = Lattice::new(
+        DVec3::new(10.0, -4.0, 2.5),
+        DVec3::new(0.3, 0.25, 0.2),
+        [5, 4, 3],
+    )
+    .unwrap();
+    let mut uniform = Body::full(lattice);
+    let mut rng = Rng(9);
+    uniform
+        .update_displacements(|_, x, u| {
+            *u = 0.03 * DVec3::new(x.y.sin(), x.z.cos(), (x.x * 2.0).sin()) + rng.vec(-0.01, 0.01)
+        })
+        .unwrap();
+    let mut leaves = Vec::new();
+    for c in 0..lattice.cell_count() as u32 {
+        leaves.push(Leaf::new(0, lattice.cell_ijk(CellId(c)).unwrap()));
+    }
+    let mut adaptive = AdaptiveBody::from_leaves(lattice, leaves).unwrap();
+    assert_eq!(adaptive.node_count(), lattice.node_count());
+    for n in 0..lattice.node_count() {
+        let ijk = lattice.node_ijk(n).unwrap();
+        assert_eq!(adaptive.node_position(n), Some(lattice.node_position(ijk)));
+    }
+    adaptive.set_displacements(uniform.displacements()).unwrap();
+    assert_eq!(adaptive.hanging_nodes().count(), 0);
+    for settings in [Settings::default(), Settings::f32()] {
+        let a = AdaptiveLocator::new(&adaptive, settings).unwrap();
+        let u = LatticeLocator::new(&uniform, settings).unwrap();
+        let mut inside = 0;
+        for _ in 0..2000 {
+            let x = rng.vec(0.0, 1.0) * (lattice.upper() - lattice.origin() + 0.4)
+                + lattice.origin()
+                - 0.2;
+            let (ha, hu) = (a.locate(x).unwrap(), u.locate(x).unwrap());
+            match (ha, hu) {
+                (Some(ha), Some(hu)) => {
+                    inside += 1;
+                    assert_eq!(ha.cell, hu.cell, "at {x}");
+                    assert_eq!(
+                        ha.xi.to_array().map(f64::to_bits),
+                        hu.xi.to_array().map(f64::to_bits),
+                        "at {x}"
+                    );
+                    assert_eq!(ha.iterations, hu.iterations);
+                }
+                (None, None) => {}
+                other => panic!("at {x}: {other:?}"),
+            }
+        }
+        assert!(inside > 500, "{inside}");
+    }
+}
+
+#[test]
+fn bad_leaves_are_errors_naming_the_leaf() {
+    let lattice = Lattice::new(DVec3::ZERO, DVec3::ONE, [2, 2, 2]).unwrap();
+    let overlap = vec![Leaf::new(0, [0, 0, 0]), Leaf::new(1, [1, 1, 0])];
+    assert_eq!(
+        AdaptiveBody::from_leaves(lattice, overlap).unwrap_err(),
+        Error::OverlappingCells {
+            cell: CellId(1),
+            other: CellId(0)
+        }
+    );
+    // The finer one first: the coarse leaf covers it.
+    let overlap = vec![
+        Leaf::new(2, [3, 3, 3]),
+        Leaf::new(1, [0, 0, 0]),
+        Leaf::new(0, [0, 0, 0]),
+    ];
+    assert!(matches!(
+        AdaptiveBody::from_leaves(lattice, overlap).unwrap_err(),
+        Error::OverlappingCells {
+            cell: CellId(2),
+            ..
+        }
+    ));
+    let twice = vec![Leaf::new(1, [3, 3, 3]), Leaf::new(1, [3, 3, 3])];
+    assert_eq!(
+        AdaptiveBody::from_leaves(lattice, twice).unwrap_err(),
+        Error::OverlappingCells {
+            cell: CellId(1),
+            other: CellId(0)
+        }
+    );
+    let outside = vec![Leaf::new(0, [0, 0, 0]), Leaf::new(1, [4, 0, 0])];
+    assert!(matches!(
+        AdaptiveBody::from_leaves(lattice, outside).unwrap_err(),
+        Error::InvalidLeaf {
+            cell: CellId(1),
+            ..
+        }
+    ));
+    let deep = vec![Leaf::new(MAX_LEVEL + 1, [0, 0, 0])];
+    assert!(matches!(
+        AdaptiveBody::from_leaves(lattice, deep).unwrap_err(),
+        Error::InvalidLeaf {
+            cell: CellId(0),
+            ..
+        }
+    ));
+    assert_eq!(
+        AdaptiveBody::from_leaves(lattice, vec![]).unwrap_err(),
+        Error::EmptyBody
+    );
+    let mut body = AdaptiveBody::from_leaves(lattice, vec![Leaf::new(0, [0, 0, 0])]).unwrap();
+    let mut u = vec![DVec3::ZERO; body.node_count()];
+    u[3].z = f64::NAN;
+    assert!(matches!(
+        body.set_displacements(&u),
+        Err(Error::NonFiniteDisplacement { node: 3, .. })
+    ));
+    assert!(body.set_displacements(&u[1..]).is_err());
+}
+
+#[test]
+fn six_levels_in_one_corner_allocate_with_the_leaves() {
+    // A 10³ base lattice refined 6 levels toward its lowest corner: the finest level's lattice
+    // would have 640³ cells; the body keeps its ~1,040 leaves and their nodes.
+    let lattice = Lattice::new(DVec3::ZERO, DVec3::ONE, [10, 10, 10]).unwrap();
+    let mut leaves: Vec<Leaf> = (1..1000u32)
+        .map(|c| Leaf::new(0, lattice.cell_ijk(CellId(c)).unwrap()))
+        .collect();
+    let mut corner = Leaf::new(0, [0, 0, 0]);
+    for _ in 0..6 {
+        let children = corner.children();
+        leaves.extend(children[1..].iter().copied());
+        corner = children[0];
+    }
+    leaves.push(corner);
+    let mut body = AdaptiveBody::from_leaves(lattice, leaves).unwrap();
+    assert_eq!(body.finest_level(), 6);
+    let bytes = body.heap_bytes();
+    assert!(bytes < 200 * 1024, "{bytes} bytes");
+    deform(&mut body, 0.02, 0.0, 1);
+    let locator = AdaptiveLocator::new(&body, Settings::default()).unwrap();
+    let cell = CellId(body.cell_count() as u32 - 1);
+    let x = body.point_at(cell, DVec3::splat(0.25)).unwrap();
+    assert_eq!(locator.locate(x).unwrap().unwrap().cell, cell);
+}
