@@ -483,6 +483,36 @@ impl AdaptiveBody {
         }))
     }
 
+    /// Leaves whose Jacobian determinant is not positive at some corner, with the smallest corner
+    /// determinant divided by the undeformed one (≤ 0), ascending by leaf.
+    #[must_use]
+    pub fn inverted_cells(&self) -> Vec<(CellId, f64)> {
+        (0..self.leaves.len() as u32)
+            .filter_map(|id| {
+                let leaf = self.leaves[id as usize];
+                let h = self.spacing(leaf.level);
+                let u = self.leaf_displacements(id);
+                let local: [DVec3; 8] = std::array::from_fn(|c| {
+                    let [a, b, d] = CORNER_OFFSETS[c];
+                    DVec3::new(a as f64, b as f64, d as f64) * h + u[c]
+                });
+                let ratio = hex8::min_corner_det(&local) / (h.x * h.y * h.z / 8.0);
+                // NaN counts as inverted: only a ratio known to be positive is valid.
+                (ratio.is_nan() || ratio <= 0.0).then_some((CellId(id), ratio))
+            })
+            .collect()
+    }
+
+    /// Check the body: no inverted leaf (displacements are finite by construction).
+    pub fn validate(&self) -> Result<(), Error> {
+        let inverted = self.inverted_cells();
+        if inverted.is_empty() {
+            Ok(())
+        } else {
+            Err(Error::InvertedCells(inverted))
+        }
+    }
+
     /// Bytes on the heap.
     #[must_use]
     pub fn heap_bytes(&self) -> usize {

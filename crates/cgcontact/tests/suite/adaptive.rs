@@ -162,6 +162,7 @@ fn scene(balanced: bool, holes: f64, seed: u64) -> AdaptiveBody {
     let leaves = refine([3, 4, 2], 3, 14, balanced, holes, seed);
     let mut body = AdaptiveBody::from_leaves(lattice, leaves).unwrap();
     deform(&mut body, 0.04, 0.05, seed ^ 7);
+    body.validate().unwrap();
     body
 }
 
@@ -346,8 +347,23 @@ fn one_refined_cell_beside_a_coarse_one_has_five_hanging_nodes() {
     let lattice = Lattice::new(DVec3::ZERO, DVec3::ONE, [2, 1, 1]).unwrap();
     let mut leaves = vec![Leaf::new(0, [0, 0, 0])];
     leaves.extend(Leaf::new(0, [1, 0, 0]).children());
-    let body = AdaptiveBody::from_leaves(lattice, leaves).unwrap();
+    let mut body = AdaptiveBody::from_leaves(lattice, leaves).unwrap();
     assert_eq!(body.node_count(), 8 + 27 - 4);
+    // A leaf squashed flat is reported; the body is otherwise valid.
+    assert!(body.validate().is_ok());
+    let flat = body.cell_nodes(CellId(0)).unwrap()[1];
+    let mut u = vec![DVec3::ZERO; body.node_count()];
+    u[flat].x = -1.0;
+    body.set_displacements(&u).unwrap();
+    assert_eq!(
+        body.inverted_cells()
+            .iter()
+            .map(|c| c.0)
+            .collect::<Vec<_>>(),
+        [CellId(0)]
+    );
+    body.set_displacements(&vec![DVec3::ZERO; body.node_count()])
+        .unwrap();
     let hanging: Vec<DVec3> = body
         .hanging_nodes()
         .map(|n| body.node_position(n).unwrap())
