@@ -1,0 +1,386 @@
+//! Bodies: from a lattice, or from nodes and hexahedra whose lattice is detected; displacements set
+//! in place.
+
+use std::sync::{Arc, PoisonError, RwLock, RwLockReadGuard, RwLockWriteGuard};
+
+use cgcontact::glam::DVec3;
+use cgcontact::{Body, CellId, Lattice};
+use cgcontact_io::{CellMap, HexMesh, LATTICE_TOLERANCE};
+
+use crate::error::{CgcError, Failure, guard};
+use crate::raw;
+
+/// Displacements given node by node: x, y, z of node 0, then of node 1, ... (an n × 3 row-major
+/// array in C, a 3 × n array in MATLAB or Fortran).
+pub const CGC_LAYOUT_NODE_MAJOR: u32 = 0;
+/// Displacements given component by component: x of every node, then y, then z (an n × 3 array
+/// in MATLAB or Fortran, a 3 × n row-major array in C).
+pub const CGC_LAYOUT_COMPONENT_MAJOR: u32 = 1;
+
+/// A deformed body (opaque). Created by `cgc_body_from_lattice` or `cgc_body_from_mesh`, freed by
+/// `cgc_body_free`.
+pub struct CgcBody {
+    pub(crate) state: Arc<RwLock<BodyState>>,
+}
+
+/// What a body handle holds; shared with the locators made from it.
+#[derive(Debug)]
+pub(crate) struct BodyState {
+    pub body: Body,
+    /// The mesh's cell numbering, for bodies given as nodes and cells; `None` for lattice bodies,
+    /// whose cells are numbered as the lattice's.
+    cells: Option<CellMap>,
+    /// Number of displacement entries the caller passes (lattice nodes, or input nodes).
+    source_count: usize,
+    /// For each of the body's displacement slots, the caller's node that gives it.
+    source_of_slot: Vec<usize>,
+    /// Further caller's nodes at a slot's lattice node (an unmerged mesh): (node, slot). Their
+    /// displacements must agree with the slot's.
+    duplicates: Vec<(usize, usize)>,
+    /// The displacements in slot order, reused by every update.
+    scratch: Vec<DVec3>,
+}
+
+impl BodyState {
+    fn lattice(body: Body) -> Self {
+        let source_of_slot: Vec<usize> = body.nodes().collect();
+        Self {
+            scratch: vec![DVec3::ZERO; source_of_slot.len()],
+            source_count: body.lattice().node_count(),
+            source_of_slot,
+            duplicates: Vec::new(),
+            cells: None,
+            body,
+        }
+    }
+
+    /// The caller's cell number of lattice cell `cell` (−1 if the caller has no such cell, which a
+    /// locator never returns).
+    #[inline]
+    pub fn cell_number(&self, cell: CellId) -> i64 {
+        match &self.cells {
+            None => i64::from(cell.0),
+            Some(map) => map.input_cell(cell).map_or(-1, |c| c as i64),
+        }
+    }
+
+    /// Sets every displacement from the caller's array, or changes nothing and says why.
+    fn set_displacements(&mut self, u: &[f64], layout: u32) -> Result<(), Failure> {
+        let n = self.source_count;
+        if u.len() != 3 * n {
+            return Err(Failure::new(
+                CgcError::LengthMismatch,
+                format!(
+                    "displacements: the body needs {n} nodes × 3 values, got {} values",
+                    u.len()
+                ),
+            ));
+        }
+        let at = |node: usize| match layout {
+            CGC_LAYOUT_NODE_MAJOR => DVec3::new(u[3 * node], u[3 * node + 1], u[3 * node + 2]),
+            _ => DVec3::new(u[node], u[n + node], u[2 * n + node]),
+        };
+        let non_finite = |node: usize, value: DVec3| {
+            Failure::new(
+                CgcError::NonFinite,
+                format!("the displacement of node {node} (0-based) is not finite: {value}"),
+            )
+        };
+        for (slot, &node) in self.scratch.iter_mut().zip(&self.source_of_slot) {
+            *slot = at(node);
+        }
+        if let Some(s) = self.scratch.iter().position(|v| !v.is_finite()) {
+            return Err(non_finite(self.source_of_slot[s], self.scratch[s]));
+        }
+        let tol = LATTICE_TOLERANCE * self.body.lattice().h().max_element();
+        for &(node, slot) in &self.duplicates {
+            let (value, first) = (at(node), self.scratch[slot]);
+            if !value.is_finite() {
+                return Err(non_finite(node, value));
+            }
+            if (value - first).abs().max_element()
+                > tol + 4.0 * f64::EPSILON * first.abs().max_element()
+            {
+                return Err(Failure::new(
+                    CgcError::NotLattice,
+                    format!(
+                        "nodes {} and {node} (0-based) coincide but their displacements differ: {first} and {value}",
+                        self.source_of_slot[slot]
+                    ),
+                ));
+            }
+        }
+        self.body.set_displacements(&self.scratch)?;
+        Ok(())
+    }
+}
+
+impl CgcBody {
+    fn new(state: BodyState) -> Self {
+        Self {
+            state: Arc::new(RwLock::new(state)),
+        }
+    }
+
+    /// The state for reading (a panic while it was written left it whole: updates check first).
+    pub(crate) fn read(state: &RwLock<BodyState>) -> RwLockReadGuard<'_, BodyState> {
+        state.read().unwrap_or_else(PoisonError::into_inner)
+    }
+
+    fn write(&self) -> RwLockWriteGuard<'_, BodyState> {
+        self.state.write().unwrap_or_else(PoisonError::into_inner)
+    }
+}
+
+/// A body on a lattice: `origin[3]`, spacing `h[3]`, `cells[3]` cells per axis. `active` is NULL
+/// (every cell active) or `active_len` bytes, one per lattice cell, nonzero for an active cell,
+/// cells numbered `i + nx (j + ny k)` (x fastest). The body starts undeformed. Cell numbers in
+/// answers are lattice cell numbers. Writes the new handle to `*out`.
+///
+/// Displacements (`cgc_body_set_displacements`) are then given for every lattice node,
+/// `(nx + 1)(ny + 1)(nz + 1)` of them numbered `i + (nx + 1)(j + (ny + 1) k)`; values at nodes of
+/// no active cell are ignored.
+///
+/// # Safety
+/// Every non-NULL pointer must point to as many readable values as stated; `out` to one writable
+/// pointer.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn cgc_body_from_lattice(
+    origin: *const f64,
+    h: *const f64,
+    cells: *const u32,
+    active: *const u8,
+    active_len: usize,
+    out: *mut *mut CgcBody,
+) -> CgcError {
+    guard(|| {
+        // SAFETY: the caller guarantees 3 readable values behind each non-NULL pointer.
+        let (origin, h, counts) = unsafe {
+            (
+                raw::slice(origin, 3, "origin")?,
+                raw::slice(h, 3, "h")?,
+                raw::slice(cells, 3, "cells")?,
+            )
+        };
+        let (origin, h) = (DVec3::from_slice(origin), DVec3::from_slice(h));
+        if !(origin.is_finite() && h.is_finite()) {
+            return Err(Failure::new(
+                CgcError::NonFinite,
+                format!("the lattice's origin {origin} or spacing {h} is not finite"),
+            ));
+        }
+        let lattice = Lattice::new(origin, h, [counts[0], counts[1], counts[2]])?;
+        let body = if active.is_null() {
+            Body::full(lattice)
+        } else {
+            if active_len != lattice.cell_count() {
+                return Err(Failure::new(
+                    CgcError::LengthMismatch,
+                    format!(
+                        "active: the lattice has {} cells, got {active_len} flags",
+                        lattice.cell_count()
+                    ),
+                ));
+            }
+            // SAFETY: the caller guarantees `active_len` readable bytes behind `active`.
+            let flags = unsafe { raw::slice(active, active_len, "active") }?;
+            let ids = flags.iter().enumerate().filter(|(_, f)| **f != 0);
+            Body::from_cells(lattice, ids.map(|(c, _)| CellId(c as u32)))?
+        };
+        // SAFETY: the caller guarantees `out` is writable.
+        unsafe { raw::give(out, CgcBody::new(BodyState::lattice(body)), "out") }
+    })
+}
+
+/// A body from undeformed nodes and hexahedra, whose lattice is detected from the nodes (to 1e-9
+/// of the spacing). `nodes` holds `3 n_nodes` doubles, x y z per node; `cells` holds `8 n_cells`
+/// node numbers per cell in VTK hexahedron order, numbered from `index_base` (0 for C, 1 for
+/// MATLAB or Fortran). Each cell must be one lattice cube. The body starts undeformed. Cell numbers
+/// in answers are 0-based places in `cells`. Writes the new handle to `*out`.
+///
+/// Displacements are then given for every node (`n_nodes` of them; those of nodes no cell uses
+/// are ignored, and nodes at the same place must get the same displacement).
+///
+/// # Safety
+/// Every non-NULL pointer must point to as many readable values as stated; `out` to one writable
+/// pointer.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn cgc_body_from_mesh(
+    nodes: *const f64,
+    n_nodes: usize,
+    cells: *const i64,
+    n_cells: usize,
+    index_base: i64,
+    out: *mut *mut CgcBody,
+) -> CgcError {
+    guard(|| {
+        // SAFETY: the caller guarantees the stated lengths behind non-NULL pointers.
+        let (points, topology) = unsafe {
+            (
+                raw::points(nodes, n_nodes, "nodes")?,
+                raw::slice(cells, n_cells.saturating_mul(8), "cells")?,
+            )
+        };
+        if n_cells == 0 {
+            return Err(Failure::new(
+                CgcError::InvalidArgument,
+                "the mesh has no cell",
+            ));
+        }
+        if index_base != 0 && index_base != 1 {
+            return Err(Failure::new(
+                CgcError::InvalidArgument,
+                format!("index_base is {index_base}; it must be 0 or 1"),
+            ));
+        }
+        let mut hexes = Vec::with_capacity(n_cells);
+        for (c, corners) in topology.chunks_exact(8).enumerate() {
+            let mut cell = [0u32; 8];
+            for (k, &node) in corners.iter().enumerate() {
+                let index = node
+                    .checked_sub(index_base)
+                    .filter(|&i| i >= 0 && (i as u64) < n_nodes as u64);
+                cell[k] = match index.and_then(|i| u32::try_from(i).ok()) {
+                    Some(i) => i,
+                    None => {
+                        return Err(Failure::new(
+                            CgcError::InvalidArgument,
+                            format!(
+                                "cell {} corner {k}: node {node} is not one of the {n_nodes} nodes (numbered from {index_base})",
+                                c as i64 + index_base
+                            ),
+                        ));
+                    }
+                };
+            }
+            hexes.push(cell);
+        }
+        let mesh = HexMesh {
+            points: points.to_vec(),
+            cells: hexes,
+            displacement: None,
+        };
+        let found = mesh.to_lattice()?;
+        let state = mesh_state(&mesh, found.body, found.cells);
+        // SAFETY: the caller guarantees `out` is writable.
+        unsafe { raw::give(out, CgcBody::new(state), "out") }
+    })
+}
+
+/// The state of a body detected from `mesh`: which input node gives each displacement slot.
+fn mesh_state(mesh: &HexMesh, body: Body, cells: CellMap) -> BodyState {
+    let lattice = *body.lattice();
+    let slot_nodes: Vec<usize> = body.nodes().collect();
+    const UNSET: usize = usize::MAX;
+    let mut slot_of_input = vec![UNSET; mesh.points.len()];
+    for (input, corners) in mesh.cells.iter().enumerate() {
+        let cell = cells
+            .lattice_cell(input)
+            .expect("one lattice cell per input cell");
+        let ijk = lattice
+            .cell_ijk(cell)
+            .expect("detected cells lie in the lattice");
+        for (&node, lattice_node) in corners.iter().zip(lattice.corner_nodes(ijk)) {
+            slot_of_input[node as usize] = slot_nodes
+                .binary_search(&lattice_node)
+                .expect("corners of active cells are body nodes");
+        }
+    }
+    let mut source_of_slot = vec![UNSET; slot_nodes.len()];
+    let mut duplicates = Vec::new();
+    for (node, &slot) in slot_of_input
+        .iter()
+        .enumerate()
+        .filter(|(_, s)| **s != UNSET)
+    {
+        if source_of_slot[slot] == UNSET {
+            source_of_slot[slot] = node;
+        } else {
+            duplicates.push((node, slot));
+        }
+    }
+    debug_assert!(!source_of_slot.contains(&UNSET));
+    BodyState {
+        scratch: vec![DVec3::ZERO; slot_nodes.len()],
+        source_count: mesh.points.len(),
+        source_of_slot,
+        duplicates,
+        cells: Some(cells),
+        body,
+    }
+}
+
+/// Sets every displacement of the body, in place (nothing is rebuilt; locators made from the body
+/// see the new values at their next call). `u` holds `3 n_nodes` doubles in `layout`
+/// (`CGC_LAYOUT_NODE_MAJOR` or `CGC_LAYOUT_COMPONENT_MAJOR`); `n_nodes` must be
+/// `cgc_body_node_count`. On any error (a length, a NaN, a flag) the body keeps its displacements.
+///
+/// # Safety
+/// `body` must be a live handle or NULL; `u` must point to `3 n_nodes` readable doubles or be NULL.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn cgc_body_set_displacements(
+    body: *mut CgcBody,
+    u: *const f64,
+    n_nodes: usize,
+    layout: u32,
+) -> CgcError {
+    guard(|| {
+        // SAFETY: the caller guarantees a live handle.
+        let body = unsafe { raw::handle(body, "body") }?;
+        if layout != CGC_LAYOUT_NODE_MAJOR && layout != CGC_LAYOUT_COMPONENT_MAJOR {
+            return Err(Failure::new(
+                CgcError::InvalidArgument,
+                format!(
+                    "layout is {layout}; it must be CGC_LAYOUT_NODE_MAJOR (0) or CGC_LAYOUT_COMPONENT_MAJOR (1)"
+                ),
+            ));
+        }
+        let mut state = body.write();
+        if n_nodes != state.source_count {
+            return Err(Failure::new(
+                CgcError::LengthMismatch,
+                format!(
+                    "displacements: the body has {} nodes, got {n_nodes}",
+                    state.source_count
+                ),
+            ));
+        }
+        // SAFETY: the caller guarantees 3 n_nodes readable doubles.
+        let u = unsafe { raw::slice(u, n_nodes.saturating_mul(3), "u") }?;
+        state.set_displacements(u, layout)
+    })
+}
+
+/// Writes to `*n_nodes` how many nodes `cgc_body_set_displacements` takes: the lattice's nodes for
+/// a lattice body, the nodes given for a mesh body.
+///
+/// # Safety
+/// `body` must be a live handle or NULL; `n_nodes` writable or NULL.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn cgc_body_node_count(
+    body: *const CgcBody,
+    n_nodes: *mut usize,
+) -> CgcError {
+    guard(|| {
+        // SAFETY: the caller guarantees a live handle and a writable output.
+        let (body, out) = unsafe {
+            (
+                raw::handle(body, "body")?,
+                raw::slice_mut(n_nodes, 1, "n_nodes")?,
+            )
+        };
+        out[0] = CgcBody::read(&body.state).source_count;
+        Ok(())
+    })
+}
+
+/// Frees a body handle (NULL is a no-op). Locators made from it stay valid: they share the body,
+/// which is freed with the last of them.
+///
+/// # Safety
+/// `body` must be NULL or a live handle, not used again after this call.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn cgc_body_free(body: *mut CgcBody) {
+    // SAFETY: forwarded from the caller; a panic in a destructor is caught.
+    let _ = std::panic::catch_unwind(|| unsafe { raw::free(body) });
+}

@@ -1,0 +1,338 @@
+//! Locators: settings, and locating a batch of points into caller-owned arrays.
+
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::{Arc, RwLock};
+use std::time::Instant;
+
+use cgcontact::glam::DVec3;
+use cgcontact::{Answer, LatticeLocator, Locator, Precision, Settings};
+use cgcontact_baseline::BruteForce;
+use rayon::prelude::*;
+
+use crate::body::{BodyState, CgcBody};
+use crate::error::{CgcError, Failure, guard};
+use crate::raw;
+
+/// The lattice locator: hashes each point to its lattice cell, inverts the few neighbours that can
+/// hold it. The one to use.
+pub const CGC_STRATEGY_LATTICE: u32 = 0;
+/// Brute force: every active cell is tried (the test oracle; O(cells) per point).
+pub const CGC_STRATEGY_BRUTE: u32 = 1;
+
+/// Newton in f64 (the default; ξ to about 1e-15).
+pub const CGC_PRECISION_F64: u32 = 0;
+/// Newton in f32 in each cell's local frame (faster; ξ to about 1e-6).
+pub const CGC_PRECISION_F32: u32 = 1;
+
+/// A cell holds the point; its cell and ξ are written.
+pub const CGC_POINT_INSIDE: u8 = 0;
+/// No cell holds the point: cell −1, ξ NaN.
+pub const CGC_POINT_OUTSIDE: u8 = 1;
+/// The point has a NaN or infinite coordinate: cell −1, ξ NaN.
+pub const CGC_POINT_NON_FINITE: u8 = 2;
+
+/// Settings of a locator. Start from `cgc_settings_init`, then change fields.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CgcSettings {
+    /// `CGC_STRATEGY_LATTICE` or `CGC_STRATEGY_BRUTE`.
+    pub strategy: u32,
+    /// `CGC_PRECISION_F64` or `CGC_PRECISION_F32`.
+    pub precision: u32,
+    /// Newton stops when its step is at most this (ξ units); > 0.
+    pub newton_tol: f64,
+    /// Newton iteration limit per candidate cell; ≥ 1.
+    pub max_iter: u32,
+    /// A point is inside a cell when every |ξ_k| ≤ 1 + inside_tol (plus a rounding allowance); ≥ 0.
+    pub inside_tol: f64,
+    /// Threads for a query: 0 for every core (one pool shared by the process), else a pool of its
+    /// own of this many threads.
+    pub threads: u32,
+}
+
+/// Writes the default settings for `precision` (`CGC_PRECISION_F64` or `CGC_PRECISION_F32`) to
+/// `*settings`: the lattice strategy, the library's measured default tolerances, every core.
+///
+/// # Safety
+/// `settings` must be NULL or writable.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn cgc_settings_init(precision: u32, settings: *mut CgcSettings) -> CgcError {
+    guard(|| {
+        let core = match precision {
+            CGC_PRECISION_F64 => Settings::default(),
+            CGC_PRECISION_F32 => Settings::f32(),
+            _ => return Err(bad_precision(precision)),
+        };
+        // SAFETY: the caller guarantees a writable settings struct.
+        let out = unsafe { raw::slice_mut(settings, 1, "settings") }?;
+        out[0] = CgcSettings {
+            strategy: CGC_STRATEGY_LATTICE,
+            precision,
+            newton_tol: core.newton_tol,
+            max_iter: core.max_iter,
+            inside_tol: core.inside_tol,
+            threads: 0,
+        };
+        Ok(())
+    })
+}
+
+fn bad_precision(precision: u32) -> Failure {
+    Failure::new(
+        CgcError::InvalidArgument,
+        format!(
+            "precision is {precision}; it must be CGC_PRECISION_F64 (0) or CGC_PRECISION_F32 (1)"
+        ),
+    )
+}
+
+/// A locator over a body (opaque). Created by `cgc_locator_new`, freed by `cgc_locator_free`.
+pub struct CgcLocator {
+    body: Arc<RwLock<BodyState>>,
+    strategy: u32,
+    settings: Settings,
+    pool: Option<rayon::ThreadPool>,
+}
+
+impl CgcLocator {
+    /// Runs `f` with a locator over the body's current displacements, on this locator's threads.
+    fn with<R: Send>(
+        &self,
+        f: impl FnOnce(&dyn Locator, &BodyState) -> R + Send,
+    ) -> Result<R, Failure> {
+        let state = CgcBody::read(&self.body);
+        let state = &*state;
+        let run = || -> Result<R, Failure> {
+            Ok(match self.strategy {
+                CGC_STRATEGY_BRUTE => f(&BruteForce::new(&state.body, self.settings)?, state),
+                _ => f(&LatticeLocator::new(&state.body, self.settings)?, state),
+            })
+        };
+        match &self.pool {
+            Some(pool) => pool.install(run),
+            None => run(),
+        }
+    }
+}
+
+/// A locator over `body` with `settings` (NULL: the f64 defaults). It shares the body: it sees
+/// every later `cgc_body_set_displacements`, and keeps the body alive after `cgc_body_free`.
+/// Writes the new handle to `*out`.
+///
+/// # Safety
+/// `body` must be a live handle or NULL; `settings` readable or NULL; `out` writable or NULL.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn cgc_locator_new(
+    body: *const CgcBody,
+    settings: *const CgcSettings,
+    out: *mut *mut CgcLocator,
+) -> CgcError {
+    guard(|| {
+        // SAFETY: the caller guarantees a live handle.
+        let body = unsafe { raw::handle(body, "body") }?;
+        // SAFETY: the caller guarantees a readable struct when not NULL.
+        let given = unsafe { settings.as_ref() };
+        let given = match given {
+            Some(s) => *s,
+            None => {
+                let mut s = std::mem::MaybeUninit::<CgcSettings>::uninit();
+                // SAFETY: `s` is writable; on success it is initialised.
+                let code = unsafe { cgc_settings_init(CGC_PRECISION_F64, s.as_mut_ptr()) };
+                debug_assert_eq!(code, CgcError::Ok);
+                // SAFETY: cgc_settings_init with a valid precision and pointer always writes it.
+                unsafe { s.assume_init() }
+            }
+        };
+        if given.strategy != CGC_STRATEGY_LATTICE && given.strategy != CGC_STRATEGY_BRUTE {
+            return Err(Failure::new(
+                CgcError::InvalidArgument,
+                format!(
+                    "strategy is {}; it must be CGC_STRATEGY_LATTICE (0) or CGC_STRATEGY_BRUTE (1)",
+                    given.strategy
+                ),
+            ));
+        }
+        let precision = match given.precision {
+            CGC_PRECISION_F64 => Precision::F64,
+            CGC_PRECISION_F32 => Precision::F32,
+            p => return Err(bad_precision(p)),
+        };
+        let settings = Settings {
+            precision,
+            newton_tol: given.newton_tol,
+            max_iter: given.max_iter,
+            inside_tol: given.inside_tol,
+            ..Settings::default()
+        };
+        settings.validate()?;
+        let pool = match given.threads {
+            0 => None,
+            n => Some(
+                rayon::ThreadPoolBuilder::new()
+                    .num_threads(n.min(1024) as usize)
+                    .build()
+                    .map_err(|e| {
+                        Failure::new(CgcError::InvalidArgument, format!("{n} threads: {e}"))
+                    })?,
+            ),
+        };
+        let locator = CgcLocator {
+            body: Arc::clone(&body.state),
+            strategy: given.strategy,
+            settings,
+            pool,
+        };
+        // SAFETY: the caller guarantees `out` is writable.
+        unsafe { raw::give(out, locator, "out") }
+    })
+}
+
+/// Points per piece of a query: each piece's answers are converted into the caller's arrays while
+/// they are still in cache (2,048 answers take 115 kB).
+const PIECE: usize = 2048;
+
+/// Locates `n_points` points. `points` holds `3 n_points` doubles, x y z per point (an n × 3
+/// row-major array in C, 3 × n in MATLAB or Fortran), read in place. Writes for each point its cell
+/// to `cells[i]` (−1 when none holds it), its local coordinates ξ ∈ [−1, 1]³ to `xi[3i..3i+3]`
+/// (NaN when none), and, when `status` is not NULL, `CGC_POINT_INSIDE`, `CGC_POINT_OUTSIDE` or
+/// `CGC_POINT_NON_FINITE` to `status[i]`. Answers use the body's displacements at the time of the
+/// call.
+///
+/// Returns `CGC_ERROR_NON_FINITE_POINT` when some point has a NaN or infinite coordinate, after
+/// writing every answer (the message names the first such point).
+///
+/// # Safety
+/// `locator` must be a live handle or NULL; the arrays must hold the stated lengths, and the
+/// output arrays must not overlap each other or `points`.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn cgc_locate(
+    locator: *const CgcLocator,
+    points: *const f64,
+    n_points: usize,
+    cells: *mut i64,
+    xi: *mut f64,
+    status: *mut u8,
+) -> CgcError {
+    guard(|| {
+        // SAFETY: the caller guarantees a live handle and arrays of the stated lengths, outputs
+        // not overlapping anything else.
+        let (locator, points, cells, xi) = unsafe {
+            (
+                raw::handle(locator, "locator")?,
+                raw::points(points, n_points, "points")?,
+                raw::slice_mut(cells, n_points, "cells")?,
+                raw::slice_mut(xi, n_points.saturating_mul(3), "xi")?,
+            )
+        };
+        let status = if status.is_null() {
+            None
+        } else {
+            // SAFETY: as above.
+            Some(unsafe { raw::slice_mut(status, n_points, "status") }?)
+        };
+        let first_bad = AtomicUsize::new(usize::MAX);
+        locator.with(|search, state| {
+            let write = |start: usize,
+                         points: &[DVec3],
+                         cells: &mut [i64],
+                         xi: &mut [f64],
+                         mut status: Option<&mut [u8]>,
+                         answers: &mut Vec<Answer>| {
+                search.locate_all_into(points, answers);
+                for (i, answer) in answers.iter().enumerate() {
+                    let (cell, local, code) = match answer {
+                        Ok(Some(hit)) => (state.cell_number(hit.cell), hit.xi, CGC_POINT_INSIDE),
+                        Ok(None) => (-1, DVec3::NAN, CGC_POINT_OUTSIDE),
+                        Err(_) => {
+                            first_bad.fetch_min(start + i, Ordering::Relaxed);
+                            (-1, DVec3::NAN, CGC_POINT_NON_FINITE)
+                        }
+                    };
+                    cells[i] = cell;
+                    local.write_to_slice(&mut xi[3 * i..3 * i + 3]);
+                    if let Some(status) = status.as_deref_mut() {
+                        status[i] = code;
+                    }
+                }
+            };
+            let pieces = points
+                .par_chunks(PIECE)
+                .zip(cells.par_chunks_mut(PIECE))
+                .zip(xi.par_chunks_mut(3 * PIECE))
+                .enumerate();
+            match status {
+                Some(status) => pieces
+                    .zip(status.par_chunks_mut(PIECE))
+                    .for_each_init(Vec::new, |answers, ((k, ((p, c), x)), s)| {
+                        write(k * PIECE, p, c, x, Some(s), answers)
+                    }),
+                None => pieces.for_each_init(Vec::new, |answers, (k, ((p, c), x))| {
+                    write(k * PIECE, p, c, x, None, answers)
+                }),
+            }
+        })?;
+        match first_bad.into_inner() {
+            usize::MAX => Ok(()),
+            i => Err(Failure::new(
+                CgcError::NonFinitePoint,
+                format!(
+                    "point {i} (0-based) has a NaN or infinite coordinate: {}",
+                    points[i]
+                ),
+            )),
+        }
+    })
+}
+
+/// The library's own query time, for measuring what this API adds: runs the Rust library's
+/// `locate_all_into` on the points `1 + repeats` times into one reused answer buffer (no
+/// conversion, nothing written for the caller) and writes the shortest of the last `repeats` runs
+/// (the first when `repeats` is 0), in seconds, to `*seconds`.
+///
+/// # Safety
+/// As `cgc_locate`; `seconds` writable or NULL.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn cgc_locator_query_seconds(
+    locator: *const CgcLocator,
+    points: *const f64,
+    n_points: usize,
+    repeats: u32,
+    seconds: *mut f64,
+) -> CgcError {
+    guard(|| {
+        // SAFETY: the caller guarantees a live handle, readable points and a writable output.
+        let (locator, points, seconds) = unsafe {
+            (
+                raw::handle(locator, "locator")?,
+                raw::points(points, n_points, "points")?,
+                raw::slice_mut(seconds, 1, "seconds")?,
+            )
+        };
+        seconds[0] = locator.with(|search, _| {
+            let mut answers = Vec::new();
+            let mut best = f64::INFINITY;
+            for run in 0..=repeats {
+                let start = Instant::now();
+                search.locate_all_into(points, &mut answers);
+                let t = start.elapsed().as_secs_f64();
+                if run > 0 || repeats == 0 {
+                    best = best.min(t);
+                }
+            }
+            best
+        })?;
+        Ok(())
+    })
+}
+
+/// Frees a locator (NULL is a no-op).
+///
+/// # Safety
+/// `locator` must be NULL or a live handle, not used again after this call.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn cgc_locator_free(locator: *mut CgcLocator) {
+    // SAFETY: forwarded from the caller; a panic in a destructor is caught.
+    let _ = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| unsafe {
+        raw::free(locator)
+    }));
+}

@@ -1,0 +1,565 @@
+//! The C ABI called as C would call it: answers checked against points made from known (cell, ξ)
+//! and against the Rust library itself; every bad input answered with its error code.
+
+use std::ffi::CStr;
+use std::ptr;
+
+use cgcontact::glam::DVec3;
+use cgcontact::{Body, CellId, Lattice, LatticeLocator, Locator, Settings};
+use cgcontact_capi::*;
+use cgcontact_io::HexMesh;
+
+fn last_error() -> String {
+    // SAFETY: cgc_last_error returns a NUL-terminated string owned by this thread.
+    unsafe { CStr::from_ptr(cgc_last_error()) }
+        .to_string_lossy()
+        .into_owned()
+}
+
+/// Bit patterns, so that NaN compares equal to NaN.
+fn bits(v: &[f64]) -> Vec<u64> {
+    v.iter().map(|x| x.to_bits()).collect()
+}
+
+/// A 6 × 5 × 4 block with a smooth displacement of up to about 0.4 h.
+fn block() -> Body {
+    let lattice = Lattice::new(
+        DVec3::new(1.0, -2.0, 0.5),
+        DVec3::new(0.5, 0.25, 0.4),
+        [6, 5, 4],
+    )
+    .unwrap();
+    let mut body = Body::full(lattice);
+    body.update_displacements(|_, x, u| {
+        *u = DVec3::new(
+            0.05 * (x.y * 3.0).sin(),
+            0.03 * x.x * x.z,
+            -0.1 * (x.x - 1.0) * (x.z - 0.5),
+        )
+    })
+    .unwrap();
+    body
+}
+
+/// Points from known (cell, ξ): the deformed point at ξ of each listed cell, plus a point far away.
+fn known_points(body: &Body) -> (Vec<DVec3>, Vec<(u32, DVec3)>) {
+    let mut known = Vec::new();
+    for (k, cell) in body.active_cells().enumerate().step_by(7) {
+        let t = k as f64 * 0.37;
+        let xi = DVec3::new(t.sin() * 0.9, (1.3 * t).cos() * 0.8, (0.7 * t).sin() * 0.95);
+        known.push((cell.0, xi));
+    }
+    let mut points: Vec<DVec3> = known
+        .iter()
+        .map(|&(c, xi)| body.point_at(CellId(c), xi).unwrap())
+        .collect();
+    points.push(DVec3::splat(100.0));
+    (points, known)
+}
+
+fn flat(v: &[DVec3]) -> Vec<f64> {
+    v.iter().flat_map(|p| p.to_array()).collect()
+}
+
+struct Handles {
+    body: *mut CgcBody,
+    locator: *mut CgcLocator,
+}
+
+impl Drop for Handles {
+    fn drop(&mut self) {
+        // SAFETY: both handles come from this library and are freed once, here.
+        unsafe {
+            cgc_locator_free(self.locator);
+            cgc_body_free(self.body);
+        }
+    }
+}
+
+fn locate(locator: *const CgcLocator, points: &[f64]) -> (CgcError, Vec<i64>, Vec<f64>, Vec<u8>) {
+    let n = points.len() / 3;
+    let (mut cells, mut xi, mut status) = (vec![7i64; n], vec![7.0; 3 * n], vec![9u8; n]);
+    // SAFETY: the arrays hold n, 3 n and n values and do not overlap.
+    let code = unsafe {
+        cgc_locate(
+            locator,
+            points.as_ptr(),
+            n,
+            cells.as_mut_ptr(),
+            xi.as_mut_ptr(),
+            status.as_mut_ptr(),
+        )
+    };
+    (code, cells, xi, status)
+}
+
+fn lattice_handles(body: &Body) -> Handles {
+    let lattice = body.lattice();
+    let (origin, h, counts) = (
+        lattice.origin().to_array(),
+        lattice.h().to_array(),
+        lattice.cells(),
+    );
+    let mut handles = Handles {
+        body: ptr::null_mut(),
+        locator: ptr::null_mut(),
+    };
+    let dense: Vec<f64> = (0..lattice.node_count())
+        .flat_map(|n| body.displacement(n).unwrap_or(DVec3::ZERO).to_array())
+        .collect();
+    // SAFETY: every array holds the length passed.
+    unsafe {
+        assert_eq!(
+            cgc_body_from_lattice(
+                origin.as_ptr(),
+                h.as_ptr(),
+                counts.as_ptr(),
+                ptr::null(),
+                0,
+                &mut handles.body
+            ),
+            CgcError::Ok
+        );
+        let mut n = 0;
+        assert_eq!(cgc_body_node_count(handles.body, &mut n), CgcError::Ok);
+        assert_eq!(n, lattice.node_count());
+        assert_eq!(
+            cgc_body_set_displacements(handles.body, dense.as_ptr(), n, CGC_LAYOUT_NODE_MAJOR),
+            CgcError::Ok
+        );
+        assert_eq!(
+            cgc_locator_new(handles.body, ptr::null(), &mut handles.locator),
+            CgcError::Ok
+        );
+    }
+    handles
+}
+
+#[test]
+fn lattice_body_answers_known_cells_and_as_the_library_does() {
+    let body = block();
+    let (points, known) = known_points(&body);
+    let handles = lattice_handles(&body);
+    let (code, cells, xi, status) = locate(handles.locator, &flat(&points));
+    assert_eq!(code, CgcError::Ok, "{}", last_error());
+    let library = LatticeLocator::new(&body, Settings::default())
+        .unwrap()
+        .locate_all(&points);
+    for (i, &(cell, expected)) in known.iter().enumerate() {
+        assert_eq!(cells[i], i64::from(cell), "point {i}");
+        assert_eq!(status[i], CGC_POINT_INSIDE);
+        let got = DVec3::from_slice(&xi[3 * i..]);
+        assert!(
+            (got - expected).abs().max_element() < 1e-12,
+            "point {i}: {got} vs {expected}"
+        );
+        assert_eq!(
+            got,
+            library[i].unwrap().unwrap().xi,
+            "bitwise the library's answer"
+        );
+    }
+    let last = known.len();
+    assert_eq!((cells[last], status[last]), (-1, CGC_POINT_OUTSIDE));
+    assert!(xi[3 * last..].iter().all(|v| v.is_nan()));
+}
+
+/// The same body given as a mesh: nodes renumbered, cells reordered, 1-based, displacements
+/// component-major (as MATLAB passes them): cell numbers are the mesh's.
+#[test]
+fn mesh_body_numbers_cells_as_the_mesh_and_reads_both_layouts() {
+    let body = block();
+    let (points, known) = known_points(&body);
+    let mesh = HexMesh::from_body(&body);
+    let m = mesh.points.len();
+    let e = mesh.cells.len();
+    // Node k of the mesh becomes node new_of[k]; cells are listed in reverse.
+    let new_of: Vec<usize> = (0..m).map(|k| (k * 7919) % m).collect();
+    assert_eq!(
+        {
+            let mut s = new_of.clone();
+            s.sort();
+            s.dedup();
+            s.len()
+        },
+        m,
+        "a permutation"
+    );
+    let mut nodes = vec![0.0; 3 * m];
+    let mut u_component_major = vec![0.0; 3 * m];
+    let u = mesh.displacement.as_ref().unwrap();
+    for k in 0..m {
+        nodes[3 * new_of[k]..3 * new_of[k] + 3].copy_from_slice(&mesh.points[k].to_array());
+        for a in 0..3 {
+            u_component_major[a * m + new_of[k]] = u[k][a];
+        }
+    }
+    let topology: Vec<i64> = mesh
+        .cells
+        .iter()
+        .rev()
+        .flat_map(|c| c.map(|n| new_of[n as usize] as i64 + 1))
+        .collect();
+    let mut handles = Handles {
+        body: ptr::null_mut(),
+        locator: ptr::null_mut(),
+    };
+    // SAFETY: every array holds the length passed.
+    unsafe {
+        assert_eq!(
+            cgc_body_from_mesh(
+                nodes.as_ptr(),
+                m,
+                topology.as_ptr(),
+                e,
+                1,
+                &mut handles.body
+            ),
+            CgcError::Ok,
+            "{}",
+            last_error()
+        );
+        assert_eq!(
+            cgc_body_set_displacements(
+                handles.body,
+                u_component_major.as_ptr(),
+                m,
+                CGC_LAYOUT_COMPONENT_MAJOR
+            ),
+            CgcError::Ok
+        );
+        assert_eq!(
+            cgc_locator_new(handles.body, ptr::null(), &mut handles.locator),
+            CgcError::Ok
+        );
+    }
+    let (code, cells, xi, _) = locate(handles.locator, &flat(&points));
+    assert_eq!(code, CgcError::Ok, "{}", last_error());
+    for (i, &(cell, expected)) in known.iter().enumerate() {
+        // from_body lists cells ascending, and the topology reversed them.
+        assert_eq!(cells[i], (e - 1 - cell as usize) as i64, "point {i}");
+        assert!(
+            (DVec3::from_slice(&xi[3 * i..]) - expected)
+                .abs()
+                .max_element()
+                < 1e-12
+        );
+    }
+    assert_eq!(*cells.last().unwrap(), -1);
+
+    // Node-major, the same field: the same answers, bitwise. Then undeformed: other answers.
+    let node_major: Vec<f64> = (0..m)
+        .flat_map(|n| [0, 1, 2].map(|a| u_component_major[a * m + n]))
+        .collect();
+    // SAFETY: 3 m values.
+    assert_eq!(
+        unsafe {
+            cgc_body_set_displacements(handles.body, node_major.as_ptr(), m, CGC_LAYOUT_NODE_MAJOR)
+        },
+        CgcError::Ok
+    );
+    assert_eq!(bits(&locate(handles.locator, &flat(&points)).2), bits(&xi));
+    let zero = vec![0.0; 3 * m];
+    // SAFETY: 3 m values.
+    assert_eq!(
+        unsafe {
+            cgc_body_set_displacements(handles.body, zero.as_ptr(), m, CGC_LAYOUT_NODE_MAJOR)
+        },
+        CgcError::Ok
+    );
+    assert_ne!(
+        bits(&locate(handles.locator, &flat(&points)).2),
+        bits(&xi),
+        "the locator sees the update"
+    );
+}
+
+#[test]
+fn bad_inputs_are_error_codes_with_messages() {
+    let body = block();
+    let handles = lattice_handles(&body);
+    let n = body.lattice().node_count();
+    let mut u = vec![0.0; 3 * n];
+    // SAFETY: NULLs and short lengths are what is tested; every non-NULL array holds its length.
+    unsafe {
+        assert_eq!(
+            cgc_body_set_displacements(handles.body, ptr::null(), n, 0),
+            CgcError::NullPointer
+        );
+        assert_eq!(
+            cgc_body_set_displacements(ptr::null_mut(), u.as_ptr(), n, 0),
+            CgcError::NullPointer
+        );
+        assert_eq!(
+            cgc_body_set_displacements(handles.body, u.as_ptr(), n - 1, 0),
+            CgcError::LengthMismatch
+        );
+        assert_eq!(
+            cgc_body_set_displacements(handles.body, u.as_ptr(), n, 5),
+            CgcError::InvalidArgument
+        );
+        u[3 * 17 + 1] = f64::NAN;
+        assert_eq!(
+            cgc_body_set_displacements(handles.body, u.as_ptr(), n, 0),
+            CgcError::NonFinite
+        );
+        assert!(last_error().contains("node 17"), "{}", last_error());
+        // Misaligned points.
+        let bytes = [0.0f64; 8];
+        let odd = bytes.as_ptr().cast::<u8>().add(1).cast::<f64>();
+        let (mut c, mut x) = ([0i64; 1], [0.0; 3]);
+        assert_eq!(
+            cgc_locate(
+                handles.locator,
+                odd,
+                1,
+                c.as_mut_ptr(),
+                x.as_mut_ptr(),
+                ptr::null_mut()
+            ),
+            CgcError::InvalidArgument
+        );
+        assert_eq!(
+            cgc_locate(
+                handles.locator,
+                ptr::null(),
+                1,
+                c.as_mut_ptr(),
+                x.as_mut_ptr(),
+                ptr::null_mut()
+            ),
+            CgcError::NullPointer
+        );
+        assert_eq!(
+            cgc_locate(
+                ptr::null(),
+                bytes.as_ptr(),
+                1,
+                c.as_mut_ptr(),
+                x.as_mut_ptr(),
+                ptr::null_mut()
+            ),
+            CgcError::NullPointer
+        );
+        assert_eq!(
+            cgc_locate(
+                handles.locator,
+                ptr::null(),
+                0,
+                ptr::null_mut(),
+                ptr::null_mut(),
+                ptr::null_mut()
+            ),
+            CgcError::Ok,
+            "no points"
+        );
+        // Settings out of range.
+        let mut settings = std::mem::zeroed::<CgcSettings>();
+        assert_eq!(
+            cgc_settings_init(3, &mut settings),
+            CgcError::InvalidArgument
+        );
+        assert_eq!(
+            cgc_settings_init(CGC_PRECISION_F32, &mut settings),
+            CgcError::Ok
+        );
+        settings.newton_tol = f64::NAN;
+        let mut other = ptr::null_mut();
+        assert_eq!(
+            cgc_locator_new(handles.body, &settings, &mut other),
+            CgcError::InvalidArgument
+        );
+        assert!(other.is_null());
+        // Lattices.
+        let (o, h, bad_h, counts) = ([0.0; 3], [1.0; 3], [1.0, f64::NAN, 1.0], [2u32, 2, 2]);
+        let mut b = ptr::null_mut();
+        assert_eq!(
+            cgc_body_from_lattice(
+                o.as_ptr(),
+                bad_h.as_ptr(),
+                counts.as_ptr(),
+                ptr::null(),
+                0,
+                &mut b
+            ),
+            CgcError::NonFinite
+        );
+        let none = [0u8; 8];
+        assert_eq!(
+            cgc_body_from_lattice(
+                o.as_ptr(),
+                h.as_ptr(),
+                counts.as_ptr(),
+                none.as_ptr(),
+                8,
+                &mut b
+            ),
+            CgcError::InvalidArgument
+        );
+        assert_eq!(
+            cgc_body_from_lattice(
+                o.as_ptr(),
+                h.as_ptr(),
+                counts.as_ptr(),
+                none.as_ptr(),
+                7,
+                &mut b
+            ),
+            CgcError::LengthMismatch
+        );
+        assert_eq!(
+            cgc_body_from_lattice(
+                o.as_ptr(),
+                h.as_ptr(),
+                counts.as_ptr(),
+                ptr::null(),
+                0,
+                ptr::null_mut()
+            ),
+            CgcError::NullPointer
+        );
+        assert!(b.is_null());
+    }
+    // The body kept its displacements through the failed updates: the same answers as before.
+    let (points, _) = known_points(&body);
+    let before = locate(handles.locator, &flat(&points));
+    assert_eq!(before.0, CgcError::Ok);
+    assert_eq!(before.1[0], i64::from(known_points(&body).1[0].0));
+}
+
+#[test]
+fn non_finite_points_are_answered_and_reported() {
+    let body = block();
+    let handles = lattice_handles(&body);
+    let (mut points, known) = known_points(&body);
+    points[1].y = f64::NAN;
+    points[2].z = f64::INFINITY;
+    let (code, cells, _, status) = locate(handles.locator, &flat(&points));
+    assert_eq!(code, CgcError::NonFinitePoint);
+    assert!(last_error().starts_with("point 1 "), "{}", last_error());
+    assert_eq!(
+        &status[..3],
+        &[CGC_POINT_INSIDE, CGC_POINT_NON_FINITE, CGC_POINT_NON_FINITE]
+    );
+    assert_eq!(&cells[..3], &[i64::from(known[0].0), -1, -1]);
+}
+
+#[test]
+fn meshes_that_are_not_lattices_are_refused() {
+    let mesh = HexMesh::from_body(&block());
+    let nodes = flat(&mesh.points);
+    let topology: Vec<i64> = mesh.cells.iter().flat_map(|c| c.map(i64::from)).collect();
+    let (m, e) = (mesh.points.len(), mesh.cells.len());
+    let mut b = ptr::null_mut();
+    // SAFETY: every array holds the length passed.
+    unsafe {
+        let mut moved = nodes.clone();
+        moved[3 * 5] += 0.1;
+        assert_eq!(
+            cgc_body_from_mesh(moved.as_ptr(), m, topology.as_ptr(), e, 0, &mut b),
+            CgcError::NotLattice
+        );
+        assert!(last_error().contains("node 5"), "{}", last_error());
+        let mut swapped = topology.clone();
+        swapped.swap(0, 1);
+        assert_eq!(
+            cgc_body_from_mesh(nodes.as_ptr(), m, swapped.as_ptr(), e, 0, &mut b),
+            CgcError::NotLattice
+        );
+        let mut beyond = topology.clone();
+        beyond[9] = m as i64;
+        assert_eq!(
+            cgc_body_from_mesh(nodes.as_ptr(), m, beyond.as_ptr(), e, 0, &mut b),
+            CgcError::InvalidArgument
+        );
+        assert!(last_error().contains("cell 1 corner 1"), "{}", last_error());
+        assert_eq!(
+            cgc_body_from_mesh(nodes.as_ptr(), m, topology.as_ptr(), e, 2, &mut b),
+            CgcError::InvalidArgument
+        );
+        let mut nan = nodes.clone();
+        nan[7] = f64::NAN;
+        assert_eq!(
+            cgc_body_from_mesh(nan.as_ptr(), m, topology.as_ptr(), e, 0, &mut b),
+            CgcError::NonFinite
+        );
+        assert!(b.is_null());
+    }
+}
+
+#[test]
+fn a_locator_outlives_its_body_handle() {
+    let body = block();
+    let (points, known) = known_points(&body);
+    let mut handles = lattice_handles(&body);
+    // SAFETY: the body handle is freed once and nulled; the locator still shares the body.
+    unsafe { cgc_body_free(handles.body) };
+    handles.body = ptr::null_mut();
+    let (code, cells, _, _) = locate(handles.locator, &flat(&points));
+    assert_eq!(code, CgcError::Ok);
+    assert_eq!(cells[0], i64::from(known[0].0));
+}
+
+#[test]
+fn the_brute_strategy_and_f32_agree_on_cells() {
+    let body = block();
+    let (points, known) = known_points(&body);
+    let handles = lattice_handles(&body);
+    for (precision, strategy) in [
+        (CGC_PRECISION_F64, CGC_STRATEGY_BRUTE),
+        (CGC_PRECISION_F32, CGC_STRATEGY_LATTICE),
+    ] {
+        let mut settings = CgcSettings {
+            strategy: 9,
+            precision: 9,
+            newton_tol: 0.0,
+            max_iter: 0,
+            inside_tol: 0.0,
+            threads: 0,
+        };
+        let mut locator = ptr::null_mut();
+        // SAFETY: valid pointers; the locator is freed below.
+        unsafe {
+            assert_eq!(cgc_settings_init(precision, &mut settings), CgcError::Ok);
+            settings.strategy = strategy;
+            settings.threads = 1;
+            assert_eq!(
+                cgc_locator_new(handles.body, &settings, &mut locator),
+                CgcError::Ok
+            );
+        }
+        let (code, cells, xi, _) = locate(locator, &flat(&points));
+        // SAFETY: freed once.
+        unsafe { cgc_locator_free(locator) };
+        assert_eq!(code, CgcError::Ok);
+        for (i, &(cell, expected)) in known.iter().enumerate() {
+            assert_eq!(cells[i], i64::from(cell));
+            assert!(
+                (DVec3::from_slice(&xi[3 * i..]) - expected)
+                    .abs()
+                    .max_element()
+                    < 1e-4
+            );
+        }
+    }
+}
+
+#[test]
+fn query_seconds_times_the_library() {
+    let body = block();
+    let (points, _) = known_points(&body);
+    let handles = lattice_handles(&body);
+    let mut seconds = -1.0;
+    // SAFETY: valid pointers.
+    let code = unsafe {
+        cgc_locator_query_seconds(
+            handles.locator,
+            flat(&points).as_ptr(),
+            points.len(),
+            3,
+            &mut seconds,
+        )
+    };
+    assert_eq!(code, CgcError::Ok);
+    assert!(seconds >= 0.0 && seconds.is_finite());
+}
