@@ -9,6 +9,9 @@ use rand_chacha::ChaCha8Rng;
 use crate::field::Indentation;
 use crate::known::{KnownPoint, known_points};
 
+/// Mixed into the seed for the jitter's random stream (the known points use the seed itself).
+pub(crate) const JITTER_STREAM: u64 = 0x6a17_7e12;
+
 /// A generated scene: a deformed body, query points, and the known answers where they exist.
 #[derive(Clone, Debug)]
 pub struct Scene {
@@ -102,9 +105,9 @@ impl SphereOnBlock {
         }
     }
 
-    /// Build the scene. Errors when the knobs make no lattice (e.g. a non-positive spacing) or, without
-    /// `allow_inverted`, when the indentation alone inverts cells (too large a sink for the spacing).
-    pub fn build(&self, name: &str) -> Result<Scene, Error> {
+    /// The lattice (scaled and offset) and the indentation field of these knobs: what the uniform
+    /// and the adaptive scenes share. Errors when the knobs make no lattice.
+    pub(crate) fn lattice_and_field(&self) -> Result<(Lattice, Indentation), Error> {
         let s = self.scale;
         if !(s.is_finite() && s > 0.0) {
             return Err(Error::InvalidLattice(format!(
@@ -132,6 +135,24 @@ impl SphereOnBlock {
             top: upper.z,
             bottom: lattice.origin().z,
         };
+        Ok((lattice, field))
+    }
+
+    /// The sphere's center over the indentation `field`, scaled and offset.
+    pub(crate) fn sphere_center(&self, field: &Indentation) -> DVec3 {
+        let s = self.scale;
+        DVec3::new(
+            field.center.x,
+            field.center.y,
+            field.top + self.radius * s - self.penetration * s,
+        )
+    }
+
+    /// Build the scene. Errors when the knobs make no lattice (e.g. a non-positive spacing) or, without
+    /// `allow_inverted`, when the indentation alone inverts cells (too large a sink for the spacing).
+    pub fn build(&self, name: &str) -> Result<Scene, Error> {
+        let (lattice, field) = self.lattice_and_field()?;
+        let s = self.scale;
         let mut body = Body::undeformed(lattice, BitVec::repeat(true, lattice.cell_count()))?;
         body.update_displacements(|_, x, u| *u = field.displacement(x))?;
         if !self.allow_inverted {
@@ -140,11 +161,7 @@ impl SphereOnBlock {
         if self.jitter > 0.0 {
             self.apply_jitter(&mut body)?;
         }
-        let center = DVec3::new(
-            field.center.x,
-            field.center.y,
-            upper.z + self.radius * s - self.penetration * s,
-        );
+        let center = self.sphere_center(&field);
         let contact_points = fibonacci_sphere(center, self.radius * s, self.contact_points);
         let known = known_points(&body, self.known_points, self.seed);
         Ok(Scene {
@@ -159,7 +176,7 @@ impl SphereOnBlock {
     /// Random nodal jitter of up to `jitter` h per axis. Unless inverted cells are allowed, the jitter of
     /// every node of an inverted cell is halved until none is left (deterministic, a few rounds).
     fn apply_jitter(&self, body: &mut Body) -> Result<(), Error> {
-        let mut rng = ChaCha8Rng::seed_from_u64(self.seed ^ 0x6a17_7e12);
+        let mut rng = ChaCha8Rng::seed_from_u64(self.seed ^ JITTER_STREAM);
         let h = body.lattice().h();
         let smooth = body.displacements().to_vec();
         let mut jitter: Vec<DVec3> = (0..smooth.len())

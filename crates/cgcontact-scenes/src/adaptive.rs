@@ -1,0 +1,247 @@
+//! The seed's case on an h-adaptive mesh: the block refined by halving under the sphere's contact
+//! patch, deformed by the same analytic indentation, hanging nodes filled from their constraints.
+
+use cgcontact::glam::DVec3;
+use cgcontact::{AdaptiveBody, CellId, Error};
+use rand::seq::SliceRandom;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+use crate::known::{KnownPoint, LeafDraw, adaptive_known_points};
+use crate::refine::refine_lattice;
+use crate::sphere::{JITTER_STREAM, SphereOnBlock, fibonacci_sphere};
+
+/// Mixed into the seed for the shuffle of [`LeafOrder::Shuffled`].
+const ORDER_STREAM: u64 = 0x0dde_4a11;
+
+/// The order of an adaptive scene's leaves (their ids).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum LeafOrder {
+    /// By lowest corner on the finest lattice, z then y then x: the uniform body's cell order
+    /// when there is one level.
+    #[default]
+    Sorted,
+    /// A random permutation of the sorted order, from the scene's seed: for tests of "leaves in any
+    /// order".
+    Shuffled,
+}
+
+/// A generated adaptive scene: a deformed h-adaptive body, query points, and the known answers.
+#[derive(Clone, Debug)]
+pub struct AdaptiveScene {
+    /// Short name ("sphere-adaptive", ...).
+    pub name: String,
+    /// The deformed block; hanging nodes obey their constraints.
+    pub body: AdaptiveBody,
+    /// The sphere's contact points (no known answer: check them against the brute-force oracle).
+    pub contact_points: Vec<DVec3>,
+    /// Points made from known (leaf, ξ) in the deformed block; `cell` is the leaf's id.
+    pub known: Vec<KnownPoint>,
+    /// The sphere (center, radius), for pictures.
+    pub sphere: (DVec3, f64),
+}
+
+impl AdaptiveScene {
+    /// Every query point: the contact points, then the known points.
+    #[must_use]
+    pub fn all_points(&self) -> Vec<DVec3> {
+        self.contact_points
+            .iter()
+            .copied()
+            .chain(self.known.iter().map(|k| k.x))
+            .collect()
+    }
+}
+
+/// [`SphereOnBlock`] on an h-adaptive mesh: its lattice is the base (level 0), and every cell whose
+/// undeformed box comes within `refine_radius` (strictly) of the contact patch's centre (the top
+/// face's centre, under the sphere) is halved, level by level down to `levels`, so that levels
+/// grow toward the patch.
+///
+/// The displacement is the uniform scene's field (the same [`crate::Indentation`], sink in units of the
+/// base h_z) set on the independent nodes, the hanging ones filled from their constraints
+/// ([`AdaptiveBody::update_independent`]); the jitter, drawn for every node in node order, is
+/// applied to the independent ones only (up to `jitter` times the spacing of the finest leaf at
+/// the node). With `levels` = 0 the scene is the uniform one, node for node and point for point.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SphereOnAdaptiveBlock {
+    /// The uniform scene refined: block, base h, sphere, sink, jitter, points, seed, ...
+    pub uniform: SphereOnBlock,
+    /// Refinement levels below the base lattice (0 = the uniform scene).
+    pub levels: u8,
+    /// Cells within this distance of the patch centre are refined (same units as the block).
+    pub refine_radius: f64,
+    /// 2:1 balance (touching leaves, by face, edge or corner, differ by one level at most), by
+    /// splitting coarser neighbours; without it jumps of several levels stay where the radius
+    /// makes them.
+    pub balanced: bool,
+    /// The order of the leaves.
+    pub order: LeafOrder,
+    /// How the known points pick their leaves.
+    pub draw: LeafDraw,
+}
+
+impl SphereOnAdaptiveBlock {
+    /// The seed's fine block (h = 0.25 mm base) refined 2 levels within 1 mm (the sphere's
+    /// radius) of the patch centre, 2:1 balanced, leaves sorted, known points per leaf.
+    #[must_use]
+    pub fn fine() -> Self {
+        Self::refining(SphereOnBlock::fine())
+    }
+
+    /// The seed's coarse block (h = 0.5 mm base), refined as [`SphereOnAdaptiveBlock::fine`].
+    #[must_use]
+    pub fn coarse() -> Self {
+        Self::refining(SphereOnBlock::coarse())
+    }
+
+    /// `uniform` refined with the defaults: 2 levels within the sphere's radius, balanced.
+    #[must_use]
+    pub fn refining(uniform: SphereOnBlock) -> Self {
+        Self {
+            refine_radius: uniform.radius,
+            uniform,
+            levels: 2,
+            balanced: true,
+            order: LeafOrder::Sorted,
+            draw: LeafDraw::PerLeaf,
+        }
+    }
+
+    /// The centre of the contact patch on the undeformed top face (scaled and offset), the point
+    /// the refinement closes in on. Errors when the knobs make no lattice.
+    pub fn patch_center(&self) -> Result<DVec3, Error> {
+        let (_, field) = self.uniform.lattice_and_field()?;
+        Ok(DVec3::new(field.center.x, field.center.y, field.top))
+    }
+
+    /// Build the scene. Errors when the knobs make no lattice or too many leaves
+    /// ([`crate::refine_lattice`]), or, without `allow_inverted`, when the indentation or the
+    /// jitter leaves an inverted leaf.
+    pub fn build(&self, name: &str) -> Result<AdaptiveScene, Error> {
+        let knobs = &self.uniform;
+        let (lattice, field) = knobs.lattice_and_field()?;
+        let s = knobs.scale;
+        let patch = DVec3::new(field.center.x, field.center.y, field.top);
+        let radius = self.refine_radius * s;
+        let mut leaves = refine_lattice(&lattice, self.levels, self.balanced, |_, low, high| {
+            (low - patch).max(patch - high).max(DVec3::ZERO).length() < radius
+        })?;
+        if self.order == LeafOrder::Shuffled {
+            leaves.shuffle(&mut ChaCha8Rng::seed_from_u64(knobs.seed ^ ORDER_STREAM));
+        }
+        let mut body = AdaptiveBody::from_leaves(lattice, leaves)?;
+        body.update_independent(|_, x, u| *u = field.displacement(x))?;
+        if !knobs.allow_inverted {
+            body.validate()?;
+        }
+        if knobs.jitter > 0.0 {
+            self.apply_jitter(&mut body)?;
+        }
+        let center = knobs.sphere_center(&field);
+        let contact_points = fibonacci_sphere(center, knobs.radius * s, knobs.contact_points);
+        let known = adaptive_known_points(&body, knobs.known_points, self.draw, knobs.seed);
+        Ok(AdaptiveScene {
+            name: name.to_owned(),
+            body,
+            contact_points,
+            known,
+            sphere: (center, knobs.radius * s),
+        })
+    }
+
+    /// Random jitter on the independent nodes, hanging ones filled after. Unless inverted leaves
+    /// are allowed, the jitter of every independent node an inverted leaf depends on (its corners,
+    /// or the parents of its hanging corners) is halved until none is left.
+    fn apply_jitter(&self, body: &mut AdaptiveBody) -> Result<(), Error> {
+        let knobs = &self.uniform;
+        let mut rng = ChaCha8Rng::seed_from_u64(knobs.seed ^ JITTER_STREAM);
+        // A node's scale is the finest leaf it is a corner of: that leaf must survive the jitter.
+        let mut node_level = vec![0u8; body.node_count()];
+        for (id, leaf) in body.leaves().iter().enumerate() {
+            let nodes = body.cell_nodes(CellId(id as u32)).expect("a leaf id");
+            for node in nodes {
+                node_level[node] = node_level[node].max(leaf.level);
+            }
+        }
+        let smooth = body.displacements().to_vec();
+        let mut jitter: Vec<DVec3> = node_level
+            .iter()
+            .map(|&level| {
+                let r = DVec3::new(
+                    rng.random_range(-1.0..=1.0),
+                    rng.random_range(-1.0..=1.0),
+                    rng.random_range(-1.0..=1.0),
+                );
+                r * body.spacing(level) * knobs.jitter
+            })
+            .collect();
+        for _round in 0..60 {
+            body.update_independent(|node, _, u| *u = smooth[node] + jitter[node])?;
+            let inverted = body.inverted_cells();
+            if knobs.allow_inverted || inverted.is_empty() {
+                return Ok(());
+            }
+            for (cell, _) in inverted {
+                for node in body.cell_nodes(cell).expect("inverted cells are leaves") {
+                    match body.constraint(node) {
+                        Some(parents) => parents.iter().for_each(|&(p, _)| jitter[p] *= 0.5),
+                        None => jitter[node] *= 0.5,
+                    }
+                }
+            }
+        }
+        body.validate()
+    }
+}
+
+/// An indented block of `cells` base cells of spacing `h` refined `levels` levels within
+/// `refine_radius` of the top face's centre (2:1 balanced), with `points` known points drawn per
+/// leaf: the scalable adaptive scene of the benchmarks. The sink and the sphere are
+/// [`crate::indented_block`]'s; there are no contact points.
+///
+/// Pair it with a uniform block of about as many cells through [`block_cells_for`].
+pub fn adaptive_block(
+    cells: [u32; 3],
+    h: DVec3,
+    levels: u8,
+    refine_radius: f64,
+    points: usize,
+    seed: u64,
+) -> Result<AdaptiveScene, Error> {
+    let block = h * DVec3::new(
+        f64::from(cells[0]),
+        f64::from(cells[1]),
+        f64::from(cells[2]),
+    );
+    let uniform = SphereOnBlock {
+        block,
+        h,
+        radius: 0.2 * block.min_element(),
+        contact_points: 0,
+        known_points: points,
+        seed,
+        ..SphereOnBlock::fine()
+    };
+    let scene = SphereOnAdaptiveBlock {
+        levels,
+        refine_radius,
+        ..SphereOnAdaptiveBlock::refining(uniform)
+    };
+    scene.build(&format!(
+        "adaptive-{}x{}x{}-l{levels}",
+        cells[0], cells[1], cells[2]
+    ))
+}
+
+/// Cells per axis of a block shaped like `shape` (its aspect ratio) with about `count` cells, at
+/// least one per axis: the uniform block to compare an adaptive one of `count` leaves with.
+#[must_use]
+pub fn block_cells_for(count: usize, shape: DVec3) -> [u32; 3] {
+    let unit = (count as f64 / (shape.x * shape.y * shape.z)).cbrt();
+    (shape * unit)
+        .round()
+        .max(DVec3::ONE)
+        .to_array()
+        .map(|n| n.min(f64::from(u32::MAX)) as u32)
+}
