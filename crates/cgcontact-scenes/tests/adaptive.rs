@@ -381,3 +381,20 @@ fn the_bench_block_is_mostly_finest_leaves() {
         "{cells:?} for {leaves}"
     );
 }
+
+#[test]
+fn large_jitter_ends_valid_and_conforming() {
+    // Nearly a cell of jitter inverts leaves of every level; halving ends with none, and the
+    // hanging nodes still follow their parents.
+    for seed in 0..6 {
+        for balanced in [true, false] {
+            let mut knobs = coarse(3, 0.8, balanced);
+            knobs.uniform.jitter = 0.95;
+            knobs.uniform.known_points = 0;
+            knobs.uniform.seed = seed;
+            let scene = knobs.build("wild").unwrap();
+            scene.body.validate().unwrap();
+            assert!(scene.body.check_constraints(1e-12).holds());
+        }
+    }
+}
