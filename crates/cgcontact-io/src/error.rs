@@ -212,6 +212,45 @@ pub enum ErrorKind {
     /// Two inputs that must match do not (points and answers, say).
     #[error("{0}")]
     Mismatch(String),
+    /// A cell of an adaptive mesh whose size is not the coarsest cells' halved a whole number of
+    /// times, equally on every axis.
+    #[error(
+        "cell {cell}: edges {edges:?} are not the coarsest cells' edges {base:?} halved a whole \
+         number of times (equally on every axis): not a dyadic refinement of one lattice"
+    )]
+    CellSize {
+        /// Input cell index.
+        cell: usize,
+        /// Its edge lengths per axis.
+        edges: [f64; 3],
+        /// The coarsest cells' edge lengths.
+        base: [f64; 3],
+    },
+    /// A cell of an adaptive mesh whose lowest corner is not a node of its level's lattice.
+    #[error(
+        "cell {cell}: level {level} cell at {position:?} is not aligned to its level's lattice \
+         (origin {origin:?}, spacing {h:?})"
+    )]
+    NotAligned {
+        /// Input cell index.
+        cell: usize,
+        /// Its refinement level (0 for the coarsest cells).
+        level: u8,
+        /// Its lowest corner.
+        position: [f64; 3],
+        /// The base lattice's origin.
+        origin: [f64; 3],
+        /// The spacing of the cell's level.
+        h: [f64; 3],
+    },
+    /// Two input cells cover the same region (an adaptive mesh's leaves must tile without overlap).
+    #[error("cells {first} and {second} overlap: a region is covered twice")]
+    OverlappingCells {
+        /// The earlier input cell.
+        first: usize,
+        /// The later one.
+        second: usize,
+    },
     /// The core library refused the lattice or body built from the file.
     #[error(transparent)]
     Core(#[from] cgcontact::Error),

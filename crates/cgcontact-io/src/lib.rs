@@ -45,6 +45,7 @@
 #![deny(missing_docs)]
 #![forbid(unsafe_code)]
 
+mod adaptive_mesh;
 mod atomic;
 mod block_headers;
 mod csv_io;
@@ -55,6 +56,7 @@ mod raw_appended;
 mod vtk_read;
 mod vtk_write;
 
+pub use adaptive_mesh::{AdaptiveMesh, MeshBody};
 pub use atomic::write_file;
 pub use csv_io::{
     RESULTS_HEADER, ResultRow, parse_points, parse_results, read_points, read_results,
@@ -64,9 +66,12 @@ pub use error::{ErrorKind, IoError};
 pub use input::{DEFAULT_MAX_INPUT_BYTES, MAX_INPUT_BYTES_VAR, max_input_bytes};
 pub use mesh::{CellMap, HexMesh, LATTICE_TOLERANCE, LatticeMesh};
 pub use vtk_read::{
-    DEFAULT_DISPLACEMENT, DisplacementArray, parse_hex_mesh, read_hex_mesh, read_mesh,
+    DEFAULT_DISPLACEMENT, DisplacementArray, parse_hex_mesh, read_body, read_hex_mesh, read_mesh,
 };
-pub use vtk_write::{MeshFormat, write_deformed_vtu, write_mesh, write_points_vtu};
+pub use vtk_write::{
+    MeshFormat, write_adaptive_mesh, write_deformed_adaptive_vtu, write_deformed_vtu, write_mesh,
+    write_points_vtu,
+};
 
 /// A piece of an input for an error message: at most `max_chars` characters, control characters
 /// and undecodable bytes escaped, in backticks, so that a binary file never reaches the terminal.

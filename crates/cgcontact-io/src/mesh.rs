@@ -12,7 +12,7 @@ pub const LATTICE_TOLERANCE: f64 = 1e-9;
 
 /// Extra tolerance in units of the coordinates' own magnitude, for the rounding of `origin + i * h`
 /// to f64 (a few ulps): far from the origin it can exceed `LATTICE_TOLERANCE * h`.
-const ROUNDING_SLACK: f64 = 4.0 * f64::EPSILON;
+pub(crate) const ROUNDING_SLACK: f64 = 4.0 * f64::EPSILON;
 
 /// A lattice may have at most this many nodes, or 64 per node in use if that is more. Beyond that
 /// the body's per-node slot array (4 bytes per lattice node) would dwarf the mesh: a few cells far
@@ -66,7 +66,10 @@ impl CellMap {
 
     /// The map of input cells `lattice_of_input` on a lattice of `cell_count` cells; the input
     /// index of a cell that appears twice, as `Err((first, second))`.
-    fn new(lattice_of_input: Vec<CellId>, cell_count: usize) -> Result<Self, (usize, usize)> {
+    pub(crate) fn new(
+        lattice_of_input: Vec<CellId>,
+        cell_count: usize,
+    ) -> Result<Self, (usize, usize)> {
         let input_of_lattice = if cell_count <= 64 * lattice_of_input.len().max(1) {
             let mut table = vec![NO_CELL; cell_count];
             for (input, cell) in lattice_of_input.iter().enumerate() {
@@ -250,7 +253,7 @@ impl HexMesh {
     }
 
     /// Which nodes some cell uses; checks indices and coordinates of those.
-    fn used_nodes(&self) -> Result<BitVec, ErrorKind> {
+    pub(crate) fn used_nodes(&self) -> Result<BitVec, ErrorKind> {
         let mut used = BitVec::repeat(false, self.points.len());
         for (c, cell) in self.cells.iter().enumerate() {
             for &n in cell {
@@ -484,7 +487,7 @@ impl HexMesh {
 
 /// The middle values of the lowest and highest clusters of at least 4 sorted values, clusters being
 /// runs whose consecutive gaps are below `gap`.
-fn extreme_planes(sorted: &[f64], gap: f64) -> Option<(f64, f64)> {
+pub(crate) fn extreme_planes(sorted: &[f64], gap: f64) -> Option<(f64, f64)> {
     let mut clusters = Vec::new();
     let mut start = 0;
     for i in 1..=sorted.len() {

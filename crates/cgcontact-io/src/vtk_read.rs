@@ -6,7 +6,7 @@ use std::path::Path;
 use glam::DVec3;
 use vtkio::model::{Attribute, CellType, DataSet, UnstructuredGridPiece, VertexNumbers, Vtk};
 
-use crate::{ErrorKind, HexMesh, IoError, LatticeMesh, block_headers, raw_appended};
+use crate::{ErrorKind, HexMesh, IoError, LatticeMesh, MeshBody, block_headers, raw_appended};
 
 /// The point-data array used when the caller names none.
 pub const DEFAULT_DISPLACEMENT: &str = "displacement";
@@ -42,6 +42,17 @@ pub fn read_mesh(
     let path = path.as_ref();
     let mesh = read_hex_mesh(path, displacement)?;
     mesh.to_lattice().map_err(|e| e.in_file(path))
+}
+
+/// Read a VTK mesh file and recognise it as a uniform or an adaptive body (see
+/// [`HexMesh::to_body`]).
+pub fn read_body(
+    path: impl AsRef<Path>,
+    displacement: &DisplacementArray,
+) -> Result<MeshBody, IoError> {
+    let path = path.as_ref();
+    let mesh = read_hex_mesh(path, displacement)?;
+    mesh.to_body().map_err(|e| e.in_file(path))
 }
 
 /// Read a VTK mesh file as an explicit hexahedral mesh, without lattice detection.

@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use cgcontact::{Answer, Body, CellId, Lattice};
+use cgcontact::{AdaptiveBody, Answer, Body, CellId, Lattice};
 use glam::DVec3;
 use vtkio::model::{
     Attribute, Attributes, ByteOrder, CellType, Cells, DataArray, DataSet, ElementType, IOBuffer,
@@ -147,6 +147,106 @@ pub fn write_deformed_vtu(
         },
     };
     write_piece(path, piece, MeshFormat::Xml, "cgcontact deformed mesh")
+}
+
+/// The undeformed nodes of an adaptive body (in its node order) and its leaves' corners.
+fn adaptive_nodes_and_cells(body: &AdaptiveBody) -> (Vec<DVec3>, Vec<[u32; 8]>) {
+    let points = (0..body.node_count())
+        .map(|n| body.node_position(n).expect("node in range"))
+        .collect();
+    let cells = (0..body.cell_count() as u32)
+        .map(|c| {
+            body.cell_nodes(CellId(c))
+                .expect("leaf in range")
+                .map(|n| n as u32)
+        })
+        .collect();
+    (points, cells)
+}
+
+/// Write an adaptive body: its leaves in id order, its nodes (hanging ones included) in node
+/// order with undeformed coordinates, the displacement as point data `displacement`, and each
+/// leaf's refinement level as cell data `level`. [`crate::read_body`] reads it back as the same
+/// leaves in the same order.
+pub fn write_adaptive_mesh(
+    path: impl AsRef<Path>,
+    body: &AdaptiveBody,
+    format: MeshFormat,
+) -> Result<(), IoError> {
+    let path = path.as_ref();
+    let (points, cells) = adaptive_nodes_and_cells(body);
+    let level: Vec<u8> = body.leaves().iter().map(|l| l.level).collect();
+    let piece = UnstructuredGridPiece {
+        points: IOBuffer::F64(flatten(&points)),
+        cells: hex_cells(&cells),
+        data: Attributes {
+            point: vec![Attribute::DataArray(DataArray {
+                name: DEFAULT_DISPLACEMENT.to_owned(),
+                elem: ElementType::Vectors,
+                data: IOBuffer::F64(flatten(body.displacements())),
+            })],
+            cell: vec![array("level", 1, IOBuffer::U8(level))],
+        },
+    };
+    write_piece(
+        path,
+        piece,
+        format,
+        "cgcontact adaptive body: undeformed nodes, displacement as point data, level per cell",
+    )
+}
+
+/// Write an adaptive body deformed for ParaView (XML `.vtu`): node coordinates undeformed +
+/// displacement, cells in input order with cell data `input_cell`, `level` and `points_held` (how
+/// many of `answers` located in it). Point data: `displacement`.
+pub fn write_deformed_adaptive_vtu(
+    path: impl AsRef<Path>,
+    body: &AdaptiveBody,
+    answers: &[Answer],
+) -> Result<(), IoError> {
+    let path = path.as_ref();
+    let (undeformed, cells) = adaptive_nodes_and_cells(body);
+    let points: Vec<DVec3> = undeformed
+        .iter()
+        .zip(body.displacements())
+        .map(|(x, u)| *x + *u)
+        .collect();
+    let mut held = vec![0i32; body.cell_count()];
+    for hit in answers.iter().flatten().flatten() {
+        if let Some(h) = held.get_mut(hit.cell.index()) {
+            *h = h.saturating_add(1);
+        }
+    }
+    let piece = UnstructuredGridPiece {
+        points: IOBuffer::F64(flatten(&points)),
+        cells: hex_cells(&cells),
+        data: Attributes {
+            point: vec![array(
+                DEFAULT_DISPLACEMENT,
+                3,
+                IOBuffer::F64(flatten(body.displacements())),
+            )],
+            cell: vec![
+                array(
+                    "input_cell",
+                    1,
+                    IOBuffer::I64((0..body.cell_count() as i64).collect()),
+                ),
+                array(
+                    "level",
+                    1,
+                    IOBuffer::U8(body.leaves().iter().map(|l| l.level).collect()),
+                ),
+                array("points_held", 1, IOBuffer::I32(held)),
+            ],
+        },
+    };
+    write_piece(
+        path,
+        piece,
+        MeshFormat::Xml,
+        "cgcontact deformed adaptive mesh",
+    )
 }
 
 /// Write query points for ParaView (XML `.vtu` of VTK_VERTEX cells), with point data `cell` (input

@@ -6,10 +6,10 @@ use crate::common;
 
 use bitvec::vec::BitVec;
 use cgcontact::glam::DVec3;
-use cgcontact::{Body, CellId, Hit, Lattice};
+use cgcontact::{AdaptiveBody, Body, CellId, Hit, Lattice, Leaf};
 use cgcontact_io::{
     CellMap, DisplacementArray, HexMesh, MeshFormat, parse_hex_mesh, parse_points, parse_results,
-    write_mesh, write_results_to,
+    write_adaptive_mesh, write_mesh, write_results_to,
 };
 use proptest::prelude::*;
 
@@ -45,6 +45,48 @@ const FORMATS: [MeshFormat; 4] = [
     MeshFormat::Xml,
     MeshFormat::XmlZlib,
 ];
+
+/// A small adaptive body: 2–3 base cells along x and 1–3 along y and z (so that a base cell stays
+/// unrefined: a file shows levels only relative to its coarsest cells), one of them refined
+/// `depth` levels toward a corner (jumps of up to `depth` levels), any origin and spacing a
+/// lattice allows.
+fn adaptive_strategy() -> impl Strategy<Value = AdaptiveBody> {
+    (
+        (2u32..=3, 1u32..=3, 1u32..=3).prop_map(|(x, y, z)| [x, y, z]),
+        prop::array::uniform3(-1e6f64..1e6),
+        prop::array::uniform3(-6i32..6),
+        1u8..=3,
+        0.0f64..0.2,
+    )
+        .prop_map(|(cells, origin, h_exp, depth, amplitude)| {
+            let h = DVec3::from_array(h_exp.map(|e| 10f64.powi(e)));
+            let lattice = Lattice::new(DVec3::from_array(origin), h, cells).unwrap();
+            let mut leaves: Vec<Leaf> = (1..lattice.cell_count() as u32)
+                .map(|c| Leaf::new(0, lattice.cell_ijk(CellId(c)).unwrap()))
+                .collect();
+            let mut corner = Leaf::new(0, [0, 0, 0]);
+            for _ in 0..depth {
+                let children = corner.children();
+                leaves.extend_from_slice(&children[1..]);
+                corner = children[0];
+            }
+            leaves.push(corner);
+            let mut body = AdaptiveBody::from_leaves(lattice, leaves).unwrap();
+            let fine = body.spacing(depth);
+            body.update_independent(|n, _, u| {
+                *u = fine * amplitude * DVec3::new((n as f64).sin(), (n as f64 * 1.3).cos(), 0.5)
+            })
+            .unwrap();
+            body
+        })
+}
+
+fn adaptive_bytes(body: &AdaptiveBody, format: MeshFormat) -> Vec<u8> {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join(format!("m.{}", format.extension()));
+    write_adaptive_mesh(&path, body, format).unwrap();
+    std::fs::read(path).unwrap()
+}
 
 fn mesh_bytes(body: &Body, format: MeshFormat) -> Vec<u8> {
     let dir = tempfile::tempdir().unwrap();
@@ -94,6 +136,8 @@ fn read_any_mesh(bytes: &[u8]) {
     ] {
         if let Ok(mesh) = parse_hex_mesh(bytes, &displacement) {
             let _ = mesh.to_lattice();
+            let _ = mesh.to_body();
+            let _ = mesh.to_adaptive();
         }
     }
 }
@@ -201,6 +245,23 @@ proptest! {
     fn mesh_parser_never_panics_on_mutated_files(body in body_strategy(), format in 0usize..4, edits in edits()) {
         let bytes = mesh_bytes(&body, FORMATS[format]);
         read_any_mesh(&mutate(bytes, &edits));
+    }
+
+    #[test]
+    fn adaptive_mesh_parser_never_panics_on_mutated_files(body in adaptive_strategy(), format in 0usize..4, edits in edits()) {
+        let bytes = adaptive_bytes(&body, FORMATS[format]);
+        read_any_mesh(&mutate(bytes, &edits));
+    }
+
+    #[test]
+    fn adaptive_mesh_files_round_trip(body in adaptive_strategy(), format in 0usize..4) {
+        let bytes = adaptive_bytes(&body, FORMATS[format]);
+        let mesh = parse_hex_mesh(&bytes, &DisplacementArray::Default).unwrap();
+        let read = mesh.to_adaptive().unwrap();
+        prop_assert_eq!(read.body.leaves(), body.leaves());
+        prop_assert_eq!(read.body.displacements(), body.displacements());
+        prop_assert!(read.constraints.holds());
+        prop_assert!(matches!(mesh.to_body().unwrap(), cgcontact_io::MeshBody::Adaptive(_)));
     }
 
     #[test]

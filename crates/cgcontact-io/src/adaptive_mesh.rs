@@ -1,0 +1,332 @@
+//! Meshes whose hexahedra have several sizes: dyadic refinements of one lattice, recognised as
+//! an [`AdaptiveBody`]. A mesh whose cells all have one size stays a uniform body
+//! ([`HexMesh::to_lattice`]): [`HexMesh::to_body`] chooses.
+//!
+//! Detection: the coarsest cells' edges give the base spacing, each cell's edges its level (the
+//! base halved l times, equally on every axis), the finest level's spacing is refined from the
+//! extent of the nodes (as the uniform detection does), and the base lattice's origin is placed
+//! so that the coarsest cells sit on it. Every node of a cell must then be a node of the finest
+//! lattice, every cell's lowest corner a node of its own level's lattice, and no two cells may
+//! cover the same region. Cells and nodes may come in any order; a leaf's id is its input index.
+
+use bitvec::vec::BitVec;
+use cgcontact::adaptive::{ConstraintReport, MAX_LEVEL};
+use cgcontact::{AdaptiveBody, CORNER_OFFSETS, CellId, Lattice, Leaf};
+use glam::DVec3;
+
+use crate::mesh::{LatticeMesh, ROUNDING_SLACK, extreme_planes};
+use crate::{CellMap, ErrorKind, HexMesh, LATTICE_TOLERANCE};
+
+/// Ratio of the largest to the smallest cell edge (on some axis) above which a mesh is read as
+/// adaptive: between 1.5 (a malformed cell of a uniform mesh, reported as such) and 2 (one level).
+const LEVEL_RATIO: f64 = 1.75;
+
+/// A mesh read from a file and recognised as an adaptive body.
+#[derive(Clone, Debug)]
+pub struct AdaptiveMesh {
+    /// The body: base lattice, leaves (in input cell order), displacements.
+    pub body: AdaptiveBody,
+    /// Input cell order ↔ leaf ids: the identity (a leaf's id is its input index).
+    pub cells: CellMap,
+    /// Number of nodes in the input (used by cells or not).
+    pub point_count: usize,
+    /// Whether the input carried a displacement array (otherwise the body is undeformed).
+    pub has_displacement: bool,
+    /// How the hanging nodes' displacements, as read, obey their constraints (within
+    /// `constraint_tolerance`): the body keeps them as read.
+    pub constraints: ConstraintReport,
+    /// The tolerance of `constraints`, length units: 1e-9 of the finest spacing plus the rounding
+    /// of the largest displacement.
+    pub constraint_tolerance: f64,
+}
+
+/// A mesh read from a file: a uniform lattice body or an adaptive one.
+#[derive(Clone, Debug)]
+pub enum MeshBody {
+    /// Every cell one lattice cell.
+    Uniform(LatticeMesh),
+    /// Cells of several refinement levels.
+    Adaptive(AdaptiveMesh),
+}
+
+impl MeshBody {
+    /// Input cell order ↔ the body's cell ids.
+    #[must_use]
+    pub fn cells(&self) -> &CellMap {
+        match self {
+            Self::Uniform(m) => &m.cells,
+            Self::Adaptive(m) => &m.cells,
+        }
+    }
+
+    /// Whether the input carried a displacement array.
+    #[must_use]
+    pub fn has_displacement(&self) -> bool {
+        match self {
+            Self::Uniform(m) => m.has_displacement,
+            Self::Adaptive(m) => m.has_displacement,
+        }
+    }
+}
+
+/// Edge lengths of a cell along its own axes (corner 0 to corners 1, 3 and 4).
+fn edges(points: &[DVec3], cell: &[u32; 8]) -> [f64; 3] {
+    const STEP: [usize; 3] = [1, 3, 4];
+    [0, 1, 2].map(|a| (points[cell[STEP[a]] as usize][a] - points[cell[0] as usize][a]).abs())
+}
+
+impl HexMesh {
+    /// Recognise the mesh as a uniform lattice body ([`HexMesh::to_lattice`]) when its cells have
+    /// one size, else as an adaptive body of dyadic refinements ([`HexMesh::to_adaptive`]).
+    pub fn to_body(&self) -> Result<MeshBody, ErrorKind> {
+        if self.cells.is_empty() {
+            return Err(ErrorKind::NoCells);
+        }
+        let used = self.used_nodes()?;
+        let mut low = [f64::INFINITY; 3];
+        let mut high = [0.0f64; 3];
+        for cell in &self.cells {
+            let e = edges(&self.points, cell);
+            for a in 0..3 {
+                low[a] = low[a].min(e[a]);
+                high[a] = high[a].max(e[a]);
+            }
+        }
+        // A degenerate cell (an edge of 0) is the uniform detection's to report.
+        let several = (0..3).any(|a| low[a] > 0.0 && high[a] > LEVEL_RATIO * low[a]);
+        if several {
+            Ok(MeshBody::Adaptive(self.adaptive_with(&used)?))
+        } else {
+            Ok(MeshBody::Uniform(self.to_lattice()?))
+        }
+    }
+
+    /// Recognise the mesh as an adaptive body (see the module docs). A mesh of one level makes a
+    /// one-level adaptive body.
+    pub fn to_adaptive(&self) -> Result<AdaptiveMesh, ErrorKind> {
+        if self.cells.is_empty() {
+            return Err(ErrorKind::NoCells);
+        }
+        let used = self.used_nodes()?;
+        self.adaptive_with(&used)
+    }
+
+    fn adaptive_with(&self, used: &BitVec) -> Result<AdaptiveMesh, ErrorKind> {
+        if let Some(u) = &self.displacement
+            && u.len() != self.points.len()
+        {
+            return Err(ErrorKind::Mismatch(format!(
+                "{} displacements for {} nodes",
+                u.len(),
+                self.points.len()
+            )));
+        }
+        if self.cells.len() >= 1 << 31 {
+            return Err(ErrorKind::Topology(format!(
+                "{} cells exceed the 2^31 an adaptive body indexes",
+                self.cells.len()
+            )));
+        }
+        // Levels from the edges, against the coarsest cells'.
+        let cell_edges: Vec<[f64; 3]> = self.cells.iter().map(|c| edges(&self.points, c)).collect();
+        let mut base = [0.0f64; 3];
+        for e in &cell_edges {
+            for a in 0..3 {
+                base[a] = base[a].max(e[a]);
+            }
+        }
+        let mut levels = Vec::with_capacity(self.cells.len());
+        for (c, e) in cell_edges.iter().enumerate() {
+            let bad = || ErrorKind::CellSize {
+                cell: c,
+                edges: *e,
+                base,
+            };
+            let ratio = base[0] / e[0];
+            if !(ratio.is_finite() && ratio >= 1.0) {
+                return Err(bad());
+            }
+            let level = ratio.log2().round();
+            if level > f64::from(MAX_LEVEL) {
+                return Err(bad());
+            }
+            let scale = 0.5f64.powi(level as i32);
+            // Within 1e-6 of the expected size plus the rounding of the coordinates themselves
+            // (far from the origin a tiny cell's edge carries |x| ε): far tighter than a level
+            // apart. The lattice checks below are the exact ones.
+            let magnitude = self.points[self.cells[c][0] as usize].abs().max_element();
+            let slack = 4.0 * ROUNDING_SLACK * magnitude;
+            if (0..3).any(|a| (e[a] - base[a] * scale).abs() > 1e-6 * base[a] * scale + slack) {
+                return Err(bad());
+            }
+            levels.push(level as u8);
+        }
+        let finest = levels.iter().copied().max().unwrap_or(0);
+        let steps = 1u64 << finest;
+
+        // The finest lattice's spacing from the extent, as the uniform detection does, and the base
+        // origin placed so that a coarsest cell sits on the base lattice.
+        let coarse = levels.iter().position(|&l| l == 0).unwrap_or(0);
+        let anchor = self.points[self.cells[coarse][0] as usize];
+        let mut origin = [0.0; 3];
+        let mut h_fine = [0.0; 3];
+        let mut counts = [0u32; 3];
+        let axis_name = ["x", "y", "z"];
+        for a in 0..3 {
+            let estimate = base[a] / steps as f64;
+            let mut values: Vec<f64> = used.iter_ones().map(|n| self.points[n][a]).collect();
+            values.sort_unstable_by(f64::total_cmp);
+            let (low, high) = extreme_planes(&values, 0.5 * estimate).ok_or_else(|| {
+                ErrorKind::Degenerate(format!(
+                    "no plane of nodes along {} holds 4 nodes or more",
+                    axis_name[a]
+                ))
+            })?;
+            let n = ((high - low) / estimate).round();
+            if !(n >= 1.0 && n < f64::from(1u32 << 21)) {
+                return Err(ErrorKind::Degenerate(format!(
+                    "the nodes span {} along {} for a finest edge of {estimate}",
+                    high - low,
+                    axis_name[a]
+                )));
+            }
+            let h = (high - low) / n;
+            // The anchor's offset from the lowest plane, in finest steps, brought to a multiple of
+            // the base spacing by moving the origin down.
+            let r = ((anchor[a] - low) / h).round() as i64;
+            let k = (-r).rem_euclid(steps as i64) as u64;
+            origin[a] = low - k as f64 * h;
+            h_fine[a] = h;
+            counts[a] = (n as u64 + k).div_ceil(steps) as u32;
+        }
+        let h_base = DVec3::from_array(h_fine) * steps as f64;
+        let lattice = Lattice::new(DVec3::from_array(origin), h_base, counts)?;
+        let origin = lattice.origin();
+        let h_fine = DVec3::from_array(h_fine);
+
+        // Every used node on the finest lattice.
+        let limit = counts.map(|n| u64::from(n) * steps);
+        let magnitude = origin.abs().max(lattice.upper().abs());
+        let tol = LATTICE_TOLERANCE * h_fine + ROUNDING_SLACK * magnitude;
+        let mut q = vec![[u32::MAX; 3]; self.points.len()];
+        for n in used.iter_ones() {
+            let p = self.points[n];
+            let t = (p - origin) / h_fine;
+            let i = t.round();
+            let inside = (0..3).all(|a| i[a] >= 0.0 && i[a] <= limit[a] as f64);
+            if !inside {
+                return Err(ErrorKind::OutsideLattice {
+                    node: n,
+                    position: p.to_array(),
+                    origin: origin.to_array(),
+                    h: h_fine.to_array(),
+                    nodes: limit.map(|v| (v + 1).min(u64::from(u32::MAX)) as u32),
+                    index: i.to_array(),
+                });
+            }
+            if (p - (origin + i * h_fine)).abs().cmpgt(tol).any() {
+                return Err(ErrorKind::OffLattice {
+                    node: n,
+                    position: p.to_array(),
+                    origin: origin.to_array(),
+                    h: h_fine.to_array(),
+                    offset: (t - i).to_array(),
+                });
+            }
+            q[n] = [i.x as u32, i.y as u32, i.z as u32];
+        }
+
+        // Every cell one leaf: aligned to its level's lattice, corners in VTK order.
+        let mut leaves = Vec::with_capacity(self.cells.len());
+        for (c, cell) in self.cells.iter().enumerate() {
+            let level = levels[c];
+            let s = 1u32 << (finest - level);
+            let low = q[cell[0] as usize];
+            if low.iter().any(|&v| v % s != 0) {
+                return Err(ErrorKind::NotAligned {
+                    cell: c,
+                    level,
+                    position: self.points[cell[0] as usize].to_array(),
+                    origin: origin.to_array(),
+                    h: (h_base * 0.5f64.powi(i32::from(level))).to_array(),
+                });
+            }
+            for (corner, offset) in CORNER_OFFSETS.iter().enumerate() {
+                let found = q[cell[corner] as usize].map(i64::from);
+                let expected: [i64; 3] =
+                    std::array::from_fn(|a| i64::from(low[a]) + i64::from(offset[a] * s));
+                if found != expected {
+                    return Err(ErrorKind::NotLatticeCell {
+                        cell: c,
+                        corner,
+                        node: cell[corner] as usize,
+                        found,
+                        expected,
+                    });
+                }
+            }
+            leaves.push(Leaf::new(level, low.map(|v| v / s)));
+        }
+        let mut body = AdaptiveBody::from_leaves(lattice, leaves).map_err(|e| match e {
+            cgcontact::Error::OverlappingCells { cell, other } => ErrorKind::OverlappingCells {
+                first: other.index(),
+                second: cell.index(),
+            },
+            e => ErrorKind::Core(e),
+        })?;
+
+        // Displacements: each body node from the input nodes at it (which must agree).
+        let mut constraint_tolerance = LATTICE_TOLERANCE * h_fine.min_element();
+        if let Some(u) = &self.displacement {
+            let mut by_node: Vec<(usize, usize)> = used
+                .iter_ones()
+                .map(|n| {
+                    let node = body
+                        .node_at_finest(q[n])
+                        .expect("a corner of a cell is a node of the body");
+                    (node, n)
+                })
+                .collect();
+            by_node.sort_unstable();
+            for &(_, n) in &by_node {
+                if !u[n].is_finite() {
+                    return Err(ErrorKind::NonFiniteDisplacement {
+                        node: n,
+                        value: u[n].to_array(),
+                    });
+                }
+            }
+            let agree = LATTICE_TOLERANCE * h_base.max_element();
+            for w in by_node.windows(2) {
+                let ((node, first), (next, second)) = (w[0], w[1]);
+                let (a, b) = (u[first], u[second]);
+                if node == next
+                    && (a - b).abs().max_element() > agree + ROUNDING_SLACK * b.abs().max_element()
+                {
+                    return Err(ErrorKind::InconsistentDisplacement {
+                        first,
+                        second,
+                        first_u: a.to_array(),
+                        second_u: b.to_array(),
+                    });
+                }
+            }
+            by_node.dedup_by_key(|&mut (node, _)| node);
+            debug_assert_eq!(by_node.len(), body.node_count());
+            let values: Vec<DVec3> = by_node.into_iter().map(|(_, n)| u[n]).collect();
+            body.set_displacements(&values)?;
+            constraint_tolerance += ROUNDING_SLACK * body.max_displacement().max_element();
+        }
+        let cell_ids: Vec<CellId> = (0..self.cells.len() as u32).map(CellId).collect();
+        let cells = CellMap::new(cell_ids, self.cells.len())
+            .map_err(|(first, second)| ErrorKind::OverlappingCells { first, second })?;
+        Ok(AdaptiveMesh {
+            constraints: body.check_constraints(constraint_tolerance),
+            constraint_tolerance,
+            body,
+            cells,
+            point_count: self.points.len(),
+            has_displacement: self.displacement.is_some(),
+        })
+    }
+}

@@ -1,0 +1,301 @@
+//! Adaptive meshes through the files: round trips in every format, cells and nodes in any order,
+//! extreme offsets and anisotropic spacings, and each malformed mesh refused naming its cell.
+
+use cgcontact::{AdaptiveBody, CORNER_OFFSETS, CellId, Lattice, Leaf};
+use cgcontact_io::{ErrorKind, HexMesh, MeshBody, MeshFormat, read_body, write_adaptive_mesh};
+use glam::DVec3;
+use rand::seq::SliceRandom;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+/// Base cells `cells`; the first base cell refined to `depth` levels toward its lowest corner (a
+/// jump of `depth` levels against its neighbours), the last one once.
+fn leaves(cells: [u32; 3], depth: u8) -> Vec<Leaf> {
+    let mut out = Vec::new();
+    let n = cells[0] * cells[1] * cells[2];
+    for c in 1..n - 1 {
+        out.push(Leaf::new(
+            0,
+            [
+                c % cells[0],
+                (c / cells[0]) % cells[1],
+                c / (cells[0] * cells[1]),
+            ],
+        ));
+    }
+    let mut corner = Leaf::new(0, [0, 0, 0]);
+    for _ in 0..depth {
+        let children = corner.children();
+        out.extend_from_slice(&children[1..]);
+        corner = children[0];
+    }
+    out.push(corner);
+    out.extend(Leaf::new(0, cells.map(|v| v - 1)).children());
+    out
+}
+
+fn body(origin: DVec3, h: DVec3, cells: [u32; 3], depth: u8, seed: u64) -> AdaptiveBody {
+    let lattice = Lattice::new(origin, h, cells).unwrap();
+    let mut body = AdaptiveBody::from_leaves(lattice, leaves(cells, depth)).unwrap();
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let fine = body.spacing(body.finest_level());
+    body.update_independent(|_, x, u| {
+        let t = (x - origin) / h;
+        *u = 0.03 * h * DVec3::new(t.y.sin(), t.z.cos(), t.x.sin())
+            + 0.05
+                * fine
+                * DVec3::new(
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                    0.0,
+                );
+    })
+    .unwrap();
+    body.validate().unwrap();
+    body
+}
+
+/// The explicit mesh of `body`: nodes in node order, cells in leaf order.
+fn mesh_of(body: &AdaptiveBody) -> HexMesh {
+    HexMesh {
+        points: (0..body.node_count())
+            .map(|n| body.node_position(n).unwrap())
+            .collect(),
+        cells: (0..body.cell_count() as u32)
+            .map(|c| body.cell_nodes(CellId(c)).unwrap().map(|n| n as u32))
+            .collect(),
+        displacement: Some(body.displacements().to_vec()),
+    }
+}
+
+fn adaptive(mesh: &HexMesh) -> cgcontact_io::AdaptiveMesh {
+    match mesh.to_body().unwrap() {
+        MeshBody::Adaptive(m) => m,
+        MeshBody::Uniform(_) => panic!("read as uniform"),
+    }
+}
+
+#[test]
+fn every_format_round_trips_leaves_levels_and_displacements() {
+    let dir = tempfile::tempdir().unwrap();
+    for (origin, h) in [
+        (DVec3::new(-1.0, 2.0, 0.5), DVec3::new(0.5, 0.25, 1.0)),
+        (DVec3::new(1e6, -3e6, 7e5), DVec3::new(2.0, 0.125, 40.0)),
+        (DVec3::new(1e-3, 0.0, -2e-3), DVec3::splat(1e-4)),
+    ] {
+        let body = body(origin, h, [3, 2, 4], 3, 1);
+        for format in [
+            MeshFormat::LegacyAscii,
+            MeshFormat::LegacyBinary,
+            MeshFormat::Xml,
+            MeshFormat::XmlZlib,
+        ] {
+            let path = dir.path().join(format!("mesh.{}", format.extension()));
+            write_adaptive_mesh(&path, &body, format).unwrap();
+            let MeshBody::Adaptive(read) = read_body(&path, &Default::default()).unwrap() else {
+                panic!("{format:?}: read as uniform");
+            };
+            assert_eq!(read.body.leaves(), body.leaves(), "{format:?} at {origin}");
+            assert_eq!(read.body.finest_level(), 3);
+            let l = read.body.lattice();
+            assert_eq!(l.cells(), [3, 2, 4]);
+            assert!(
+                (l.origin() - origin).abs().max_element()
+                    <= 1e-9 * h.max_element() + 1e-15 * origin.abs().max_element()
+            );
+            assert!(
+                ((l.h() - h) / h).abs().max_element() < 1e-12,
+                "{} vs {h}",
+                l.h()
+            );
+            assert_eq!(
+                read.body.displacements(),
+                body.displacements(),
+                "{format:?}"
+            );
+            assert!(read.has_displacement);
+            assert!(
+                read.constraints.holds() && read.constraints.hanging > 0,
+                "{:?}",
+                read.constraints
+            );
+        }
+    }
+}
+
+#[test]
+fn cells_and_nodes_in_any_order_make_the_same_body() {
+    let body = body(
+        DVec3::new(3.0, -1.0, 2.0),
+        DVec3::new(0.4, 0.3, 0.5),
+        [4, 3, 2],
+        2,
+        5,
+    );
+    let mesh = mesh_of(&body);
+    let mut rng = ChaCha8Rng::seed_from_u64(9);
+    for _ in 0..5 {
+        // Nodes renumbered, a few duplicated (an unmerged mesh), and cells shuffled.
+        let mut perm: Vec<usize> = (0..mesh.points.len()).collect();
+        perm.shuffle(&mut rng);
+        let mut points = vec![DVec3::ZERO; perm.len()];
+        let mut u = vec![DVec3::ZERO; perm.len()];
+        for (old, &new) in perm.iter().enumerate() {
+            points[new] = mesh.points[old];
+            u[new] = mesh.displacement.as_ref().unwrap()[old];
+        }
+        let mut cells: Vec<(usize, [u32; 8])> = mesh
+            .cells
+            .iter()
+            .enumerate()
+            .map(|(c, cell)| (c, cell.map(|n| perm[n as usize] as u32)))
+            .collect();
+        for (_, cell) in cells.iter_mut().take(7) {
+            points.push(points[cell[6] as usize]);
+            u.push(u[cell[6] as usize]);
+            cell[6] = points.len() as u32 - 1;
+        }
+        cells.shuffle(&mut rng);
+        let shuffled = HexMesh {
+            points,
+            cells: cells.iter().map(|(_, c)| *c).collect(),
+            displacement: Some(u),
+        };
+        let read = adaptive(&shuffled);
+        for (input, (original, _)) in cells.iter().enumerate() {
+            let leaf = read.body.leaves()[input];
+            assert_eq!(leaf, body.leaves()[*original], "input cell {input}");
+            assert_eq!(
+                read.body.cell_displacements(CellId(input as u32)),
+                body.cell_displacements(CellId(*original as u32))
+            );
+        }
+        assert!(read.constraints.holds());
+        assert_eq!(read.cells.input_cell(CellId(3)), Some(3));
+    }
+}
+
+#[test]
+fn a_hanging_node_off_its_constraint_is_reported_with_its_offset() {
+    let body = body(DVec3::ZERO, DVec3::ONE, [2, 2, 2], 2, 3);
+    let mut mesh = mesh_of(&body);
+    let node = body.hanging_nodes().nth(2).unwrap();
+    mesh.displacement.as_mut().unwrap()[node].z += 1e-4;
+    let read = adaptive(&mesh);
+    assert_eq!(read.constraints.violating, 1);
+    let (worst, by) = read.constraints.worst.unwrap();
+    assert_eq!(worst, node);
+    assert!((by - 1e-4).abs() < 1e-12);
+    // Below the tolerance (1e-9 of the finest spacing): not reported.
+    let mut mesh = mesh_of(&body);
+    mesh.displacement.as_mut().unwrap()[node].z += 1e-12;
+    assert!(adaptive(&mesh).constraints.holds());
+}
+
+#[test]
+fn malformed_adaptive_meshes_are_refused_naming_the_cell() {
+    let body = body(DVec3::ZERO, DVec3::ONE, [3, 2, 2], 2, 4);
+    let good = mesh_of(&body);
+    let fine_cell = body.leaves().iter().position(|l| l.level == 2).unwrap();
+
+    // A level-1 cell shifted by one finest step: on the finest lattice, not on its own level's.
+    let mut shifted = good.clone();
+    let mid = body.leaves().iter().position(|l| l.level == 1).unwrap();
+    let start = shifted.points.len() as u32;
+    for c in 0..8 {
+        let node = body.cell_nodes(CellId(mid as u32)).unwrap()[c];
+        shifted
+            .points
+            .push(body.node_position(node).unwrap() + body.spacing(2));
+        shifted.displacement.as_mut().unwrap().push(DVec3::ZERO);
+    }
+    shifted.cells[mid] = std::array::from_fn(|c| start + c as u32);
+    assert!(
+        matches!(shifted.to_body(), Err(ErrorKind::NotAligned { cell, level: 1, .. }) if cell == mid),
+        "{:?}",
+        shifted.to_body().err()
+    );
+
+    // Half a finest step: off the lattice altogether.
+    let mut off = good.clone();
+    let old = off.cells[fine_cell][6] as usize;
+    off.points.push(off.points[old] + 0.5 * body.spacing(2));
+    let u = off.displacement.as_mut().unwrap();
+    u.push(u[old]);
+    let n = off.points.len() - 1;
+    off.cells[fine_cell][6] = n as u32;
+    assert!(matches!(off.to_body(), Err(ErrorKind::OffLattice { node, .. }) if node == n));
+
+    // A coarse cell listed again over the refined region: overlap.
+    let mut twice = good.clone();
+    let coarse = body.leaves().iter().position(|l| l.level == 0).unwrap();
+    let mut over = twice.cells[coarse];
+    let offset = over.map(|n| twice.points[n as usize]);
+    // Move the copy onto base cell (0, 0, 0), which is refined.
+    let shift = -offset[0];
+    let start = twice.points.len() as u32;
+    for (c, p) in offset.iter().enumerate() {
+        twice.points.push(*p + shift);
+        twice.displacement.as_mut().unwrap().push(DVec3::ZERO);
+        over[c] = start + c as u32;
+    }
+    twice.cells.push(over);
+    let last = twice.cells.len() - 1;
+    assert!(
+        matches!(twice.to_body(), Err(ErrorKind::OverlappingCells { second, .. }) if second == last),
+        "{:?}",
+        twice.to_body().err()
+    );
+
+    // A cell of 3/4 the coarse size: no level.
+    let mut odd = good.clone();
+    let start = odd.points.len() as u32;
+    for off in CORNER_OFFSETS {
+        odd.points.push(
+            DVec3::new(10.0, 0.0, 0.0)
+                + 0.75 * DVec3::new(off[0] as f64, off[1] as f64, off[2] as f64),
+        );
+        odd.displacement.as_mut().unwrap().push(DVec3::ZERO);
+    }
+    odd.cells.push(std::array::from_fn(|c| start + c as u32));
+    let last = odd.cells.len() - 1;
+    assert!(
+        matches!(odd.to_body(), Err(ErrorKind::CellSize { cell, .. }) if cell == last),
+        "{:?}",
+        odd.to_body().err()
+    );
+
+    // Corners out of VTK order.
+    let mut swapped = good.clone();
+    swapped.cells[fine_cell].swap(2, 3);
+    assert!(
+        matches!(swapped.to_body(), Err(ErrorKind::NotLatticeCell { cell, .. }) if cell == fine_cell)
+    );
+
+    // Coinciding nodes with different displacements.
+    let mut split = good.clone();
+    let n = split.cells[fine_cell][6];
+    split.points.push(split.points[n as usize]);
+    let u = split.displacement.as_mut().unwrap();
+    u.push(u[n as usize] + DVec3::X);
+    split.cells[fine_cell][6] = split.points.len() as u32 - 1;
+    assert!(matches!(
+        split.to_body(),
+        Err(ErrorKind::InconsistentDisplacement { .. })
+    ));
+}
+
+#[test]
+fn a_mesh_of_one_size_stays_uniform() {
+    let lattice = Lattice::new(DVec3::ZERO, DVec3::ONE, [2, 2, 2]).unwrap();
+    let leaves: Vec<Leaf> = (0..8u32)
+        .map(|c| Leaf::new(0, [c % 2, (c / 2) % 2, c / 4]))
+        .collect();
+    let body = AdaptiveBody::from_leaves(lattice, leaves).unwrap();
+    assert!(matches!(
+        mesh_of(&body).to_body().unwrap(),
+        MeshBody::Uniform(_)
+    ));
+    // And a one-level mesh read as adaptive on purpose is a one-level body.
+    assert_eq!(mesh_of(&body).to_adaptive().unwrap().body.finest_level(), 0);
+}
