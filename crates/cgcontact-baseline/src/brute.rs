@@ -1,32 +1,32 @@
-//! Brute force: every active cell, exact Newton. The oracle of the tests.
+//! Brute force: every cell, exact Newton. The oracle of the tests.
 
 use cgcontact::glam::DVec3;
-use cgcontact::{Answer, Body, Error, Locator, Owners, PointError, Settings};
+use cgcontact::{Answer, Error, Locator, Owners, PointError, Settings};
 
-use crate::common::{Cells, Collect, owners_of};
+use crate::common::{BodyRef, Cells, Collect, owners_of};
 
-/// Brute force: inverts every active cell in ascending cell order with the core's exact kernel
-/// (precision from [`Settings::precision`]); the first inside cell wins, so the answer is the
-/// **lowest cell id among the owners**. O(active cells) inversions per point: the test oracle, not a
-/// strategy for production.
+/// Brute force: inverts every cell (active lattice cell, or leaf of an adaptive body) in ascending
+/// cell order with the core's exact kernel (precision from [`Settings::precision`]); the first
+/// inside cell wins, so the answer is the **lowest cell id among the owners**. O(cells) inversions
+/// per point: the test oracle, not a strategy for production.
 #[derive(Clone, Debug)]
 pub struct BruteForce<'a> {
     cells: Cells<'a>,
 }
 
 impl<'a> BruteForce<'a> {
-    /// A brute-force locator over `body` (nothing is built).
+    /// A brute-force locator over `body`, a `&Body` or a `&AdaptiveBody` (nothing is built).
     ///
     /// Errors when the settings are out of range.
-    pub fn new(body: &'a Body, settings: Settings) -> Result<Self, Error> {
+    pub fn new(body: impl Into<BodyRef<'a>>, settings: Settings) -> Result<Self, Error> {
         Ok(Self {
-            cells: Cells::new(body, settings)?,
+            cells: Cells::new(body.into(), settings)?,
         })
     }
 
     /// The body searched.
     #[must_use]
-    pub fn body(&self) -> &'a Body {
+    pub fn body(&self) -> BodyRef<'a> {
         self.cells.body()
     }
 
@@ -40,7 +40,7 @@ impl<'a> BruteForce<'a> {
         let options = self.cells.options(x)?;
         Ok(self
             .cells
-            .search(x, &options, self.cells.body().active_cells(), collect))
+            .search(x, &options, self.cells.body().cells(), collect))
     }
 }
 

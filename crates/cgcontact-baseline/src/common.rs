@@ -1,11 +1,112 @@
-//! What every strategy shares: input checks, the per-point inside tolerance, and the exact inversion
-//! of one lattice cell in its local frame with the core's kernel.
+//! What every strategy shares: the body (uniform or adaptive), input checks, the per-point inside
+//! tolerance, and the exact inversion of one cell in its local frame with the core's kernel.
 
 use cgcontact::glam::DVec3;
 use cgcontact::hex8::{Hex8Map, Hex8Map32, Kernel, NewtonOptions, Status};
 use cgcontact::{
-    Body, CellId, Error, Hit, InsideTolerance, Lattice, Owners, PointError, Precision, Settings,
+    AdaptiveBody, Body, CORNER_OFFSETS, CellId, Error, Hit, InsideTolerance, Lattice, Owners,
+    PointError, Precision, Settings,
 };
+
+/// The body a strategy searches: a uniform lattice body or an h-adaptive one.
+///
+/// Every constructor of this crate takes `impl Into<BodyRef>`, so `&Body` and `&AdaptiveBody` can be
+/// passed as they are. The cells of a uniform body are its active lattice cells; those of an
+/// adaptive body are its leaves, `CellId(i)` being the position in [`AdaptiveBody::leaves`], as
+/// [`cgcontact::AdaptiveLocator`] reports them.
+#[derive(Clone, Copy, Debug)]
+pub enum BodyRef<'a> {
+    /// A body on one lattice, with active and inactive cells.
+    Uniform(&'a Body),
+    /// A body of leaf cells at several refinement levels of a base lattice.
+    Adaptive(&'a AdaptiveBody),
+}
+
+impl<'a> From<&'a Body> for BodyRef<'a> {
+    fn from(body: &'a Body) -> Self {
+        Self::Uniform(body)
+    }
+}
+
+impl<'a> From<&'a AdaptiveBody> for BodyRef<'a> {
+    fn from(body: &'a AdaptiveBody) -> Self {
+        Self::Adaptive(body)
+    }
+}
+
+impl<'a> BodyRef<'a> {
+    /// The lattice: a uniform body's, or an adaptive body's base lattice (level 0).
+    #[must_use]
+    pub fn lattice(&self) -> &'a Lattice {
+        match self {
+            Self::Uniform(body) => body.lattice(),
+            Self::Adaptive(body) => body.lattice(),
+        }
+    }
+
+    /// Number of cells searched: active cells, or leaves.
+    #[must_use]
+    pub fn cell_count(&self) -> usize {
+        match self {
+            Self::Uniform(body) => body.active_count(),
+            Self::Adaptive(body) => body.cell_count(),
+        }
+    }
+
+    /// The cells searched, ascending: active cells, or leaf ids.
+    #[must_use]
+    pub fn cells(&self) -> Box<dyn Iterator<Item = CellId> + 'a> {
+        match self {
+            Self::Uniform(body) => body.active_cells(),
+            Self::Adaptive(body) => Box::new((0..body.cell_count() as u32).map(CellId)),
+        }
+    }
+
+    /// Refinement level of `cell` (0 for every cell of a uniform body).
+    #[must_use]
+    pub fn level(&self, cell: CellId) -> u8 {
+        match self {
+            Self::Uniform(_) => 0,
+            Self::Adaptive(body) => body.leaves()[cell.index()].level,
+        }
+    }
+
+    /// The deepest level of any cell (0 for a uniform body).
+    #[must_use]
+    pub fn finest_level(&self) -> u8 {
+        match self {
+            Self::Uniform(_) => 0,
+            Self::Adaptive(body) => body.finest_level(),
+        }
+    }
+
+    /// Largest displacement component per axis (absolute).
+    #[must_use]
+    pub fn max_displacement(&self) -> DVec3 {
+        match self {
+            Self::Uniform(body) => body.max_displacement(),
+            Self::Adaptive(body) => body.max_displacement(),
+        }
+    }
+
+    /// The inside tolerance's constants, as the core's locator of this kind of body computes them
+    /// (for an adaptive body: from the finest spacing, as [`cgcontact::AdaptiveLocator::new`]), so
+    /// that every strategy agrees with it on what "inside" means.
+    #[must_use]
+    pub fn inside_tolerance(&self, settings: &Settings) -> InsideTolerance {
+        // Bodies refuse non-finite displacements (every entry point), so the bound is finite.
+        let u_max = self.max_displacement().max_element();
+        match self {
+            Self::Uniform(body) => InsideTolerance::new(settings, body.lattice(), u_max),
+            Self::Adaptive(body) => InsideTolerance::with_h_min(
+                settings,
+                body.lattice().origin(),
+                body.spacing(body.finest_level()).min_element(),
+                u_max,
+            ),
+        }
+    }
+}
 
 /// What a candidate search does with each inside hit.
 pub(crate) enum Collect<'o> {
@@ -18,7 +119,7 @@ pub(crate) enum Collect<'o> {
 /// The body, the settings and what follows from them, shared by every strategy.
 #[derive(Clone, Debug)]
 pub(crate) struct Cells<'a> {
-    body: &'a Body,
+    body: BodyRef<'a>,
     settings: Settings,
     newton: NewtonOptions,
     /// The inside tolerance's per-body constants (shared definition with the lattice locator).
@@ -27,21 +128,18 @@ pub(crate) struct Cells<'a> {
 
 impl<'a> Cells<'a> {
     /// Checks the settings and the displacement bound (the body itself refuses non-finite values).
-    pub(crate) fn new(body: &'a Body, settings: Settings) -> Result<Self, Error> {
+    pub(crate) fn new(body: BodyRef<'a>, settings: Settings) -> Result<Self, Error> {
         settings.validate()?;
-        // Bodies refuse non-finite displacements (`Body::set_displacements` and every other entry
-        // point), so the bound is finite.
-        let u_max = body.max_displacement();
         Ok(Self {
             body,
             settings,
             newton: settings.newton(),
-            inside: InsideTolerance::new(&settings, body.lattice(), u_max.max_element()),
+            inside: body.inside_tolerance(&settings),
         })
     }
 
     #[inline]
-    pub(crate) fn body(&self) -> &'a Body {
+    pub(crate) fn body(&self) -> BodyRef<'a> {
         self.body
     }
 
@@ -73,27 +171,55 @@ impl<'a> Cells<'a> {
         })
     }
 
-    /// Lattice indices, lowest undeformed node and corner displacements (VTK order) of active `cell`.
+    /// The local frame of `cell` (its lowest undeformed corner), its spacing and its corner
+    /// displacements (VTK order), for a cell the body searches (active cell, or leaf).
     #[inline]
-    pub(crate) fn local(&self, cell: CellId) -> ([u32; 3], DVec3, [DVec3; 8]) {
-        let lattice = self.lattice();
-        let ijk = lattice
-            .cell_ijk(cell)
-            .expect("candidate cells come from the body's active cells");
-        let u = self
-            .body
-            .cell_displacements(cell)
-            .expect("candidate cells are active cells");
-        (ijk, lattice.node_position(ijk), u)
+    pub(crate) fn local(&self, cell: CellId) -> (DVec3, DVec3, [DVec3; 8]) {
+        match self.body {
+            BodyRef::Uniform(body) => {
+                let lattice = body.lattice();
+                let ijk = lattice
+                    .cell_ijk(cell)
+                    .expect("candidate cells come from the body's active cells");
+                let u = body
+                    .cell_displacements(cell)
+                    .expect("candidate cells are active cells");
+                (lattice.node_position(ijk), lattice.h(), u)
+            }
+            BodyRef::Adaptive(body) => {
+                let leaf = body.leaves()[cell.index()];
+                let u = body
+                    .cell_displacements(cell)
+                    .expect("candidate cells are leaves");
+                (body.leaf_origin(leaf), body.spacing(leaf.level), u)
+            }
+        }
     }
 
-    /// Deformed corners of active `cell` relative to the lattice origin, VTK order (for filters'
-    /// geometry: centroids, boxes; the origin-relative frame keeps them accurate far from the origin).
+    /// Deformed corners of `cell` relative to the lattice origin, VTK order (for filters' geometry:
+    /// centroids, boxes; the origin-relative frame keeps them accurate far from the origin).
     pub(crate) fn origin_relative_corners(&self, cell: CellId) -> [DVec3; 8] {
-        let (ijk, _, u) = self.local(cell);
-        let h = self.lattice().h();
+        let (ijk, h, u) = match self.body {
+            BodyRef::Uniform(body) => (
+                body.lattice()
+                    .cell_ijk(cell)
+                    .expect("candidate cells come from the body's active cells"),
+                body.lattice().h(),
+                body.cell_displacements(cell)
+                    .expect("candidate cells are active cells"),
+            ),
+            BodyRef::Adaptive(body) => {
+                let leaf = body.leaves()[cell.index()];
+                let u = body
+                    .cell_displacements(cell)
+                    .expect("candidate cells are leaves");
+                // (ijk + offset) · h rounds once and the power of two scales exactly, so a node's
+                // position is the same from every leaf that has it as a corner.
+                (leaf.ijk, body.spacing(leaf.level), u)
+            }
+        };
         std::array::from_fn(|c| {
-            let [a, b, d] = cgcontact::CORNER_OFFSETS[c];
+            let [a, b, d] = CORNER_OFFSETS[c];
             DVec3::new(
                 f64::from(ijk[0] + a),
                 f64::from(ijk[1] + b),
@@ -103,7 +229,7 @@ impl<'a> Cells<'a> {
         })
     }
 
-    /// Exact inversion of `x` in active `cell` with kernel `K`, in the cell's local frame, from ξ = 0.
+    /// Exact inversion of `x` in `cell` with kernel `K`, in the cell's local frame, from ξ = 0.
     /// `Some` (with `inversions` left at 0) only when the point is inside.
     #[inline]
     pub(crate) fn invert_exact<K: Kernel>(
@@ -112,8 +238,8 @@ impl<'a> Cells<'a> {
         x: DVec3,
         options: &NewtonOptions,
     ) -> Option<Hit> {
-        let (_, low, u) = self.local(cell);
-        let map = K::lattice_cell(self.lattice().h(), &u);
+        let (low, h, u) = self.local(cell);
+        let map = K::lattice_cell(h, &u);
         let inversion = map.invert_f64(x - low, DVec3::ZERO, options);
         (inversion.status == Status::Inside).then(|| Hit {
             cell,

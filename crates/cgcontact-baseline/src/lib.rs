@@ -6,13 +6,21 @@
 //! candidate cell's local frame, with the inside tolerance of
 //! [`Settings::inside_tolerance`](cgcontact::Settings::inside_tolerance), so they agree with the
 //! lattice locator on what "inside" means; only [`Inversion::SeedFaithful`] uses the seed's own
-//! Newton ([`seed_eval_loc_coords`]). Cells are lattice [`CellId`](cgcontact::CellId)s.
+//! Newton ([`seed_eval_loc_coords`]).
+//!
+//! Every strategy searches a uniform [`Body`](cgcontact::Body) or an h-adaptive
+//! [`AdaptiveBody`](cgcontact::AdaptiveBody) ([`BodyRef`]: constructors take either reference). Cells
+//! are lattice [`CellId`](cgcontact::CellId)s of a uniform body's active cells, or an adaptive body's
+//! leaf ids (position in [`AdaptiveBody::leaves`](cgcontact::AdaptiveBody::leaves)), as
+//! [`AdaptiveLocator`](cgcontact::AdaptiveLocator) reports them; on an adaptive body the inside
+//! tolerance is the adaptive locator's (from the finest spacing). The filters' radii are per
+//! refinement level (the uniform rule applied to each level's leaves); docs/baselines.md says how.
 //!
 //! | strategy | [`Locator::name`](cgcontact::Locator::name) | candidates of a point | order tried | complete? | cost per point |
 //! |---|---|---|---|---|---|
-//! | [`BruteForce`] | `brute` | every active cell | ascending cell | yes (the test oracle) | O(cells) inversions |
-//! | [`CentroidRadius`] (FEAVOX's original filter) | `centroid` | cells whose deformed centroid is within a radius (default: largest deformed half-diagonal) | nearest centroid first | no | O(cells) distances |
-//! | [`NodeRadius`] (the seed's `whereami`) | `noderad`, `noderad-seed` | cells touching a deformed node within the minimum node distance ([`RadiusRule`]) | ascending cell | no | O(nodes) distances |
+//! | [`BruteForce`] | `brute` | every cell (active cell or leaf) | ascending cell | yes (the test oracle) | O(cells) inversions |
+//! | [`CentroidRadius`] (FEAVOX's original filter) | `centroid` | cells whose deformed centroid is within a radius (default: largest deformed half-diagonal of the cell's level) | nearest centroid first | no | O(cells) distances |
+//! | [`NodeRadius`] (the seed's `whereami`) | `noderad`, `noderad-seed` | cells having a deformed corner within the minimum node distance of the cell's level ([`RadiusRule`]) | ascending cell | no | O(nodes) distances |
 //! | [`RTree`] (rstar over deformed cell boxes) | `rtree` | cells whose widened bounding box holds the point | ascending cell | yes | O(log cells) + a few inversions |
 //!
 //! Where strategies answer one cell for a point shared by several (a face, edge or node), brute force
@@ -59,6 +67,7 @@ mod seed_newton;
 
 pub use brute::BruteForce;
 pub use centroid::CentroidRadius;
+pub use common::BodyRef;
 pub use noderad::{Inversion, NodeRadius, NodeRadiusOptions, RadiusRule};
 pub use rtree::RTree;
 pub use seed_newton::{SEED_MAX_ITER, SEED_TOL, seed_eval_loc_coords};

@@ -9,19 +9,20 @@ use cgcontact::{
 };
 use smallvec::SmallVec;
 
-use crate::common::{Cells, Collect, owners_of, try_in_order};
+use crate::common::{BodyRef, Cells, Collect, owners_of, try_in_order};
 use crate::seed_newton::seed_eval_loc_coords;
 
 /// How [`NodeRadius`] chooses its search radius.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub enum RadiusRule {
-    /// The minimum node-to-node distance of the deformed mesh over all pairs of nodes of active cells:
-    /// the seed's intent (`Radius.m`). Computed exactly with a grid of buckets, in about O(nodes).
+    /// The minimum node-to-node distance of the deformed mesh over all pairs of nodes of active cells
+    /// (of an adaptive body: over the nodes of each level's leaves, one radius per level): the
+    /// seed's intent (`Radius.m`). Computed exactly with a grid of buckets, in about O(nodes).
     #[default]
     GlobalMin,
     /// What the seed's `Radius.m` literally returns: its loop overwrites `radius` on every node, so the
     /// result is the **last** node's minimum distance to the others (last in ascending lattice node
-    /// order here).
+    /// order here; of an adaptive body: among each level's leaves' nodes, to the others of them).
     SeedLiteral,
     /// A fixed radius in the body's length unit (finite, ≥ 0).
     Fixed(f64),
@@ -53,29 +54,55 @@ pub struct NodeRadiusOptions {
 type Candidates = SmallVec<[CellId; 32]>;
 
 /// The seed's filter ("node-radius", `whereami` of the 2019 thesis): the candidates of a point are
-/// the active cells having a deformed node within [`NodeRadius::radius`] of it, found like the seed
-/// by a linear scan over **every** node (O(nodes) per point), tried in ascending cell order (what
+/// the cells having a deformed node within [`NodeRadius::radius`] of it, found like the seed by a
+/// linear scan over **every** node (O(nodes) per point), tried in ascending cell order (what
 /// MATLAB's `find(any(ismember(Topology, NodeCell)))` yields); the first inside wins.
 ///
 /// The radius is no bound on how far a point inside a cell can lie from every node of it: even an
 /// undeformed lattice with h_z < h_x / 2 loses its cell centres, and a distorted cell loses more
 /// (docs/baselines.md counts the misses). Not provably complete.
+///
+/// **Adaptive bodies**: the nodes of a leaf are its 8 corners (a hanging node is a node of the finer
+/// leaves it is a corner of, not of the coarser leaf whose edge or face it lies on). The radius rule
+/// is applied to each level apart, over the nodes of that level's leaves, as if they were a uniform
+/// body; a leaf is a candidate when one of its corners lies within its level's radius
+/// ([`NodeRadius::level_radius`]). The finest leaves' minimum node distance for every leaf would
+/// lose most of a coarse leaf's volume: its centre lies √3/2 of its edge from every corner. A fixed
+/// radius is the same for every level.
 #[derive(Clone, Debug)]
 pub struct NodeRadius<'a> {
     cells: Cells<'a>,
-    /// Lattice index of each node of an active cell, ascending.
-    nodes: Vec<usize>,
-    /// Deformed position of each of those nodes relative to the lattice origin.
+    /// Deformed position of each node of a cell relative to the lattice origin, ascending node
+    /// order.
     positions: Vec<DVec3>,
-    radius: f64,
+    /// How a node's cells are found.
+    topology: Topology<'a>,
+    /// The search radius of each level (one entry for a uniform body).
+    radii: Vec<f64>,
     options: NodeRadiusOptions,
 }
 
+/// The cells having each node as a corner.
+#[derive(Clone, Debug)]
+enum Topology<'a> {
+    /// A uniform body and each node's lattice index; a node's cells follow from the lattice, as in
+    /// the seed.
+    Lattice { body: &'a Body, nodes: Vec<usize> },
+    /// An adaptive body: the leaves of node n are `leaves[first[n]..first[n + 1]]`, and `reach[n]`
+    /// is the largest radius over them (a node farther from the point is skipped).
+    Leaves {
+        first: Vec<u32>,
+        leaves: Vec<CellId>,
+        reach: Vec<f64>,
+    },
+}
+
 impl<'a> NodeRadius<'a> {
-    /// The seed's filter with the global minimum node distance as radius and the exact Newton.
+    /// The seed's filter with the global minimum node distance as radius and the exact Newton, over
+    /// `body`, a `&Body` or a `&AdaptiveBody`.
     ///
     /// Errors when the settings are out of range.
-    pub fn new(body: &'a Body, settings: Settings) -> Result<Self, Error> {
+    pub fn new(body: impl Into<BodyRef<'a>>, settings: Settings) -> Result<Self, Error> {
         Self::with_options(body, settings, NodeRadiusOptions::default())
     }
 
@@ -83,46 +110,120 @@ impl<'a> NodeRadius<'a> {
     ///
     /// Errors when the settings are out of range or a fixed radius is not finite and non-negative.
     pub fn with_options(
-        body: &'a Body,
+        body: impl Into<BodyRef<'a>>,
         settings: Settings,
         options: NodeRadiusOptions,
     ) -> Result<Self, Error> {
+        let body = body.into();
         let cells = Cells::new(body, settings)?;
-        let lattice = body.lattice();
-        let nodes: Vec<usize> = body.nodes().collect();
-        let positions: Vec<DVec3> = nodes
-            .iter()
-            .zip(body.displacements())
-            .map(|(&node, &u)| {
-                let ijk = lattice
-                    .node_ijk(node)
-                    .expect("body nodes are lattice nodes");
-                lattice.node_position(ijk) - lattice.origin() + u
-            })
-            .collect();
-        let radius = match options.radius {
-            RadiusRule::GlobalMin => global_min_distance(&positions),
-            RadiusRule::SeedLiteral => last_node_min_distance(&positions),
-            RadiusRule::Fixed(r) if r.is_finite() && r >= 0.0 => r,
-            RadiusRule::Fixed(r) => {
-                return Err(Error::InvalidSettings(format!(
-                    "node radius {r} must be finite and ≥ 0"
-                )));
+        let rule = |positions: &[DVec3]| match options.radius {
+            RadiusRule::GlobalMin => Ok(global_min_distance(positions)),
+            RadiusRule::SeedLiteral => Ok(last_node_min_distance(positions)),
+            RadiusRule::Fixed(r) if r.is_finite() && r >= 0.0 => Ok(r),
+            RadiusRule::Fixed(r) => Err(Error::InvalidSettings(format!(
+                "node radius {r} must be finite and ≥ 0"
+            ))),
+        };
+        let (positions, topology, radii) = match body {
+            BodyRef::Uniform(body) => {
+                let lattice = body.lattice();
+                let nodes: Vec<usize> = body.nodes().collect();
+                let positions: Vec<DVec3> = nodes
+                    .iter()
+                    .zip(body.displacements())
+                    .map(|(&node, &u)| {
+                        let ijk = lattice
+                            .node_ijk(node)
+                            .expect("body nodes are lattice nodes");
+                        lattice.node_position(ijk) - lattice.origin() + u
+                    })
+                    .collect();
+                let radii = vec![rule(&positions)?];
+                (positions, Topology::Lattice { body, nodes }, radii)
+            }
+            BodyRef::Adaptive(adaptive) => {
+                let levels = usize::from(adaptive.finest_level()) + 1;
+                let nodes = adaptive.node_count();
+                let mut positions = vec![DVec3::ZERO; nodes];
+                // Which levels' leaves have each node as a corner (bit l: level l), and how many.
+                let mut node_levels = vec![0u32; nodes];
+                let mut first = vec![0u32; nodes + 1];
+                for cell in body.cells() {
+                    let corners = cells.origin_relative_corners(cell);
+                    let level = body.level(cell);
+                    let corner_nodes = adaptive
+                        .cell_nodes(cell)
+                        .expect("cells come from the body's leaves");
+                    for (&node, position) in corner_nodes.iter().zip(corners) {
+                        positions[node] = position;
+                        node_levels[node] |= 1 << level;
+                        first[node + 1] += 1;
+                    }
+                }
+                for n in 0..nodes {
+                    first[n + 1] += first[n];
+                }
+                let mut leaves = vec![CellId(0); first[nodes] as usize];
+                let mut next = first.clone();
+                for cell in body.cells() {
+                    for node in adaptive
+                        .cell_nodes(cell)
+                        .expect("cells come from the body's leaves")
+                    {
+                        leaves[next[node] as usize] = cell;
+                        next[node] += 1;
+                    }
+                }
+                let mut radii = vec![0.0; levels];
+                for (level, radius) in radii.iter_mut().enumerate() {
+                    let of_level: Vec<DVec3> = (0..nodes)
+                        .filter(|&n| node_levels[n] & (1 << level) != 0)
+                        .map(|n| positions[n])
+                        .collect();
+                    if !of_level.is_empty() {
+                        *radius = rule(&of_level)?;
+                    }
+                }
+                let reach = node_levels
+                    .iter()
+                    .map(|&bits| {
+                        (0..levels)
+                            .filter(|&l| bits & (1 << l) != 0)
+                            .map(|l| radii[l])
+                            .fold(0.0, f64::max)
+                    })
+                    .collect();
+                (
+                    positions,
+                    Topology::Leaves {
+                        first,
+                        leaves,
+                        reach,
+                    },
+                    radii,
+                )
             }
         };
         Ok(Self {
             cells,
-            nodes,
             positions,
-            radius,
+            topology,
+            radii,
             options,
         })
     }
 
-    /// The search radius in force.
+    /// The largest search radius in force (the radius of every cell of a uniform body).
     #[must_use]
     pub fn radius(&self) -> f64 {
-        self.radius
+        self.radii.iter().copied().fold(0.0, f64::max)
+    }
+
+    /// The search radius of the cells of `level` (0 where the body has no cell of that level),
+    /// `None` beyond the finest level.
+    #[must_use]
+    pub fn level_radius(&self, level: u8) -> Option<f64> {
+        self.radii.get(usize::from(level)).copied()
     }
 
     /// The options in force.
@@ -140,23 +241,48 @@ impl<'a> NodeRadius<'a> {
     /// Candidate cells of `x`, ascending: a linear scan over every node, like the seed's `NodeRad`.
     fn candidates(&self, x: DVec3) -> Candidates {
         let lattice = self.cells.lattice();
-        let counts = lattice.cells();
         let p = x - lattice.origin();
         let mut found = Candidates::new();
-        for (&node, position) in self.nodes.iter().zip(&self.positions) {
-            if position.distance(p) > self.radius {
-                continue;
+        match &self.topology {
+            Topology::Lattice { body, nodes } => {
+                let radius = self.radii[0];
+                let counts = lattice.cells();
+                for (&node, position) in nodes.iter().zip(&self.positions) {
+                    if position.distance(p) > radius {
+                        continue;
+                    }
+                    let ijk = lattice
+                        .node_ijk(node)
+                        .expect("body nodes are lattice nodes");
+                    for offset in CORNER_OFFSETS {
+                        // The cells having this node as their corner `offset`.
+                        let cell_ijk: [u32; 3] =
+                            std::array::from_fn(|a| ijk[a].wrapping_sub(offset[a]));
+                        if (0..3).all(|a| cell_ijk[a] < counts[a]) {
+                            let cell = lattice.cell_id(cell_ijk);
+                            if body.is_active(cell) {
+                                found.push(cell);
+                            }
+                        }
+                    }
+                }
             }
-            let ijk = lattice
-                .node_ijk(node)
-                .expect("body nodes are lattice nodes");
-            for offset in CORNER_OFFSETS {
-                // The cells having this node as their corner `offset`.
-                let cell_ijk: [u32; 3] = std::array::from_fn(|a| ijk[a].wrapping_sub(offset[a]));
-                if (0..3).all(|a| cell_ijk[a] < counts[a]) {
-                    let cell = lattice.cell_id(cell_ijk);
-                    if self.cells.body().is_active(cell) {
-                        found.push(cell);
+            Topology::Leaves {
+                first,
+                leaves,
+                reach,
+            } => {
+                let body = self.cells.body();
+                for (node, position) in self.positions.iter().enumerate() {
+                    let distance = position.distance(p);
+                    if distance > reach[node] {
+                        continue;
+                    }
+                    let of_node = &leaves[first[node] as usize..first[node + 1] as usize];
+                    for &cell in of_node {
+                        if distance <= self.radii[usize::from(body.level(cell))] {
+                            found.push(cell);
+                        }
                     }
                 }
             }
@@ -179,8 +305,8 @@ impl<'a> NodeRadius<'a> {
 
     /// The seed's Newton on `cell`, in the cell's local frame.
     fn invert_seed(&self, cell: CellId, x: DVec3) -> Option<Hit> {
-        let (_, low, u) = self.cells.local(cell);
-        let map = Hex8Map::lattice_cell(self.cells.lattice().h(), &u);
+        let (low, h, u) = self.cells.local(cell);
+        let map = Hex8Map::lattice_cell(h, &u);
         let inversion = seed_eval_loc_coords(&map, x - low);
         (inversion.status == Status::Inside).then_some(Hit {
             cell,

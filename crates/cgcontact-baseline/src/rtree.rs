@@ -4,11 +4,11 @@ use std::ops::ControlFlow;
 use std::time::{Duration, Instant};
 
 use cgcontact::glam::DVec3;
-use cgcontact::{Answer, Body, CellId, Error, Locator, Owners, PointError, Settings};
+use cgcontact::{Answer, CellId, Error, Locator, Owners, PointError, Settings};
 use rstar::primitives::{GeomWithData, Rectangle};
 use smallvec::SmallVec;
 
-use crate::common::{Cells, Collect, owners_of};
+use crate::common::{BodyRef, Cells, Collect, owners_of};
 
 /// One tree entry: a cell's widened bounding box (relative to the lattice origin) and its id.
 type CellBox = GeomWithData<Rectangle<[f64; 3]>, CellId>;
@@ -35,15 +35,17 @@ pub struct RTree<'a> {
 }
 
 impl<'a> RTree<'a> {
-    /// Builds the tree over every active cell of `body` (O(cells log cells)).
+    /// Builds the tree over every cell of `body`, a `&Body` (its active cells) or a
+    /// `&AdaptiveBody` (its leaves), in O(cells log cells).
     ///
     /// Errors when the settings are out of range.
-    pub fn new(body: &'a Body, settings: Settings) -> Result<Self, Error> {
+    pub fn new(body: impl Into<BodyRef<'a>>, settings: Settings) -> Result<Self, Error> {
         let start = Instant::now();
+        let body = body.into();
         let cells = Cells::new(body, settings)?;
         let origin = body.lattice().origin();
         let boxes: Vec<CellBox> = body
-            .active_cells()
+            .cells()
             .map(|cell| {
                 let corners = cells.origin_relative_corners(cell);
                 let low = corners.iter().copied().fold(DVec3::INFINITY, DVec3::min);
@@ -72,7 +74,7 @@ impl<'a> RTree<'a> {
         self.build_time
     }
 
-    /// Number of cells in the tree (the body's active cells).
+    /// Number of cells in the tree (the body's active cells, or leaves).
     #[must_use]
     pub fn len(&self) -> usize {
         self.tree.size()

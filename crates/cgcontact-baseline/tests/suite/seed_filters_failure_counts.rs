@@ -4,7 +4,7 @@
 //! documentation cannot drift from the code.
 //!
 //! Reproduce (and print the table to paste into the docs):
-//! `cargo test -p cgcontact-baseline --test seed_filters_failure_counts -- --nocapture`
+//! `cargo test -p cgcontact-baseline --test suite seed_filters_failure_counts -- --nocapture`
 
 use crate::common;
 

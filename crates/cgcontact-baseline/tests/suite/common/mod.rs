@@ -2,6 +2,8 @@
 //! node jitter and holes, and query points with known answers, near the boundary and far outside.
 #![allow(dead_code)] // Each test binary uses part of this module.
 
+pub mod adaptive;
+
 use bitvec::vec::BitVec;
 use cgcontact::glam::DVec3;
 use cgcontact::hex8::Hex8Map;
