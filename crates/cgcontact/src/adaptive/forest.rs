@@ -126,8 +126,10 @@ impl Forest {
 
     /// The leaf whose undeformed box holds `t` (base lattice coordinates), with `t` clamped into
     /// the lattice's box first; on a boundary between leaves, the upper one. `None` in a hole.
+    /// With the leaf's id come its level and indices, found on the way down (the hot path then
+    /// reads no leaf record).
     #[inline]
-    pub(super) fn leaf_at(&self, t: DVec3) -> Option<u32> {
+    pub(super) fn leaf_at(&self, t: DVec3) -> Option<(u32, Leaf)> {
         let mut ijk = [0u32; 3];
         for axis in 0..3 {
             // As `Lattice::clamped_cell`: `max` maps negatives and NaN to 0, `as` saturates.
@@ -135,7 +137,9 @@ impl Forest {
         }
         let mut entry = self.base_entry(ijk);
         let mut scale = 1.0;
+        let mut level = 0;
         while entry & NODE != 0 && entry != EMPTY {
+            level += 1;
             scale *= 2.0;
             let mut child = 0;
             for axis in 0..3 {
@@ -146,7 +150,7 @@ impl Forest {
             }
             entry = self.tree[(entry & !NODE) as usize][child as usize];
         }
-        (entry != EMPTY).then_some(entry)
+        (entry != EMPTY).then_some((entry, Leaf { level, ijk }))
     }
 
     /// The leaf holding the finest-level cell `q` (indices at level `finest`), if any.
@@ -164,9 +168,14 @@ impl Forest {
         (entry != EMPTY).then_some(entry)
     }
 
-    /// Calls `visit(leaf)` for every leaf whose closed undeformed box meets the box [`low`, `high`]
-    /// (base lattice coordinates), each once, in base cell order and depth first.
-    pub(super) fn for_each_in_box(&self, low: DVec3, high: DVec3, mut visit: impl FnMut(u32)) {
+    /// Calls `visit(id, leaf)` for every leaf whose closed undeformed box meets the box [`low`,
+    /// `high`] (base lattice coordinates), each once, in base cell order and depth first.
+    pub(super) fn for_each_in_box(
+        &self,
+        low: DVec3,
+        high: DVec3,
+        mut visit: impl FnMut(u32, Leaf),
+    ) {
         let mut lo = [0u32; 3];
         let mut hi = [0u32; 3];
         for axis in 0..3 {
@@ -180,7 +189,7 @@ impl Forest {
             hi[axis] = (high[axis].floor().max(0.0) as u32).min(self.cells[axis] - 1);
         }
         // (entry, level, ijk) still to look at.
-        let mut stack: smallvec::SmallVec<[(u32, u32, [u32; 3]); 64]> = smallvec::SmallVec::new();
+        let mut stack: smallvec::SmallVec<[(u32, u8, [u32; 3]); 64]> = smallvec::SmallVec::new();
         for k in lo[2]..=hi[2] {
             for j in lo[1]..=hi[1] {
                 for i in lo[0]..=hi[0] {
@@ -190,10 +199,10 @@ impl Forest {
                             continue;
                         }
                         if entry & NODE == 0 {
-                            visit(entry);
+                            visit(entry, Leaf { level, ijk });
                             continue;
                         }
-                        let size = 0.5f64.powi(level as i32 + 1);
+                        let size = 0.5f64.powi(i32::from(level) + 1);
                         let children = &self.tree[(entry & !NODE) as usize];
                         // Pushed high to low so that they pop in binary order.
                         for child in (0..8u32).rev() {

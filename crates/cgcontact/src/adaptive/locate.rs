@@ -14,7 +14,7 @@
 use glam::DVec3;
 use smallvec::SmallVec;
 
-use super::AdaptiveBody;
+use super::{AdaptiveBody, Leaf};
 use crate::hex8::{Hex8Map, Hex8Map32, Kernel, NewtonOptions, Status};
 use crate::lattice::CellId;
 use crate::locate::{Answer, Hit, Locator, Owners};
@@ -136,33 +136,37 @@ impl<'a> AdaptiveLocator<'a> {
     }
 
     /// The guess x − ũ in base lattice coordinates, ũ interpolated in the leaf holding `t_at`
-    /// (zero in a hole).
-    #[inline]
-    fn guess<K: Kernel>(&self, t_x: DVec3, t_at: DVec3) -> DVec3 {
-        let Some(id) = self.body.forest.leaf_at(t_at) else {
-            return t_x;
+    /// (zero in a hole), and that leaf with its corner displacements.
+    #[inline(always)]
+    fn guess<K: Kernel>(
+        &self,
+        t_x: DVec3,
+        t_at: DVec3,
+    ) -> (DVec3, Option<(u32, Leaf, [DVec3; 8])>) {
+        let Some((id, leaf)) = self.body.forest.leaf_at(t_at) else {
+            return (t_x, None);
         };
-        let leaf = self.body.leaves[id as usize];
-        let u_map = K::displacement_map(&self.body.leaf_displacements(id));
+        let u = self.body.leaf_displacements(id);
+        let u_map = K::displacement_map(&u);
         let xi = Self::undeformed_xi(t_at, leaf.level, leaf.ijk).clamp(DVec3::NEG_ONE, DVec3::ONE);
-        t_x - u_map.map_f64(xi) * self.inv_h
+        (t_x - u_map.map_f64(xi) * self.inv_h, Some((id, leaf, u)))
     }
 
     /// Invert leaf `id` for `x` from the guess `t_guess` and collect the hit: `Some` when the
     /// search is over.
     #[allow(clippy::too_many_arguments)]
-    #[inline]
+    #[inline(always)]
     fn visit<K: Kernel>(
         &self,
         x: DVec3,
         id: u32,
+        leaf: Leaf,
         u: &[DVec3; 8],
         t_guess: DVec3,
         options: &NewtonOptions,
         collect: &mut Collect<'_>,
         inversions: &mut u32,
     ) -> Option<Hit> {
-        let leaf = self.body.leaves[id as usize];
         let map = K::lattice_cell(self.body.spacing(leaf.level), u);
         let xi0 = Self::undeformed_xi(t_guess, leaf.level, leaf.ijk);
         let inversion = map.invert_f64(x - self.body.leaf_origin(leaf), xi0, options);
@@ -195,51 +199,86 @@ impl<'a> AdaptiveLocator<'a> {
     ) -> Option<Hit> {
         let body = self.body;
         let t_x = (x - body.lattice().origin()) * self.inv_h;
-        let mut t_guess = match self.settings.order {
+        let (mut t_guess, at_x) = match self.settings.order {
             CandidateOrder::Predicted => self.guess::<K>(t_x, t_x),
-            CandidateOrder::Undeformed => t_x,
+            CandidateOrder::Undeformed => (t_x, None),
         };
         let first = body.forest.leaf_at(t_guess);
-        if let Some(id) = first {
-            let u = body.leaf_displacements(id);
-            let hit = self.visit::<K>(x, id, &u, t_guess, options, collect, inversions);
+        if let Some((id, leaf)) = first {
+            // Most often the leaf holding x itself: its displacements are at hand.
+            let u = match at_x {
+                Some((at, _, u)) if at == id => u,
+                _ => body.leaf_displacements(id),
+            };
+            let hit = self.visit::<K>(x, id, leaf, &u, t_guess, options, collect, inversions);
             if hit.is_some() {
                 return hit;
             }
         }
-        // A miss: refine the guess by the fixed point X ← x − ũ(X), as the uniform locator does,
-        // then every other leaf meeting x − the displacement range, nearest the guess first.
+        self.search_box::<K>(
+            x,
+            t_x,
+            &mut t_guess,
+            first.map(|(id, _)| id),
+            options,
+            collect,
+            inversions,
+        )
+    }
+
+    /// After a miss in the predicted leaf `first`: refine the guess by the fixed point
+    /// X ← x − ũ(X), as the uniform locator does, then try every other leaf meeting x − the
+    /// displacement range whose deformed corners' bounds hold x, nearest the guess first. Out of
+    /// line: the common path stays small.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(never)]
+    fn search_box<K: Kernel>(
+        &self,
+        x: DVec3,
+        t_x: DVec3,
+        t_guess: &mut DVec3,
+        first: Option<u32>,
+        options: &NewtonOptions,
+        collect: &mut Collect<'_>,
+        inversions: &mut u32,
+    ) -> Option<Hit> {
+        let body = self.body;
         if self.settings.order == CandidateOrder::Predicted {
             for _ in 0..2 {
-                t_guess = self.guess::<K>(t_x, t_guess);
+                *t_guess = self.guess::<K>(t_x, *t_guess).0;
             }
         }
+        let t_guess = *t_guess;
         let tau = options.inside_tol;
         let range = self.u_range;
         let w = reach::widening(body.lattice().h(), range.high - range.low, tau);
         let low = t_x - (range.high + w) * self.inv_h;
         let high = t_x - (range.low - w) * self.inv_h;
-        let mut candidates: SmallVec<[(f64, u32); 32]> = SmallVec::new();
-        body.forest.for_each_in_box(low, high, |id| {
+        // Only the leaves whose own deformed corners can reach x: usually none to a few.
+        let mut candidates: SmallVec<[(f64, u32, Leaf); 16]> = SmallVec::new();
+        body.forest.for_each_in_box(low, high, |id, leaf| {
             if Some(id) == first {
                 return;
             }
-            let leaf = body.leaves[id as usize];
+            let u = body.leaf_displacements(id);
+            if !reach::cell_reaches(
+                x - body.leaf_origin(leaf),
+                body.spacing(leaf.level),
+                &u,
+                tau,
+            ) {
+                return;
+            }
             let size = 0.5f64.powi(i32::from(leaf.level));
             let [i, j, k] = leaf.ijk;
             let lo = DVec3::new(f64::from(i), f64::from(j), f64::from(k)) * size;
             let gap = (lo - t_guess).max(t_guess - (lo + size)).max(DVec3::ZERO);
-            candidates.push((gap.max_element(), id));
+            candidates.push((gap.max_element(), id, leaf));
         });
         candidates.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-        for (_, id) in candidates {
-            let leaf = body.leaves[id as usize];
+        for (_, id, leaf) in candidates {
             let u = body.leaf_displacements(id);
-            let rel = x - body.leaf_origin(leaf);
-            if !reach::cell_reaches(rel, body.spacing(leaf.level), &u, tau) {
-                continue;
-            }
-            let hit = self.visit::<K>(x, id, &u, t_guess, options, collect, inversions);
+            let hit = self.visit::<K>(x, id, leaf, &u, t_guess, options, collect, inversions);
             if hit.is_some() {
                 return hit;
             }

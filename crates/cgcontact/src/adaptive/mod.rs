@@ -308,7 +308,10 @@ impl AdaptiveBody {
     pub fn leaf_at(&self, x: DVec3) -> Option<CellId> {
         let t = (x - self.lattice.origin()) / self.lattice.h();
         let inside = t.cmpge(DVec3::ZERO).all() && t.cmple(self.upper_t()).all();
-        inside.then(|| self.forest.leaf_at(t)).flatten().map(CellId)
+        inside
+            .then(|| self.forest.leaf_at(t))
+            .flatten()
+            .map(|(id, _)| CellId(id))
     }
 
     /// The base lattice's upper corner in lattice coordinates.
