@@ -176,23 +176,8 @@ impl<'a> Cells<'a> {
     #[inline]
     pub(crate) fn local(&self, cell: CellId) -> (DVec3, DVec3, [DVec3; 8]) {
         match self.body {
-            BodyRef::Uniform(body) => {
-                let lattice = body.lattice();
-                let ijk = lattice
-                    .cell_ijk(cell)
-                    .expect("candidate cells come from the body's active cells");
-                let u = body
-                    .cell_displacements(cell)
-                    .expect("candidate cells are active cells");
-                (lattice.node_position(ijk), lattice.h(), u)
-            }
-            BodyRef::Adaptive(body) => {
-                let leaf = body.leaves()[cell.index()];
-                let u = body
-                    .cell_displacements(cell)
-                    .expect("candidate cells are leaves");
-                (body.leaf_origin(leaf), body.spacing(leaf.level), u)
-            }
+            BodyRef::Uniform(body) => uniform_local(body, cell),
+            BodyRef::Adaptive(body) => adaptive_local(body, cell),
         }
     }
 
@@ -200,14 +185,14 @@ impl<'a> Cells<'a> {
     /// centroids, boxes; the origin-relative frame keeps them accurate far from the origin).
     pub(crate) fn origin_relative_corners(&self, cell: CellId) -> [DVec3; 8] {
         let (ijk, h, u) = match self.body {
-            BodyRef::Uniform(body) => (
-                body.lattice()
+            BodyRef::Uniform(body) => {
+                let (_, h, u) = uniform_local(body, cell);
+                let ijk = body
+                    .lattice()
                     .cell_ijk(cell)
-                    .expect("candidate cells come from the body's active cells"),
-                body.lattice().h(),
-                body.cell_displacements(cell)
-                    .expect("candidate cells are active cells"),
-            ),
+                    .expect("candidate cells come from the body's active cells");
+                (ijk, h, u)
+            }
             BodyRef::Adaptive(body) => {
                 let leaf = body.leaves()[cell.index()];
                 let u = body
@@ -275,6 +260,32 @@ impl<'a> Cells<'a> {
             self.invert_exact::<K>(cell, x, options)
         })
     }
+}
+
+/// [`Cells::local`] of an active cell of a uniform body. A function of its own, not an arm of the
+/// match, and the only caller of `Body::cell_displacements` in this crate, so that it compiles as
+/// before adaptive bodies: with a second caller, the brute-force oracle's inner loop called
+/// `cell_displacements` instead of inlining it, 5 % more instructions (cachegrind).
+#[inline]
+fn uniform_local(body: &Body, cell: CellId) -> (DVec3, DVec3, [DVec3; 8]) {
+    let lattice = body.lattice();
+    let ijk = lattice
+        .cell_ijk(cell)
+        .expect("candidate cells come from the body's active cells");
+    let u = body
+        .cell_displacements(cell)
+        .expect("candidate cells are active cells");
+    (lattice.node_position(ijk), lattice.h(), u)
+}
+
+/// [`Cells::local`] of a leaf of an adaptive body.
+#[inline]
+fn adaptive_local(body: &AdaptiveBody, cell: CellId) -> (DVec3, DVec3, [DVec3; 8]) {
+    let leaf = body.leaves()[cell.index()];
+    let u = body
+        .cell_displacements(cell)
+        .expect("candidate cells are leaves");
+    (body.leaf_origin(leaf), body.spacing(leaf.level), u)
 }
 
 /// Runs `invert` over `candidates` in order, counting inversions; first inside wins, or every inside
