@@ -49,7 +49,12 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         answers,
         tried,
         mut summary,
-    } = search(&scene.body, &scene.contact_points, &args.search, &pool)?;
+    } = search(
+        (&scene.body).into(),
+        &scene.contact_points,
+        &args.search,
+        &pool,
+    )?;
 
     let dir = &args.out;
     let cells = CellMap::ascending(&scene.body);

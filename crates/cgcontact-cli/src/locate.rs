@@ -3,9 +3,10 @@
 use std::path::PathBuf;
 
 use anyhow::Result;
+use cgcontact_baseline::BodyRef;
 use cgcontact_io::{
-    DisplacementArray, read_mesh, read_points, write_deformed_vtu, write_points_vtu,
-    write_results_counted,
+    DisplacementArray, MeshBody, read_body, read_points, write_deformed_adaptive_vtu,
+    write_deformed_vtu, write_points_vtu, write_results_counted,
 };
 use clap::Args;
 
@@ -18,7 +19,8 @@ use crate::run::{SearchArgs, Searched, search};
   cgcontact locate --mesh block.vtu --points contact.csv --out results.csv --strategy lattice --json
 
 The mesh is a VTK unstructured grid of hexahedra (legacy .vtk ASCII/binary or XML .vtu) whose nodes lie on
-a cartesian lattice; the displacement is the point-data vector `displacement` (or --displacement NAME).
+a cartesian lattice, or whose cells are dyadic refinements of one (an adaptive mesh: levels are detected
+from the cell sizes, cells and nodes may come in any order); the displacement is the point-data vector `displacement` (or --displacement NAME).
 The points file has three columns x,y,z and an optional header line. Results: CSV with header
 point,cell,xi,eta,zeta,... where cell is the 0-based input cell index, or -1 when not found.")]
 pub struct LocateArgs {
@@ -37,6 +39,10 @@ pub struct LocateArgs {
     /// Also write `mesh.vtu` (deformed, with points held per cell) and `points.vtu` for ParaView to DIR.
     #[arg(long, value_name = "DIR")]
     vtk: Option<PathBuf>,
+    /// On an adaptive mesh, refuse hanging nodes whose displacement breaks their constraint (the
+    /// coarse cell's interpolation there) instead of warning.
+    #[arg(long)]
+    strict: bool,
     #[command(flatten)]
     search: SearchArgs,
 }
@@ -73,35 +79,62 @@ pub fn run(args: &LocateArgs) -> Result<()> {
         prepare_folder("--vtk", dir)?;
     }
     check_outputs(&inputs, &outputs)?;
-    let mesh = read_mesh(
+    let mesh = read_body(
         &args.mesh,
         &DisplacementArray::from_option(args.displacement.as_deref()),
     )?;
+    if let MeshBody::Adaptive(adaptive) = &mesh {
+        let report = adaptive.constraints;
+        if let (false, Some((node, by))) = (report.holds(), report.worst) {
+            let position = adaptive.body.node_position(node).unwrap_or_default();
+            let message = format!(
+                "{}: {} of {} hanging nodes break their constraint by more than {:.1e}; the worst, at {}, by {by:.3e}: the deformed mesh gaps or overlaps there",
+                args.mesh.display(),
+                report.violating,
+                report.hanging,
+                adaptive.constraint_tolerance,
+                position,
+            );
+            if args.strict {
+                anyhow::bail!("{message}");
+            }
+            if !args.search.quiet {
+                eprintln!("cgcontact: warning: {message} (--strict refuses such a mesh)");
+            }
+        }
+    }
     let points = read_points(&args.points)?;
+    let body: BodyRef<'_> = match &mesh {
+        MeshBody::Uniform(m) => (&m.body).into(),
+        MeshBody::Adaptive(m) => (&m.body).into(),
+    };
+    let cells = mesh.cells();
     let Searched {
         answers,
         tried,
         mut summary,
-    } = search(&mesh.body, &points, &args.search, &pool)?;
-    summary.displacement = mesh.has_displacement.then(|| {
+    } = search(body, &points, &args.search, &pool)?;
+    summary.displacement = mesh.has_displacement().then(|| {
         args.displacement
             .clone()
             .unwrap_or_else(|| cgcontact_io::DEFAULT_DISPLACEMENT.to_owned())
     });
     // Name inverted cells as the user knows them: by their index in the input mesh.
     for cell in &mut summary.inverted_cells {
-        *cell = mesh
-            .cells
+        *cell = cells
             .input_cell(cgcontact::CellId(*cell as u32))
             .unwrap_or(*cell);
     }
     if let Some(out) = &args.out {
-        write_results_counted(out, &answers, &tried, &mesh.cells)?;
+        write_results_counted(out, &answers, &tried, cells)?;
         summary.files.push(out.display().to_string());
     }
     if let Some([mesh_path, points_path]) = &vtk_files {
-        write_deformed_vtu(mesh_path, &mesh.body, &mesh.cells, &answers, false)?;
-        write_points_vtu(points_path, &points, &answers, &mesh.cells)?;
+        match &mesh {
+            MeshBody::Uniform(m) => write_deformed_vtu(mesh_path, &m.body, cells, &answers, false)?,
+            MeshBody::Adaptive(m) => write_deformed_adaptive_vtu(mesh_path, &m.body, &answers)?,
+        }
+        write_points_vtu(points_path, &points, &answers, cells)?;
         summary.files.push(mesh_path.display().to_string());
         summary.files.push(points_path.display().to_string());
     }

@@ -6,9 +6,9 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use cgcontact::glam::DVec3;
-use cgcontact::{Answer, Body, LatticeLocator, Locator, Precision, Settings};
+use cgcontact::{AdaptiveLocator, Answer, LatticeLocator, Locator, Precision, Settings};
 use cgcontact_baseline::{
-    BruteForce, CentroidRadius, Inversion, NodeRadius, NodeRadiusOptions, RTree,
+    BodyRef, BruteForce, CentroidRadius, Inversion, NodeRadius, NodeRadiusOptions, RTree,
 };
 use clap::{Args, ValueEnum};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
@@ -161,9 +161,17 @@ pub struct Summary {
     pub strategy: String,
     pub precision: String,
     pub threads: usize,
+    /// Cells of the (base) lattice.
     pub cells: usize,
+    /// Cells searched: active cells, or an adaptive body's leaves.
     pub active_cells: usize,
     pub nodes: usize,
+    /// An adaptive body's refinement levels (finest level + 1); absent for a uniform body.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub levels: Option<u8>,
+    /// An adaptive body's hanging nodes; absent for a uniform body.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub hanging_nodes: Option<usize>,
     pub max_displacement: [f64; 3],
     /// Where the displacement came from: the point-data array read, `generated` for a built-in
     /// scene, or null when the mesh file had none (the body is undeformed).
@@ -202,12 +210,21 @@ impl Summary {
                 ),
                 None => "no displacement array in the mesh: undeformed".to_owned(),
             };
-            say!(
-                "body: {} active of {} lattice cells, {} nodes, {displacement}",
-                self.active_cells,
-                self.cells,
-                self.nodes,
-            )?;
+            match (self.levels, self.hanging_nodes) {
+                (Some(levels), Some(hanging)) => say!(
+                    "body: {} leaf cells on {levels} level{} of a {}-cell base lattice, {} nodes ({hanging} hanging), {displacement}",
+                    self.active_cells,
+                    if levels == 1 { "" } else { "s" },
+                    self.cells,
+                    self.nodes,
+                )?,
+                _ => say!(
+                    "body: {} active of {} lattice cells, {} nodes, {displacement}",
+                    self.active_cells,
+                    self.cells,
+                    self.nodes,
+                )?,
+            }
             say!(
                 "{} ({}, {} thread{}): setup {:.3} ms, query {:.3} ms, {:.3e} points/s, {:.3} inversions per point ({:.3} per located point)",
                 self.strategy,
@@ -259,7 +276,7 @@ impl Summary {
 /// configurations both come here.
 pub fn build_locator<'a>(
     strategy: StrategyName,
-    body: &'a Body,
+    body: BodyRef<'a>,
     settings: Settings,
 ) -> Result<Box<dyn Locator + 'a>> {
     let node_radius = |inversion| {
@@ -273,7 +290,10 @@ pub fn build_locator<'a>(
         )
     };
     Ok(match strategy {
-        StrategyName::Lattice => Box::new(LatticeLocator::new(body, settings)?),
+        StrategyName::Lattice => match body {
+            BodyRef::Uniform(body) => Box::new(LatticeLocator::new(body, settings)?),
+            BodyRef::Adaptive(body) => Box::new(AdaptiveLocator::new(body, settings)?),
+        },
         StrategyName::Brute => Box::new(BruteForce::new(body, settings)?),
         StrategyName::Centroid => Box::new(CentroidRadius::new(body, settings)?),
         StrategyName::Noderad => Box::new(node_radius(Inversion::Exact)?),
@@ -285,7 +305,7 @@ pub fn build_locator<'a>(
 /// Build the strategy, locate every point on `pool` with a progress bar (on a terminal, for long
 /// work), and time both steps.
 pub fn search(
-    body: &Body,
+    body: BodyRef<'_>,
     points: &[DVec3],
     args: &SearchArgs,
     pool: &rayon::ThreadPool,
@@ -367,15 +387,28 @@ pub fn search(
         .to_owned(),
         threads: pool.current_num_threads(),
         cells: body.lattice().cell_count(),
-        active_cells: body.active_count(),
-        nodes: body.node_count(),
+        active_cells: body.cell_count(),
+        nodes: match body {
+            BodyRef::Uniform(b) => b.node_count(),
+            BodyRef::Adaptive(b) => b.node_count(),
+        },
+        levels: match body {
+            BodyRef::Uniform(_) => None,
+            BodyRef::Adaptive(b) => Some(b.finest_level() + 1),
+        },
+        hanging_nodes: match body {
+            BodyRef::Uniform(_) => None,
+            BodyRef::Adaptive(b) => Some(b.hanging_nodes().count()),
+        },
         max_displacement: body.max_displacement().to_array(),
         displacement: Some("generated".to_owned()),
-        inverted_cells: body
-            .inverted_cells()
-            .iter()
-            .map(|(cell, _)| cell.index())
-            .collect(),
+        inverted_cells: match body {
+            BodyRef::Uniform(b) => b.inverted_cells(),
+            BodyRef::Adaptive(b) => b.inverted_cells(),
+        }
+        .iter()
+        .map(|(cell, _)| cell.index())
+        .collect(),
         files: Vec::new(),
     };
     Ok(Searched {

@@ -4,8 +4,8 @@ use std::path::PathBuf;
 
 use anyhow::{Result, bail};
 use cgcontact::glam::DVec3;
-use cgcontact_io::{CellMap, MeshFormat, write_mesh, write_points};
-use cgcontact_scenes::SphereOnBlock;
+use cgcontact_io::{CellMap, MeshFormat, write_adaptive_mesh, write_mesh, write_points};
+use cgcontact_scenes::{KnownPoint, LeafOrder, SphereOnAdaptiveBlock, SphereOnBlock};
 
 use crate::output::{prepare_folder, say};
 use clap::{Args, ValueEnum};
@@ -19,6 +19,10 @@ pub enum SceneName {
     SphereCoarse,
     /// An indented block of --cells cells (default 40 × 80 × 40 = 128,000) of spacing --h, known points only.
     Block,
+    /// The seed's fine block refined by halving under the sphere: --levels levels (default 2) within
+    /// --refine-radius (default the sphere's radius, 1 mm) of the contact patch, 2:1 balanced unless
+    /// --unbalanced; the mesh carries a `level` cell array.
+    SphereAdaptive,
 }
 
 /// Mesh file flavour.
@@ -84,6 +88,19 @@ pub struct SceneArgs {
     /// Seed of the jitter and the known points.
     #[arg(long, default_value_t = 2019)]
     seed: u64,
+    /// `sphere-adaptive`: refinement levels below the base lattice.
+    #[arg(long, value_name = "L", default_value_t = 2)]
+    levels: u8,
+    /// `sphere-adaptive`: cells closer than this to the contact patch's centre are refined
+    /// [default: the sphere's radius].
+    #[arg(long, value_name = "R")]
+    refine_radius: Option<f64>,
+    /// `sphere-adaptive`: no 2:1 balance (neighbouring cells may differ by several levels).
+    #[arg(long)]
+    unbalanced: bool,
+    /// `sphere-adaptive`: write the cells in a random order (from --seed) instead of sorted.
+    #[arg(long)]
+    shuffle: bool,
 }
 
 fn vector(values: &[f64], flag: &str) -> Result<DVec3> {
@@ -95,8 +112,15 @@ fn vector(values: &[f64], flag: &str) -> Result<DVec3> {
 }
 
 pub fn run(args: &SceneArgs) -> Result<()> {
+    let adaptive_only =
+        args.levels != 2 || args.refine_radius.is_some() || args.unbalanced || args.shuffle;
+    if adaptive_only && args.name != SceneName::SphereAdaptive {
+        bail!(
+            "--levels, --refine-radius, --unbalanced and --shuffle apply to `sphere-adaptive` only"
+        );
+    }
     let mut knobs = match args.name {
-        SceneName::SphereFine => SphereOnBlock::fine(),
+        SceneName::SphereFine | SceneName::SphereAdaptive => SphereOnBlock::fine(),
         SceneName::SphereCoarse => SphereOnBlock::coarse(),
         SceneName::Block => {
             if args.cells.len() != 3 || args.cells.contains(&0) {
@@ -138,8 +162,26 @@ pub fn run(args: &SceneArgs) -> Result<()> {
     knobs.allow_inverted = args.allow_inverted;
     knobs.scale = args.scale;
     knobs.seed = args.seed;
-    let scene = knobs.build(&format!("{:?}", args.name).to_lowercase())?;
-
+    let name = match args.name {
+        SceneName::SphereFine => "sphere-fine",
+        SceneName::SphereCoarse => "sphere-coarse",
+        SceneName::Block => "block",
+        SceneName::SphereAdaptive => "sphere-adaptive",
+    };
+    // Every flag checked before the scene is built or any file written.
+    if args.name == SceneName::SphereAdaptive {
+        if let Some(r) = args.refine_radius
+            && !(r.is_finite() && r >= 0.0)
+        {
+            bail!("--refine-radius {r} must be finite and at least 0");
+        }
+        if args.levels > 8 {
+            bail!(
+                "--levels {} is more than 8: the scene would have billions of cells",
+                args.levels
+            );
+        }
+    }
     prepare_folder("--out", &args.out)?;
     let format = match args.format {
         FormatName::Vtu => MeshFormat::Xml,
@@ -147,21 +189,75 @@ pub fn run(args: &SceneArgs) -> Result<()> {
         FormatName::VtkBinary => MeshFormat::LegacyBinary,
     };
     let mesh = args.out.join(format!("mesh.{}", format.extension()));
-    write_mesh(&mesh, &scene.body, format)?;
     let points = args.out.join("points.csv");
-    write_points(&points, &scene.all_points())?;
     let known = args.out.join("known.csv");
-    let cells = CellMap::ascending(&scene.body);
+    let (contact, known_points, summary) = if args.name == SceneName::SphereAdaptive {
+        let adaptive = SphereOnAdaptiveBlock {
+            levels: args.levels,
+            refine_radius: args.refine_radius.unwrap_or(knobs.radius),
+            balanced: !args.unbalanced,
+            order: if args.shuffle {
+                LeafOrder::Shuffled
+            } else {
+                LeafOrder::Sorted
+            },
+            ..SphereOnAdaptiveBlock::refining(knobs)
+        };
+        let scene = adaptive.build(name)?;
+        write_adaptive_mesh(&mesh, &scene.body, format)?;
+        write_points(&points, &scene.all_points())?;
+        let mut per_level = vec![0usize; usize::from(scene.body.finest_level()) + 1];
+        for leaf in scene.body.leaves() {
+            per_level[usize::from(leaf.level)] += 1;
+        }
+        let summary = format!(
+            "scene {}: {} cells on {} levels ({} per level), {} hanging nodes",
+            scene.name,
+            scene.body.cell_count(),
+            per_level.len(),
+            per_level
+                .iter()
+                .map(usize::to_string)
+                .collect::<Vec<_>>()
+                .join("/"),
+            scene.body.hanging_nodes().count(),
+        );
+        // A leaf's id is its index in the mesh file.
+        let known: Vec<(usize, KnownPoint)> =
+            scene.known.iter().map(|k| (k.cell.index(), *k)).collect();
+        (scene.contact_points.len(), known, summary)
+    } else {
+        let scene = knobs.build(name)?;
+        write_mesh(&mesh, &scene.body, format)?;
+        write_points(&points, &scene.all_points())?;
+        let cells = CellMap::ascending(&scene.body);
+        let known: Vec<(usize, KnownPoint)> = scene
+            .known
+            .iter()
+            .map(|k| {
+                (
+                    cells
+                        .input_cell(k.cell)
+                        .expect("known points lie in active cells"),
+                    *k,
+                )
+            })
+            .collect();
+        let summary = format!(
+            "scene {}: {} cells ({} active)",
+            scene.name,
+            scene.body.lattice().cell_count(),
+            scene.body.active_count(),
+        );
+        (scene.contact_points.len(), known, summary)
+    };
     cgcontact_io::write_file(&known, |out| {
         writeln!(out, "point,cell,xi,eta,zeta")?;
-        for (row, k) in scene.known.iter().enumerate() {
-            let cell = cells
-                .input_cell(k.cell)
-                .expect("known points lie in active cells");
+        for (row, (cell, k)) in known_points.iter().enumerate() {
             writeln!(
                 out,
                 "{},{},{},{},{}",
-                scene.contact_points.len() + row,
+                contact + row,
                 cell,
                 k.xi.x,
                 k.xi.y,
@@ -171,12 +267,8 @@ pub fn run(args: &SceneArgs) -> Result<()> {
         Ok(())
     })?;
     say!(
-        "scene {}: {} cells ({} active), {} contact points, {} known points",
-        scene.name,
-        scene.body.lattice().cell_count(),
-        scene.body.active_count(),
-        scene.contact_points.len(),
-        scene.known.len()
+        "{summary}, {contact} contact points, {} known points",
+        known_points.len()
     )?;
     for file in [&mesh, &points, &known] {
         say!("wrote {}", file.display())?;

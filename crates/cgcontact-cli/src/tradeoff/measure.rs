@@ -125,7 +125,7 @@ pub(super) fn measure(
         },
     )?;
     let setup = Instant::now();
-    let locator = build_locator(config.strategy, &scene.body, config.settings)
+    let locator = build_locator(config.strategy, (&scene.body).into(), config.settings)
         .with_context(|| format!("{} on {}", config.id.label(), scene.name))?;
     let setup_seconds = setup.elapsed().as_secs_f64();
 

@@ -245,3 +245,78 @@ fn rows_not_located_carry_their_inversions() {
     );
     assert!(read_results(dir.path().join("results.csv")).is_ok());
 }
+
+#[test]
+fn adaptive_scene_located_as_known_by_every_strategy() {
+    for strategy in ["lattice", "rtree", "brute", "centroid", "noderad"] {
+        scene_then_locate(
+            &["sphere-adaptive", "--h", "0.5", "--known", "300"],
+            &["--strategy", strategy],
+            1e-10,
+        );
+    }
+    // Unbalanced (jumps of two levels), cells shuffled, legacy ASCII, jittered, far from the origin.
+    scene_then_locate(
+        &[
+            "sphere-adaptive",
+            "--h",
+            "0.5",
+            "--known",
+            "1000",
+            "--unbalanced",
+            "--levels",
+            "3",
+            "--shuffle",
+            "--format",
+            "vtk",
+            "--jitter",
+            "0.2",
+            "--offset",
+            "1000",
+        ],
+        &["--threads", "1"],
+        1e-8,
+    );
+    scene_then_locate(
+        &["sphere-adaptive", "--h", "0.5", "--known", "300"],
+        &["--precision", "f32"],
+        1e-4,
+    );
+}
+
+/// A hanging node moved off its constraint: a warning naming the count and the worst node's
+/// offset, or with `--strict` exit code 2.
+#[test]
+fn broken_hanging_node_warns_and_strict_refuses() {
+    use cgcontact::glam::DVec3;
+    use cgcontact::{AdaptiveBody, Lattice, Leaf};
+    let dir = tempfile::tempdir().unwrap();
+    let lattice = Lattice::new(DVec3::ZERO, DVec3::ONE, [2, 1, 1]).unwrap();
+    let mut leaves = vec![Leaf::new(0, [0, 0, 0])];
+    leaves.extend(Leaf::new(0, [1, 0, 0]).children());
+    let mut body = AdaptiveBody::from_leaves(lattice, leaves).unwrap();
+    let hanging = body.hanging_nodes().next().unwrap();
+    let mut u = vec![DVec3::ZERO; body.node_count()];
+    u[hanging].x = 0.01;
+    body.set_displacements(&u).unwrap();
+    let mesh = dir.path().join("mesh.vtu");
+    cgcontact_io::write_adaptive_mesh(&mesh, &body, cgcontact_io::MeshFormat::Xml).unwrap();
+    let points = dir.path().join("points.csv");
+    std::fs::write(&points, "x,y,z\n0.5,0.5,0.5\n1.5,0.25,0.25\n").unwrap();
+    let (mesh, points) = (mesh.to_str().unwrap(), points.to_str().unwrap());
+    let run = cgcontact(&["locate", "--mesh", mesh, "--points", points, "--json"]);
+    assert!(run.status.success());
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        stderr.contains("1 of 5 hanging nodes") && stderr.contains("1.000e-2"),
+        "{stderr}"
+    );
+    let summary: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    assert_eq!(summary["levels"], 2);
+    assert_eq!(summary["hanging_nodes"], 5);
+    assert_eq!(summary["located"], 2);
+    let strict = cgcontact(&["locate", "--mesh", mesh, "--points", points, "--strict"]);
+    assert_eq!(strict.status.code(), Some(2));
+    assert!(!String::from_utf8_lossy(&strict.stderr).contains("warning"));
+    assert!(String::from_utf8_lossy(&strict.stderr).contains("break their constraint"));
+}
