@@ -246,7 +246,7 @@ pub unsafe extern "C" fn cgc_body_from_mesh(
                         return Err(Failure::new(
                             CgcError::InvalidArgument,
                             format!(
-                                "cell {} corner {k}: node {node} is not one of the {n_nodes} nodes (numbered from {index_base})",
+                                "cell {} corner {k} (VTK corners count from 0): node {node} is not one of the {n_nodes} nodes numbered from {index_base}",
                                 c as i64 + index_base
                             ),
                         ));

@@ -472,7 +472,11 @@ fn meshes_that_are_not_lattices_are_refused() {
             cgc_body_from_mesh(nodes.as_ptr(), m, beyond.as_ptr(), e, 0, &mut b),
             CgcError::InvalidArgument
         );
-        assert!(last_error().contains("cell 1 corner 1"), "{}", last_error());
+        assert!(
+            last_error().contains("cell 1 corner 1 (VTK"),
+            "{}",
+            last_error()
+        );
         assert_eq!(
             cgc_body_from_mesh(nodes.as_ptr(), m, topology.as_ptr(), e, 2, &mut b),
             CgcError::InvalidArgument

@@ -1,0 +1,21 @@
+#!/usr/bin/env bash
+# Builds the Octave MEX file: bash crates/cgcontact-capi/octave/build.sh OUTDIR
+# writes OUTDIR/cgcontact_whereami.mex, statically linked to the release build of cgcontact-capi
+# (no LD_LIBRARY_PATH needed): Octave loads it with addpath(OUTDIR) alone.
+# Needs mkoctfile (Debian: apt-get install -y octave liboctave-dev). Honours CARGO_TARGET_DIR.
+set -euo pipefail
+out=${1:?usage: build.sh OUTDIR}
+here=$(cd "$(dirname "$0")" && pwd)
+if ! command -v mkoctfile >/dev/null; then
+    echo "build.sh: mkoctfile not found; install it with: apt-get install -y octave liboctave-dev" >&2
+    exit 2
+fi
+cd "$here/../../.."
+cargo build --release --locked -p cgcontact-capi
+target=$(cargo metadata --format-version 1 --no-deps | sed -n 's/.*"target_directory":"\([^"]*\)".*/\1/p')
+lib="$target/release/libcgcontact_capi.a"
+mkdir -p "$out"
+# --exclude-libs keeps the Rust library's symbols private to the MEX file.
+mkoctfile --mex -O2 -I"$here/../include" "$here/cgcontact_whereami.c" "$lib" \
+    -Wl,--exclude-libs,ALL -lpthread -ldl -lm -o "$out/cgcontact_whereami.mex"
+echo "wrote $out/cgcontact_whereami.mex"

@@ -1,0 +1,301 @@
+/*
+ * cgcontact_whereami: the seed's `whereami` call for Octave and MATLAB, on cgcontact's C ABI.
+ *
+ *   [E, PosL] = cgcontact_whereami(XYZ, XYZ_N0, Topology, U)
+ *   [E, PosL] = cgcontact_whereami(XYZ, XYZ_N0, Topology, U, Options)
+ *
+ *     XYZ       3 x n   points
+ *     XYZ_N0    3 x m   undeformed nodes (on a lattice)
+ *     Topology  8 x e   1-based node numbers per element, VTK hexahedron corner order
+ *     U         m x 3   nodal displacements ([] or omitted: undeformed)
+ *     E         1 x n   1-based element holding each point, 0 when none
+ *     PosL      3 x n   local coordinates in [-1, 1]^3 (NaN when none)
+ *     Options   struct, any of: precision ('f64' or 'f32'), tol (Newton step), max_iter, threads
+ *
+ * Handles, for solver loops (build once, update displacements, locate):
+ *
+ *   H = cgcontact_whereami('new', XYZ_N0, Topology [, Options])
+ *   cgcontact_whereami('update', H, U)
+ *   [E, PosL] = cgcontact_whereami('locate', H, XYZ)
+ *   S = cgcontact_whereami('query_seconds', H, XYZ, Repeats)   % the library's own query time
+ *   cgcontact_whereami('free', H)                               % optional
+ *   N = cgcontact_whereami('handles')                           % how many are live
+ *
+ * H is a number naming an entry of this MEX file's table. Every entry still live is freed when
+ * Octave or MATLAB exits (mexAtExit); 'free' frees one earlier. The MEX file locks itself in
+ * memory (mexLock) so that `clear all` cannot unload it while handles or the library's worker
+ * threads are alive; handles stay valid across `clear`.
+ *
+ * Copies: XYZ and XYZ_N0 are read in place (a 3 x n double array is x y z per point, the layout
+ * the C ABI reads); U is read in place too (component-major). PosL is written in place by the
+ * library. Topology is converted once to 0-based integers, and the element numbers once to
+ * doubles (E).
+ *
+ * Bad input (wrong sizes or types, NaN, nodes not on a lattice) raises an error with
+ * identifier cgcontact:* and a message naming the argument; it never crashes.
+ *
+ * Octave:  bash crates/cgcontact-capi/octave/build.sh OUTDIR        (then addpath(OUTDIR))
+ * MATLAB:  cargo build --release -p cgcontact-capi, then, in MATLAB on Linux,
+ *          mex -O -I<repo>/crates/cgcontact-capi/include cgcontact_whereami.c ...
+ *              <target>/release/libcgcontact_capi.a -lpthread -ldl -lm
+ */
+#include <math.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "mex.h"
+
+#include "cgcontact.h"
+
+/* --- the handle table -------------------------------------------------------------------- */
+
+typedef struct {
+    cgc_body *body;
+    cgc_locator *locator;
+    size_t n_nodes;
+} entry;
+
+static entry *table = NULL;
+static size_t table_len = 0;
+
+static void free_entry(entry *e) {
+    cgc_locator_free(e->locator);
+    cgc_body_free(e->body);
+    e->locator = NULL;
+    e->body = NULL;
+}
+
+static void free_all(void) {
+    for (size_t i = 0; i < table_len; i++) free_entry(&table[i]);
+    free(table);
+    table = NULL;
+    table_len = 0;
+}
+
+/* --- errors ------------------------------------------------------------------------------- */
+
+/* Raises an Octave/MATLAB error with the library's last message. Call after freeing anything
+ * this call allocated outside mxMalloc: the error does not return. */
+static void fail_cgc(cgc_error code, const char *what) {
+    static const char *ids[] = {"cgcontact:ok",          "cgcontact:nullPointer",
+                                "cgcontact:invalidArgument", "cgcontact:lengthMismatch",
+                                "cgcontact:nonFinite",   "cgcontact:notLattice",
+                                "cgcontact:nonFinitePoint", "cgcontact:internal"};
+    const char *id = (code >= 0 && code <= CGC_ERROR_PANIC) ? ids[code] : "cgcontact:error";
+    mexErrMsgIdAndTxt(id, "%s: %s%s", what, cgc_last_error(),
+                      code == CGC_ERROR_NOT_LATTICE ? " (the library counts nodes and cells from 0)" : "");
+}
+
+/* Octave prefixes the message with the function's name; MATLAB shows it beside. */
+#define FAIL(id, ...) mexErrMsgIdAndTxt("cgcontact:" id, __VA_ARGS__)
+
+/* A real, full double matrix with `rows` rows (0 = any); returns its column count. */
+static size_t matrix(const mxArray *a, const char *name, size_t rows, const char *shape) {
+    if (!mxIsDouble(a) || mxIsComplex(a) || mxIsSparse(a))
+        FAIL("badInput", "%s must be a real, full double matrix (%s)", name, shape);
+    if (mxGetNumberOfDimensions(a) != 2 || (rows && mxGetM(a) != rows && !mxIsEmpty(a)))
+        FAIL("badSize", "%s must be %s, got %d x %d", name, shape, (int)mxGetM(a), (int)mxGetN(a));
+    return mxIsEmpty(a) ? 0 : mxGetN(a);
+}
+
+/* --- options ------------------------------------------------------------------------------ */
+
+static void settings_from(const mxArray *options, cgc_settings *s) {
+    cgc_settings_init(CGC_PRECISION_F64, s);
+    if (!options || mxIsEmpty(options)) return;
+    if (!mxIsStruct(options) || mxGetNumberOfElements(options) != 1)
+        FAIL("badInput", "Options must be a scalar struct");
+    const mxArray *f = mxGetField(options, 0, "precision");
+    if (f) {
+        char p[8] = {0};
+        if (!mxIsChar(f) || mxGetString(f, p, sizeof p) != 0 || (strcmp(p, "f64") && strcmp(p, "f32")))
+            FAIL("badInput", "Options.precision must be 'f64' or 'f32'");
+        if (!strcmp(p, "f32")) cgc_settings_init(CGC_PRECISION_F32, s);
+    }
+    const char *numbers[] = {"tol", "max_iter", "threads"};
+    for (int k = 0; k < 3; k++) {
+        f = mxGetField(options, 0, numbers[k]);
+        if (!f) continue;
+        if (!mxIsDouble(f) || mxIsComplex(f) || mxGetNumberOfElements(f) != 1)
+            FAIL("badInput", "Options.%s must be a real scalar", numbers[k]);
+        double v = mxGetScalar(f);
+        if (k == 0) {
+            s->newton_tol = v;
+        } else {
+            if (!(v >= 0 && v <= 4294967295.0 && v == floor(v)))
+                FAIL("badInput", "Options.%s must be a whole number >= 0, got %g", numbers[k], v);
+            if (k == 1) s->max_iter = (uint32_t)v;
+            else s->threads = (uint32_t)v;
+        }
+    }
+}
+
+/* --- building, updating, locating ---------------------------------------------------------- */
+
+/* A body and locator from XYZ_N0 (3 x m) and Topology (8 x e, 1-based). */
+static entry build(const mxArray *nodes, const mxArray *topology, const mxArray *options) {
+    size_t m = matrix(nodes, "XYZ_N0", 3, "3 x m, one undeformed node per column");
+    size_t e = matrix(topology, "Topology", 8, "8 x e, 1-based node numbers per element");
+    if (e == 0) FAIL("badSize", "Topology has no element");
+    if (m == 0) FAIL("badSize", "XYZ_N0 has no node");
+    const double *x = mxGetPr(nodes);
+    for (size_t k = 0; k < 3 * m; k++)
+        if (!isfinite(x[k]))
+            FAIL("nonFinite", "XYZ_N0(%d, %d) = %g is not finite", (int)(k % 3) + 1, (int)(k / 3) + 1, x[k]);
+    cgc_settings settings;
+    settings_from(options, &settings);
+    const double *t = mxGetPr(topology);
+    int64_t *cells = mxMalloc(8 * e * sizeof *cells);
+    for (size_t i = 0; i < 8 * e; i++) {
+        if (!(t[i] == floor(t[i]) && fabs(t[i]) < 9.0e15))
+            FAIL("badInput", "Topology(%d, %d) = %g is not a node number", (int)(i % 8) + 1,
+                 (int)(i / 8) + 1, t[i]);
+        cells[i] = (int64_t)t[i];
+    }
+    entry made = {NULL, NULL, m};
+    cgc_error code = cgc_body_from_mesh(mxGetPr(nodes), m, cells, e, 1, &made.body);
+    mxFree(cells);
+    if (code != CGC_ERROR_OK) fail_cgc(code, "XYZ_N0 and Topology");
+    code = cgc_locator_new(made.body, &settings, &made.locator);
+    if (code != CGC_ERROR_OK) {
+        cgc_body_free(made.body);
+        fail_cgc(code, "Options");
+    }
+    return made;
+}
+
+/* Sets U (m x 3) on the entry's body; on failure frees the entry when `owned`. */
+static void update(entry *e, const mxArray *u, int owned) {
+    if (mxIsEmpty(u)) return;
+    if (!mxIsDouble(u) || mxIsComplex(u) || mxIsSparse(u) || mxGetNumberOfDimensions(u) != 2 ||
+        mxGetM(u) != e->n_nodes || mxGetN(u) != 3) {
+        if (owned) free_entry(e);
+        FAIL("badSize", "U must be a real double m x 3 matrix with m = %d nodes, got %s %d x %d",
+             (int)e->n_nodes, mxGetClassName(u), (int)mxGetM(u), (int)mxGetN(u));
+    }
+    cgc_error code = cgc_body_set_displacements(e->body, mxGetPr(u), e->n_nodes, CGC_LAYOUT_COMPONENT_MAJOR);
+    if (code != CGC_ERROR_OK) {
+        if (owned) free_entry(e);
+        const double *v = mxGetPr(u);
+        for (size_t k = 0; code == CGC_ERROR_NON_FINITE && k < 3 * e->n_nodes; k++)
+            if (!isfinite(v[k]))
+                FAIL("nonFinite", "U(%d, %d) = %g is not finite", (int)(k % e->n_nodes) + 1,
+                     (int)(k / e->n_nodes) + 1, v[k]);
+        fail_cgc(code, "U");
+    }
+}
+
+/* [E, PosL] for points XYZ (3 x n). */
+static void locate(entry *e, const mxArray *points, mxArray **out, int n_out, int owned) {
+    if (!mxIsDouble(points) || mxIsComplex(points) || mxIsSparse(points) ||
+        mxGetNumberOfDimensions(points) != 2 || (mxGetM(points) != 3 && !mxIsEmpty(points))) {
+        if (owned) free_entry(e);
+        FAIL("badSize", "XYZ must be a real double 3 x n matrix, one point per column, got %s %d x %d",
+             mxGetClassName(points), (int)mxGetM(points), (int)mxGetN(points));
+    }
+    size_t n = mxIsEmpty(points) ? 0 : mxGetN(points);
+    mxArray *elements = mxCreateDoubleMatrix(1, n, mxREAL);
+    mxArray *local = mxCreateDoubleMatrix(3, n, mxREAL);
+    int64_t *cells = mxMalloc((n ? n : 1) * sizeof *cells);
+    cgc_error code = cgc_locate(e->locator, mxGetPr(points), n, cells, mxGetPr(local), NULL);
+    if (owned) free_entry(e);
+    if (code == CGC_ERROR_NON_FINITE_POINT) {
+        /* The library counts from 0: name the column as Octave users count. */
+        const double *p = mxGetPr(points);
+        size_t k = 0;
+        while (k < n && isfinite(p[3 * k]) && isfinite(p[3 * k + 1]) && isfinite(p[3 * k + 2])) k++;
+        FAIL("nonFinitePoint", "XYZ(:, %d) = [%g; %g; %g] is not finite", (int)k + 1,
+             p[3 * k], p[3 * k + 1], p[3 * k + 2]);
+    }
+    if (code != CGC_ERROR_OK) fail_cgc(code, "XYZ");
+    double *E = mxGetPr(elements);
+    for (size_t i = 0; i < n; i++) E[i] = (double)(cells[i] + 1);
+    mxFree(cells);
+    out[0] = elements;
+    if (n_out > 1) out[1] = local;
+    else mxDestroyArray(local);
+}
+
+/* --- handles ------------------------------------------------------------------------------- */
+
+static entry *lookup(const mxArray *h) {
+    if (!mxIsDouble(h) || mxIsComplex(h) || mxGetNumberOfElements(h) != 1)
+        FAIL("badHandle", "H must be a handle from cgcontact_whereami('new', ...)");
+    double v = mxGetScalar(h);
+    if (!(v >= 1 && v <= (double)table_len && v == floor(v)) || !table[(size_t)v - 1].body)
+        FAIL("badHandle", "%g is not a live handle (freed, or never made)", v);
+    return &table[(size_t)v - 1];
+}
+
+static double keep(entry made) {
+    size_t slot = 0;
+    while (slot < table_len && table[slot].body) slot++;
+    if (slot == table_len) {
+        entry *grown = realloc(table, (table_len + 1) * sizeof *table);
+        if (!grown) {
+            free_entry(&made);
+            FAIL("outOfMemory", "no memory for a new handle");
+        }
+        table = grown;
+        table[table_len++] = (entry){NULL, NULL, 0};
+    }
+    table[slot] = made;
+    return (double)(slot + 1);
+}
+
+static void args(int nrhs, int lo, int hi, const char *usage) {
+    if (nrhs < lo || nrhs > hi) FAIL("usage", "usage: %s", usage);
+}
+
+void mexFunction(int nlhs, mxArray *plhs[], int nrhs, const mxArray *prhs[]) {
+    static int locked = 0;
+    if (!locked) {
+        /* The library keeps worker threads: never unload it under them. */
+        mexLock();
+        mexAtExit(free_all);
+        locked = 1;
+    }
+    if (nrhs >= 1 && mxIsChar(prhs[0])) {
+        char command[16] = {0};
+        mxGetString(prhs[0], command, sizeof command);
+        if (!strcmp(command, "new")) {
+            args(nrhs, 3, 4, "H = cgcontact_whereami('new', XYZ_N0, Topology [, Options])");
+            entry made = build(prhs[1], prhs[2], nrhs > 3 ? prhs[3] : NULL);
+            plhs[0] = mxCreateDoubleScalar(keep(made));
+        } else if (!strcmp(command, "update")) {
+            args(nrhs, 3, 3, "cgcontact_whereami('update', H, U)");
+            update(lookup(prhs[1]), prhs[2], 0);
+        } else if (!strcmp(command, "locate")) {
+            args(nrhs, 3, 3, "[E, PosL] = cgcontact_whereami('locate', H, XYZ)");
+            locate(lookup(prhs[1]), prhs[2], plhs, nlhs, 0);
+        } else if (!strcmp(command, "query_seconds")) {
+            args(nrhs, 3, 4, "S = cgcontact_whereami('query_seconds', H, XYZ [, Repeats])");
+            entry *e = lookup(prhs[1]);
+            size_t n = matrix(prhs[2], "XYZ", 3, "3 x n, one point per column");
+            double repeats = nrhs > 3 ? mxGetScalar(prhs[3]) : 0;
+            if (!(repeats >= 0 && repeats < 1e6)) FAIL("badInput", "Repeats must be in [0, 1e6)");
+            double seconds = 0;
+            cgc_error code = cgc_locator_query_seconds(e->locator, mxGetPr(prhs[2]), n, (uint32_t)repeats, &seconds);
+            if (code != CGC_ERROR_OK) fail_cgc(code, "XYZ");
+            plhs[0] = mxCreateDoubleScalar(seconds);
+        } else if (!strcmp(command, "free")) {
+            args(nrhs, 2, 2, "cgcontact_whereami('free', H)");
+            free_entry(lookup(prhs[1]));
+        } else if (!strcmp(command, "handles")) {
+            double live = 0;
+            for (size_t i = 0; i < table_len; i++) live += table[i].body != NULL;
+            plhs[0] = mxCreateDoubleScalar(live);
+        } else {
+            FAIL("usage", "unknown command '%s' (new, update, locate, query_seconds, free, handles)", command);
+        }
+        return;
+    }
+    args(nrhs, 3, 5, "[E, PosL] = cgcontact_whereami(XYZ, XYZ_N0, Topology, U [, Options])");
+    if (nlhs > 2) FAIL("usage", "at most two outputs: [E, PosL]");
+    /* Check the points before building anything, so that a bad XYZ costs nothing. */
+    matrix(prhs[0], "XYZ", 3, "3 x n, one point per column");
+    entry made = build(prhs[1], prhs[2], nrhs > 4 ? prhs[4] : NULL);
+    if (nrhs > 3) update(&made, prhs[3], 1);
+    locate(&made, prhs[0], plhs, nlhs, 1);
+}

@@ -1,0 +1,168 @@
+% Octave test of cgcontact_whereami, run by .ci/run:
+%
+%   CGCONTACT_MEX_DIR=DIR CGCONTACT_BIN=path/to/cgcontact octave-cli test_cgcontact_whereami.m
+%
+% Builds a lattice block with a smooth displacement here in Octave, writes it as a legacy ASCII
+% .vtk mesh and a points CSV, runs `cgcontact locate` on them, and checks that the MEX file gives
+% the same answers: the same cells, xi within 1e-12. Then checks that bad inputs raise errors.
+% Any failure ends Octave with a non-zero exit status.
+1;
+
+function check(ok, varargin)
+  if ~ok
+    fprintf(2, 'FAILED: %s\n', sprintf(varargin{:}));
+    exit(1);
+  end
+end
+
+function expect_error(id, f, what)
+  try
+    f();
+  catch err
+    check(strcmp(err.identifier, id), '%s: expected error %s, got %s (%s)', what, id, ...
+          err.identifier, err.message);
+    printf('  %-40s -> %s: %s\n', what, err.identifier, err.message);
+    return;
+  end
+  check(false, '%s: expected error %s, got none', what, id);
+end
+
+function [N0, T, U] = scene(nc, h, origin)
+  % Nodes of an nc(1) x nc(2) x nc(3) lattice, numbered in reverse order; cells in reverse order.
+  [I, J, K] = ndgrid(0:nc(1), 0:nc(2), 0:nc(3));
+  ijk = [I(:) J(:) K(:)]';
+  m = columns(ijk);
+  node = @(i, j, k) 1 + i + (nc(1) + 1) * (j + (nc(2) + 1) * k);
+  renumber = m:-1:1;                               % node n becomes node renumber(n)
+  N0 = zeros(3, m);
+  N0(:, renumber) = origin(:) + h(:) .* ijk;
+  [ci, cj, ck] = ndgrid(0:nc(1) - 1, 0:nc(2) - 1, 0:nc(3) - 1);
+  ci = ci(:)'; cj = cj(:)'; ck = ck(:)';
+  corners = [0 0 0; 1 0 0; 1 1 0; 0 1 0; 0 0 1; 1 0 1; 1 1 1; 0 1 1];
+  T = zeros(8, numel(ci));
+  for c = 1:8
+    T(c, :) = renumber(node(ci + corners(c, 1), cj + corners(c, 2), ck + corners(c, 3)));
+  end
+  T = fliplr(T);
+  % A smooth displacement of up to about 0.4 of a cell.
+  X = N0(1, :); Y = N0(2, :); Z = N0(3, :);
+  U = [0.4 * h(1) * sin(0.7 * Y + 0.3 * Z); 0.3 * h(2) * cos(0.5 * X) .* sin(0.4 * Z); ...
+       -0.35 * h(3) * sin(0.6 * X + 0.2 * Y)]';
+end
+
+function write_vtk(path, N0, T, U)
+  f = fopen(path, 'w');
+  fprintf(f, '# vtk DataFile Version 3.0\ncgcontact octave test\nASCII\nDATASET UNSTRUCTURED_GRID\n');
+  fprintf(f, 'POINTS %d double\n', columns(N0));
+  fprintf(f, '%.17g %.17g %.17g\n', N0);
+  fprintf(f, 'CELLS %d %d\n', columns(T), 9 * columns(T));
+  fprintf(f, '8 %d %d %d %d %d %d %d %d\n', T - 1);
+  fprintf(f, 'CELL_TYPES %d\n', columns(T));
+  fprintf(f, '%d\n', 12 * ones(1, columns(T)));
+  fprintf(f, 'POINT_DATA %d\nVECTORS displacement double\n', columns(N0));
+  fprintf(f, '%.17g %.17g %.17g\n', U');
+  fclose(f);
+end
+
+mex_dir = getenv('CGCONTACT_MEX_DIR');
+cli = getenv('CGCONTACT_BIN');
+check(~isempty(mex_dir) && ~isempty(cli), 'set CGCONTACT_MEX_DIR and CGCONTACT_BIN');
+addpath(mex_dir);
+work = tempname();
+mkdir(work);
+
+% --- the scene, and the command line's answers --------------------------------------------
+nc = [12 10 8]; h = [0.5 0.4 0.3]; origin = [1e3 -2 3];
+[N0, T, U] = scene(nc, h, origin);
+rand('seed', 42);
+n = 20000;
+low = origin(:) - 0.1 * h(:) .* nc(:);
+high = origin(:) + 1.1 * h(:) .* nc(:);
+XYZ = low + (high - low) .* rand(3, n);            % inside and outside the body
+XYZ(:, 1:5) = N0(:, T(1:5, 7)) + U(T(1:5, 7), :)';   % deformed nodes: on shared corners
+write_vtk(fullfile(work, 'mesh.vtk'), N0, T, U);
+f = fopen(fullfile(work, 'points.csv'), 'w');
+fprintf(f, 'x,y,z\n');
+fprintf(f, '%.17g,%.17g,%.17g\n', XYZ);
+fclose(f);
+cmd = sprintf('"%s" locate --mesh "%s" --points "%s" --out "%s" --quiet', cli, ...
+              fullfile(work, 'mesh.vtk'), fullfile(work, 'points.csv'), fullfile(work, 'results.csv'));
+[status, output] = system(cmd);
+check(status == 0, 'cgcontact locate failed (%d): %s', status, output);
+R = dlmread(fullfile(work, 'results.csv'), ',', 1, 0);   % point,cell,xi,eta,zeta,...
+check(rows(R) == n, 'results: %d rows for %d points', rows(R), n);
+cli_E = R(:, 2)' + 1;                              % -1 (none) becomes 0
+cli_PosL = R(:, 3:5)';
+
+% --- the one-shot call --------------------------------------------------------------------
+[E, PosL] = cgcontact_whereami(XYZ, N0, T, U);
+check(isequal(size(E), [1 n]) && isequal(size(PosL), [3 n]), 'output sizes');
+check(isequal(E, cli_E), 'cells differ from cgcontact locate at %d points', sum(E ~= cli_E));
+found = E > 0;
+check(all(isnan(PosL(:, ~found))(:)), 'points not found must have NaN PosL');
+err = max(max(abs(PosL(:, found) - cli_PosL(:, found))));
+check(err <= 1e-12, 'xi differs from cgcontact locate by %g', err);
+check(all(abs(PosL(:, found))(:) <= 1 + 1e-9), 'xi outside [-1, 1]');
+printf('one-shot: %d points, %d located, cells as cgcontact locate, max xi difference %.3g\n', ...
+       n, sum(found), err);
+
+% --- handles: build once, update, locate --------------------------------------------------
+H = cgcontact_whereami('new', N0, T);
+[E0, P0] = cgcontact_whereami('locate', H, XYZ);
+[E0b, P0b] = cgcontact_whereami(XYZ, N0, T, []);
+check(isequal(E0, E0b) && isequaln(P0, P0b), 'handle, undeformed: differs from the one-shot call');
+cgcontact_whereami('update', H, U);
+[E1, P1] = cgcontact_whereami('locate', H, XYZ);
+check(isequal(E1, E) && isequaln(P1, PosL), 'handle after update: differs from the one-shot call');
+check(~isequal(E0, E1), 'the update changed nothing');
+opts = struct('precision', 'f32', 'threads', 1);
+H32 = cgcontact_whereami('new', N0, T, opts);
+cgcontact_whereami('update', H32, U);
+[E32, P32] = cgcontact_whereami('locate', H32, XYZ);
+inner = found & E32 > 0;
+check(mean(E32 == E) > 0.999, 'f32 cells: %d differ', sum(E32 ~= E));
+check(max(max(abs(P32(:, inner & E32 == E) - PosL(:, inner & E32 == E)))) < 1e-4, 'f32 xi');
+check(cgcontact_whereami('handles') == 2, 'two live handles');
+cgcontact_whereami('free', H32);
+check(cgcontact_whereami('handles') == 1, 'one live handle after free');
+printf('handles: new, update, locate agree with the one-shot call; f32 within 1e-4\n');
+
+% --- bad input raises errors, never crashes -----------------------------------------------
+printf('bad input:\n');
+bad = N0; bad(2, 7) = bad(2, 7) + 0.01 * h(2);
+nanU = U; nanU(9, 2) = NaN;
+nanX = XYZ(:, 1:3); nanX(3, 2) = NaN;
+T0 = T; T0(4, 3) = 0;
+Tf = T; Tf(1, 1) = 1.5;
+Tswap = T; Tswap([1 2], 1) = Tswap([2 1], 1);
+expect_error('cgcontact:badSize', @() cgcontact_whereami(XYZ(1:2, :), N0, T, U), 'XYZ 2 x n');
+expect_error('cgcontact:badSize', @() cgcontact_whereami(XYZ, N0', T, U), 'XYZ_N0 m x 3');
+expect_error('cgcontact:badSize', @() cgcontact_whereami(XYZ, N0, T(1:7, :), U), 'Topology 7 x e');
+expect_error('cgcontact:badSize', @() cgcontact_whereami(XYZ, N0, T, U(:, 1:2)), 'U m x 2');
+expect_error('cgcontact:badSize', @() cgcontact_whereami(XYZ, N0, T, U(1:end-1, :)), 'U (m-1) x 3');
+expect_error('cgcontact:badInput', @() cgcontact_whereami(single(XYZ), N0, T, U), 'XYZ single');
+expect_error('cgcontact:badInput', @() cgcontact_whereami(XYZ, N0, Tf, U), 'Topology 1.5');
+expect_error('cgcontact:invalidArgument', @() cgcontact_whereami(XYZ, N0, T0, U), 'Topology 0');
+expect_error('cgcontact:nonFinitePoint', @() cgcontact_whereami(nanX, N0, T, U), 'XYZ NaN');
+expect_error('cgcontact:nonFinite', @() cgcontact_whereami(XYZ, N0, T, nanU), 'U NaN');
+expect_error('cgcontact:nonFinite', @() cgcontact_whereami(XYZ, [N0(:, 1:end-1) [Inf; 0; 0]], T, U), 'XYZ_N0 Inf');
+expect_error('cgcontact:notLattice', @() cgcontact_whereami(XYZ, bad, T, U), 'a node off the lattice');
+expect_error('cgcontact:notLattice', @() cgcontact_whereami(XYZ, N0, Tswap, U), 'corners out of VTK order');
+expect_error('cgcontact:badInput', @() cgcontact_whereami(XYZ, N0, T, U, struct('precision', 'f16')), 'Options.precision');
+expect_error('cgcontact:invalidArgument', @() cgcontact_whereami(XYZ, N0, T, U, struct('tol', -1)), 'Options.tol');
+expect_error('cgcontact:usage', @() cgcontact_whereami(XYZ, N0), 'too few arguments');
+expect_error('cgcontact:usage', @() cgcontact_whereami('frobnicate'), 'unknown command');
+expect_error('cgcontact:badHandle', @() cgcontact_whereami('locate', 99, XYZ), 'a handle never made');
+expect_error('cgcontact:badSize', @() cgcontact_whereami('update', H, U'), 'update with U'' (3 x m)');
+expect_error('cgcontact:nonFinitePoint', @() cgcontact_whereami('locate', H, nanX), 'locate NaN');
+cgcontact_whereami('free', H);
+expect_error('cgcontact:badHandle', @() cgcontact_whereami('locate', H, XYZ), 'a freed handle');
+check(cgcontact_whereami('handles') == 0, 'no live handle');
+% Still working after all those errors, and after `clear all` (the MEX file stays loaded).
+clear all;
+[E, PosL] = cgcontact_whereami([0.5; 0.5; 0.5], [0 1 1 0 0 1 1 0; 0 0 1 1 0 0 1 1; 0 0 0 0 1 1 1 1], (1:8)', zeros(8, 3));
+if ~(E == 1 && max(abs(PosL)) < 1e-15)
+  fprintf(2, 'FAILED: the unit cube after clear all\n');
+  exit(1);
+end
+printf('octave: all cgcontact_whereami checks passed\n');
