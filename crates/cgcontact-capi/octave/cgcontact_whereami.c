@@ -28,8 +28,8 @@
  *
  * Copies: XYZ and XYZ_N0 are read in place (a 3 x n double array is x y z per point, the layout
  * the C ABI reads); U is read in place too (component-major). PosL is written in place by the
- * library. Topology is converted once to 0-based integers, and the element numbers once to
- * doubles (E).
+ * library, and E too: the library writes the elements as int64 into E's memory, converted to
+ * 1-based doubles in place. Only Topology is copied (to integers, once per body).
  *
  * Bad input (wrong sizes or types, NaN, nodes not on a lattice) raises an error with
  * identifier cgcontact:* and a message naming the argument; it never crashes.
@@ -47,6 +47,8 @@
 #include "mex.h"
 
 #include "cgcontact.h"
+
+_Static_assert(sizeof(int64_t) == sizeof(double), "cells are converted in place");
 
 /* --- the handle table -------------------------------------------------------------------- */
 
@@ -195,9 +197,11 @@ static void locate(entry *e, const mxArray *points, mxArray **out, int n_out, in
              mxGetClassName(points), (int)mxGetM(points), (int)mxGetN(points));
     }
     size_t n = mxIsEmpty(points) ? 0 : mxGetN(points);
-    mxArray *elements = mxCreateDoubleMatrix(1, n, mxREAL);
-    mxArray *local = mxCreateDoubleMatrix(3, n, mxREAL);
-    int64_t *cells = mxMalloc((n ? n : 1) * sizeof *cells);
+    /* Uninitialised: the library writes every element. The cells (int64) go into E's own
+     * memory, 8 bytes each as a double, and are converted in place: no temporary array. */
+    mxArray *elements = mxCreateUninitNumericMatrix(1, n, mxDOUBLE_CLASS, mxREAL);
+    mxArray *local = mxCreateUninitNumericMatrix(3, n, mxDOUBLE_CLASS, mxREAL);
+    int64_t *cells = (int64_t *)mxGetData(elements);
     cgc_error code = cgc_locate(e->locator, mxGetPr(points), n, cells, mxGetPr(local), NULL);
     if (owned) free_entry(e);
     if (code == CGC_ERROR_NON_FINITE_POINT) {
@@ -210,8 +214,10 @@ static void locate(entry *e, const mxArray *points, mxArray **out, int n_out, in
     }
     if (code != CGC_ERROR_OK) fail_cgc(code, "XYZ");
     double *E = mxGetPr(elements);
-    for (size_t i = 0; i < n; i++) E[i] = (double)(cells[i] + 1);
-    mxFree(cells);
+    for (size_t i = 0; i < n; i++) {
+        int64_t cell = cells[i]; /* read as written, then overwritten as a double */
+        E[i] = (double)(cell + 1);
+    }
     out[0] = elements;
     if (n_out > 1) out[1] = local;
     else mxDestroyArray(local);
