@@ -3,12 +3,15 @@
 use std::path::PathBuf;
 
 use anyhow::Result;
-use cgcontact_io::{CellMap, write_deformed_vtu, write_points_vtu, write_results_counted};
-use cgcontact_scenes::SphereOnBlock;
+use cgcontact_io::{
+    CellMap, write_deformed_adaptive_vtu, write_deformed_vtu, write_points_vtu,
+    write_results_counted,
+};
+use cgcontact_scenes::{SphereOnAdaptiveBlock, SphereOnBlock};
 use clap::Args;
 
 use crate::output::{prepare_folder, say};
-use crate::picture::contact_patch_svg;
+use crate::picture::{adaptive_patch_svg, contact_patch_svg};
 use crate::run::{SearchArgs, Searched, search};
 
 /// The seed's case, no files needed: a 5 × 10 × 5 mm block (h = 0.25 mm) indented by a 1 mm sphere;
@@ -17,10 +20,13 @@ use crate::run::{SearchArgs, Searched, search};
 #[command(after_help = "Example:
   cgcontact demo --out demo-out
   cgcontact demo --strategy noderad-seed --json
+  cgcontact demo --adaptive
 
 Writes to DIR: results.csv (point,cell,xi,eta,zeta,...), block.vtu (the deformed block with the number
 of points each cell holds), points.vtu (the contact points with their cell and ξ) for ParaView, and
-contact.svg (the top of the block with the located cells shaded and the contact points drawn).")]
+contact.svg (the top of the block with the located cells shaded and the contact points drawn).
+With --adaptive the block is refined by halving under the sphere (2 levels within 1 mm of the contact
+patch, 2:1 balanced): block.vtu carries a `level` cell array and the picture outlines each level.")]
 pub struct DemoArgs {
     /// Folder for the results, VTK files and picture.
     #[arg(long, value_name = "DIR", default_value = "cgcontact-demo")]
@@ -28,6 +34,9 @@ pub struct DemoArgs {
     /// Use the seed's coarse mesh (h = 0.5 mm) instead of the fine one.
     #[arg(long)]
     coarse: bool,
+    /// Refine the block by halving under the sphere (an h-adaptive mesh with hanging nodes).
+    #[arg(long)]
+    adaptive: bool,
     #[command(flatten)]
     search: SearchArgs,
 }
@@ -35,43 +44,74 @@ pub struct DemoArgs {
 pub fn run(args: &DemoArgs) -> Result<()> {
     let pool = args.search.check()?;
     prepare_folder("--out", &args.out)?;
-    let (knobs, name) = if args.coarse {
-        (SphereOnBlock::coarse(), "sphere-coarse")
-    } else {
-        (SphereOnBlock::fine(), "sphere-fine")
+    let (knobs, name) = match (args.coarse, args.adaptive) {
+        (true, false) => (SphereOnBlock::coarse(), "sphere-coarse"),
+        (false, false) => (SphereOnBlock::fine(), "sphere-fine"),
+        (true, true) => (SphereOnBlock::coarse(), "sphere-coarse-adaptive"),
+        (false, true) => (SphereOnBlock::fine(), "sphere-fine-adaptive"),
     };
-    let scene = SphereOnBlock {
+    let knobs = SphereOnBlock {
         known_points: 0,
         ..knobs
-    }
-    .build(name)?;
-    let Searched {
-        answers,
-        tried,
-        mut summary,
-    } = search(
-        (&scene.body).into(),
-        &scene.contact_points,
-        &args.search,
-        &pool,
-    )?;
-
+    };
     let dir = &args.out;
-    let cells = CellMap::ascending(&scene.body);
-    let results = dir.join("results.csv");
-    write_results_counted(&results, &answers, &tried, &cells)?;
-    let block = dir.join("block.vtu");
-    write_deformed_vtu(&block, &scene.body, &cells, &answers, false)?;
-    let points = dir.join("points.vtu");
-    write_points_vtu(&points, &scene.contact_points, &answers, &cells)?;
-    let picture = dir.join("contact.svg");
-    contact_patch_svg(&picture, &scene, &answers)?;
+    let (results, block, points, picture) = (
+        dir.join("results.csv"),
+        dir.join("block.vtu"),
+        dir.join("points.vtu"),
+        dir.join("contact.svg"),
+    );
+    let mut summary = if args.adaptive {
+        let scene = SphereOnAdaptiveBlock::refining(knobs).build(name)?;
+        let Searched {
+            answers,
+            tried,
+            summary,
+        } = search(
+            (&scene.body).into(),
+            &scene.contact_points,
+            &args.search,
+            &pool,
+        )?;
+        // A leaf's id is its index in the mesh written.
+        let cells = CellMap::identity(scene.body.cell_count());
+        write_results_counted(&results, &answers, &tried, &cells)?;
+        write_deformed_adaptive_vtu(&block, &scene.body, &answers)?;
+        write_points_vtu(&points, &scene.contact_points, &answers, &cells)?;
+        adaptive_patch_svg(&picture, &scene, &answers)?;
+        summary
+    } else {
+        let scene = knobs.build(name)?;
+        let Searched {
+            answers,
+            tried,
+            summary,
+        } = search(
+            (&scene.body).into(),
+            &scene.contact_points,
+            &args.search,
+            &pool,
+        )?;
+        let cells = CellMap::ascending(&scene.body);
+        write_results_counted(&results, &answers, &tried, &cells)?;
+        write_deformed_vtu(&block, &scene.body, &cells, &answers, false)?;
+        write_points_vtu(&points, &scene.contact_points, &answers, &cells)?;
+        contact_patch_svg(&picture, &scene, &answers)?;
+        summary
+    };
     summary.files = [results, block, points, picture]
         .iter()
         .map(|p| p.display().to_string())
         .collect();
     if !args.search.json && !args.search.quiet {
-        say!("scene: {name}, the seed's 5 x 10 x 5 mm block indented by a 1 mm sphere")?;
+        say!(
+            "scene: {name}, the seed's 5 x 10 x 5 mm block indented by a 1 mm sphere{}",
+            if args.adaptive {
+                ", refined by halving under it"
+            } else {
+                ""
+            }
+        )?;
     }
     summary.print(&args.search)
 }

@@ -1,30 +1,38 @@
 //! The contact patch picture (the seed's figures 38–39): the top of the block seen from above, the
-//! cells holding located points shaded, the contact points drawn over them.
+//! cells holding located points shaded, the contact points drawn over them; on an adaptive body,
+//! each cell outlined in its level's colour.
 
 use std::path::Path;
 
 use anyhow::{Result, anyhow};
-use cgcontact::Answer;
-use cgcontact_scenes::Scene;
+use cgcontact::glam::DVec3;
+use cgcontact::{Answer, CellId};
+use cgcontact_scenes::{AdaptiveScene, Scene};
 use plotters::prelude::*;
+
+/// One top face to draw: its deformed corners seen from above, the located points its cell (or
+/// column) holds, and its refinement level.
+struct Face {
+    quad: Vec<(f64, f64)>,
+    held: u32,
+    level: u8,
+}
+
+/// What the picture shows, whatever the body.
+struct Patch<'a> {
+    name: &'a str,
+    sphere: (DVec3, f64),
+    contact_points: &'a [DVec3],
+    /// The (base) spacing along x, for the length scale's caption.
+    h: f64,
+    faces: Vec<Face>,
+    levels: u8,
+}
 
 /// Write `path` (SVG): the deformed top face of every column of cells, shaded by how many located
 /// points the column holds, and the contact points (located: red; not located: grey) projected on
 /// the x–y plane. Only the region around the sphere is drawn.
 pub fn contact_patch_svg(path: &Path, scene: &Scene, answers: &[Answer]) -> Result<()> {
-    let mut svg = String::new();
-    let root = SVGBackend::with_string(&mut svg, (800, 880)).into_drawing_area();
-    draw_contact_patch(root, path, scene, answers)?;
-    crate::output::write_text(path, &svg)
-}
-
-/// [`contact_patch_svg`]'s drawing, on `root`.
-fn draw_contact_patch(
-    root: DrawingArea<SVGBackend<'_>, plotters::coord::Shift>,
-    path: &Path,
-    scene: &Scene,
-    answers: &[Answer],
-) -> Result<()> {
     let body = &scene.body;
     let lattice = body.lattice();
     let [nx, ny, nz] = lattice.cells();
@@ -34,8 +42,107 @@ fn draw_contact_patch(
             held[(i + nx * j) as usize] += 1;
         }
     }
-    let most = held.iter().copied().max().unwrap_or(0).max(1);
-    let (center, radius) = scene.sphere;
+    // Top faces (corners 4, 5, 6, 7 of the top cell of each column), deformed, seen from above.
+    let mut faces = Vec::new();
+    for j in 0..ny {
+        for i in 0..nx {
+            let Some(corners) = body.corners(lattice.cell_id([i, j, nz - 1])) else {
+                continue;
+            };
+            faces.push(Face {
+                quad: top_quad(&corners),
+                held: held[(i + nx * j) as usize],
+                level: 0,
+            });
+        }
+    }
+    let patch = Patch {
+        name: &scene.name,
+        sphere: scene.sphere,
+        contact_points: &scene.contact_points,
+        h: lattice.h().x,
+        faces,
+        levels: 1,
+    };
+    draw_svg(path, &patch, answers)
+}
+
+/// [`contact_patch_svg`] for an adaptive scene: the top face of every leaf on the block's top,
+/// shaded by the located points the leaf holds, outlined in its level's colour.
+pub fn adaptive_patch_svg(path: &Path, scene: &AdaptiveScene, answers: &[Answer]) -> Result<()> {
+    let body = &scene.body;
+    let top = f64::from(body.lattice().cells()[2]);
+    // Counted per column, as the uniform picture does: a located point counts for the top leaf
+    // above it (the leaf holding its x, y just under the undeformed top face).
+    let top_z = body.lattice().upper().z - 1e-9 * body.spacing(body.finest_level()).z;
+    let mut held = vec![0u32; body.cell_count()];
+    for (x, answer) in scene.contact_points.iter().zip(answers) {
+        if !matches!(answer, Ok(Some(_))) {
+            continue;
+        }
+        if let Some(leaf) = body.leaf_at(DVec3::new(x.x, x.y, top_z)) {
+            held[leaf.index()] += 1;
+        }
+    }
+    let faces = body
+        .leaves()
+        .iter()
+        .enumerate()
+        .filter(|(_, leaf)| f64::from(leaf.ijk[2] + 1) * 0.5f64.powi(i32::from(leaf.level)) == top)
+        .filter_map(|(id, leaf)| {
+            let corners = body.corners(CellId(id as u32))?;
+            Some(Face {
+                quad: top_quad(&corners),
+                held: held[id],
+                level: leaf.level,
+            })
+        })
+        .collect();
+    let patch = Patch {
+        name: &scene.name,
+        sphere: scene.sphere,
+        contact_points: &scene.contact_points,
+        h: body.lattice().h().x,
+        faces,
+        levels: body.finest_level() + 1,
+    };
+    draw_svg(path, &patch, answers)
+}
+
+/// Corners 4, 5, 6, 7 (the top face) seen from above.
+fn top_quad(corners: &[DVec3; 8]) -> Vec<(f64, f64)> {
+    [4, 5, 6, 7]
+        .iter()
+        .map(|&c| (corners[c].x, corners[c].y))
+        .collect()
+}
+
+/// The outline of a face of `level`: grey for the base level, then a colour per level.
+fn outline(level: u8) -> RGBColor {
+    match level {
+        0 => RGBColor(120, 120, 120),
+        1 => RGBColor(30, 90, 200),
+        2 => RGBColor(0, 140, 70),
+        _ => RGBColor(150, 40, 170),
+    }
+}
+
+fn draw_svg(path: &Path, patch: &Patch<'_>, answers: &[Answer]) -> Result<()> {
+    let mut svg = String::new();
+    let root = SVGBackend::with_string(&mut svg, (800, 880)).into_drawing_area();
+    draw_contact_patch(root, path, patch, answers)?;
+    crate::output::write_text(path, &svg)
+}
+
+/// [`contact_patch_svg`]'s drawing, on `root`.
+fn draw_contact_patch(
+    root: DrawingArea<SVGBackend<'_>, plotters::coord::Shift>,
+    path: &Path,
+    patch: &Patch<'_>,
+    answers: &[Answer],
+) -> Result<()> {
+    let most = patch.faces.iter().map(|f| f.held).max().unwrap_or(0).max(1);
+    let (center, radius) = patch.sphere;
     let half = radius * 1.6;
     let (x0, x1, y0, y1) = (
         center.x - half,
@@ -52,7 +159,7 @@ fn draw_contact_patch(
         .caption(
             format!(
                 "{}: the block's top seen from above, cells shaded by the contact points they hold",
-                scene.name
+                patch.name
             ),
             ("sans-serif", 16),
         )
@@ -60,44 +167,32 @@ fn draw_contact_patch(
         .build_cartesian_2d(x0..x1, y0..y1)
         .map_err(|e| fail(&e))?;
 
-    // Top faces (corners 4, 5, 6, 7 of the top cell of each column), deformed, seen from above.
-    let mut faces = Vec::new();
-    for j in 0..ny {
-        for i in 0..nx {
-            let Some(corners) = body.corners(lattice.cell_id([i, j, nz - 1])) else {
-                continue;
-            };
-            let quad: Vec<(f64, f64)> = [4, 5, 6, 7]
-                .iter()
-                .map(|&c| (corners[c].x, corners[c].y))
-                .collect();
-            if quad
-                .iter()
-                .all(|&(x, y)| x < x0 || x > x1 || y < y0 || y > y1)
-            {
-                continue;
-            }
-            let count = held[(i + nx * j) as usize];
-            faces.push((quad, shade(count, most)));
-        }
-    }
+    let inside = |quad: &[(f64, f64)]| {
+        !quad
+            .iter()
+            .all(|&(x, y)| x < x0 || x > x1 || y < y0 || y > y1)
+    };
+    let faces: Vec<&Face> = patch.faces.iter().filter(|f| inside(&f.quad)).collect();
     chart
         .draw_series(
             faces
                 .iter()
-                .map(|(quad, shade)| Polygon::new(quad.clone(), shade.filled())),
+                .map(|f| Polygon::new(f.quad.clone(), shade(f.held, most).filled())),
         )
         .map_err(|e| fail(&e))?;
+    // Outlines coarsest first, so that a fine cell's edge on a coarse one shows its level.
+    let mut outlined = faces.clone();
+    outlined.sort_by_key(|f| f.level);
     chart
-        .draw_series(faces.iter().map(|(quad, _)| {
-            let mut ring = quad.clone();
-            ring.push(quad[0]);
-            PathElement::new(ring, RGBColor(120, 120, 120).stroke_width(1))
+        .draw_series(outlined.iter().map(|f| {
+            let mut ring = f.quad.clone();
+            ring.push(f.quad[0]);
+            PathElement::new(ring, outline(f.level).stroke_width(1))
         }))
         .map_err(|e| fail(&e))?;
 
     // Contact points on the lower half of the sphere, the side facing the block.
-    let shown = scene
+    let shown = patch
         .contact_points
         .iter()
         .zip(answers)
@@ -133,13 +228,21 @@ fn draw_contact_patch(
         .map_err(|e| fail(&e))?;
     chart
         .draw_series([Text::new(
-            format!("{bar} (model units: h = {})", lattice.h().x),
+            format!(
+                "{bar} (model units: {}h = {})",
+                if patch.levels > 1 { "base " } else { "" },
+                patch.h
+            ),
             (bx, by + 0.02 * (y1 - y0)),
             ("sans-serif", 13).into_font(),
         )])
         .map_err(|e| fail(&e))?;
 
     // The key: the shades of the cells, and the points.
+    // On an adaptive body, each level's outline.
+    let levels = (0..patch.levels)
+        .filter(|_| patch.levels > 1)
+        .map(|l| (format!("level {l}"), outline(l).stroke_width(3), false));
     let entries: Vec<(String, ShapeStyle, bool)> = [0, 1, most.div_ceil(2), most]
         .into_iter()
         .filter(|&n| n <= most)
@@ -163,28 +266,36 @@ fn draw_contact_patch(
                 true,
             ),
         ])
+        .chain(levels)
         .collect();
-    let mut at = 20;
+    let (mut at, mut row) = (20, 0);
     for (label, style, point) in entries {
+        let width = 30 + 7 * label.len() as i32;
+        if at + width > 800 {
+            (at, row) = (20, row + 28);
+        }
         if point {
-            key.draw(&Circle::new((at + 8, 30), 4, style))
+            key.draw(&Circle::new((at + 8, 30 + row), 4, style))
                 .map_err(|e| fail(&e))?;
         } else {
-            key.draw(&Rectangle::new([(at, 22), (at + 16, 38)], style))
-                .map_err(|e| fail(&e))?;
             key.draw(&Rectangle::new(
-                [(at, 22), (at + 16, 38)],
+                [(at, 22 + row), (at + 16, 38 + row)],
+                style,
+            ))
+            .map_err(|e| fail(&e))?;
+            key.draw(&Rectangle::new(
+                [(at, 22 + row), (at + 16, 38 + row)],
                 RGBColor(120, 120, 120).stroke_width(1),
             ))
             .map_err(|e| fail(&e))?;
         }
         key.draw(&Text::new(
             label.clone(),
-            (at + 22, 24),
+            (at + 22, 24 + row),
             ("sans-serif", 13).into_font(),
         ))
         .map_err(|e| fail(&e))?;
-        at += 30 + 7 * label.len() as i32;
+        at += width;
     }
     root.present().map_err(|e| fail(&e))?;
     Ok(())

@@ -11,7 +11,7 @@
 
 use bitvec::vec::BitVec;
 use cgcontact::adaptive::{ConstraintReport, MAX_LEVEL};
-use cgcontact::{AdaptiveBody, CORNER_OFFSETS, CellId, Lattice, Leaf};
+use cgcontact::{AdaptiveBody, CORNER_OFFSETS, Lattice, Leaf};
 use glam::DVec3;
 
 use crate::mesh::{LatticeMesh, ROUNDING_SLACK, extreme_planes};
@@ -317,9 +317,7 @@ impl HexMesh {
             body.set_displacements(&values)?;
             constraint_tolerance += ROUNDING_SLACK * body.max_displacement().max_element();
         }
-        let cell_ids: Vec<CellId> = (0..self.cells.len() as u32).map(CellId).collect();
-        let cells = CellMap::new(cell_ids, self.cells.len())
-            .map_err(|(first, second)| ErrorKind::OverlappingCells { first, second })?;
+        let cells = CellMap::identity(self.cells.len());
         Ok(AdaptiveMesh {
             constraints: body.check_constraints(constraint_tolerance),
             constraint_tolerance,

@@ -64,6 +64,14 @@ impl CellMap {
             .expect("a body's active cells are distinct")
     }
 
+    /// The map of `cells` input cells that are their own ids (an adaptive body's leaves, whose id
+    /// is their index in the mesh file).
+    #[must_use]
+    pub fn identity(cells: usize) -> Self {
+        let ids: Vec<CellId> = (0..cells as u32).map(CellId).collect();
+        Self::new(ids, cells).expect("distinct ids")
+    }
+
     /// The map of input cells `lattice_of_input` on a lattice of `cell_count` cells; the input
     /// index of a cell that appears twice, as `Err((first, second))`.
     pub(crate) fn new(

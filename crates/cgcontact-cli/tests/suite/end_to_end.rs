@@ -320,3 +320,35 @@ fn broken_hanging_node_warns_and_strict_refuses() {
     assert!(!String::from_utf8_lossy(&strict.stderr).contains("warning"));
     assert!(String::from_utf8_lossy(&strict.stderr).contains("break their constraint"));
 }
+
+#[test]
+fn adaptive_demo_writes_levels() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("demo");
+    let run = cgcontact(&[
+        "demo",
+        "--adaptive",
+        "--coarse",
+        "--out",
+        out.to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let summary: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    assert_eq!(summary["levels"], 3);
+    assert!(summary["hanging_nodes"].as_u64().unwrap() > 0);
+    assert!(summary["located"].as_u64().unwrap() > 0);
+    let svg = std::fs::read_to_string(out.join("contact.svg")).unwrap();
+    assert!(svg.contains("level 2") && svg.contains("<polygon"));
+    let block = std::fs::read_to_string(out.join("block.vtu")).unwrap();
+    assert!(block.contains("Name=\"level\""));
+    let rows = read_results(out.join("results.csv")).unwrap();
+    assert_eq!(
+        rows.iter().filter(|r| r.cell.is_some()).count() as u64,
+        summary["located"].as_u64().unwrap()
+    );
+}
