@@ -1,0 +1,73 @@
+//! A fixed single-threaded load on the `adaptive` bench's scene, for profilers (perf, callgrind).
+//!
+//! Run: `cargo run --release -p cgcontact-benches --example profile_adaptive [repeats] [f32] [uniform] [each] [points=N]`
+//! (`uniform`: the uniform block of about as many cells instead; `each`: one `locate` call per
+//! point instead of `locate_all_into`; `points=N`: N known points instead of 1 M).
+
+use std::time::Instant;
+
+use cgcontact::glam::DVec3;
+use cgcontact::{AdaptiveLocator, LatticeLocator, Locator, Settings};
+use cgcontact_scenes::{adaptive_block, block_cells_for, indented_block};
+
+fn main() -> Result<(), cgcontact::Error> {
+    let args: Vec<String> = std::env::args().collect();
+    let has = |flag: &str| args.iter().any(|a| a == flag);
+    let repeats: usize = args.get(1).and_then(|a| a.parse().ok()).unwrap_or(5);
+    let points: usize = args
+        .iter()
+        .find_map(|a| a.strip_prefix("points="))
+        .map(|n| n.parse().expect("points=N with N a number"))
+        .unwrap_or(1_000_000);
+    let settings = if has("f32") {
+        Settings::f32()
+    } else {
+        Settings::default()
+    };
+    let h = DVec3::splat(0.25);
+    let scene = adaptive_block([20, 40, 20], h, 2, 1.5, points, 7)?;
+    let run = |locator: &dyn Locator, xs: &[DVec3]| {
+        let one = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .expect("pool");
+        let mut out = Vec::with_capacity(xs.len());
+        let start = Instant::now();
+        for _ in 0..repeats {
+            if has("each") {
+                out.clear();
+                out.extend(xs.iter().map(|&x| locator.locate(x)));
+            } else {
+                one.install(|| locator.locate_all_into(xs, &mut out));
+            }
+            std::hint::black_box(&out);
+        }
+        let seconds = start.elapsed().as_secs_f64();
+        println!(
+            "{}: {:.2} M points/s",
+            if has("uniform") {
+                "uniform"
+            } else {
+                "adaptive"
+            },
+            (repeats * xs.len()) as f64 / seconds / 1e6
+        );
+    };
+    if has("uniform") {
+        let cells = block_cells_for(scene.body.cell_count(), DVec3::new(1.0, 2.0, 1.0));
+        let size = h * DVec3::new(20.0, 40.0, 20.0);
+        let uniform_h = size
+            / DVec3::new(
+                f64::from(cells[0]),
+                f64::from(cells[1]),
+                f64::from(cells[2]),
+            );
+        let uniform = indented_block(cells, uniform_h, points, 7)?;
+        let xs: Vec<DVec3> = uniform.known.iter().map(|k| k.x).collect();
+        run(&LatticeLocator::new(&uniform.body, settings)?, &xs);
+    } else {
+        let xs: Vec<DVec3> = scene.known.iter().map(|k| k.x).collect();
+        run(&AdaptiveLocator::new(&scene.body, settings)?, &xs);
+    }
+    Ok(())
+}
