@@ -18,4 +18,6 @@ mkdir -p "$out"
 # --exclude-libs keeps the Rust library's symbols private to the MEX file.
 mkoctfile --mex -O2 -I"$here/../include" "$here/cgcontact_whereami.c" "$lib" \
     -Wl,--exclude-libs,ALL -lpthread -ldl -lm -o "$out/cgcontact_whereami.mex"
-echo "wrote $out/cgcontact_whereami.mex"
+# The handle class that frees its body when cleared.
+cp "$here/cgcontact_body.m" "$out/"
+echo "wrote $out/cgcontact_whereami.mex and $out/cgcontact_body.m"

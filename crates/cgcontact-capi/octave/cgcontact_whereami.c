@@ -21,6 +21,9 @@
  *   cgcontact_whereami('free', H)                               % optional
  *   N = cgcontact_whereami('handles')                           % how many are live
  *
+ * cgcontact_body.m (beside the MEX file) wraps these in a handle object that frees its body when
+ * cleared: B = cgcontact_body(XYZ_N0, Topology); update(B, U); [E, PosL] = locate(B, XYZ).
+ *
  * H is a number naming an entry of this MEX file's table. Every entry still live is freed when
  * Octave or MATLAB exits (mexAtExit); 'free' frees one earlier. The MEX file locks itself in
  * memory (mexLock) so that `clear all` cannot unload it while handles or the library's worker

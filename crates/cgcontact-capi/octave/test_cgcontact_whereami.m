@@ -125,7 +125,14 @@ check(max(max(abs(P32(:, inner & E32 == E) - PosL(:, inner & E32 == E)))) < 1e-4
 check(cgcontact_whereami('handles') == 2, 'two live handles');
 cgcontact_whereami('free', H32);
 check(cgcontact_whereami('handles') == 1, 'one live handle after free');
-printf('handles: new, update, locate agree with the one-shot call; f32 within 1e-4\n');
+B = cgcontact_body(N0, T);
+check(cgcontact_whereami('handles') == 2, 'cgcontact_body makes a handle');
+update(B, U);
+[EB, PB] = locate(B, XYZ);
+check(isequal(EB, E) && isequaln(PB, PosL), 'cgcontact_body differs from the one-shot call');
+clear B;
+check(cgcontact_whereami('handles') == 1, 'clear frees the cgcontact_body''s handle');
+printf('handles: new, update, locate agree with the one-shot call; f32 within 1e-4; cgcontact_body frees itself\n');
 
 % --- bad input raises errors, never crashes -----------------------------------------------
 printf('bad input:\n');

@@ -567,3 +567,65 @@ fn query_seconds_times_the_library() {
     assert_eq!(code, CgcError::Ok);
     assert!(seconds >= 0.0 && seconds.is_finite());
 }
+
+/// Raw handles shared by the threads of one test (the C ABI documents them as thread-safe).
+#[derive(Clone, Copy)]
+struct Shared(*mut CgcBody, *mut CgcLocator);
+// SAFETY: the handles are thread-safe by the header's contract, which this test checks; they are
+// freed only after every thread has joined.
+unsafe impl Send for Shared {}
+
+impl Shared {
+    /// Both handles; a method, so that a closure captures the whole `Shared` (which is `Send`).
+    fn get(self) -> (*mut CgcBody, *mut CgcLocator) {
+        (self.0, self.1)
+    }
+}
+
+/// Queries and displacement updates from several threads at once: every answer is that of one
+/// of the two fields, never a mix (updates wait for running queries).
+#[test]
+fn concurrent_updates_and_queries_never_mix_fields() {
+    let body = block();
+    let (points, _) = known_points(&body);
+    let points = flat(&points);
+    let handles = lattice_handles(&body);
+    let n = body.lattice().node_count();
+    let fields: Vec<Vec<f64>> = [0.0, 1.0]
+        .iter()
+        .map(|&s| {
+            (0..n)
+                .flat_map(|node| (s * body.displacement(node).unwrap()).to_array())
+                .collect()
+        })
+        .collect();
+    let answers: Vec<Vec<u64>> = fields
+        .iter()
+        .map(|u| {
+            // SAFETY: 3 n values.
+            let code = unsafe { cgc_body_set_displacements(handles.body, u.as_ptr(), n, 0) };
+            assert_eq!(code, CgcError::Ok);
+            bits(&locate(handles.locator, &points).2)
+        })
+        .collect();
+    let shared = Shared(handles.body, handles.locator);
+    std::thread::scope(|scope| {
+        for t in 0..4 {
+            let (fields, answers, points) = (&fields, &answers, &points);
+            scope.spawn(move || {
+                let (body, locator) = shared.get();
+                for round in 0..40 {
+                    if t % 2 == 0 {
+                        let u = &fields[(round + t) % 2];
+                        // SAFETY: 3 n values; the handles outlive the scope.
+                        let code = unsafe { cgc_body_set_displacements(body, u.as_ptr(), n, 0) };
+                        assert_eq!(code, CgcError::Ok);
+                    } else {
+                        let got = bits(&locate(locator, points).2);
+                        assert!(answers.contains(&got), "a query mixed two fields");
+                    }
+                }
+            });
+        }
+    });
+}

@@ -1,0 +1,35 @@
+% B = cgcontact_body(XYZ_N0, Topology [, Options]): a deformable body and its locator for solver
+% loops, freed automatically when B is cleared or goes out of scope.
+%
+%   B = cgcontact_body(XYZ_N0, Topology);   % 3 x m nodes, 8 x e 1-based topology (VTK order)
+%   update(B, U);                           % m x 3 displacements, each iteration
+%   [E, PosL] = locate(B, XYZ);             % as cgcontact_whereami(XYZ, XYZ_N0, Topology, U)
+%
+% A handle object over cgcontact_whereami's 'new', 'update', 'locate' and 'free' (build.sh puts it
+% beside cgcontact_whereami.mex). Options as for cgcontact_whereami.
+classdef cgcontact_body < handle
+  properties (SetAccess = private)
+    % The cgcontact_whereami handle (0 when none).
+    id = 0;
+  end
+  methods
+    function obj = cgcontact_body(XYZ_N0, Topology, varargin)
+      obj.id = cgcontact_whereami('new', XYZ_N0, Topology, varargin{:});
+    end
+    function update(obj, U)
+      cgcontact_whereami('update', obj.id, U);
+    end
+    function [E, PosL] = locate(obj, XYZ)
+      [E, PosL] = cgcontact_whereami('locate', obj.id, XYZ);
+    end
+    function delete(obj)
+      if obj.id > 0
+        try
+          cgcontact_whereami('free', obj.id);   % already freed if Octave is exiting
+        catch
+        end
+        obj.id = 0;
+      end
+    end
+  end
+end
