@@ -10,11 +10,11 @@ use std::fmt::Write;
 use std::path::{Path, PathBuf};
 
 use cgcontact::glam::DVec3;
-use cgcontact::{Answer, Body, LatticeLocator, Locator, Settings};
+use cgcontact::{AdaptiveLocator, Answer, LatticeLocator, Locator, Settings};
 use cgcontact_baseline::{
-    BruteForce, CentroidRadius, Inversion, NodeRadius, NodeRadiusOptions, RTree,
+    BodyRef, BruteForce, CentroidRadius, Inversion, NodeRadius, NodeRadiusOptions, RTree,
 };
-use cgcontact_io::{CellMap, DisplacementArray, read_mesh, read_points};
+use cgcontact_io::{CellMap, DisplacementArray, MeshBody, read_body, read_points};
 use serde::Serialize;
 
 /// The strategies of `cgcontact locate --strategy ... --precision ...`, by snapshot name.
@@ -28,11 +28,17 @@ const STRATEGIES: [&str; 7] = [
     "brute",
 ];
 
-fn locator<'a>(name: &str, body: &'a Body) -> Box<dyn Locator + 'a> {
+fn locator<'a>(name: &str, body: BodyRef<'a>) -> Box<dyn Locator + 'a> {
     let f64s = Settings::default();
+    let lattice = |settings| -> Box<dyn Locator + 'a> {
+        match body {
+            BodyRef::Uniform(b) => Box::new(LatticeLocator::new(b, settings).unwrap()),
+            BodyRef::Adaptive(b) => Box::new(AdaptiveLocator::new(b, settings).unwrap()),
+        }
+    };
     match name {
-        "lattice-f64" => Box::new(LatticeLocator::new(body, f64s).unwrap()),
-        "lattice-f32" => Box::new(LatticeLocator::new(body, Settings::f32()).unwrap()),
+        "lattice-f64" => lattice(f64s),
+        "lattice-f32" => lattice(Settings::f32()),
         "rtree" => Box::new(RTree::new(body, f64s).unwrap()),
         "centroid" => Box::new(CentroidRadius::new(body, f64s).unwrap()),
         "noderad" => Box::new(NodeRadius::new(body, f64s).unwrap()),
@@ -134,14 +140,19 @@ fn fnv1a(text: &str) -> String {
 /// hash of all rows when that is not all of them).
 fn snapshot_fixture(name: &str, mesh: &str, points: &[&str], known: &str, every: usize) {
     let known = cgcontact_io::read_results(fixture(known)).unwrap();
-    let mesh = read_mesh(fixture(mesh), &DisplacementArray::Default).unwrap();
+    let mesh = read_body(fixture(mesh), &DisplacementArray::Default).unwrap();
+    let body: BodyRef<'_> = match &mesh {
+        MeshBody::Uniform(m) => (&m.body).into(),
+        MeshBody::Adaptive(m) => (&m.body).into(),
+    };
+    let cells = mesh.cells();
     let mut all_points = Vec::new();
     for p in points {
         all_points.extend(read_points(fixture(p)).unwrap());
     }
     let mut summary = BTreeMap::new();
     for strategy in STRATEGIES {
-        let locator = locator(strategy, &mesh.body);
+        let locator = locator(strategy, body);
         let answers = answers(locator.as_ref(), &all_points);
         let digits = if strategy == "lattice-f32" { 5 } else { 9 };
         summary.insert(strategy, counts(&answers));
@@ -150,7 +161,7 @@ fn snapshot_fixture(name: &str, mesh: &str, points: &[&str], known: &str, every:
             for row in &known {
                 let hit = answers[row.point].unwrap().expect("a known point is found");
                 assert_eq!(
-                    mesh.cells.input_cell(hit.cell),
+                    cells.input_cell(hit.cell),
                     row.cell,
                     "{strategy}: point {}",
                     row.point
@@ -162,9 +173,9 @@ fn snapshot_fixture(name: &str, mesh: &str, points: &[&str], known: &str, every:
                 );
             }
         }
-        let mut listing = rows(&answers, &mesh.cells, digits, every);
+        let mut listing = rows(&answers, cells, digits, every);
         if every > 1 {
-            let full = rows(&answers, &mesh.cells, digits, 1);
+            let full = rows(&answers, cells, digits, 1);
             listing = format!(
                 "every {every}th point of {}; FNV-1a of all rows: {}\n{listing}",
                 answers.len(),
@@ -197,6 +208,19 @@ fn sphere_coarse_every_strategy() {
         "sphere-coarse/mesh.vtu",
         &["sphere-coarse/points.csv"],
         "sphere-coarse/known.csv",
+        25,
+    );
+}
+
+/// An adaptive mesh: the coarse sphere block refined 2 levels under the sphere without balance
+/// (jumps of two levels), cells shuffled.
+#[test]
+fn sphere_adaptive_every_strategy() {
+    snapshot_fixture(
+        "sphere_adaptive",
+        "sphere-adaptive/mesh.vtu",
+        &["sphere-adaptive/points.csv"],
+        "sphere-adaptive/known.csv",
         25,
     );
 }
