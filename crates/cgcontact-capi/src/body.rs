@@ -32,8 +32,9 @@ pub(crate) struct BodyState {
     cells: Option<CellMap>,
     /// Number of displacement entries the caller passes (lattice nodes, or input nodes).
     source_count: usize,
-    /// For each of the body's displacement slots, the caller's node that gives it.
-    source_of_slot: Vec<usize>,
+    /// For each of the body's displacement slots, the caller's node that gives it; `None` when slot
+    /// s is node s (a lattice body with every cell active), so that such bodies store nothing.
+    source_of_slot: Option<Vec<u32>>,
     /// Further caller's nodes at a slot's lattice node (an unmerged mesh): (node, slot). Their
     /// displacements must agree with the slot's.
     duplicates: Vec<(usize, usize)>,
@@ -43,10 +44,13 @@ pub(crate) struct BodyState {
 
 impl BodyState {
     fn lattice(body: Body) -> Self {
-        let source_of_slot: Vec<usize> = body.nodes().collect();
+        let lattice = body.lattice();
+        // Lattice node indices fit u32 (`Lattice::new` refuses more nodes).
+        let source_of_slot = (body.node_count() != lattice.node_count())
+            .then(|| body.nodes().map(|n| n as u32).collect());
         Self {
-            scratch: vec![DVec3::ZERO; source_of_slot.len()],
-            source_count: body.lattice().node_count(),
+            scratch: vec![DVec3::ZERO; body.node_count()],
+            source_count: lattice.node_count(),
             source_of_slot,
             duplicates: Vec::new(),
             cells: None,
@@ -62,6 +66,13 @@ impl BodyState {
             None => i64::from(cell.0),
             Some(map) => map.input_cell(cell).map_or(-1, |c| c as i64),
         }
+    }
+
+    /// The caller's node that gives slot `slot`.
+    fn source(&self, slot: usize) -> usize {
+        self.source_of_slot
+            .as_ref()
+            .map_or(slot, |source| source[slot] as usize)
     }
 
     /// Sets every displacement from the caller's array, or changes nothing and says why.
@@ -86,11 +97,20 @@ impl BodyState {
                 format!("the displacement of node {node} (0-based) is not finite: {value}"),
             )
         };
-        for (slot, &node) in self.scratch.iter_mut().zip(&self.source_of_slot) {
-            *slot = at(node);
+        match &self.source_of_slot {
+            None => {
+                for (node, slot) in self.scratch.iter_mut().enumerate() {
+                    *slot = at(node);
+                }
+            }
+            Some(source) => {
+                for (slot, &node) in self.scratch.iter_mut().zip(source) {
+                    *slot = at(node as usize);
+                }
+            }
         }
         if let Some(s) = self.scratch.iter().position(|v| !v.is_finite()) {
-            return Err(non_finite(self.source_of_slot[s], self.scratch[s]));
+            return Err(non_finite(self.source(s), self.scratch[s]));
         }
         let tol = LATTICE_TOLERANCE * self.body.lattice().h().max_element();
         for &(node, slot) in &self.duplicates {
@@ -105,7 +125,7 @@ impl BodyState {
                     CgcError::NotLattice,
                     format!(
                         "nodes {} and {node} (0-based) coincide but their displacements differ: {first} and {value}",
-                        self.source_of_slot[slot]
+                        self.source(slot)
                     ),
                 ));
             }
@@ -170,6 +190,25 @@ pub unsafe extern "C" fn cgc_body_from_lattice(
             ));
         }
         let lattice = Lattice::new(origin, h, [counts[0], counts[1], counts[2]])?;
+        // A body takes about 48 bytes per node (its displacements and this API's copy): refuse
+        // what cannot be allocated as an error, before an allocation failure would abort.
+        let mut probe = Vec::<[DVec3; 2]>::new();
+        probe
+            .try_reserve_exact(if active.is_null() {
+                lattice.node_count()
+            } else {
+                0
+            })
+            .map_err(|_| {
+                Failure::new(
+                    CgcError::InvalidArgument,
+                    format!(
+                        "a body of {} lattice nodes does not fit in memory",
+                        lattice.node_count()
+                    ),
+                )
+            })?;
+        drop(probe);
         let body = if active.is_null() {
             Body::full(lattice)
         } else {
@@ -286,24 +325,25 @@ fn mesh_state(mesh: &HexMesh, body: Body, cells: CellMap) -> BodyState {
                 .expect("corners of active cells are body nodes");
         }
     }
-    let mut source_of_slot = vec![UNSET; slot_nodes.len()];
+    // Input nodes used by cells are u32 (the cells' indices are).
+    let mut source_of_slot = vec![u32::MAX; slot_nodes.len()];
     let mut duplicates = Vec::new();
     for (node, &slot) in slot_of_input
         .iter()
         .enumerate()
         .filter(|(_, s)| **s != UNSET)
     {
-        if source_of_slot[slot] == UNSET {
-            source_of_slot[slot] = node;
+        if source_of_slot[slot] == u32::MAX {
+            source_of_slot[slot] = node as u32;
         } else {
             duplicates.push((node, slot));
         }
     }
-    debug_assert!(!source_of_slot.contains(&UNSET));
+    debug_assert!(!source_of_slot.contains(&u32::MAX));
     BodyState {
         scratch: vec![DVec3::ZERO; slot_nodes.len()],
         source_count: mesh.points.len(),
-        source_of_slot,
+        source_of_slot: Some(source_of_slot),
         duplicates,
         cells: Some(cells),
         body,

@@ -629,3 +629,71 @@ fn concurrent_updates_and_queries_never_mix_fields() {
         }
     });
 }
+
+/// A lattice body with inactive cells: displacements still come one per lattice node (those of
+/// nodes of no active cell ignored), and points in inactive cells are not found.
+#[test]
+fn masked_lattice_body_answers_only_active_cells() {
+    let full = block();
+    let lattice = *full.lattice();
+    let active: Vec<u8> = (0..lattice.cell_count())
+        .map(|c| u8::from(c % 3 != 1))
+        .collect();
+    let (origin, h, counts) = (
+        lattice.origin().to_array(),
+        lattice.h().to_array(),
+        lattice.cells(),
+    );
+    let mut dense: Vec<f64> = (0..lattice.node_count())
+        .flat_map(|n| full.displacement(n).unwrap().to_array())
+        .collect();
+    let (points, known) = known_points(&full);
+    let mut handles = Handles {
+        body: ptr::null_mut(),
+        locator: ptr::null_mut(),
+    };
+    // Node 0 is a corner of cell 0, which is active: a NaN there is refused.
+    // SAFETY: every array holds the length passed.
+    unsafe {
+        let code = cgc_body_from_lattice(
+            origin.as_ptr(),
+            h.as_ptr(),
+            counts.as_ptr(),
+            active.as_ptr(),
+            active.len(),
+            &mut handles.body,
+        );
+        assert_eq!(code, CgcError::Ok, "{}", last_error());
+        let n = lattice.node_count();
+        assert_eq!(
+            cgc_body_set_displacements(handles.body, dense.as_ptr(), n, 0),
+            CgcError::Ok
+        );
+        assert_eq!(
+            cgc_locator_new(handles.body, ptr::null(), &mut handles.locator),
+            CgcError::Ok
+        );
+        dense[0] = f64::NAN;
+        assert_eq!(
+            cgc_body_set_displacements(handles.body, dense.as_ptr(), n, 0),
+            CgcError::NonFinite
+        );
+        assert!(last_error().contains("node 0 "), "{}", last_error());
+    }
+    let (code, cells, xi, status) = locate(handles.locator, &flat(&points));
+    assert_eq!(code, CgcError::Ok);
+    for (i, &(cell, expected)) in known.iter().enumerate() {
+        if active[cell as usize] != 0 {
+            assert_eq!(cells[i], i64::from(cell), "point {i}");
+            assert!(
+                (DVec3::from_slice(&xi[3 * i..]) - expected)
+                    .abs()
+                    .max_element()
+                    < 1e-12
+            );
+        } else {
+            // Inside an inactive cell: no active cell holds it (it is not on a shared face).
+            assert_eq!((cells[i], status[i]), (-1, CGC_POINT_OUTSIDE), "point {i}");
+        }
+    }
+}
