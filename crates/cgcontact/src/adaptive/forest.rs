@@ -128,7 +128,7 @@ impl Forest {
     /// the lattice's box first; on a boundary between leaves, the upper one. `None` in a hole.
     /// With the leaf's id come its level and indices, found on the way down (the hot path then
     /// reads no leaf record).
-    #[inline]
+    #[inline(always)]
     pub(super) fn leaf_at(&self, t: DVec3) -> Option<(u32, Leaf)> {
         let mut ijk = [0u32; 3];
         for axis in 0..3 {

@@ -51,12 +51,14 @@ impl<V: Lanes> Maps<V> {
     /// `Kernel::add_lattice`: the undeformed part h (1 + ξ) / 2 per axis (zeros added too, as there).
     #[inline(always)]
     pub fn add_lattice(&mut self, h: DVec3) {
-        let half = h * 0.5;
-        let (hx, hy, hz) = (
-            V::splat(V::S::of(half.x)),
-            V::splat(V::S::of(half.y)),
-            V::splat(V::S::of(half.z)),
-        );
+        self.add_lattice_lanes(V3::splat(h * 0.5));
+    }
+
+    /// [`Maps::add_lattice`] with each lane's own half spacing `half` (cells of several sizes:
+    /// the leaves of an adaptive body).
+    #[inline(always)]
+    pub fn add_lattice_lanes(&mut self, half: V3<V>) {
+        let (hx, hy, hz) = (half.x, half.y, half.z);
         let zero = V::splat(V::S::of(0.0));
         let a = &mut self.a;
         a[0] = a[0]

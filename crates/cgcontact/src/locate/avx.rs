@@ -345,3 +345,33 @@ impl LatticeLocator<'_> {
         }
     }
 }
+
+impl crate::adaptive::AdaptiveLocator<'_> {
+    /// The adaptive locator's lanes in AVX registers, the whole of it compiled for AVX2.
+    ///
+    /// # Safety
+    /// The CPU must have AVX2 (`is_x86_feature_detected!("avx2")`).
+    #[target_feature(enable = "avx2")]
+    pub(crate) unsafe fn locate_chunk_avx2(&self, points: &[DVec3], out: &mut [Answer]) {
+        self.locate_chunk_avx(points, out);
+    }
+
+    /// The same compiled with AVX-512VL as well (32 vector registers; the same IEEE operations).
+    ///
+    /// # Safety
+    /// The CPU must have AVX2, AVX-512F and AVX-512VL.
+    #[target_feature(enable = "avx2,avx512f,avx512vl")]
+    pub(crate) unsafe fn locate_chunk_avx512(&self, points: &[DVec3], out: &mut [Answer]) {
+        self.locate_chunk_avx(points, out);
+    }
+
+    /// The AVX lanes of the settings' precision; inlined into the caller's instruction set.
+    #[inline(always)]
+    fn locate_chunk_avx(&self, points: &[DVec3], out: &mut [Answer]) {
+        use crate::hex8::{Hex8Map, Hex8Map32};
+        match self.settings().precision {
+            Precision::F32 => self.locate_chunk_lanes::<Hex8Map32, F32x8>(points, out),
+            Precision::F64 => self.locate_chunk_lanes::<Hex8Map, F64x4>(points, out),
+        }
+    }
+}

@@ -296,7 +296,7 @@ impl LatticeLocator<'_> {
 /// The instruction sets the batched path can be compiled for, least first.
 #[cfg(target_arch = "x86_64")]
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
-enum Isa {
+pub(crate) enum Isa {
     /// glam's SSE2 `Vec4` for f32, the scalar search for f64.
     Portable,
     Avx2,
@@ -309,7 +309,7 @@ impl Isa {
     /// The best this CPU has, capped by the environment variable `CGCONTACT_SIMD` (`avx2` or
     /// `portable`; any other value caps nothing), once per process. The answers are the same bits
     /// whichever is used: the cap is there to measure and compare speeds.
-    fn get() -> Self {
+    pub(crate) fn get() -> Self {
         static ISA: std::sync::OnceLock<Isa> = std::sync::OnceLock::new();
         *ISA.get_or_init(|| {
             let cap = match std::env::var("CGCONTACT_SIMD").as_deref() {

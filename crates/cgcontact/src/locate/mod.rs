@@ -25,6 +25,8 @@
 #[cfg(target_arch = "x86_64")]
 mod avx;
 mod batched;
+#[cfg(target_arch = "x86_64")]
+pub(crate) use batched::Isa;
 mod rings;
 mod scalar;
 
