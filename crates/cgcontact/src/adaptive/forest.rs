@@ -31,6 +31,9 @@ pub(super) struct Forest {
     tree: Vec<[u32; 8]>,
     /// Base cells per axis.
     cells: [u32; 3],
+    /// The deepest leaf's level: every descent takes this many steps (a loop of fixed length,
+    /// whose branch the processor predicts whatever the levels of the points' leaves).
+    depth: u8,
 }
 
 /// Why a leaf cannot be inserted: the leaf id already covering (part of) its region.
@@ -98,7 +101,13 @@ impl Forest {
             Base::Sparse(IdMap::new(base.into_iter()))
         };
         tree.shrink_to_fit();
-        Ok(Self { base, tree, cells })
+        let depth = leaves.iter().map(|l| l.level).max().unwrap_or(0);
+        Ok(Self {
+            base,
+            tree,
+            cells,
+            depth,
+        })
     }
 
     /// Some leaf under `entry` (a leaf id or a tree node), for an overlap message.
@@ -138,17 +147,25 @@ impl Forest {
         let mut entry = self.base_entry(ijk);
         let mut scale = 1.0;
         let mut level = 0;
-        while entry & NODE != 0 && entry != EMPTY {
-            level += 1;
-            scale *= 2.0;
+        // Branch-free steps: a point in a coarse leaf keeps its entry (selects, not jumps), so the
+        // loop is the same for every point.
+        for _ in 0..self.depth {
+            let descend = entry & NODE != 0 && entry != EMPTY;
+            let next_scale = scale * 2.0;
             let mut child = 0;
+            let mut next_ijk = ijk;
             for axis in 0..3 {
                 // The child's half along this axis: t · 2^(l+1) against 2 ijk + 1 (exact: dyadic).
-                let upper = t[axis] * scale >= f64::from(2 * ijk[axis] + 1);
-                ijk[axis] = 2 * ijk[axis] + u32::from(upper);
+                let upper = t[axis] * next_scale >= f64::from(2 * ijk[axis] + 1);
+                next_ijk[axis] = 2 * ijk[axis] + u32::from(upper);
                 child |= u32::from(upper) << axis;
             }
-            entry = self.tree[(entry & !NODE) as usize][child as usize];
+            let node = if descend { entry & !NODE } else { 0 };
+            let next = self.tree[node as usize][child as usize];
+            entry = if descend { next } else { entry };
+            ijk = if descend { next_ijk } else { ijk };
+            scale = if descend { next_scale } else { scale };
+            level += u8::from(descend);
         }
         (entry != EMPTY).then_some((entry, Leaf { level, ijk }))
     }

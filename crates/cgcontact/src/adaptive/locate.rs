@@ -11,14 +11,14 @@
 //! On a body of one level every step computes what the uniform locator computes, in the same
 //! order, so the predicted leaf's answers are bitwise the uniform locator's.
 
-use glam::DVec3;
+use glam::{DVec3, Vec3A};
 use rayon::prelude::*;
 use smallvec::SmallVec;
 
 use super::{AdaptiveBody, Leaf};
 use crate::hex8::lanes::Maps;
 use crate::hex8::{Hex8Map, Hex8Map32, Kernel, NewtonOptions, Status};
-use crate::lanes::{Lanes, Real as _, V3, Wide as _};
+use crate::lanes::{Lanes, MAX_W, Real as _, V3, Wide as _};
 use crate::lattice::CellId;
 #[cfg(target_arch = "x86_64")]
 use crate::locate::Isa;
@@ -49,6 +49,9 @@ pub struct AdaptiveLocator<'a> {
     reach_low: DVec3,
     reach_high: DVec3,
     reach_pad: DVec3,
+    /// With f32 precision, the displacements rounded to f32 in node order (16 bytes per node),
+    /// as the f32 lanes read them. Empty with f64.
+    u_f32: Vec<Vec3A>,
 }
 
 impl<'a> AdaptiveLocator<'a> {
@@ -77,6 +80,10 @@ impl<'a> AdaptiveLocator<'a> {
             reach_low: lattice.origin() + u_range.low,
             reach_high: lattice.upper() + u_range.high,
             reach_pad: reach::widening(lattice.h(), u_range.high - u_range.low, 1.0),
+            u_f32: match settings.precision {
+                Precision::F32 => body.u.iter().map(|u| u.as_vec3a()).collect(),
+                Precision::F64 => Vec::new(),
+            },
         })
     }
 
@@ -434,76 +441,147 @@ impl AdaptiveLocator<'_> {
         }
     }
 
-    /// [`AdaptiveLocator::locate_chunk`] in lanes `V` (whose precision is the kernel `K`'s): the
-    /// fronts in scalar code, then the inversions of `V::W` points at once with the lane Newton
-    /// (`hex8/lanes.rs`), each lane with its own leaf's spacing. A lane that leaves the common path
-    /// is answered by the scalar search from scratch.
+    /// [`AdaptiveLocator::locate_chunk`] in lanes `V` (whose precision is the kernel `K`'s), as the
+    /// uniform locator's batched path: for `V::W` points at once, the leaf at x (scalar, per lane),
+    /// its displacement map in lanes (the corners transposed in registers straight from the
+    /// displacements), the guess in lanes, the leaf at the guess (the same leaf for most points:
+    /// its map is reused), and one inversion in lanes with each lane's own leaf spacing. The
+    /// remainder, the `Undeformed` order and every lane that leaves the common path go through
+    /// the scalar search, whose answers these are, bitwise.
     #[inline(always)]
     pub(crate) fn locate_chunk_lanes<K: Kernel, V: Lanes>(
         &self,
         points: &[DVec3],
         out: &mut [Answer],
-    ) {
+    ) where
+        V::Node: LaneNodes,
+    {
+        if self.settings.order != CandidateOrder::Predicted {
+            return self.locate_chunk_grouped::<K>(points, out);
+        }
+        let w = V::W;
+        let batches = points.len() / w;
+        for b in 0..batches {
+            let range = b * w..(b + 1) * w;
+            self.batch::<V>(&points[range.clone()], &mut out[range]);
+        }
+        let rest = batches * w;
+        self.locate_chunk_grouped::<K>(&points[rest..], &mut out[rest..]);
+    }
+
+    /// One batch of `V::W` points (see [`AdaptiveLocator::locate_chunk_lanes`]).
+    #[inline(always)]
+    fn batch<V: Lanes>(&self, xs: &[DVec3], out: &mut [Answer])
+    where
+        V::Node: LaneNodes,
+    {
         let body = self.body;
-        for (xs, answers) in points.chunks(GROUP).zip(out.chunks_mut(GROUP)) {
-            if xs.len() < GROUP {
-                self.locate_chunk_grouped::<K>(xs, answers);
-                continue;
-            }
-            let front = self.front::<K>(xs);
-            for start in (0..GROUP).step_by(V::W) {
-                let lanes = start..start + V::W;
-                let (xs, answers) = (&xs[lanes.clone()], &mut answers[lanes]);
-                let at = |l: usize| start + l;
-                let mut take = 0u32;
-                for l in 0..V::W {
-                    if front.tol[at(l)].is_some() && front.first[at(l)].is_some() {
-                        take |= 1 << l;
-                    }
-                }
-                let found = if take == 0 {
-                    0
-                } else {
-                    // Lanes not taken get a unit cube, so that no lane computes on garbage.
-                    let leaf = |l: usize| {
-                        front.first[at(l)].map_or(Leaf::new(0, [0; 3]), |(_, leaf)| leaf)
-                    };
-                    let corners: [V3<V>; 8] =
-                        std::array::from_fn(|c| lanes3::<V>(|l| front.u[at(l)][c]));
-                    let mut maps = Maps::new(&corners);
-                    maps.add_lattice_lanes(lanes3::<V>(|l| body.spacing(leaf(l).level) * 0.5));
-                    let x_local = lanes3::<V>(|l| xs[l] - body.leaf_origin(leaf(l)));
-                    let xi0 = lanes3::<V>(|l| {
-                        let leaf = leaf(l);
-                        Self::undeformed_xi(front.t_guess[at(l)], leaf.level, leaf.ijk)
-                    });
-                    let inside = V::splat(V::S::of(1.0))
-                        + V::from_fn(|l| V::S::of(front.tol[at(l)].unwrap_or(0.0)));
-                    let (xi, rr, iterations, found) =
-                        maps.invert(x_local, xi0, inside, V::mask_from_bits(take), &self.newton);
-                    let xi = xi.widen().clamp(-1.0, 1.0);
-                    let residual = rr.widen().sqrt();
-                    for (l, answer) in answers.iter_mut().enumerate() {
-                        if found & (1 << l) != 0 {
-                            let (id, _) = front.first[at(l)].expect("a taken lane has a leaf");
-                            *answer = Ok(Some(Hit {
-                                cell: CellId(id),
-                                xi: xi.lane(l),
-                                iterations: iterations[l],
-                                residual: residual.lane(l),
-                                inversions: 1,
-                            }));
-                        }
-                    }
-                    found
-                };
-                for (l, (&x, answer)) in xs.iter().zip(answers.iter_mut()).enumerate() {
-                    if found & (1 << l) == 0 {
-                        *answer = self.search(x, Collect::First, &mut 0);
-                    }
+        let nodes = V::Node::of(self);
+        let origin = body.lattice().origin();
+        let no_leaf = (0, Leaf::new(0, [0; 3]));
+        // The leaf at x, per lane; lanes refused, out of reach or in a hole leave the batch.
+        let mut take = 0u32;
+        let mut tol = [0.0; MAX_W];
+        let mut t_x = [DVec3::ZERO; MAX_W];
+        let mut at = [no_leaf; MAX_W];
+        for l in 0..V::W {
+            let x = xs[l];
+            if let Ok(Some(inside_tol)) = self.admit(x) {
+                tol[l] = inside_tol;
+                t_x[l] = (x - origin) * self.inv_h;
+                if let Some(found) = body.forest.leaf_at(t_x[l]) {
+                    at[l] = found;
+                    take |= 1 << l;
                 }
             }
         }
+        let mut found = 0;
+        if take != 0 {
+            let corners_of = |leaves: &[(u32, Leaf); MAX_W]| {
+                let mut rows = [[0u32; 8]; MAX_W];
+                for l in 0..V::W {
+                    rows[l] = body.corners[leaves[l].0 as usize];
+                }
+                rows
+            };
+            let rows = corners_of(&at);
+            let mut maps = Maps::<V>::from_nodes(|l, c| &nodes[rows[l][c] as usize]);
+            // The guess x − ũ, ũ interpolated at x in x's leaf (`guess`), in lanes.
+            let xi = lanes3::<V::Wide>(|l| {
+                let leaf = at[l].1;
+                Self::undeformed_xi(t_x[l], leaf.level, leaf.ijk).clamp(DVec3::NEG_ONE, DVec3::ONE)
+            });
+            let t_x_lanes = lanes3::<V::Wide>(|l| t_x[l]);
+            let t_guess = t_x_lanes - maps.map(V3::narrow(xi)).widen().mul_each(self.inv_h);
+            // The leaf at the guess, per lane; its map is x's leaf's unless some lane moved.
+            let mut first = at;
+            let mut moved = false;
+            for l in 0..V::W {
+                if take & (1 << l) == 0 {
+                    continue;
+                }
+                match body.forest.leaf_at(t_guess.lane(l)) {
+                    Some(leaf) => {
+                        moved |= leaf.0 != at[l].0;
+                        first[l] = leaf;
+                    }
+                    None => take &= !(1 << l),
+                }
+            }
+            if moved {
+                let rows = corners_of(&first);
+                maps = Maps::from_nodes(|l, c| &nodes[rows[l][c] as usize]);
+            }
+            if take != 0 {
+                maps.add_lattice_lanes(lanes3::<V>(|l| body.spacing(first[l].1.level) * 0.5));
+                let x_local = lanes3::<V>(|l| xs[l] - body.leaf_origin(first[l].1));
+                let xi0 = lanes3::<V>(|l| {
+                    let leaf = first[l].1;
+                    Self::undeformed_xi(t_guess.lane(l), leaf.level, leaf.ijk)
+                });
+                let inside = V::splat(V::S::of(1.0)) + V::from_fn(|l| V::S::of(tol[l]));
+                let (xi, rr, iterations, inside_lanes) =
+                    maps.invert(x_local, xi0, inside, V::mask_from_bits(take), &self.newton);
+                let xi = xi.widen().clamp(-1.0, 1.0);
+                let residual = rr.widen().sqrt();
+                for (l, answer) in out.iter_mut().enumerate() {
+                    if inside_lanes & (1 << l) != 0 {
+                        *answer = Ok(Some(Hit {
+                            cell: CellId(first[l].0),
+                            xi: xi.lane(l),
+                            iterations: iterations[l],
+                            residual: residual.lane(l),
+                            inversions: 1,
+                        }));
+                    }
+                }
+                found = inside_lanes;
+            }
+        }
+        for (l, (&x, answer)) in xs.iter().zip(out.iter_mut()).enumerate() {
+            if found & (1 << l) == 0 {
+                *answer = self.search(x, Collect::First, &mut 0);
+            }
+        }
+    }
+}
+
+/// The displacements as the lanes read them: the body's f64 ones, or the locator's f32 copy.
+pub(crate) trait LaneNodes: Copy + 'static {
+    fn of<'l>(locator: &'l AdaptiveLocator<'_>) -> &'l [Self];
+}
+
+impl LaneNodes for DVec3 {
+    #[inline(always)]
+    fn of<'l>(locator: &'l AdaptiveLocator<'_>) -> &'l [Self] {
+        &locator.body.u
+    }
+}
+
+impl LaneNodes for Vec3A {
+    #[inline(always)]
+    fn of<'l>(locator: &'l AdaptiveLocator<'_>) -> &'l [Self] {
+        &locator.u_f32
     }
 }
 
