@@ -1,4 +1,4 @@
-//! Adaptive bodies against uniform ones (issue 12's targets). The seed's block (20 × 40 × 20 base
+//! Adaptive bodies against uniform ones (the adaptive targets). The seed's block (20 × 40 × 20 base
 //! cells, h = 0.25) refined two levels within 1.5 of the top face's centre, 2:1 balanced: 51,840
 //! leaves, most of them at level 2, with 1,000,000 points made from known (leaf, ξ), drawn per leaf.
 //! Against it, a uniform indented block of about as many cells (`block_cells_for`, shape 1 : 2 : 1,

@@ -103,7 +103,7 @@ fn find<'r>(rows: &'r [Row], scene: &str, id: ConfigId) -> Option<&'r Row> {
     rows.iter().find(|r| r.scene == scene && r.config.id == id)
 }
 
-/// Headline figures against the targets of issues 3 and 5, computed from the rows (reported, never
+/// Headline figures against the speed and precision targets, computed from the rows (reported, never
 /// asserted: timings on a shared machine move).
 fn targets(rows: &[Row], threads: usize) -> String {
     let mut s = String::new();
