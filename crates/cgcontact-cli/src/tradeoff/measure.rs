@@ -4,11 +4,11 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, bail};
 use cgcontact::glam::DVec3;
-use cgcontact::{Answer, Body, CellId, Locator, Settings};
+use cgcontact::{Answer, CellId, Locator, Settings};
 use cgcontact_baseline::BruteForce;
 
 use super::grid::Config;
-use super::scenes::TradeScene;
+use super::scenes::{SceneBody, TradeScene};
 use crate::run::{StrategyName, build_locator};
 
 /// One row of the table: what ran (typed; the report writes it out) and what it measured.
@@ -88,7 +88,7 @@ fn best_time(
 }
 
 /// Physical residual |x − x(ξ)| of an answer, recomputed in f64 in the cell's local frame.
-fn residual(body: &Body, cell: CellId, xi: DVec3, x: DVec3) -> f64 {
+fn residual(body: &SceneBody, cell: CellId, xi: DVec3, x: DVec3) -> f64 {
     match body.cell_map(cell) {
         Some((map, origin)) => (x - origin - map.map(xi)).length(),
         None => f64::INFINITY,
@@ -102,7 +102,7 @@ pub(super) fn measure(
     pools: (&rayon::ThreadPool, &rayon::ThreadPool),
     quick: bool,
 ) -> Result<Row> {
-    let active = scene.body.active_count();
+    let active = scene.body.cell_count();
     let n = if is_slow(config.strategy) {
         subsample(config.strategy, active, quick)
     } else {
@@ -114,10 +114,10 @@ pub(super) fn measure(
     // Ties are judged with the configuration's own definition of inside, in f64: its inside tolerance
     // plus its kernel's rounding allowance (Settings::inside_tolerance), so that a point that close to
     // a neighbour's face belongs to the neighbour too.
-    let h_min = scene.body.lattice().h().min_element();
-    let u_max = scene.body.max_displacement().max_element();
+    let h_min = scene.body.h_min();
+    let u_max = scene.body.as_ref().max_displacement().max_element();
     let oracle = BruteForce::new(
-        &scene.body,
+        scene.body.as_ref(),
         Settings {
             inside_tol: config.settings.inside_tol
                 + 8.0 * (config.settings.epsilon() - f64::EPSILON) * (2.0 + u_max / h_min),
@@ -125,7 +125,7 @@ pub(super) fn measure(
         },
     )?;
     let setup = Instant::now();
-    let locator = build_locator(config.strategy, (&scene.body).into(), config.settings)
+    let locator = build_locator(config.strategy, scene.body.as_ref(), config.settings)
         .with_context(|| format!("{} on {}", config.id.label(), scene.name))?;
     let setup_seconds = setup.elapsed().as_secs_f64();
 

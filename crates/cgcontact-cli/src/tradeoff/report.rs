@@ -225,7 +225,7 @@ pub(super) fn report(
     let _ = writeln!(s, "## Scenes\n");
     let _ = writeln!(
         s,
-        "| scene | what | active cells | points |\n|---|---|---|---|"
+        "| scene | what | cells searched | points |\n|---|---|---|---|"
     );
     for scene in scenes {
         let _ = writeln!(
@@ -233,7 +233,7 @@ pub(super) fn report(
             "| {} | {} | {} | {} |",
             scene.name,
             scene.what,
-            scene.body.active_count(),
+            scene.body.cell_count(),
             scene.points.len()
         );
     }

@@ -2,10 +2,10 @@
 
 use anyhow::{Result, anyhow, bail};
 use cgcontact::glam::DVec3;
-use cgcontact::hex8::{Kernel, NewtonOptions};
-use cgcontact::{Body, CellId, Locator, Settings};
-use cgcontact_baseline::BruteForce;
-use cgcontact_scenes::{SphereOnBlock, indented_block};
+use cgcontact::hex8::{Hex8Map, Kernel, NewtonOptions};
+use cgcontact::{AdaptiveBody, Body, CellId, Locator, Settings};
+use cgcontact_baseline::{BodyRef, BruteForce};
+use cgcontact_scenes::{SphereOnAdaptiveBlock, SphereOnBlock, indented_block};
 
 /// The expected answer for one point.
 #[derive(Clone, Copy, Debug)]
@@ -14,20 +14,64 @@ pub(super) struct Reference {
     pub(super) xi: DVec3,
 }
 
+/// A scene's body: uniform or adaptive.
+pub(super) enum SceneBody {
+    Uniform(Body),
+    Adaptive(AdaptiveBody),
+}
+
+impl SceneBody {
+    pub(super) fn as_ref(&self) -> BodyRef<'_> {
+        match self {
+            Self::Uniform(b) => b.into(),
+            Self::Adaptive(b) => b.into(),
+        }
+    }
+
+    /// Cells searched: active cells or leaves.
+    pub(super) fn cell_count(&self) -> usize {
+        self.as_ref().cell_count()
+    }
+
+    /// The smallest cell edge.
+    pub(super) fn h_min(&self) -> f64 {
+        match self {
+            Self::Uniform(b) => b.lattice().h().min_element(),
+            Self::Adaptive(b) => b.spacing(b.finest_level()).min_element(),
+        }
+    }
+
+    /// A cell's trilinear map in its local frame, and that frame's origin.
+    pub(super) fn cell_map(&self, cell: CellId) -> Option<(Hex8Map, DVec3)> {
+        match self {
+            Self::Uniform(b) => b.cell_map(cell),
+            Self::Adaptive(b) => b.cell_map(cell),
+        }
+    }
+}
+
 /// A scene of the report: a body, its query points and their expected answers (`None`: outside).
 pub(super) struct TradeScene {
     pub(super) name: &'static str,
     pub(super) what: String,
-    pub(super) body: Body,
+    pub(super) body: SceneBody,
     pub(super) points: Vec<DVec3>,
     pub(super) reference: Vec<Option<Reference>>,
 }
 
 impl TradeScene {
     fn from_known(name: &'static str, what: String, scene: cgcontact_scenes::Scene) -> Self {
-        let points = scene.known.iter().map(|k| k.x).collect();
-        let reference = scene
-            .known
+        Self::known_in(name, what, SceneBody::Uniform(scene.body), &scene.known)
+    }
+
+    fn known_in(
+        name: &'static str,
+        what: String,
+        body: SceneBody,
+        known: &[cgcontact_scenes::KnownPoint],
+    ) -> Self {
+        let points = known.iter().map(|k| k.x).collect();
+        let reference = known
             .iter()
             .map(|k| {
                 Some(Reference {
@@ -39,7 +83,7 @@ impl TradeScene {
         Self {
             name,
             what,
-            body: scene.body,
+            body,
             points,
             reference,
         }
@@ -137,10 +181,43 @@ pub(super) fn scenes(quick: bool, pool: &rayon::ThreadPool) -> Result<Vec<TradeS
             sphere.contact_points.len(),
             reference.iter().flatten().count()
         ),
-        body: sphere.body,
+        body: SceneBody::Uniform(sphere.body),
         points: sphere.contact_points,
         reference,
     });
+
+    // The seed's block refined by halving under the sphere (2 levels, 2:1 balanced): hanging
+    // nodes, leaves of three sizes; known points drawn per leaf, so most lie in the finest ones.
+    let adaptive = SphereOnAdaptiveBlock::refining(SphereOnBlock {
+        contact_points: 0,
+        known_points: known,
+        ..base.clone()
+    })
+    .build("adaptive")?;
+    let levels: Vec<usize> = (0..=adaptive.body.finest_level())
+        .map(|l| {
+            adaptive
+                .body
+                .leaves()
+                .iter()
+                .filter(|leaf| leaf.level == l)
+                .count()
+        })
+        .collect();
+    out.push(TradeScene::known_in(
+        "adaptive",
+        format!(
+            "{mesh} block refined 2 levels under the sphere ({} leaves per level 0/1/2, {} hanging nodes), {known} known points",
+            levels
+                .iter()
+                .map(usize::to_string)
+                .collect::<Vec<_>>()
+                .join("/"),
+            adaptive.body.hanging_nodes().count()
+        ),
+        SceneBody::Adaptive(adaptive.body),
+        &adaptive.known,
+    ));
 
     // Far from the origin: every coordinate offset by 1e6. Rounding the generated points to f64 at
     // that magnitude moves them by ~1e-10, i.e. ~1e-9 in ξ on 0.25 cells: the reference ξ is the f64

@@ -17,12 +17,13 @@ const MAX_XI: usize = 11;
 const DEFAULT_LATTICE: &str = "lattice f64 (default)";
 /// The scenes, typed here rather than read back: the targets and docs/ name them, so a scene that
 /// went missing from the report must fail this test, not shrink it.
-const SCENES: [&str; 6] = [
+const SCENES: [&str; 7] = [
     "fine",
     "fine-jitter",
     "block-small",
     "block-big",
     "sphere",
+    "adaptive",
     "far",
 ];
 
