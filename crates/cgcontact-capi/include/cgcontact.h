@@ -2,7 +2,9 @@
  * cgcontact: contact search on deformed lattice bodies (Cartesian grid FEM), C ABI.
  *
  * Which deformed hexahedron of a lattice-meshed body holds each point, and the point's local
- * coordinates xi in [-1, 1]^3 there (VTK corner order, corner 0 at (-1, -1, -1)).
+ * coordinates xi in [-1, 1]^3 there (VTK corner order, corner 0 at (-1, -1, -1)). Bodies are
+ * uniform (one lattice) or h-adaptive (cells halved per level, hanging nodes constrained to their
+ * coarse neighbour: cgc_body_from_mesh detects which).
  *
  *   cgc_body *body;  cgc_locator *loc;
  *   cgc_body_from_lattice(origin, h, counts, NULL, 0, &body);      // or cgc_body_from_mesh
@@ -55,8 +57,14 @@
 // in MATLAB or Fortran, a 3 × n row-major array in C).
 #define CGC_LAYOUT_COMPONENT_MAJOR 1
 
-// The lattice locator: hashes each point to its lattice cell, inverts the few neighbours that can
-// hold it. The one to use.
+// A flag OR-ed into the layout of `cgc_body_set_displacements`: on an adaptive body, set each
+// hanging node to its constraint's value (the trilinear interpolation of the coarse cell it hangs
+// on) instead of checking the value given, which is then ignored (it must still be finite). No
+// effect on bodies without hanging nodes.
+#define CGC_FILL_HANGING 2
+
+// The lattice locator: hashes each point to its lattice cell (on an adaptive body, its leaf),
+// inverts the few neighbours that can hold it. The one to use.
 #define CGC_STRATEGY_LATTICE 0
 
 // Brute force: every active cell is tried (the test oracle; O(cells) per point).
@@ -91,13 +99,19 @@ typedef enum {
   // A NaN or infinite value in a lattice, node coordinates or displacements (nothing was changed).
   CGC_ERROR_NON_FINITE = 4,
   // The nodes and cells given are not a lattice body: off-lattice nodes, a cell that is not one
-  // lattice cube in VTK corner order, duplicate cells, coinciding nodes that disagree.
+  // lattice cube in VTK corner order (on an adaptive mesh: a cell whose size is no level's, or
+  // not aligned to its level's lattice), duplicate or overlapping cells, coinciding nodes that
+  // disagree.
   CGC_ERROR_NOT_LATTICE = 5,
   // Some query points have a NaN or infinite coordinate. Every output is still written: those
   // points have status `CGC_POINT_NON_FINITE`, the others their answers.
   CGC_ERROR_NON_FINITE_POINT = 6,
   // A bug in cgcontact (a Rust panic, caught at the boundary). Please report the message.
   CGC_ERROR_PANIC = 7,
+  // Displacements of an adaptive body whose hanging nodes break their constraint (the deformed
+  // mesh would gap or overlap): the message names how many, the worst node and by how much.
+  // Nothing was changed. Pass `CGC_FILL_HANGING` to have the hanging nodes filled instead.
+  CGC_ERROR_HANGING_CONSTRAINT = 8,
 } cgc_error;
 
 // A deformed body (opaque). Created by `cgc_body_from_lattice` or `cgc_body_from_mesh`, freed by
@@ -156,11 +170,21 @@ cgc_error cgc_body_from_lattice(const double *origin,
 // A body from undeformed nodes and hexahedra, whose lattice is detected from the nodes (to 1e-9
 // of the spacing). `nodes` holds `3 n_nodes` doubles, x y z per node; `cells` holds `8 n_cells`
 // node numbers per cell in VTK hexahedron order, numbered from `index_base` (0 for C, 1 for
-// MATLAB or Fortran). Each cell must be one lattice cube. The body starts undeformed. Cell numbers
-// in answers are 0-based places in `cells`. Writes the new handle to `*out`.
+// MATLAB or Fortran). The body starts undeformed. Cell numbers in answers are 0-based places in
+// `cells`. Writes the new handle to `*out`.
+//
+// Cells of one size make a uniform body: each must be one lattice cube. Cells of several sizes
+// make an adaptive body: each cell is a dyadic refinement of one base lattice (edges h/2^l, its
+// lowest corner on its level's lattice), no two overlap, and the nodes of finer cells that lie on
+// a coarser neighbour's edge or face (hanging nodes) are nodes of the mesh too. Cells and nodes
+// may come in any order.
 //
 // Displacements are then given for every node (`n_nodes` of them; those of nodes no cell uses
-// are ignored, and nodes at the same place must get the same displacement).
+// are ignored, and nodes at the same place must get the same displacement). On an adaptive body a
+// hanging node's displacement must be the trilinear interpolation of the coarse cell it hangs on
+// (1/2 and 1/2 of an edge's ends, 1/4 each of a face's corners, recursively): otherwise
+// `cgc_body_set_displacements` returns `CGC_ERROR_HANGING_CONSTRAINT`, unless the layout carries
+// `CGC_FILL_HANGING`.
 //
 // # Safety
 // Every non-NULL pointer must point to as many readable values as stated; `out` to one writable
@@ -174,8 +198,14 @@ cgc_error cgc_body_from_mesh(const double *nodes,
 
 // Sets every displacement of the body, in place (nothing is rebuilt; locators made from the body
 // see the new values at their next call). `u` holds `3 n_nodes` doubles in `layout`
-// (`CGC_LAYOUT_NODE_MAJOR` or `CGC_LAYOUT_COMPONENT_MAJOR`); `n_nodes` must be
-// `cgc_body_node_count`. On any error (a length, a NaN, a flag) the body keeps its displacements.
+// (`CGC_LAYOUT_NODE_MAJOR` or `CGC_LAYOUT_COMPONENT_MAJOR`, optionally `| CGC_FILL_HANGING`);
+// `n_nodes` must be `cgc_body_node_count`. On any error (a length, a NaN, a flag, a hanging node
+// off its constraint) the body keeps its displacements.
+//
+// On an adaptive body, each hanging node's displacement is checked against its constraint (to
+// 1e-9 of the finest spacing plus the rounding of the largest displacement):
+// `CGC_ERROR_HANGING_CONSTRAINT` names how many break it and the worst node. With
+// `CGC_FILL_HANGING`, the hanging nodes are set to their constraints' values instead.
 //
 // # Safety
 // `body` must be a live handle or NULL; `u` must point to `3 n_nodes` readable doubles or be NULL.
@@ -190,6 +220,13 @@ cgc_error cgc_body_set_displacements(cgc_body *body,
 // # Safety
 // `body` must be a live handle or NULL; `n_nodes` writable or NULL.
 cgc_error cgc_body_node_count(const cgc_body *body, size_t *n_nodes);
+
+// Writes to `*n_hanging` how many of the body's nodes are hanging (a node of a finer cell on an
+// edge or a face of a coarser neighbour, constrained by it): 0 for a uniform body.
+//
+// # Safety
+// `body` must be a live handle or NULL; `n_hanging` writable or NULL.
+cgc_error cgc_body_hanging_count(const cgc_body *body, size_t *n_hanging);
 
 // Frees a body handle (NULL is a no-op). Locators made from it stay valid: they share the body,
 // which is freed with the last of them.

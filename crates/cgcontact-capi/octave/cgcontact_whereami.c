@@ -10,7 +10,15 @@
  *     U         m x 3   nodal displacements ([] or omitted: undeformed)
  *     E         1 x n   1-based element holding each point, 0 when none
  *     PosL      3 x n   local coordinates in [-1, 1]^3 (NaN when none)
- *     Options   struct, any of: precision ('f64' or 'f32'), tol (Newton step), max_iter, threads
+ *     Options   struct, any of: precision ('f64' or 'f32'), tol (Newton step), max_iter, threads,
+ *               fill_hanging (true: hanging nodes take their constraint's value, U's is ignored)
+ *
+ * Adaptive meshes work as uniform ones: elements of several sizes, each a dyadic refinement of
+ * one lattice (edges h/2^l), with the hanging nodes (nodes of finer elements on an edge or a face
+ * of a coarser neighbour) among XYZ_N0. A hanging node's displacement must be the trilinear
+ * interpolation of the coarse element it hangs on (1/2 and 1/2 of an edge's ends, 1/4 each of a
+ * face's corners, recursively): otherwise the error cgcontact:hangingConstraint names how many
+ * break it and the worst node, unless Options.fill_hanging is true.
  *
  * Handles, for solver loops (build once, update displacements, locate):
  *
@@ -59,6 +67,7 @@ typedef struct {
     cgc_body *body;
     cgc_locator *locator;
     size_t n_nodes;
+    uint32_t fill; /* CGC_FILL_HANGING or 0, OR-ed into every update's layout */
 } entry;
 
 static entry *table = NULL;
@@ -86,10 +95,12 @@ static void fail_cgc(cgc_error code, const char *what) {
     static const char *ids[] = {"cgcontact:ok",          "cgcontact:nullPointer",
                                 "cgcontact:invalidArgument", "cgcontact:lengthMismatch",
                                 "cgcontact:nonFinite",   "cgcontact:notLattice",
-                                "cgcontact:nonFinitePoint", "cgcontact:internal"};
-    const char *id = (code >= 0 && code <= CGC_ERROR_PANIC) ? ids[code] : "cgcontact:error";
+                                "cgcontact:nonFinitePoint", "cgcontact:internal",
+                                "cgcontact:hangingConstraint"};
+    const char *id = (code >= 0 && code < (int)(sizeof ids / sizeof *ids)) ? ids[code] : "cgcontact:error";
+    int counts_from_0 = code == CGC_ERROR_NOT_LATTICE || code == CGC_ERROR_HANGING_CONSTRAINT;
     mexErrMsgIdAndTxt(id, "%s: %s%s", what, cgc_last_error(),
-                      code == CGC_ERROR_NOT_LATTICE ? " (the library counts nodes and cells from 0)" : "");
+                      counts_from_0 ? " (the library counts nodes and cells from 0)" : "");
 }
 
 /* Octave prefixes the message with the function's name; MATLAB shows it beside. */
@@ -106,12 +117,19 @@ static size_t matrix(const mxArray *a, const char *name, size_t rows, const char
 
 /* --- options ------------------------------------------------------------------------------ */
 
-static void settings_from(const mxArray *options, cgc_settings *s) {
+static void settings_from(const mxArray *options, cgc_settings *s, uint32_t *fill) {
     cgc_settings_init(CGC_PRECISION_F64, s);
+    *fill = 0;
     if (!options || mxIsEmpty(options)) return;
     if (!mxIsStruct(options) || mxGetNumberOfElements(options) != 1)
         FAIL("badInput", "Options must be a scalar struct");
-    const mxArray *f = mxGetField(options, 0, "precision");
+    const mxArray *f = mxGetField(options, 0, "fill_hanging");
+    if (f) {
+        if (!(mxIsLogical(f) || mxIsDouble(f)) || mxIsComplex(f) || mxGetNumberOfElements(f) != 1)
+            FAIL("badInput", "Options.fill_hanging must be true or false");
+        *fill = mxGetScalar(f) != 0 ? CGC_FILL_HANGING : 0;
+    }
+    f = mxGetField(options, 0, "precision");
     if (f) {
         char p[8] = {0};
         if (!mxIsChar(f) || mxGetString(f, p, sizeof p) != 0 || (strcmp(p, "f64") && strcmp(p, "f32")))
@@ -149,7 +167,8 @@ static entry build(const mxArray *nodes, const mxArray *topology, const mxArray 
         if (!isfinite(x[k]))
             FAIL("nonFinite", "XYZ_N0(%d, %d) = %g is not finite", (int)(k % 3) + 1, (int)(k / 3) + 1, x[k]);
     cgc_settings settings;
-    settings_from(options, &settings);
+    uint32_t fill;
+    settings_from(options, &settings, &fill);
     const double *t = mxGetPr(topology);
     int64_t *cells = mxMalloc(8 * e * sizeof *cells);
     for (size_t i = 0; i < 8 * e; i++) {
@@ -158,7 +177,7 @@ static entry build(const mxArray *nodes, const mxArray *topology, const mxArray 
                  (int)(i / 8) + 1, t[i]);
         cells[i] = (int64_t)t[i];
     }
-    entry made = {NULL, NULL, m};
+    entry made = {NULL, NULL, m, fill};
     cgc_error code = cgc_body_from_mesh(mxGetPr(nodes), m, cells, e, 1, &made.body);
     mxFree(cells);
     if (code != CGC_ERROR_OK) fail_cgc(code, "XYZ_N0 and Topology");
@@ -179,7 +198,8 @@ static void update(entry *e, const mxArray *u, int owned) {
         FAIL("badSize", "U must be a real double m x 3 matrix with m = %d nodes, got %s %d x %d",
              (int)e->n_nodes, mxGetClassName(u), (int)mxGetM(u), (int)mxGetN(u));
     }
-    cgc_error code = cgc_body_set_displacements(e->body, mxGetPr(u), e->n_nodes, CGC_LAYOUT_COMPONENT_MAJOR);
+    cgc_error code = cgc_body_set_displacements(e->body, mxGetPr(u), e->n_nodes,
+                                                CGC_LAYOUT_COMPONENT_MAJOR | e->fill);
     if (code != CGC_ERROR_OK) {
         if (owned) free_entry(e);
         const double *v = mxGetPr(u);
@@ -247,7 +267,7 @@ static double keep(entry made) {
             FAIL("outOfMemory", "no memory for a new handle");
         }
         table = grown;
-        table[table_len++] = (entry){NULL, NULL, 0};
+        table[table_len++] = (entry){NULL, NULL, 0, 0};
     }
     table[slot] = made;
     return (double)(slot + 1);

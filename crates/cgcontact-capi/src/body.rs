@@ -1,11 +1,11 @@
-//! Bodies: from a lattice, or from nodes and hexahedra whose lattice is detected; displacements set
-//! in place.
+//! Bodies: from a lattice, or from nodes and hexahedra whose lattice (one level, or dyadic
+//! refinements of it with hanging nodes) is detected; displacements set in place.
 
 use std::sync::{Arc, PoisonError, RwLock, RwLockReadGuard, RwLockWriteGuard};
 
 use cgcontact::glam::DVec3;
-use cgcontact::{Body, CellId, Lattice};
-use cgcontact_io::{CellMap, HexMesh, LATTICE_TOLERANCE};
+use cgcontact::{AdaptiveBody, Body, CellId, Lattice};
+use cgcontact_io::{CellMap, HexMesh, LATTICE_TOLERANCE, MeshBody};
 
 use crate::error::{CgcError, Failure, guard};
 use crate::raw;
@@ -16,6 +16,14 @@ pub const CGC_LAYOUT_NODE_MAJOR: u32 = 0;
 /// Displacements given component by component: x of every node, then y, then z (an n × 3 array
 /// in MATLAB or Fortran, a 3 × n row-major array in C).
 pub const CGC_LAYOUT_COMPONENT_MAJOR: u32 = 1;
+/// A flag OR-ed into the layout of `cgc_body_set_displacements`: on an adaptive body, set each
+/// hanging node to its constraint's value (the trilinear interpolation of the coarse cell it hangs
+/// on) instead of checking the value given, which is then ignored (it must still be finite). No
+/// effect on bodies without hanging nodes.
+pub const CGC_FILL_HANGING: u32 = 2;
+
+/// Rounding allowance relative to a value's magnitude (as `cgcontact-io`'s checks).
+const ROUNDING_SLACK: f64 = 4.0 * f64::EPSILON;
 
 /// A deformed body (opaque). Created by `cgc_body_from_lattice` or `cgc_body_from_mesh`, freed by
 /// `cgc_body_free`.
@@ -23,10 +31,79 @@ pub struct CgcBody {
     pub(crate) state: Arc<RwLock<BodyState>>,
 }
 
+/// The body a handle holds: one lattice level, or an adaptive body of several.
+#[derive(Debug)]
+pub(crate) enum AnyBody {
+    /// Every cell one cell of the lattice.
+    Uniform(Body),
+    /// Leaves of several refinement levels of a base lattice; a leaf's id is its input cell.
+    Adaptive(AdaptiveBody),
+}
+
+impl AnyBody {
+    fn lattice(&self) -> &Lattice {
+        match self {
+            Self::Uniform(body) => body.lattice(),
+            Self::Adaptive(body) => body.lattice(),
+        }
+    }
+}
+
+/// The Q1 constraints of an adaptive body's hanging nodes, flattened to independent nodes: what
+/// an update checks in the caller's values before the body takes them.
+#[derive(Debug, Default)]
+struct Hanging {
+    /// (hanging node, end of its parents in `parents`), ascending by node.
+    rows: Vec<(u32, u32)>,
+    /// (independent node, weight).
+    parents: Vec<(u32, f64)>,
+}
+
+impl Hanging {
+    fn of(body: &AdaptiveBody) -> Self {
+        let mut hanging = Self::default();
+        for node in body.hanging_nodes() {
+            let parents = body
+                .constraint(node)
+                .expect("a hanging node has a constraint");
+            hanging
+                .parents
+                .extend(parents.into_iter().map(|(p, w)| (p as u32, w)));
+            // Node and parent counts fit u32: the body indexes its nodes with u32.
+            hanging
+                .rows
+                .push((node as u32, hanging.parents.len() as u32));
+        }
+        hanging
+    }
+
+    /// The hanging nodes farther than `tol` from their constraint in `u`: how many, and the worst
+    /// (node, by how much).
+    fn violations(&self, u: &[DVec3], tol: f64) -> (usize, Option<(usize, f64)>) {
+        let (mut count, mut worst) = (0, None);
+        let mut start = 0;
+        for &(node, end) in &self.rows {
+            let value: DVec3 = self.parents[start..end as usize]
+                .iter()
+                .map(|&(p, w)| w * u[p as usize])
+                .sum();
+            start = end as usize;
+            let off = (u[node as usize] - value).abs().max_element();
+            if off > tol {
+                count += 1;
+                if worst.is_none_or(|(_, w)| off > w) {
+                    worst = Some((node as usize, off));
+                }
+            }
+        }
+        (count, worst)
+    }
+}
+
 /// What a body handle holds; shared with the locators made from it.
 #[derive(Debug)]
 pub(crate) struct BodyState {
-    pub body: Body,
+    pub body: AnyBody,
     /// The mesh's cell numbering, for bodies given as nodes and cells; `None` for lattice bodies,
     /// whose cells are numbered as the lattice's.
     cells: Option<CellMap>,
@@ -35,9 +112,11 @@ pub(crate) struct BodyState {
     /// For each of the body's displacement slots, the caller's node that gives it; `None` when slot
     /// s is node s (a lattice body with every cell active), so that such bodies store nothing.
     source_of_slot: Option<Vec<u32>>,
-    /// Further caller's nodes at a slot's lattice node (an unmerged mesh): (node, slot). Their
+    /// Further caller's nodes at a slot's node (an unmerged mesh): (node, slot). Their
     /// displacements must agree with the slot's.
     duplicates: Vec<(usize, usize)>,
+    /// The hanging nodes' constraints (none for uniform bodies).
+    hanging: Hanging,
     /// The displacements in slot order, reused by every update.
     scratch: Vec<DVec3>,
 }
@@ -53,13 +132,14 @@ impl BodyState {
             source_count: lattice.node_count(),
             source_of_slot,
             duplicates: Vec::new(),
+            hanging: Hanging::default(),
             cells: None,
-            body,
+            body: AnyBody::Uniform(body),
         }
     }
 
-    /// The caller's cell number of lattice cell `cell` (−1 if the caller has no such cell, which a
-    /// locator never returns).
+    /// The caller's cell number of the body's cell `cell` (−1 if the caller has no such cell,
+    /// which a locator never returns).
     #[inline]
     pub fn cell_number(&self, cell: CellId) -> i64 {
         match &self.cells {
@@ -87,7 +167,8 @@ impl BodyState {
                 ),
             ));
         }
-        let at = |node: usize| match layout {
+        let fill = layout & CGC_FILL_HANGING != 0;
+        let at = |node: usize| match layout & !CGC_FILL_HANGING {
             CGC_LAYOUT_NODE_MAJOR => DVec3::new(u[3 * node], u[3 * node + 1], u[3 * node + 2]),
             _ => DVec3::new(u[node], u[n + node], u[2 * n + node]),
         };
@@ -130,9 +211,57 @@ impl BodyState {
                 ));
             }
         }
-        self.body.set_displacements(&self.scratch)?;
+        match &mut self.body {
+            AnyBody::Uniform(body) => body.set_displacements(&self.scratch)?,
+            AnyBody::Adaptive(body) => {
+                if !fill {
+                    check_hanging(
+                        body,
+                        &self.hanging,
+                        &self.scratch,
+                        self.source_of_slot.as_deref(),
+                    )?;
+                }
+                body.set_displacements(&self.scratch)?;
+                if fill {
+                    body.fill_hanging();
+                }
+            }
+        }
         Ok(())
     }
+}
+
+/// An error naming how many hanging nodes of `body` break their constraint in `u` (slot order)
+/// and the worst, as the caller's node `source[slot]`; `Ok` when none does.
+///
+/// The tolerance is the one `cgcontact locate` warns at: 1e-9 of the finest spacing plus the
+/// rounding of the largest displacement.
+fn check_hanging(
+    body: &AdaptiveBody,
+    hanging: &Hanging,
+    u: &[DVec3],
+    source: Option<&[u32]>,
+) -> Result<(), Failure> {
+    if hanging.rows.is_empty() {
+        return Ok(());
+    }
+    let largest = u.iter().fold(0.0f64, |m, v| m.max(v.abs().max_element()));
+    let tol = LATTICE_TOLERANCE * body.spacing(body.finest_level()).min_element()
+        + ROUNDING_SLACK * largest;
+    let (count, worst) = hanging.violations(u, tol);
+    let Some((slot, by)) = worst else {
+        return Ok(());
+    };
+    let node = source.map_or(slot, |s| s[slot] as usize);
+    let at = body.node_position(slot).unwrap_or(DVec3::NAN);
+    Err(Failure::new(
+        CgcError::HangingConstraint,
+        format!(
+            "displacements: {count} of {} hanging nodes break their constraint by more than {tol:.1e}; the worst, node {node} (0-based) at {at}, by {by:.3e}: the deformed mesh would gap or overlap there (give each hanging node the trilinear interpolation of the coarse cell it hangs on, or pass CGC_FILL_HANGING)",
+            hanging.rows.len()
+        ),
+    ))
 }
 
 impl CgcBody {
@@ -234,11 +363,21 @@ pub unsafe extern "C" fn cgc_body_from_lattice(
 /// A body from undeformed nodes and hexahedra, whose lattice is detected from the nodes (to 1e-9
 /// of the spacing). `nodes` holds `3 n_nodes` doubles, x y z per node; `cells` holds `8 n_cells`
 /// node numbers per cell in VTK hexahedron order, numbered from `index_base` (0 for C, 1 for
-/// MATLAB or Fortran). Each cell must be one lattice cube. The body starts undeformed. Cell numbers
-/// in answers are 0-based places in `cells`. Writes the new handle to `*out`.
+/// MATLAB or Fortran). The body starts undeformed. Cell numbers in answers are 0-based places in
+/// `cells`. Writes the new handle to `*out`.
+///
+/// Cells of one size make a uniform body: each must be one lattice cube. Cells of several sizes
+/// make an adaptive body: each cell is a dyadic refinement of one base lattice (edges h/2^l, its
+/// lowest corner on its level's lattice), no two overlap, and the nodes of finer cells that lie on
+/// a coarser neighbour's edge or face (hanging nodes) are nodes of the mesh too. Cells and nodes
+/// may come in any order.
 ///
 /// Displacements are then given for every node (`n_nodes` of them; those of nodes no cell uses
-/// are ignored, and nodes at the same place must get the same displacement).
+/// are ignored, and nodes at the same place must get the same displacement). On an adaptive body a
+/// hanging node's displacement must be the trilinear interpolation of the coarse cell it hangs on
+/// (1/2 and 1/2 of an edge's ends, 1/4 each of a face's corners, recursively): otherwise
+/// `cgc_body_set_displacements` returns `CGC_ERROR_HANGING_CONSTRAINT`, unless the layout carries
+/// `CGC_FILL_HANGING`.
 ///
 /// # Safety
 /// Every non-NULL pointer must point to as many readable values as stated; `out` to one writable
@@ -299,18 +438,20 @@ pub unsafe extern "C" fn cgc_body_from_mesh(
             cells: hexes,
             displacement: None,
         };
-        let found = mesh.to_lattice()?;
-        let state = mesh_state(&mesh, found.body, found.cells);
+        let state = match mesh.to_body()? {
+            MeshBody::Uniform(found) => uniform_state(&mesh, found.body, found.cells),
+            MeshBody::Adaptive(found) => adaptive_state(&mesh, found.body, found.cells),
+        };
         // SAFETY: the caller guarantees `out` is writable.
         unsafe { raw::give(out, CgcBody::new(state), "out") }
     })
 }
 
-/// The state of a body detected from `mesh`: which input node gives each displacement slot.
-fn mesh_state(mesh: &HexMesh, body: Body, cells: CellMap) -> BodyState {
+/// The state of a uniform body detected from `mesh`: which input node gives each displacement
+/// slot.
+fn uniform_state(mesh: &HexMesh, body: Body, cells: CellMap) -> BodyState {
     let lattice = *body.lattice();
     let slot_nodes: Vec<usize> = body.nodes().collect();
-    const UNSET: usize = usize::MAX;
     let mut slot_of_input = vec![UNSET; mesh.points.len()];
     for (input, corners) in mesh.cells.iter().enumerate() {
         let cell = cells
@@ -325,8 +466,50 @@ fn mesh_state(mesh: &HexMesh, body: Body, cells: CellMap) -> BodyState {
                 .expect("corners of active cells are body nodes");
         }
     }
+    let (source_of_slot, duplicates) = sources(&slot_of_input, slot_nodes.len());
+    BodyState {
+        scratch: vec![DVec3::ZERO; slot_nodes.len()],
+        source_count: mesh.points.len(),
+        source_of_slot: Some(source_of_slot),
+        duplicates,
+        hanging: Hanging::default(),
+        cells: Some(cells),
+        body: AnyBody::Uniform(body),
+    }
+}
+
+/// The state of an adaptive body detected from `mesh`, whose leaf `c` is input cell `c` with its
+/// corners in the same (VTK) order: input node → body node through the cells' corners.
+fn adaptive_state(mesh: &HexMesh, body: AdaptiveBody, cells: CellMap) -> BodyState {
+    let mut slot_of_input = vec![UNSET; mesh.points.len()];
+    for (input, corners) in mesh.cells.iter().enumerate() {
+        let nodes = body
+            .cell_nodes(CellId(input as u32))
+            .expect("a leaf per input cell");
+        for (&node, slot) in corners.iter().zip(nodes) {
+            slot_of_input[node as usize] = slot;
+        }
+    }
+    let (source_of_slot, duplicates) = sources(&slot_of_input, body.node_count());
+    BodyState {
+        scratch: vec![DVec3::ZERO; body.node_count()],
+        source_count: mesh.points.len(),
+        source_of_slot: Some(source_of_slot),
+        duplicates,
+        hanging: Hanging::of(&body),
+        cells: Some(cells),
+        body: AnyBody::Adaptive(body),
+    }
+}
+
+/// An input node no cell uses.
+const UNSET: usize = usize::MAX;
+
+/// From each input node's slot (or `UNSET`): the first input node of each of `slots` slots, and
+/// the further input nodes at a slot already given, as (node, slot).
+fn sources(slot_of_input: &[usize], slots: usize) -> (Vec<u32>, Vec<(usize, usize)>) {
     // Input nodes used by cells are u32 (the cells' indices are).
-    let mut source_of_slot = vec![u32::MAX; slot_nodes.len()];
+    let mut source_of_slot = vec![u32::MAX; slots];
     let mut duplicates = Vec::new();
     for (node, &slot) in slot_of_input
         .iter()
@@ -340,20 +523,19 @@ fn mesh_state(mesh: &HexMesh, body: Body, cells: CellMap) -> BodyState {
         }
     }
     debug_assert!(!source_of_slot.contains(&u32::MAX));
-    BodyState {
-        scratch: vec![DVec3::ZERO; slot_nodes.len()],
-        source_count: mesh.points.len(),
-        source_of_slot: Some(source_of_slot),
-        duplicates,
-        cells: Some(cells),
-        body,
-    }
+    (source_of_slot, duplicates)
 }
 
 /// Sets every displacement of the body, in place (nothing is rebuilt; locators made from the body
 /// see the new values at their next call). `u` holds `3 n_nodes` doubles in `layout`
-/// (`CGC_LAYOUT_NODE_MAJOR` or `CGC_LAYOUT_COMPONENT_MAJOR`); `n_nodes` must be
-/// `cgc_body_node_count`. On any error (a length, a NaN, a flag) the body keeps its displacements.
+/// (`CGC_LAYOUT_NODE_MAJOR` or `CGC_LAYOUT_COMPONENT_MAJOR`, optionally `| CGC_FILL_HANGING`);
+/// `n_nodes` must be `cgc_body_node_count`. On any error (a length, a NaN, a flag, a hanging node
+/// off its constraint) the body keeps its displacements.
+///
+/// On an adaptive body, each hanging node's displacement is checked against its constraint (to
+/// 1e-9 of the finest spacing plus the rounding of the largest displacement):
+/// `CGC_ERROR_HANGING_CONSTRAINT` names how many break it and the worst node. With
+/// `CGC_FILL_HANGING`, the hanging nodes are set to their constraints' values instead.
 ///
 /// # Safety
 /// `body` must be a live handle or NULL; `u` must point to `3 n_nodes` readable doubles or be NULL.
@@ -367,11 +549,12 @@ pub unsafe extern "C" fn cgc_body_set_displacements(
     guard(|| {
         // SAFETY: the caller guarantees a live handle.
         let body = unsafe { raw::handle(body, "body") }?;
-        if layout != CGC_LAYOUT_NODE_MAJOR && layout != CGC_LAYOUT_COMPONENT_MAJOR {
+        let order = layout & !CGC_FILL_HANGING;
+        if order != CGC_LAYOUT_NODE_MAJOR && order != CGC_LAYOUT_COMPONENT_MAJOR {
             return Err(Failure::new(
                 CgcError::InvalidArgument,
                 format!(
-                    "layout is {layout}; it must be CGC_LAYOUT_NODE_MAJOR (0) or CGC_LAYOUT_COMPONENT_MAJOR (1)"
+                    "layout is {layout}; it must be CGC_LAYOUT_NODE_MAJOR (0) or CGC_LAYOUT_COMPONENT_MAJOR (1), optionally | CGC_FILL_HANGING (2)"
                 ),
             ));
         }
@@ -410,6 +593,29 @@ pub unsafe extern "C" fn cgc_body_node_count(
             )
         };
         out[0] = CgcBody::read(&body.state).source_count;
+        Ok(())
+    })
+}
+
+/// Writes to `*n_hanging` how many of the body's nodes are hanging (a node of a finer cell on an
+/// edge or a face of a coarser neighbour, constrained by it): 0 for a uniform body.
+///
+/// # Safety
+/// `body` must be a live handle or NULL; `n_hanging` writable or NULL.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn cgc_body_hanging_count(
+    body: *const CgcBody,
+    n_hanging: *mut usize,
+) -> CgcError {
+    guard(|| {
+        // SAFETY: the caller guarantees a live handle and a writable output.
+        let (body, out) = unsafe {
+            (
+                raw::handle(body, "body")?,
+                raw::slice_mut(n_hanging, 1, "n_hanging")?,
+            )
+        };
+        out[0] = CgcBody::read(&body.state).hanging.rows.len();
         Ok(())
     })
 }

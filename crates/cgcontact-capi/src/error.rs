@@ -22,13 +22,19 @@ pub enum CgcError {
     /// A NaN or infinite value in a lattice, node coordinates or displacements (nothing was changed).
     NonFinite = 4,
     /// The nodes and cells given are not a lattice body: off-lattice nodes, a cell that is not one
-    /// lattice cube in VTK corner order, duplicate cells, coinciding nodes that disagree.
+    /// lattice cube in VTK corner order (on an adaptive mesh: a cell whose size is no level's, or
+    /// not aligned to its level's lattice), duplicate or overlapping cells, coinciding nodes that
+    /// disagree.
     NotLattice = 5,
     /// Some query points have a NaN or infinite coordinate. Every output is still written: those
     /// points have status `CGC_POINT_NON_FINITE`, the others their answers.
     NonFinitePoint = 6,
     /// A bug in cgcontact (a Rust panic, caught at the boundary). Please report the message.
     Panic = 7,
+    /// Displacements of an adaptive body whose hanging nodes break their constraint (the deformed
+    /// mesh would gap or overlap): the message names how many, the worst node and by how much.
+    /// Nothing was changed. Pass `CGC_FILL_HANGING` to have the hanging nodes filled instead.
+    HangingConstraint = 8,
 }
 
 /// A failed call: its code and message.

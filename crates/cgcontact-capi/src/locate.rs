@@ -5,16 +5,16 @@ use std::sync::{Arc, RwLock};
 use std::time::Instant;
 
 use cgcontact::glam::DVec3;
-use cgcontact::{Answer, LatticeLocator, Locator, Precision, Settings};
+use cgcontact::{AdaptiveLocator, Answer, LatticeLocator, Locator, Precision, Settings};
 use cgcontact_baseline::BruteForce;
 use rayon::prelude::*;
 
-use crate::body::{BodyState, CgcBody};
+use crate::body::{AnyBody, BodyState, CgcBody};
 use crate::error::{CgcError, Failure, guard};
 use crate::raw;
 
-/// The lattice locator: hashes each point to its lattice cell, inverts the few neighbours that can
-/// hold it. The one to use.
+/// The lattice locator: hashes each point to its lattice cell (on an adaptive body, its leaf),
+/// inverts the few neighbours that can hold it. The one to use.
 pub const CGC_STRATEGY_LATTICE: u32 = 0;
 /// Brute force: every active cell is tried (the test oracle; O(cells) per point).
 pub const CGC_STRATEGY_BRUTE: u32 = 1;
@@ -103,9 +103,17 @@ impl CgcLocator {
         let state = CgcBody::read(&self.body);
         let state = &*state;
         let run = || -> Result<R, Failure> {
-            Ok(match self.strategy {
-                CGC_STRATEGY_BRUTE => f(&BruteForce::new(&state.body, self.settings)?, state),
-                _ => f(&LatticeLocator::new(&state.body, self.settings)?, state),
+            Ok(match (&state.body, self.strategy) {
+                (AnyBody::Uniform(body), CGC_STRATEGY_BRUTE) => {
+                    f(&BruteForce::new(body, self.settings)?, state)
+                }
+                (AnyBody::Uniform(body), _) => f(&LatticeLocator::new(body, self.settings)?, state),
+                (AnyBody::Adaptive(body), CGC_STRATEGY_BRUTE) => {
+                    f(&BruteForce::new(body, self.settings)?, state)
+                }
+                (AnyBody::Adaptive(body), _) => {
+                    f(&AdaptiveLocator::new(body, self.settings)?, state)
+                }
             })
         };
         match &self.pool {
