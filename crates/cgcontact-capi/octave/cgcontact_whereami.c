@@ -98,9 +98,11 @@ static void fail_cgc(cgc_error code, const char *what) {
                                 "cgcontact:nonFinitePoint", "cgcontact:internal",
                                 "cgcontact:hangingConstraint"};
     const char *id = (code >= 0 && code < (int)(sizeof ids / sizeof *ids)) ? ids[code] : "cgcontact:error";
-    int counts_from_0 = code == CGC_ERROR_NOT_LATTICE || code == CGC_ERROR_HANGING_CONSTRAINT;
-    mexErrMsgIdAndTxt(id, "%s: %s%s", what, cgc_last_error(),
-                      counts_from_0 ? " (the library counts nodes and cells from 0)" : "");
+    const char *note = code == CGC_ERROR_NOT_LATTICE ? " (the library counts nodes and cells from 0)"
+                       : code == CGC_ERROR_HANGING_CONSTRAINT
+                           ? " (the library counts nodes from 0; here CGC_FILL_HANGING is Options.fill_hanging = true)"
+                           : "";
+    mexErrMsgIdAndTxt(id, "%s: %s%s", what, cgc_last_error(), note);
 }
 
 /* Octave prefixes the message with the function's name; MATLAB shows it beside. */

@@ -4,7 +4,9 @@
 %
 % Builds a lattice block with a smooth displacement here in Octave, writes it as a legacy ASCII
 % .vtk mesh and a points CSV, runs `cgcontact locate` on them, and checks that the MEX file gives
-% the same answers: the same cells, xi within 1e-12. Then checks that bad inputs raise errors.
+% the same answers: the same cells, xi within 1e-12. Then the same for an adaptive block (three
+% refinement levels, hanging nodes set by the Q1 rule), and the hanging-node error. Then checks
+% that bad inputs raise errors.
 % Any failure ends Octave with a non-zero exit status.
 1;
 
@@ -48,6 +50,73 @@ function [N0, T, U] = scene(nc, h, origin)
   X = N0(1, :); Y = N0(2, :); Z = N0(3, :);
   U = [0.4 * h(1) * sin(0.7 * Y + 0.3 * Z); 0.3 * h(2) * cos(0.5 * X) .* sin(0.4 * Z); ...
        -0.35 * h(3) * sin(0.6 * X + 0.2 * Y)]';
+end
+
+function [N0, T, U, hanging] = adaptive_scene(h, origin)
+  % A 2 x 2 x 2 block of base cells h: base cell (0,0,0) halved, its upper child halved again
+  % (level 2 beside level 0: unbalanced), base cell (1,0,1) halved. Nodes and cells shuffled.
+  % U is smooth at the independent nodes; each hanging node gets the trilinear interpolation of
+  % the coarse cell it hangs on (edge midpoints the mean of 2 nodes, face centres of 4),
+  % coarsest cells first so that a coarse cell's own hanging corners are set before it is used.
+  % hanging: 1 x m logical, the hanging nodes.
+  L = 2;
+  bits = @(c) double(bitand(c, [1 2 4]) > 0);
+  leaves = zeros(0, 4);                            % level, i, j, k on the level's lattice
+  for k = 0:1
+    for j = 0:1
+      for i = 0:1
+        if isequal([i j k], [0 0 0])
+          for c = 0:7
+            child = 2 * [i j k] + bits(c);
+            if isequal(child, [1 1 1])
+              for g = 0:7
+                leaves(end + 1, :) = [2, 2 * child + bits(g)];
+              end
+            else
+              leaves(end + 1, :) = [1, child];
+            end
+          end
+        elseif isequal([i j k], [1 0 1])
+          for c = 0:7
+            leaves(end + 1, :) = [1, 2 * [i j k] + bits(c)];
+          end
+        else
+          leaves(end + 1, :) = [0 i j k];
+        end
+      end
+    end
+  end
+  e = rows(leaves);
+  corners = [0 0 0; 1 0 0; 1 1 0; 0 1 0; 0 0 1; 1 0 1; 1 1 1; 0 1 1];
+  s = 2 .^ (L - leaves(:, 1));                     % a leaf's edge in finest steps
+  allq = zeros(8 * e, 3);
+  for c = 1:8
+    allq(c:8:end, :) = (leaves(:, 2:4) + corners(c, :)) .* s;
+  end
+  [Q, ~, idx] = unique(allq, 'rows');
+  T = reshape(idx, 8, e);
+  m = rows(Q);
+  N0 = origin(:) + h(:) .* Q' / 2^L;
+  X = N0(1, :); Y = N0(2, :); Z = N0(3, :);
+  U = [0.3 * h(1) * sin(0.7 * Y + 0.3 * Z); 0.25 * h(2) * cos(0.5 * X) .* sin(0.4 * Z); ...
+       -0.3 * h(3) * sin(0.6 * X + 0.2 * Y)]';
+  hanging = false(1, m);
+  [~, coarse_first] = sort(leaves(:, 1));
+  for l = coarse_first'
+    lo = leaves(l, 2:4) * s(l);
+    t = (Q - lo) / s(l);                           % local coordinates in [0, 1] on the box
+    on_box = all(t >= 0 & t <= 1, 2);
+    corner = all(t == 0 | t == 1, 2);
+    for n = find(on_box & ~corner)'
+      w = prod(corners .* t(n, :) + (1 - corners) .* (1 - t(n, :)), 2);   % 8 x 1
+      U(n, :) = w' * U(T(:, l), :);
+      hanging(n) = true;
+    end
+  end
+  % Shuffle: node n becomes node p(n); cells in a random order.
+  p = randperm(m);
+  N0(:, p) = N0; U(p, :) = U; hanging(p) = hanging;
+  T = p(T(:, randperm(e)));
 end
 
 function write_vtk(path, N0, T, U)
@@ -133,6 +202,77 @@ check(isequal(EB, E) && isequaln(PB, PosL), 'cgcontact_body differs from the one
 clear B;
 check(cgcontact_whereami('handles') == 1, 'clear frees the cgcontact_body''s handle');
 printf('handles: new, update, locate agree with the one-shot call; f32 within 1e-4; cgcontact_body frees itself\n');
+
+% --- an adaptive mesh: the same calls, the same answers as cgcontact locate -----------------
+ha = [0.6 0.5 0.4]; oa = [-3 1 2];
+[N0a, Ta, Ua, hanging] = adaptive_scene(ha, oa);
+na = 6000;
+XYZa = oa(:) - 0.1 * 2 * ha(:) + 1.2 * 2 * ha(:) .* rand(3, na);
+XYZa = [XYZa, N0a(:, hanging) + Ua(hanging, :)'];   % and every deformed hanging node
+na = columns(XYZa);
+write_vtk(fullfile(work, 'adaptive.vtk'), N0a, Ta, Ua);
+f = fopen(fullfile(work, 'adaptive.csv'), 'w');
+fprintf(f, 'x,y,z\n');
+fprintf(f, '%.17g,%.17g,%.17g\n', XYZa);
+fclose(f);
+% --strict: the command line refuses hanging nodes off their constraint, so this also checks
+% that the scene's Q1 rule is the library's.
+cmd = sprintf('"%s" locate --mesh "%s" --points "%s" --out "%s" --quiet --strict', cli, ...
+              fullfile(work, 'adaptive.vtk'), fullfile(work, 'adaptive.csv'), ...
+              fullfile(work, 'adaptive_results.csv'));
+[status, output] = system(cmd);
+check(status == 0, 'cgcontact locate (adaptive) failed (%d): %s', status, output);
+R = dlmread(fullfile(work, 'adaptive_results.csv'), ',', 1, 0);
+check(rows(R) == na, 'adaptive results: %d rows for %d points', rows(R), na);
+cli_Ea = R(:, 2)' + 1;
+cli_PosLa = R(:, 3:5)';
+[Ea, PosLa] = cgcontact_whereami(XYZa, N0a, Ta, Ua);
+check(isequal(Ea, cli_Ea), 'adaptive: cells differ from cgcontact locate at %d points', sum(Ea ~= cli_Ea));
+founda = Ea > 0;
+check(all(isnan(PosLa(:, ~founda))(:)), 'adaptive: points not found must have NaN PosL');
+erra = max(max(abs(PosLa(:, founda) - cli_PosLa(:, founda))));
+check(erra <= 1e-12, 'adaptive: xi differs from cgcontact locate by %g', erra);
+check(all(Ea(end - sum(hanging) + 1:end) > 0), 'adaptive: a deformed hanging node not found');
+check(numel(unique(Ea(founda))) > 0.9 * columns(Ta), 'adaptive: most elements hold some point');
+printf('adaptive: %d elements (3 levels), %d hanging nodes, %d points, %d located, as cgcontact locate, max xi difference %.3g\n', ...
+       columns(Ta), sum(hanging), na, sum(founda), erra);
+Ha = cgcontact_whereami('new', N0a, Ta);
+cgcontact_whereami('update', Ha, Ua);
+[Eh, Ph] = cgcontact_whereami('locate', Ha, XYZa);
+check(isequal(Eh, Ea) && isequaln(Ph, PosLa), 'adaptive handle: differs from the one-shot call');
+Ba = cgcontact_body(N0a, Ta, struct('threads', 2));
+update(Ba, Ua);
+[Eb, Pb] = locate(Ba, XYZa);
+check(isequal(Eb, Ea) && isequaln(Pb, PosLa), 'adaptive cgcontact_body: differs from the one-shot call');
+% A hanging node off its constraint: the documented error (names the count and the worst node),
+% and the handle keeps its displacements; Options.fill_hanging fills it instead.
+hn = find(hanging);
+off = Ua; off(hn(4), 2) = off(hn(4), 2) + 1e-3 * ha(2);
+expect_error('cgcontact:hangingConstraint', @() cgcontact_whereami(XYZa, N0a, Ta, off), 'a hanging node off its constraint');
+expect_error('cgcontact:hangingConstraint', @() cgcontact_whereami('update', Ha, off), 'update: a hanging node off');
+raised = false;
+try
+  cgcontact_whereami('update', Ha, off);
+catch err
+  raised = true;
+  named = sprintf('1 of %d hanging nodes', sum(hanging));
+  worst = sprintf('node %d (0-based)', hn(4) - 1);
+  check(~isempty(strfind(err.message, named)) && ~isempty(strfind(err.message, worst)) && ...
+        ~isempty(strfind(err.message, 'Options.fill_hanging')), 'hanging error message: %s', err.message);
+end
+check(raised, 'update: a hanging node off its constraint raised no error');
+[Eh, Ph] = cgcontact_whereami('locate', Ha, XYZa);
+check(isequal(Eh, Ea) && isequaln(Ph, PosLa), 'adaptive handle: a refused update changed it');
+wild = Ua; wild(hn, :) = 7;                        % ignored when filled
+[Ef, Pf] = cgcontact_whereami(XYZa, N0a, Ta, wild, struct('fill_hanging', true));
+check(isequal(Ef, Ea), 'fill_hanging: cells differ at %d points', sum(Ef ~= Ea));
+check(max(max(abs(Pf(:, founda) - PosLa(:, founda)))) <= 1e-12, 'fill_hanging: xi differs');
+expect_error('cgcontact:badInput', @() cgcontact_whereami(XYZa, N0a, Ta, Ua, struct('fill_hanging', 'yes')), 'Options.fill_hanging');
+Tover = [Ta, Ta(:, 1)];                            % an element listed twice: an overlap
+expect_error('cgcontact:notLattice', @() cgcontact_whereami(XYZa, N0a, Tover, []), 'adaptive: an element twice');
+cgcontact_whereami('free', Ha);
+clear Ba;
+printf('adaptive: handles agree; a hanging node off its constraint is refused; fill_hanging fills it\n');
 
 % --- bad input raises errors, never crashes -----------------------------------------------
 printf('bad input:\n');
