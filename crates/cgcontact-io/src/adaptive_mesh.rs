@@ -14,7 +14,7 @@ use cgcontact::adaptive::{ConstraintReport, MAX_LEVEL};
 use cgcontact::{AdaptiveBody, CORNER_OFFSETS, Lattice, Leaf};
 use glam::DVec3;
 
-use crate::mesh::{LatticeMesh, ROUNDING_SLACK, extreme_planes};
+use crate::mesh::{LatticeMesh, ROUNDING_SLACK, extreme_planes, merge_displacements};
 use crate::{CellMap, ErrorKind, HexMesh, LATTICE_TOLERANCE};
 
 /// Ratio of the largest to the smallest cell edge (on some axis) above which a mesh is read as
@@ -278,7 +278,7 @@ impl HexMesh {
         // Displacements: each body node from the input nodes at it (which must agree).
         let mut constraint_tolerance = LATTICE_TOLERANCE * h_fine.min_element();
         if let Some(u) = &self.displacement {
-            let mut by_node: Vec<(usize, usize)> = used
+            let by_node: Vec<(usize, usize)> = used
                 .iter_ones()
                 .map(|n| {
                     let node = body
@@ -287,33 +287,8 @@ impl HexMesh {
                     (node, n)
                 })
                 .collect();
-            by_node.sort_unstable();
-            for &(_, n) in &by_node {
-                if !u[n].is_finite() {
-                    return Err(ErrorKind::NonFiniteDisplacement {
-                        node: n,
-                        value: u[n].to_array(),
-                    });
-                }
-            }
-            let agree = LATTICE_TOLERANCE * h_base.max_element();
-            for w in by_node.windows(2) {
-                let ((node, first), (next, second)) = (w[0], w[1]);
-                let (a, b) = (u[first], u[second]);
-                if node == next
-                    && (a - b).abs().max_element() > agree + ROUNDING_SLACK * b.abs().max_element()
-                {
-                    return Err(ErrorKind::InconsistentDisplacement {
-                        first,
-                        second,
-                        first_u: a.to_array(),
-                        second_u: b.to_array(),
-                    });
-                }
-            }
-            by_node.dedup_by_key(|&mut (node, _)| node);
-            debug_assert_eq!(by_node.len(), body.node_count());
-            let values: Vec<DVec3> = by_node.into_iter().map(|(_, n)| u[n]).collect();
+            let values = merge_displacements(by_node, u, LATTICE_TOLERANCE * h_base.max_element())?;
+            debug_assert_eq!(values.len(), body.node_count());
             body.set_displacements(&values)?;
             constraint_tolerance += ROUNDING_SLACK * body.max_displacement().max_element();
         }

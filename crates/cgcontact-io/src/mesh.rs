@@ -457,40 +457,53 @@ impl HexMesh {
     ) -> Result<Vec<DVec3>, ErrorKind> {
         let lattice = body.lattice();
         let tol = LATTICE_TOLERANCE * lattice.h().max_element();
-        // (lattice node, input node), sorted: copies of a lattice node come together.
-        let mut by_node: Vec<(usize, usize)> = used
+        // (lattice node, input node): copies of a lattice node come together once sorted.
+        let by_node: Vec<(usize, usize)> = used
             .iter_ones()
             .map(|n| (lattice.node_index(node_ijk[n]), n))
             .collect();
-        by_node.sort_unstable();
-        for &(_, n) in &by_node {
-            if !u[n].is_finite() {
-                return Err(ErrorKind::NonFiniteDisplacement {
-                    node: n,
-                    value: u[n].to_array(),
-                });
-            }
-        }
-        for w in by_node.windows(2) {
-            let ((node, first), (next, second)) = (w[0], w[1]);
-            let (a, b) = (u[first], u[second]);
-            if node == next
-                && (a - b).abs().max_element() > tol + ROUNDING_SLACK * b.abs().max_element()
-            {
-                return Err(ErrorKind::InconsistentDisplacement {
-                    first,
-                    second,
-                    first_u: a.to_array(),
-                    second_u: b.to_array(),
-                });
-            }
-        }
-        by_node.dedup_by_key(|&mut (node, _)| node);
+        let values = merge_displacements(by_node, u, tol)?;
         // Every node of the body is a corner of an input cell, so a used input node: the lists
         // match one to one.
-        debug_assert!(by_node.iter().map(|&(node, _)| node).eq(body.nodes()));
-        Ok(by_node.into_iter().map(|(_, n)| u[n]).collect())
+        debug_assert_eq!(values.len(), body.node_count());
+        Ok(values)
     }
+}
+
+/// One displacement per body node from the input nodes at it: `by_node` holds (body node, input
+/// node) pairs, any order. Every value must be finite, and input nodes at one body node (an
+/// unmerged mesh) must agree within `tol` plus the rounding of the values. Returns the values in
+/// ascending body node order.
+pub(crate) fn merge_displacements(
+    mut by_node: Vec<(usize, usize)>,
+    u: &[DVec3],
+    tol: f64,
+) -> Result<Vec<DVec3>, ErrorKind> {
+    by_node.sort_unstable();
+    for &(_, n) in &by_node {
+        if !u[n].is_finite() {
+            return Err(ErrorKind::NonFiniteDisplacement {
+                node: n,
+                value: u[n].to_array(),
+            });
+        }
+    }
+    for w in by_node.windows(2) {
+        let ((node, first), (next, second)) = (w[0], w[1]);
+        let (a, b) = (u[first], u[second]);
+        if node == next
+            && (a - b).abs().max_element() > tol + ROUNDING_SLACK * b.abs().max_element()
+        {
+            return Err(ErrorKind::InconsistentDisplacement {
+                first,
+                second,
+                first_u: a.to_array(),
+                second_u: b.to_array(),
+            });
+        }
+    }
+    by_node.dedup_by_key(|&mut (node, _)| node);
+    Ok(by_node.into_iter().map(|(_, n)| u[n]).collect())
 }
 
 /// The middle values of the lowest and highest clusters of at least 4 sorted values, clusters being

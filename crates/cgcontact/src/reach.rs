@@ -18,8 +18,10 @@
 use glam::DVec3;
 use smallvec::SmallVec;
 
+use crate::PointError;
 use crate::body::Body;
-use crate::lattice::CORNER_OFFSETS;
+use crate::lattice::{CORNER_OFFSETS, Lattice};
+use crate::settings::InsideTolerance;
 
 /// Cells of a search box up to which the ring walk visits every cell (each tested by its own
 /// bounds before any inversion); above, the pyramid finds the candidates.
@@ -76,6 +78,46 @@ impl Range {
         let w = widening(h, self.high - self.low, tau);
         // Written so that an empty range (low = +inf) or a NaN answers false.
         rel.cmpge(self.low - w).all() && rel.cmple(size + self.high + w).all()
+    }
+}
+
+/// Which points a body can hold at all, and with what inside tolerance: the lattice's box shifted
+/// by the displacement range and widened by the tolerance. The first step of every search (the
+/// lattice locator's and the adaptive one's, scalar or batched).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Admit {
+    /// The inside tolerance's constants.
+    pub(crate) inside_tol: InsideTolerance,
+    /// The lattice's box shifted by the displacement range.
+    pub(crate) low: DVec3,
+    pub(crate) high: DVec3,
+    /// The box's widening per unit of inside tolerance ([`widening`]).
+    pub(crate) pad: DVec3,
+}
+
+impl Admit {
+    pub(crate) fn new(inside_tol: InsideTolerance, lattice: &Lattice, range: Range) -> Self {
+        Self {
+            inside_tol,
+            low: lattice.origin() + range.low,
+            high: lattice.upper() + range.high,
+            pad: widening(lattice.h(), range.high - range.low, 1.0),
+        }
+    }
+
+    /// The inside tolerance for `x` when some cell can hold it, `Ok(None)` when it lies outside the
+    /// shifted box (widened by that tolerance), an error when it is not finite.
+    #[inline(always)]
+    pub(crate) fn admit(&self, x: DVec3) -> Result<Option<f64>, PointError> {
+        if !x.is_finite() {
+            return Err(PointError::NonFinite);
+        }
+        let inside_tol = self.inside_tol.at(x);
+        let slack = self.pad * inside_tol;
+        if x.cmplt(self.low - slack).any() || x.cmpgt(self.high + slack).any() {
+            return Ok(None);
+        }
+        Ok(Some(inside_tol))
     }
 }
 

@@ -44,11 +44,9 @@ pub struct AdaptiveLocator<'a> {
     u_range: Range,
     /// 1 / h per axis, h the base spacing.
     inv_h: DVec3,
-    inside_tol: InsideTolerance,
-    /// The base lattice's box shifted by the displacement range: points outside are rejected.
-    reach_low: DVec3,
-    reach_high: DVec3,
-    reach_pad: DVec3,
+    /// Which points can be held at all (the base lattice's box shifted by the displacement
+    /// range), and the inside tolerance's constants, from the finest spacing.
+    admit: reach::Admit,
     /// With f32 precision, the displacements rounded to f32 in node order (16 bytes per node),
     /// as the f32 lanes read them. Empty with f64.
     u_f32: Vec<Vec3A>,
@@ -71,15 +69,16 @@ impl<'a> AdaptiveLocator<'a> {
             newton: settings.newton(),
             u_range,
             inv_h: lattice.h().recip(),
-            inside_tol: InsideTolerance::with_h_min(
-                &settings,
-                lattice.origin(),
-                h_min,
-                u_max.max_element(),
+            admit: reach::Admit::new(
+                InsideTolerance::with_h_min(
+                    &settings,
+                    lattice.origin(),
+                    h_min,
+                    u_max.max_element(),
+                ),
+                lattice,
+                u_range,
             ),
-            reach_low: lattice.origin() + u_range.low,
-            reach_high: lattice.upper() + u_range.high,
-            reach_pad: reach::widening(lattice.h(), u_range.high - u_range.low, 1.0),
             u_f32: match settings.precision {
                 Precision::F32 => body.u.iter().map(|u| u.as_vec3a()).collect(),
                 Precision::F64 => Vec::new(),
@@ -105,28 +104,13 @@ impl<'a> AdaptiveLocator<'a> {
         self.u_range.high.max(-self.u_range.low)
     }
 
-    /// The inside tolerance for `x`, or `None` when no leaf can hold it; an error when it is not
-    /// finite.
-    #[inline(always)]
-    fn admit(&self, x: DVec3) -> Result<Option<f64>, PointError> {
-        if !x.is_finite() {
-            return Err(PointError::NonFinite);
-        }
-        let inside_tol = self.inside_tol.at(x);
-        let slack = self.reach_pad * inside_tol;
-        if x.cmplt(self.reach_low - slack).any() || x.cmpgt(self.reach_high + slack).any() {
-            return Ok(None);
-        }
-        Ok(Some(inside_tol))
-    }
-
     fn search(
         &self,
         x: DVec3,
         mut collect: Collect<'_>,
         tried: &mut u32,
     ) -> Result<Option<Hit>, PointError> {
-        let Some(inside_tol) = self.admit(x)? else {
+        let Some(inside_tol) = self.admit.admit(x)? else {
             return Ok(None);
         };
         let options = NewtonOptions {
@@ -358,7 +342,7 @@ impl AdaptiveLocator<'_> {
         let mut t_x = [DVec3::ZERO; GROUP];
         let mut at_x = [None; GROUP];
         for (l, &x) in xs.iter().enumerate() {
-            tol[l] = self.admit(x).ok().flatten();
+            tol[l] = self.admit.admit(x).ok().flatten();
             t_x[l] = (x - origin) * self.inv_h;
             if predicted && tol[l].is_some() {
                 at_x[l] = body.forest.leaf_at(t_x[l]);
@@ -486,7 +470,7 @@ impl AdaptiveLocator<'_> {
         let mut at = [no_leaf; MAX_W];
         for l in 0..V::W {
             let x = xs[l];
-            if let Ok(Some(inside_tol)) = self.admit(x) {
+            if let Ok(Some(inside_tol)) = self.admit.admit(x) {
                 tol[l] = inside_tol;
                 t_x[l] = (x - origin) * self.inv_h;
                 if let Some(found) = body.forest.leaf_at(t_x[l]) {

@@ -110,11 +110,11 @@ impl LatticeLocator<'_> {
         let x = V::Wide::transpose(|l| &points[l]);
         // `admit`: finite and within reach (the lattice's box shifted by the displacement range,
         // widened by the tolerance).
-        let inside_tol = self.inside_tol.at_magnitude(x.abs().max_element());
-        let slack = splat(self.reach_pad).scale(inside_tol);
+        let inside_tol = self.admit.inside_tol.at_magnitude(x.abs().max_element());
+        let slack = splat(self.admit.pad).scale(inside_tol);
         let (low, high) = (
-            splat(self.reach_low) - slack,
-            splat(self.reach_high) + slack,
+            splat(self.admit.low) - slack,
+            splat(self.admit.high) + slack,
         );
         let outside = x.x.lt(low.x) | x.y.lt(low.y) | x.z.lt(low.z);
         let outside = outside | x.x.gt(high.x) | x.y.gt(high.y) | x.z.gt(high.z);

@@ -121,13 +121,8 @@ pub struct LatticeLocator<'a> {
     u_range: Range,
     /// 1 / h per axis.
     inv_h: DVec3,
-    /// The inside tolerance's constants.
-    inside_tol: InsideTolerance,
-    /// The lattice's box shifted by the displacement range: points outside are rejected at once.
-    reach_low: DVec3,
-    reach_high: DVec3,
-    /// The reach box's widening per unit of inside tolerance (`reach::widening`).
-    reach_pad: DVec3,
+    /// Which points can be held at all, and the inside tolerance's constants.
+    admit: reach::Admit,
     /// Per-block displacement ranges, built only where the displacements spread over more than a
     /// few cells: the search then visits only cells whose own shifted box holds the point.
     pyramid: Option<Pyramid>,
@@ -155,10 +150,11 @@ impl<'a> LatticeLocator<'a> {
             u_max,
             u_range,
             inv_h: lattice.h().recip(),
-            inside_tol: InsideTolerance::new(&settings, lattice, u_max.max_element()),
-            reach_low: lattice.origin() + u_range.low,
-            reach_high: lattice.upper() + u_range.high,
-            reach_pad: reach::widening(lattice.h(), spread, 1.0),
+            admit: reach::Admit::new(
+                InsideTolerance::new(&settings, lattice, u_max.max_element()),
+                lattice,
+                u_range,
+            ),
             // Not on a sparse body whose lattice dwarfs it: the pyramid is dense over the lattice
             // (48 bytes per 8 cells), and the body's memory must grow with its cells.
             pyramid: (reach::pyramid_pays(spread, lattice.h())

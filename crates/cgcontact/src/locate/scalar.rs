@@ -27,23 +27,6 @@ pub(super) enum Collect<'o> {
 }
 
 impl LatticeLocator<'_> {
-    /// Whether `x` can be held by a cell at all: its inside tolerance when it can, `Ok(None)` when it
-    /// lies outside the lattice's box shifted by the displacement range (and widened by the
-    /// tolerance), an error when not finite.
-    /// The first step of every search, batched or not.
-    #[inline(always)]
-    fn admit(&self, x: DVec3) -> Result<Option<f64>, PointError> {
-        if !x.is_finite() {
-            return Err(PointError::NonFinite);
-        }
-        let inside_tol = self.inside_tol.at(x);
-        let slack = self.reach_pad * inside_tol;
-        if x.cmplt(self.reach_low - slack).any() || x.cmpgt(self.reach_high + slack).any() {
-            return Ok(None);
-        }
-        Ok(Some(inside_tol))
-    }
-
     /// The search for `x`; the inversions it tried go to `tried`. `#[inline]`, as `search_with`:
     /// without it, `locate` (in another codegen unit) called it and copied the hit through the stack,
     /// which cost the point-by-point `locate` a quarter of its time (perf: stalls on those copies).
@@ -54,7 +37,7 @@ impl LatticeLocator<'_> {
         mut collect: Collect<'_>,
         tried: &mut u32,
     ) -> Result<Option<Hit>, PointError> {
-        let Some(inside_tol) = self.admit(x)? else {
+        let Some(inside_tol) = self.admit.admit(x)? else {
             return Ok(None);
         };
         let options = NewtonOptions {
