@@ -88,9 +88,9 @@ pub struct SceneArgs {
     /// Seed of the jitter and the known points.
     #[arg(long, default_value_t = 2019)]
     seed: u64,
-    /// `sphere-adaptive`: refinement levels below the base lattice.
-    #[arg(long, value_name = "L", default_value_t = 2)]
-    levels: u8,
+    /// `sphere-adaptive`: refinement levels below the base lattice [default: 2].
+    #[arg(long, value_name = "L")]
+    levels: Option<u8>,
     /// `sphere-adaptive`: cells closer than this to the contact patch's centre are refined
     /// [default: the sphere's radius].
     #[arg(long, value_name = "R")]
@@ -113,7 +113,7 @@ fn vector(values: &[f64], flag: &str) -> Result<DVec3> {
 
 pub fn run(args: &SceneArgs) -> Result<()> {
     let adaptive_only =
-        args.levels != 2 || args.refine_radius.is_some() || args.unbalanced || args.shuffle;
+        args.levels.is_some() || args.refine_radius.is_some() || args.unbalanced || args.shuffle;
     if adaptive_only && args.name != SceneName::SphereAdaptive {
         bail!(
             "--levels, --refine-radius, --unbalanced and --shuffle apply to `sphere-adaptive` only"
@@ -175,11 +175,8 @@ pub fn run(args: &SceneArgs) -> Result<()> {
         {
             bail!("--refine-radius {r} must be finite and at least 0");
         }
-        if args.levels > 8 {
-            bail!(
-                "--levels {} is more than 8: the scene would have billions of cells",
-                args.levels
-            );
+        if let Some(levels @ 9..) = args.levels {
+            bail!("--levels {levels} is more than 8: the scene would have billions of cells");
         }
     }
     prepare_folder("--out", &args.out)?;
@@ -193,7 +190,7 @@ pub fn run(args: &SceneArgs) -> Result<()> {
     let known = args.out.join("known.csv");
     let (contact, known_points, summary) = if args.name == SceneName::SphereAdaptive {
         let adaptive = SphereOnAdaptiveBlock {
-            levels: args.levels,
+            levels: args.levels.unwrap_or(2),
             refine_radius: args.refine_radius.unwrap_or(knobs.radius),
             balanced: !args.unbalanced,
             order: if args.shuffle {

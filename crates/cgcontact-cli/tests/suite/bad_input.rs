@@ -375,3 +375,28 @@ fn scene_cells_comma_form_from_the_help_is_accepted() {
         String::from_utf8_lossy(&output.stderr)
     );
 }
+
+/// The adaptive scene's flags on another scene, even at their default value, and too many levels:
+/// one-line errors, exit 2, and no folder written.
+#[test]
+fn adaptive_scene_flags_are_checked() {
+    let dir = tempfile::tempdir().unwrap();
+    for args in [
+        &["scene", "block", "--levels", "2"][..],
+        &["scene", "sphere-fine", "--unbalanced"],
+        &["scene", "sphere-adaptive", "--levels", "9"],
+        &["scene", "sphere-adaptive", "--refine-radius", "-1"],
+    ] {
+        let out = dir.path().join("never");
+        let output = Command::new(env!("CARGO_BIN_EXE_cgcontact"))
+            .args(args)
+            .arg("--out")
+            .arg(&out)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert_eq!(output.status.code(), Some(2), "{args:?}: {stderr}");
+        assert_eq!(stderr.trim().lines().count(), 1, "{args:?}: {stderr}");
+        assert!(!out.exists(), "{args:?} wrote its folder");
+    }
+}
