@@ -14,7 +14,7 @@ use cgcontact::adaptive::{ConstraintReport, MAX_LEVEL};
 use cgcontact::{AdaptiveBody, CORNER_OFFSETS, Lattice, Leaf};
 use glam::DVec3;
 
-use crate::mesh::{LatticeMesh, ROUNDING_SLACK, extreme_planes, merge_displacements};
+use crate::mesh::{LatticeMesh, ROUNDING_SLACK, merge_displacements};
 use crate::{CellMap, ErrorKind, HexMesh, LATTICE_TOLERANCE};
 
 /// Ratio of the largest to the smallest cell edge (on some axis) above which a mesh is read as
@@ -174,14 +174,7 @@ impl HexMesh {
         let axis_name = ["x", "y", "z"];
         for a in 0..3 {
             let estimate = base[a] / steps as f64;
-            let mut values: Vec<f64> = used.iter_ones().map(|n| self.points[n][a]).collect();
-            values.sort_unstable_by(f64::total_cmp);
-            let (low, high) = extreme_planes(&values, 0.5 * estimate).ok_or_else(|| {
-                ErrorKind::Degenerate(format!(
-                    "no plane of nodes along {} holds 4 nodes or more",
-                    axis_name[a]
-                ))
-            })?;
+            let (low, high) = self.axis_planes(used, a, 0.5 * estimate)?;
             let n = ((high - low) / estimate).round();
             if !(n >= 1.0 && n < f64::from(1u32 << 21)) {
                 return Err(ErrorKind::Degenerate(format!(

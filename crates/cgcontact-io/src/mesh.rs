@@ -318,14 +318,7 @@ impl HexMesh {
                     axis_name[axis]
                 )));
             }
-            let mut values: Vec<f64> = used.iter_ones().map(|n| self.points[n][axis]).collect();
-            values.sort_unstable_by(f64::total_cmp);
-            let (low, high) = extreme_planes(&values, 0.5 * h0).ok_or_else(|| {
-                ErrorKind::Degenerate(format!(
-                    "no plane of nodes along {} holds 4 nodes or more",
-                    axis_name[axis]
-                ))
-            })?;
+            let (low, high) = self.axis_planes(used, axis, 0.5 * h0)?;
             let n = ((high - low) / h0).round();
             if n.is_nan() || n < 1.0 {
                 return Err(ErrorKind::Degenerate(format!(
@@ -506,9 +499,29 @@ pub(crate) fn merge_displacements(
     Ok(by_node.into_iter().map(|(_, n)| u[n]).collect())
 }
 
+impl HexMesh {
+    /// The lowest and highest lattice planes along `axis` of the used nodes ([`extreme_planes`]
+    /// with gaps below `gap`), or an error naming the axis when none holds 4 nodes.
+    pub(crate) fn axis_planes(
+        &self,
+        used: &BitVec,
+        axis: usize,
+        gap: f64,
+    ) -> Result<(f64, f64), ErrorKind> {
+        let mut values: Vec<f64> = used.iter_ones().map(|n| self.points[n][axis]).collect();
+        values.sort_unstable_by(f64::total_cmp);
+        extreme_planes(&values, gap).ok_or_else(|| {
+            ErrorKind::Degenerate(format!(
+                "no plane of nodes along {} holds 4 nodes or more",
+                ["x", "y", "z"][axis]
+            ))
+        })
+    }
+}
+
 /// The middle values of the lowest and highest clusters of at least 4 sorted values, clusters being
 /// runs whose consecutive gaps are below `gap`.
-pub(crate) fn extreme_planes(sorted: &[f64], gap: f64) -> Option<(f64, f64)> {
+fn extreme_planes(sorted: &[f64], gap: f64) -> Option<(f64, f64)> {
     let mut clusters = Vec::new();
     let mut start = 0;
     for i in 1..=sorted.len() {

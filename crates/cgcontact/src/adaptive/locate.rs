@@ -22,16 +22,10 @@ use crate::lanes::{Lanes, MAX_W, Real as _, V3, Wide as _};
 use crate::lattice::CellId;
 #[cfg(target_arch = "x86_64")]
 use crate::locate::Isa;
-use crate::locate::{Answer, Hit, Locator, Owners};
+use crate::locate::{Answer, Collect, Hit, Locator, Owners};
 use crate::reach::{self, Range};
 use crate::settings::{CandidateOrder, InsideTolerance, Precision, Settings};
 use crate::{Error, PointError};
-
-/// What a search does with each inside hit.
-enum Collect<'o> {
-    First,
-    All(&'o mut Owners),
-}
 
 /// The locator of an [`AdaptiveBody`]: complete, exact, one inversion for most points. Built in
 /// O(nodes) (one pass for the displacement range) from a body it borrows.

@@ -41,7 +41,7 @@ use crate::reach::{self, Pyramid, Range};
 use crate::settings::{InsideTolerance, Precision, Settings};
 use crate::{Error, PointError};
 
-use scalar::Collect;
+pub(crate) use scalar::Collect;
 /// A located point: the cell holding it and its local coordinates there.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Hit {

@@ -21,7 +21,7 @@ pub(super) fn undeformed_xi(t: DVec3, ijk: [u32; 3]) -> DVec3 {
 }
 
 /// What a candidate search does with each inside hit.
-pub(super) enum Collect<'o> {
+pub(crate) enum Collect<'o> {
     First,
     All(&'o mut Owners),
 }
