@@ -39,6 +39,7 @@
 pub mod adaptive;
 mod body;
 mod error;
+pub mod gap;
 pub mod hex8;
 mod idmap;
 mod lanes;
@@ -50,6 +51,7 @@ mod settings;
 pub use adaptive::{AdaptiveBody, AdaptiveLocator, Leaf};
 pub use body::Body;
 pub use error::{Error, PointError};
+pub use gap::{Contact, Face, GapAnswer, GapFinder, Surface};
 pub use glam;
 pub use lattice::{CORNER_OFFSETS, CellId, Lattice};
 pub use locate::{Answer, Hit, LatticeLocator, Locator, Owners};

@@ -185,6 +185,23 @@ impl Forest {
         (entry != EMPTY).then_some(entry)
     }
 
+    /// Where the descent towards the finest-level cell `q` stops: a leaf's id or [`EMPTY`] (no
+    /// leaf covers the region), and the level it stopped at. `EMPTY` at level m means no leaf
+    /// meets the level-m cell holding `q`.
+    pub(super) fn probe(&self, q: [u32; 3], finest: u8) -> (u32, u8) {
+        let f = u32::from(finest);
+        let mut entry = self.base_entry(q.map(|v| v >> f));
+        let mut depth = 0;
+        while entry & NODE != 0 && entry != EMPTY {
+            depth += 1;
+            let shift = f - depth;
+            let child =
+                ((q[0] >> shift) & 1) | (((q[1] >> shift) & 1) << 1) | (((q[2] >> shift) & 1) << 2);
+            entry = self.tree[(entry & !NODE) as usize][child as usize];
+        }
+        (entry, depth as u8)
+    }
+
     /// Calls `visit(id, leaf)` for every leaf whose closed undeformed box meets the box [`low`,
     /// `high`] (base lattice coordinates), each once, in base cell order and depth first.
     pub(super) fn for_each_in_box(

@@ -527,6 +527,111 @@ impl AdaptiveBody {
             + self.hanging.heap_bytes()
     }
 
+    /// Calls `visit(id, leaf)` for every leaf whose closed undeformed box meets [`low`, `high`]
+    /// (base lattice coordinates), each once.
+    pub(crate) fn for_each_leaf_in_box(
+        &self,
+        low: DVec3,
+        high: DVec3,
+        visit: impl FnMut(u32, Leaf),
+    ) {
+        self.forest.for_each_in_box(low, high, visit);
+    }
+
+    /// How much of face `face` (VTK local face: axis `face / 2`, upper side when odd) of `leaf` is
+    /// on the boundary surface: the parts of it whose other side no leaf covers. A leaf as coarse
+    /// as the square across a part of the face, or coarser, covers all of it (dyadic cells nest);
+    /// an empty tree entry that coarse covers none of it; otherwise the part is split in four.
+    pub(crate) fn face_coverage(&self, leaf: Leaf, face: usize) -> crate::gap::Coverage {
+        use crate::gap::Coverage;
+        let axis = face / 2;
+        let l = u32::from(leaf.level);
+        let mut across = leaf.ijk;
+        if face % 2 == 1 {
+            across[axis] += 1;
+            if across[axis] >= self.lattice.cells()[axis] << l {
+                return Coverage::Open;
+            }
+        } else if across[axis] == 0 {
+            return Coverage::Open;
+        } else {
+            across[axis] -= 1;
+        }
+        let [sa, ta] = crate::gap::FACE_ST_AXES[face];
+        let mut open = smallvec::SmallVec::new();
+        match self.cover(
+            across,
+            axis,
+            face % 2 == 1,
+            [sa, ta],
+            l,
+            [0, 0],
+            0,
+            &mut open,
+        ) {
+            Some(true) => Coverage::Covered,
+            Some(false) => Coverage::Open,
+            None => Coverage::Partial(open),
+        }
+    }
+
+    /// Coverage of the square `sq` (indices `m` levels below the leaf's level `l`, along the
+    /// face's s and t axes) across a face: `Some(true)` covered, `Some(false)` open, `None` partly,
+    /// its open squares pushed to `open` as [s0, t0, s1, t1] in the face's coordinates.
+    #[allow(clippy::too_many_arguments)]
+    fn cover(
+        &self,
+        across: [u32; 3],
+        axis: usize,
+        upper: bool,
+        st_axes: [usize; 2],
+        l: u32,
+        sq: [u32; 2],
+        m: u32,
+        open: &mut smallvec::SmallVec<[[f64; 4]; 4]>,
+    ) -> Option<bool> {
+        let level = l + m;
+        let finest = u32::from(self.finest);
+        // The square's cell across, at `level`.
+        let mut cell = across.map(|v| v << m);
+        if !upper {
+            // Across a lower face, the layer touching it is the last of the cell across.
+            cell[axis] += (1 << m) - 1;
+        }
+        cell[st_axes[0]] += sq[0];
+        cell[st_axes[1]] += sq[1];
+        let (entry, depth) = self
+            .forest
+            .probe(cell.map(|v| v << (finest - level)), self.finest);
+        if u32::from(depth) <= level {
+            return Some(entry != forest::EMPTY);
+        }
+        let children: [[u32; 2]; 4] =
+            std::array::from_fn(|c| [2 * sq[0] + (c as u32 & 1), 2 * sq[1] + (c as u32 >> 1)]);
+        let parts =
+            children.map(|child| self.cover(across, axis, upper, st_axes, l, child, m + 1, open));
+        if parts.iter().all(|&p| p == Some(true)) {
+            return Some(true);
+        }
+        if parts.iter().all(|&p| p == Some(false)) {
+            return Some(false);
+        }
+        let n = f64::from(1u32 << (m + 1));
+        for (child, part) in children.iter().zip(parts) {
+            if part == Some(false) {
+                let (s0, t0) = (f64::from(child[0]) / n, f64::from(child[1]) / n);
+                let (s1, t1) = (s0 + 1.0 / n, t0 + 1.0 / n);
+                open.push([
+                    2.0 * s0 - 1.0,
+                    2.0 * t0 - 1.0,
+                    2.0 * s1 - 1.0,
+                    2.0 * t1 - 1.0,
+                ]);
+            }
+        }
+        None
+    }
+
     /// The corner displacements of leaf `id` (unchecked id).
     #[inline(always)]
     pub(crate) fn leaf_displacements(&self, id: u32) -> [DVec3; 8] {

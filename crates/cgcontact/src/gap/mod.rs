@@ -1,0 +1,383 @@
+//! What a contact solver needs besides the cell: the signed gap of a point to the other body's
+//! deformed boundary surface, the closest point there and the outward normal.
+//!
+//! The **boundary surface** is every face of an active cell (a leaf, on adaptive bodies) whose
+//! other side no active cell covers; each deforms into a bilinear quad. The **gap** of x is the
+//! distance to the closest point c of that surface, negative when a cell holds x (the locator's
+//! answer, with its inside tolerance). The **normal** n is the face's unit outward normal when c
+//! lies inside a face, and (x − c)/gap when c is on an edge or a corner; either way
+//! x = c + gap·n.
+//!
+//! The search is exact and complete within the search distance D without any global structure:
+//! a face point c = X + u(X) within D of x has X in [x − D − u_high, x + D − u_low] (u's range
+//! per axis), so only the faces of the cells meeting that box can be closest. They are visited
+//! nearest first by a lower bound (the cell's box shifted by the displacement range, then the
+//! face's, then its deformed corners' box), and the visit stops at the first bound beyond the
+//! best distance found. Each face left gets the exact closest point of its quad ([`quad`]).
+//!
+//! | file | what |
+//! |---|---|
+//! | `mod.rs` | [`GapFinder`], [`Contact`], [`Face`]: the search, the sign and the normal |
+//! | `surface.rs` | [`Surface`]: what the search asks of a body (uniform or adaptive) |
+//! | `quad.rs` | the closest point of one bilinear quad: edges, Newton, branch and bound |
+
+mod quad;
+mod surface;
+
+use glam::{DVec2, DVec3};
+use rayon::prelude::*;
+
+use crate::lattice::CellId;
+use crate::reach::Range;
+use crate::{Error, PointError};
+use quad::{Locus, Patch, box_distance2};
+use surface::Cell;
+pub(crate) use surface::Coverage;
+pub use surface::Surface;
+
+/// The corners of each local face of a hexahedron (VTK order), counter-clockwise seen from
+/// outside: face `f` lies at local coordinate `f / 2` (ξ, η, ζ) = −1 when `f` is even, +1 when
+/// odd. A face's coordinates (s, t) ∈ [−1, 1]² put its corners at (−1, −1), (1, −1), (1, 1) and
+/// (−1, 1), in this order.
+pub const FACE_CORNERS: [[usize; 4]; 6] = [
+    [0, 4, 7, 3],
+    [1, 2, 6, 5],
+    [0, 1, 5, 4],
+    [3, 7, 6, 2],
+    [0, 3, 2, 1],
+    [4, 5, 6, 7],
+];
+
+/// The lattice axes of each local face's coordinates s and t (s = −1 at the cell's lower side
+/// along the first, t along the second).
+pub(crate) const FACE_ST_AXES: [[usize; 2]; 6] = [[2, 1], [1, 2], [0, 2], [2, 0], [1, 0], [0, 1]];
+
+/// A face of the boundary surface: a cell and its local face (see [`FACE_CORNERS`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct Face {
+    /// The cell (the leaf, on an adaptive body).
+    pub cell: CellId,
+    /// Its local face, 0..6.
+    pub local: u8,
+}
+
+/// The contact quantities of a point.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Contact {
+    /// Signed distance to the boundary surface: positive apart, negative inside the body.
+    pub gap: f64,
+    /// The closest point of the deformed boundary surface.
+    pub point: DVec3,
+    /// Unit outward normal: x = point + gap · normal.
+    pub normal: DVec3,
+    /// The face holding the closest point (on an edge or corner shared by several, one of them).
+    pub face: Face,
+    /// The closest point's coordinates on that face, in [−1, 1]².
+    pub st: DVec2,
+    /// Whether the closest point lies inside the face (false: on one of its edges or corners).
+    pub interior: bool,
+}
+
+/// A point's answer: its contact quantities, `None` when the surface is farther than the search
+/// distance, or why the point was refused.
+pub type GapAnswer = Result<Option<Contact>, PointError>;
+
+/// Signed gaps, closest points and normals to the boundary surface of the body a locator
+/// searches, within a search distance. Built in one pass over the displacements.
+#[derive(Clone, Debug)]
+pub struct GapFinder<'l, L> {
+    surface: &'l L,
+    distance: f64,
+    u_range: Range,
+}
+
+/// The best face so far.
+#[derive(Clone, Copy)]
+struct Best {
+    d2: f64,
+    face: Face,
+    st: DVec2,
+    /// The closest point in the cell's frame, and that frame's origin.
+    local: DVec3,
+    origin: DVec3,
+    locus: Locus,
+    normal: DVec3,
+}
+
+/// Relative slack of the pruning bounds: a face never is dropped by a rounding of its bound.
+const SLACK: f64 = 1e-12;
+
+impl<'l, L: Surface> GapFinder<'l, L> {
+    /// A finder over the body `surface` searches, for points within `distance` of its boundary
+    /// surface. Errors when `distance` is negative or not finite.
+    pub fn new(surface: &'l L, distance: f64) -> Result<Self, Error> {
+        if !(distance.is_finite() && distance >= 0.0) {
+            return Err(Error::InvalidSettings(format!(
+                "the gap search distance must be finite and at least 0, got {distance}"
+            )));
+        }
+        let u_range = surface
+            .displacements()
+            .iter()
+            .fold(Range::EMPTY, |r, &u| Range {
+                low: r.low.min(u),
+                high: r.high.max(u),
+            });
+        let u_range = if u_range.low.cmple(u_range.high).all() {
+            u_range
+        } else {
+            Range {
+                low: DVec3::ZERO,
+                high: DVec3::ZERO,
+            }
+        };
+        Ok(Self {
+            surface,
+            distance,
+            u_range,
+        })
+    }
+
+    /// The search distance.
+    #[must_use]
+    pub fn distance(&self) -> f64 {
+        self.distance
+    }
+
+    /// The contact quantities of `x`.
+    pub fn gap(&self, x: DVec3) -> GapAnswer {
+        self.search(x, None, &mut Vec::new())
+    }
+
+    /// [`GapFinder::gap`] with the previous answer of the same point as a hint: its face is
+    /// measured first, so that the rest of the search is cut to the faces that could be nearer.
+    /// The answer is the cold one (the same minimum; on a tie, the hinted face).
+    pub fn regap(&self, x: DVec3, previous: &GapAnswer) -> GapAnswer {
+        let hint = match previous {
+            Ok(Some(contact)) => Some(contact.face),
+            _ => None,
+        };
+        self.search(x, hint, &mut Vec::new())
+    }
+
+    /// [`GapFinder::gap`] for every point, in parallel on the current rayon pool, answers in
+    /// input order, written into `out` (resized).
+    pub fn gap_all_into(&self, points: &[DVec3], out: &mut Vec<GapAnswer>) {
+        out.clear();
+        out.resize(points.len(), Ok(None));
+        out.par_chunks_mut(256)
+            .zip(points.par_chunks(256))
+            .for_each_init(Vec::new, |scratch, (out, points)| {
+                for (o, &x) in out.iter_mut().zip(points) {
+                    *o = self.search(x, None, scratch);
+                }
+            });
+    }
+
+    /// [`GapFinder::regap`] for every point, in parallel: `answers` holds the previous answers
+    /// (no hints where its length differs from `points`) and is overwritten with the new ones.
+    pub fn regap_all(&self, points: &[DVec3], answers: &mut Vec<GapAnswer>) {
+        if answers.len() != points.len() {
+            self.gap_all_into(points, answers);
+            return;
+        }
+        answers
+            .par_chunks_mut(256)
+            .zip(points.par_chunks(256))
+            .for_each_init(Vec::new, |scratch, (out, points)| {
+                for (o, &x) in out.iter_mut().zip(points) {
+                    let hint = match o {
+                        Ok(Some(contact)) => Some(contact.face),
+                        _ => None,
+                    };
+                    *o = self.search(x, hint, scratch);
+                }
+            });
+    }
+
+    /// The search of one point (see the module), with the cells to visit gathered in `scratch`.
+    fn search(&self, x: DVec3, hint: Option<Face>, scratch: &mut Vec<(f64, Cell)>) -> GapAnswer {
+        let inside = self.surface.locate(x)?.is_some();
+        let d = self.distance;
+        let mut best: Option<Best> = None;
+        let mut best_d2 = d * d;
+        if let Some(face) = hint {
+            if let Some(cell) = self.surface.cell(face.cell.0) {
+                if face.local < 6 {
+                    let f = usize::from(face.local);
+                    let coverage = self.surface.coverage(cell, f);
+                    if coverage != Coverage::Covered {
+                        let u = self.surface.corner_displacements(cell);
+                        self.offer_face(x, cell, &u, f, &coverage, &mut best, &mut best_d2);
+                    }
+                }
+            }
+        }
+        let lattice = self.surface.lattice();
+        let inv_h = lattice.h().recip();
+        let slack = DVec3::splat(d) + lattice.h() * 1e-9;
+        let low = (x - lattice.origin() - self.u_range.high - slack) * inv_h;
+        let high = (x - lattice.origin() - self.u_range.low + slack) * inv_h;
+        scratch.clear();
+        let range = self.u_range;
+        self.surface.cells_in_box(low, high, |cell| {
+            let origin = self.surface.cell_origin(cell);
+            let size = self.surface.size(cell);
+            let bound = box_distance2(x - origin, range.low, size + range.high);
+            if bound <= best_d2 * (1.0 + SLACK) {
+                scratch.push((bound, cell));
+            }
+        });
+        scratch.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.id.cmp(&b.1.id)));
+        for &(bound, cell) in scratch.iter() {
+            if bound > best_d2 * (1.0 + SLACK) {
+                break;
+            }
+            let origin = self.surface.cell_origin(cell);
+            let size = self.surface.size(cell);
+            let xl = x - origin;
+            let mut u: Option<[DVec3; 8]> = None;
+            for f in 0..6 {
+                if hint
+                    == Some(Face {
+                        cell: CellId(cell.id),
+                        local: f as u8,
+                    })
+                {
+                    continue;
+                }
+                // The undeformed face, shifted by the displacement range.
+                let axis = f / 2;
+                let (mut lo, mut hi) = (range.low, size + range.high);
+                if f % 2 == 0 {
+                    hi[axis] = range.high[axis];
+                } else {
+                    lo[axis] = size[axis] + range.low[axis];
+                }
+                if box_distance2(xl, lo, hi) > best_d2 * (1.0 + SLACK) {
+                    continue;
+                }
+                let coverage = self.surface.coverage(cell, f);
+                if coverage == Coverage::Covered {
+                    continue;
+                }
+                let u = u.get_or_insert_with(|| self.surface.corner_displacements(cell));
+                self.offer_face(x, cell, u, f, &coverage, &mut best, &mut best_d2);
+            }
+        }
+        Ok(best.map(|b| {
+            let dist = b.d2.sqrt();
+            let gap = if dist == 0.0 {
+                0.0
+            } else if inside {
+                -dist
+            } else {
+                dist
+            };
+            let point = b.origin + b.local;
+            let normal = match b.locus {
+                Locus::Boundary if dist > 0.0 => ((x - b.origin) - b.local) / gap,
+                _ => b.normal,
+            };
+            Contact {
+                gap,
+                point,
+                normal,
+                face: b.face,
+                st: b.st,
+                interior: b.locus == Locus::Interior,
+            }
+        }))
+    }
+
+    /// Measures the open part of face `f` of `cell` (corner displacements `u`): all of it, or
+    /// its open squares.
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    fn offer_face(
+        &self,
+        x: DVec3,
+        cell: Cell,
+        u: &[DVec3; 8],
+        f: usize,
+        coverage: &Coverage,
+        best: &mut Option<Best>,
+        best_d2: &mut f64,
+    ) {
+        match coverage {
+            Coverage::Covered => {}
+            Coverage::Open => self.offer(x, cell, u, f, None, best, best_d2),
+            Coverage::Partial(squares) => {
+                for &square in squares {
+                    self.offer(x, cell, u, f, Some(square), best, best_d2);
+                }
+            }
+        }
+    }
+
+    /// Measures face `f` of `cell` (corner displacements `u`), or its square `square` ([s0, t0,
+    /// s1, t1]) only, and keeps it in `best` when nearer (the first face within the search
+    /// distance, then strictly nearer ones).
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    fn offer(
+        &self,
+        x: DVec3,
+        cell: Cell,
+        u: &[DVec3; 8],
+        f: usize,
+        square: Option<[f64; 4]>,
+        best: &mut Option<Best>,
+        best_d2: &mut f64,
+    ) {
+        let origin = self.surface.cell_origin(cell);
+        let size = self.surface.size(cell);
+        let xl = x - origin;
+        let q = FACE_CORNERS[f].map(|c| {
+            let [a, b, e] = crate::lattice::CORNER_OFFSETS[c];
+            DVec3::new(f64::from(a), f64::from(b), f64::from(e)) * size + u[c]
+        });
+        let patch = Patch::new(&q);
+        // A square of the face is the bilinear patch over it: its corners, and the map back.
+        let (part, st_lo, st_hi) = match square {
+            None => (q, DVec2::NEG_ONE, DVec2::ONE),
+            Some([s0, t0, s1, t1]) => {
+                let (lo, hi) = (DVec2::new(s0, t0), DVec2::new(s1, t1));
+                (patch.sub(lo, hi), lo, hi)
+            }
+        };
+        let (mut lo, mut hi) = (part[0], part[0]);
+        for &p in &part[1..] {
+            lo = lo.min(p);
+            hi = hi.max(p);
+        }
+        if box_distance2(xl, lo, hi) > *best_d2 * (1.0 + SLACK) {
+            return;
+        }
+        let Some(mut p) = quad::closest_below(xl, &part, *best_d2) else {
+            return;
+        };
+        if best.is_some() && p.d2 >= *best_d2 {
+            return;
+        }
+        if square.is_some() {
+            p.st = st_lo + (p.st + 1.0) * 0.5 * (st_hi - st_lo);
+        }
+        *best_d2 = p.d2;
+        *best = Some(Best {
+            d2: p.d2,
+            face: Face {
+                cell: CellId(cell.id),
+                local: f as u8,
+            },
+            st: p.st,
+            local: p.point,
+            origin,
+            locus: p.locus,
+            normal: patch.normal(p.st).normalize_or_zero(),
+        });
+    }
+}
+
+#[cfg(test)]
+mod tests;

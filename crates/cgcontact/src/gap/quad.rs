@@ -1,0 +1,465 @@
+//! The closest point of a bilinear quad to a point: exact, whatever the quad's distortion.
+//!
+//! A face of a deformed hexahedron is the bilinear patch
+//! S(s, t) = a + b·s + c·t + d·s·t, (s, t) ∈ [−1, 1]², through its corners q0 (−1, −1), q1 (1, −1),
+//! q2 (1, 1) and q3 (−1, 1). The minimum of |S − x|² over the closed square lies on one of the
+//! four edges (straight segments: a closed form) or at an interior stationary point, found by
+//! Newton's method on the gradient. When the function is convex on the square (a certificate
+//! below, true of every face that is not strongly twisted near the point), the stationary point
+//! is unique and one descent finds it. Otherwise the square is split into quarters (each a
+//! bilinear patch again), quarters whose corners' bounding box is farther than the best point so
+//! far are dropped, and the rest certified or split again: branch and bound, exact to rounding.
+
+use glam::{DVec2, DVec3};
+
+/// Where on the quad the closest point lies.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Locus {
+    /// Inside the face (−1 < s, t < 1): the normal is the face's.
+    Interior,
+    /// On an edge or a corner of the face.
+    Boundary,
+}
+
+/// The closest point of a quad.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct QuadPoint {
+    /// Squared distance.
+    pub d2: f64,
+    /// Face coordinates, in [−1, 1]².
+    pub st: DVec2,
+    /// The point S(s, t).
+    pub point: DVec3,
+    pub locus: Locus,
+}
+
+/// A bilinear patch in power form.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Patch {
+    a: DVec3,
+    b: DVec3,
+    c: DVec3,
+    d: DVec3,
+}
+
+/// Newton iterations for one stationary point (quadratic convergence: a handful suffice).
+const NEWTON_ITERATIONS: u32 = 40;
+/// Depth of the branch and bound (4^8 quarters at most, never reached in practice).
+const MAX_DEPTH: u32 = 8;
+
+impl Patch {
+    /// The patch through corners `q` (q0 at (−1, −1), q1 (1, −1), q2 (1, 1), q3 (−1, 1)).
+    #[inline]
+    pub(crate) fn new(q: &[DVec3; 4]) -> Self {
+        Self {
+            a: 0.25 * (q[0] + q[1] + q[2] + q[3]),
+            b: 0.25 * (-q[0] + q[1] + q[2] - q[3]),
+            c: 0.25 * (-q[0] - q[1] + q[2] + q[3]),
+            d: 0.25 * (q[0] - q[1] + q[2] - q[3]),
+        }
+    }
+
+    /// S(s, t).
+    #[inline]
+    pub(crate) fn at(&self, st: DVec2) -> DVec3 {
+        self.a + self.b * st.x + self.c * st.y + self.d * (st.x * st.y)
+    }
+
+    /// ∂S/∂s × ∂S/∂t at `st`: along the outward normal for faces listed counter-clockwise seen
+    /// from outside.
+    #[inline]
+    pub(crate) fn normal(&self, st: DVec2) -> DVec3 {
+        (self.b + self.d * st.y).cross(self.c + self.d * st.x)
+    }
+
+    /// The sub-patch over [s0, s1] × [t0, t1] (itself a bilinear patch), by its corners.
+    pub(crate) fn sub(&self, lo: DVec2, hi: DVec2) -> [DVec3; 4] {
+        [
+            self.at(lo),
+            self.at(DVec2::new(hi.x, lo.y)),
+            self.at(hi),
+            self.at(DVec2::new(lo.x, hi.y)),
+        ]
+    }
+
+    /// Whether |S − x|² is convex on the whole patch: its Hessian JᵀJ + (r·d)·[[0, 1], [1, 0]]
+    /// (r = S − x) is positive definite when the smallest eigenvalue of JᵀJ, at least
+    /// |Sₛ × Sₜ|² / (|Sₛ|² + |Sₜ|²), exceeds |r·d| ≤ max |qᵢ − x|·|d| (S lies in the corners' hull).
+    /// Sₛ × Sₜ = b×c + s·(b×d) + t·(d×c) is affine in (s, t), so |b×c| − |b×d| − |d×c| bounds
+    /// its length from below.
+    fn convex_for(&self, x: DVec3, corners: &[DVec3; 4]) -> bool {
+        let dd = self.d.length();
+        if dd == 0.0 {
+            // A parallelogram: |S − x|² is a convex quadratic.
+            return true;
+        }
+        let n_low = self.b.cross(self.c).length()
+            - self.b.cross(self.d).length()
+            - self.d.cross(self.c).length();
+        if n_low <= 0.0 {
+            return false;
+        }
+        let bl = self.b.length() + dd;
+        let cl = self.c.length() + dd;
+        let r_max = corners
+            .iter()
+            .map(|&q| (q - x).length_squared())
+            .fold(0.0, f64::max)
+            .sqrt();
+        // With a margin for rounding: a wrong "convex" would be the only way to miss a minimum.
+        n_low * n_low > 1.01 * (bl * bl + cl * cl) * r_max * dd
+    }
+
+    /// Newton's method on ∇|S − x|²/2 from `st`, kept in the square [lo, hi] (a sub-square of
+    /// [−1, 1]²): the interior stationary point it converges to, if any. A step leaving the
+    /// sub-square is cut back to its border; a second exit means the minimum of this start is on
+    /// the border, which the edges cover.
+    fn descend(&self, x: DVec3, mut st: DVec2, lo: DVec2, hi: DVec2) -> Option<DVec2> {
+        let r0 = self.a - x;
+        let mut exits = 0;
+        for _ in 0..NEWTON_ITERATIONS {
+            let ss = self.b + self.d * st.y;
+            let sc = self.c + self.d * st.x;
+            let r = r0 + self.b * st.x + self.c * st.y + self.d * (st.x * st.y);
+            let g = DVec2::new(r.dot(ss), r.dot(sc));
+            let h00 = ss.dot(ss);
+            let h11 = sc.dot(sc);
+            let h01 = ss.dot(sc);
+            let mut h01_full = h01 + r.dot(self.d);
+            let mut det = h00 * h11 - h01_full * h01_full;
+            if !(det > 0.0 && h00 > 0.0) {
+                // Not convex here: a Gauss-Newton step, still a descent direction.
+                h01_full = h01;
+                det = h00 * h11 - h01 * h01;
+                if det.is_nan() || det <= 0.0 {
+                    return None;
+                }
+            }
+            let step = DVec2::new(
+                -(h11 * g.x - h01_full * g.y) / det,
+                -(h00 * g.y - h01_full * g.x) / det,
+            );
+            let next = st + step;
+            let clamped = next.clamp(lo, hi);
+            if clamped != next {
+                exits += 1;
+                if exits > 1 {
+                    return None;
+                }
+            }
+            let moved = (clamped - st).abs().max_element();
+            st = clamped;
+            if moved <= 1e-15 {
+                break;
+            }
+        }
+        // A stationary point strictly inside the whole face (border points are the edges').
+        (st.x.abs() < 1.0 && st.y.abs() < 1.0).then_some(st)
+    }
+
+    /// Offers the interior stationary point reached from the centre of [lo, hi] to `best`.
+    fn offer_interior(&self, x: DVec3, lo: DVec2, hi: DVec2, best: &mut QuadPoint) {
+        if let Some(st) = self.descend(x, 0.5 * (lo + hi), lo, hi) {
+            let point = self.at(st);
+            let d2 = (point - x).length_squared();
+            if d2 < best.d2 {
+                *best = QuadPoint {
+                    d2,
+                    st,
+                    point,
+                    locus: Locus::Interior,
+                };
+            }
+        }
+    }
+
+    /// Branch and bound over [lo, hi]: quarters farther than `best` are dropped, convex ones
+    /// descended, the rest split.
+    fn search(&self, x: DVec3, lo: DVec2, hi: DVec2, depth: u32, best: &mut QuadPoint) {
+        let corners = self.sub(lo, hi);
+        let (mut low, mut high) = (corners[0], corners[0]);
+        for &q in &corners[1..] {
+            low = low.min(q);
+            high = high.max(q);
+        }
+        if box_distance2(x, low, high) > best.d2 {
+            return;
+        }
+        if depth == MAX_DEPTH || Patch::new(&corners).convex_for(x, &corners) {
+            self.offer_interior(x, lo, hi, best);
+            return;
+        }
+        let mid = 0.5 * (lo + hi);
+        for (l, h) in [
+            (lo, mid),
+            (DVec2::new(mid.x, lo.y), DVec2::new(hi.x, mid.y)),
+            (DVec2::new(lo.x, mid.y), DVec2::new(mid.x, hi.y)),
+            (mid, hi),
+        ] {
+            self.search(x, l, h, depth + 1, best);
+        }
+    }
+}
+
+/// Squared distance from `x` to the box [low, high] (0 inside).
+#[inline]
+pub(crate) fn box_distance2(x: DVec3, low: DVec3, high: DVec3) -> f64 {
+    (low - x).max(x - high).max(DVec3::ZERO).length_squared()
+}
+
+/// The closest point of segment p → q to `x`, as (parameter in [0, 1], point).
+#[inline]
+fn on_segment(x: DVec3, p: DVec3, q: DVec3) -> (f64, DVec3) {
+    let e = q - p;
+    let ee = e.length_squared();
+    let u = if ee > 0.0 {
+        ((x - p).dot(e) / ee).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (u, p + e * u)
+}
+
+/// The closest point of the quad with corners `q` to `x` (exact to rounding; see the module).
+#[cfg(test)]
+fn closest(x: DVec3, q: &[DVec3; 4]) -> QuadPoint {
+    closest_below(x, q, f64::INFINITY).expect("every quad has a point closer than infinity")
+}
+
+/// [`closest`], or `None` when no point of the quad is within squared distance `bound` (the
+/// search is then cut short).
+pub(crate) fn closest_below(x: DVec3, q: &[DVec3; 4], bound: f64) -> Option<QuadPoint> {
+    let mut best = QuadPoint {
+        d2: f64::INFINITY,
+        st: DVec2::ZERO,
+        point: q[0],
+        locus: Locus::Boundary,
+    };
+    // The edges, each a straight segment: from corner, to corner, and their face coordinates.
+    let edges = [
+        (0, 1, DVec2::new(-1.0, -1.0), DVec2::new(1.0, -1.0)),
+        (1, 2, DVec2::new(1.0, -1.0), DVec2::new(1.0, 1.0)),
+        (3, 2, DVec2::new(-1.0, 1.0), DVec2::new(1.0, 1.0)),
+        (0, 3, DVec2::new(-1.0, -1.0), DVec2::new(-1.0, 1.0)),
+    ];
+    for (p, e, from, to) in edges {
+        let (u, point) = on_segment(x, q[p], q[e]);
+        let d2 = (point - x).length_squared();
+        if d2 < best.d2 {
+            best = QuadPoint {
+                d2,
+                st: from + (to - from) * u,
+                point,
+                locus: Locus::Boundary,
+            };
+        }
+    }
+    let patch = Patch::new(q);
+    let (lo, hi) = (DVec2::NEG_ONE, DVec2::ONE);
+    if patch.convex_for(x, q) {
+        patch.offer_interior(x, lo, hi, &mut best);
+    } else {
+        patch.search(x, lo, hi, 0, &mut best);
+    }
+    (best.d2 <= bound).then_some(best)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An independent answer: the best of a dense grid of the patch, polished by a projected
+    /// gradient descent with a shrinking step (no Newton, no certificate, no edges' closed form).
+    fn oracle(x: DVec3, q: &[DVec3; 4]) -> (f64, DVec2) {
+        let patch = Patch::new(q);
+        let n = 200;
+        let mut best = (f64::INFINITY, DVec2::ZERO);
+        for i in 0..=n {
+            for j in 0..=n {
+                let st = DVec2::new(
+                    -1.0 + 2.0 * f64::from(i) / f64::from(n),
+                    -1.0 + 2.0 * f64::from(j) / f64::from(n),
+                );
+                let d2 = (patch.at(st) - x).length_squared();
+                if d2 < best.0 {
+                    best = (d2, st);
+                }
+            }
+        }
+        // Coordinate-wise golden-free refinement: pattern search down to 1e-15.
+        let (mut d2, mut st) = best;
+        let mut step = 2.0 / f64::from(n);
+        while step > 1e-15 {
+            let mut improved = false;
+            for dir in [
+                DVec2::X,
+                -DVec2::X,
+                DVec2::Y,
+                -DVec2::Y,
+                DVec2::ONE,
+                -DVec2::ONE,
+                DVec2::new(1.0, -1.0),
+                DVec2::new(-1.0, 1.0),
+            ] {
+                let cand = (st + dir * step).clamp(DVec2::NEG_ONE, DVec2::ONE);
+                let c2 = (patch.at(cand) - x).length_squared();
+                if c2 < d2 {
+                    (d2, st) = (c2, cand);
+                    improved = true;
+                }
+            }
+            if !improved {
+                step *= 0.5;
+            }
+        }
+        (d2, st)
+    }
+
+    fn unit_square() -> [DVec3; 4] {
+        [
+            DVec3::new(0.0, 0.0, 0.0),
+            DVec3::new(1.0, 0.0, 0.0),
+            DVec3::new(1.0, 1.0, 0.0),
+            DVec3::new(0.0, 1.0, 0.0),
+        ]
+    }
+
+    #[test]
+    fn flat_square_interior_edges_and_corners() {
+        let q = unit_square();
+        // Above the middle: interior, distance 2.
+        let p = closest(DVec3::new(0.25, 0.75, 2.0), &q);
+        assert_eq!(p.locus, Locus::Interior);
+        assert!((p.d2 - 4.0).abs() < 1e-14);
+        assert!((p.point - DVec3::new(0.25, 0.75, 0.0)).length() < 1e-15);
+        assert!((p.st - DVec2::new(-0.5, 0.5)).length() < 1e-15);
+        // Beside an edge.
+        let p = closest(DVec3::new(0.5, -1.0, 1.0), &q);
+        assert_eq!(p.locus, Locus::Boundary);
+        assert!((p.point - DVec3::new(0.5, 0.0, 0.0)).length() < 1e-15);
+        assert!((p.d2 - 2.0).abs() < 1e-14);
+        // Beyond a corner.
+        let p = closest(DVec3::new(2.0, 3.0, -1.0), &q);
+        assert_eq!(p.point, q[2]);
+        assert_eq!(p.st, DVec2::ONE);
+        // On the face: distance 0.
+        let p = closest(DVec3::new(0.3, 0.6, 0.0), &q);
+        assert!(p.d2 < 1e-30);
+    }
+
+    #[test]
+    fn normal_points_along_s_cross_t() {
+        let patch = Patch::new(&unit_square());
+        let n = patch.normal(DVec2::ZERO);
+        assert!(n.x.abs() < 1e-15 && n.y.abs() < 1e-15 && n.z > 0.0);
+    }
+
+    /// A twisted quad (a saddle) and a point on its concave side, where |S − x|² has two local
+    /// minima inside the face: the closest point must be the lower one, as the oracle says.
+    #[test]
+    fn saddle_with_two_candidate_roots() {
+        // z = k s t: a hyperbolic paraboloid.
+        let k = 1.0;
+        let q = [
+            DVec3::new(-1.0, -1.0, k),
+            DVec3::new(1.0, -1.0, -k),
+            DVec3::new(1.0, 1.0, k),
+            DVec3::new(-1.0, 1.0, -k),
+        ];
+        let mut several = 0;
+        for (i, x) in [
+            DVec3::new(0.05, 0.0, 1.5),
+            DVec3::new(0.0, 0.02, 2.0),
+            DVec3::new(0.3, 0.2, 1.2),
+            DVec3::new(-0.1, 0.05, -1.7),
+            DVec3::new(0.0, 0.0, 3.0),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let patch = Patch::new(&q);
+            if !patch.convex_for(x, &q) {
+                several += 1;
+            }
+            let got = closest(x, &q);
+            let (d2, _) = oracle(x, &q);
+            assert!(
+                (got.d2.sqrt() - d2.sqrt()).abs() < 1e-10,
+                "point {i}: {} against oracle {}",
+                got.d2.sqrt(),
+                d2.sqrt()
+            );
+            assert!(((got.point - x).length_squared() - got.d2).abs() < 1e-12);
+        }
+        assert!(several > 0, "the scene must exercise the branch and bound");
+        // Two local minima inside the face, on either side of the saddle: one descent from the
+        // centre cannot know which is lower.
+        let x = DVec3::new(0.05, 0.0, 1.5);
+        let patch = Patch::new(&q);
+        let roots: Vec<f64> = [DVec2::splat(0.5), DVec2::splat(-0.5)]
+            .into_iter()
+            .filter_map(|start| patch.descend(x, start, DVec2::NEG_ONE, DVec2::ONE))
+            .map(|st| (patch.at(st) - x).length_squared())
+            .collect();
+        assert_eq!(roots.len(), 2);
+        assert!((roots[0] - roots[1]).abs() > 1e-6, "{roots:?}");
+        let got = closest(x, &q);
+        assert!((got.d2 - roots[0].min(roots[1])).abs() < 1e-12);
+    }
+
+    /// Random distorted quads and points around them, against the oracle.
+    #[test]
+    fn random_quads_match_the_oracle() {
+        let mut seed = 0x1234_5678_9abc_def0_u64;
+        let mut next = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for case in 0..300 {
+            let distortion = if case % 3 == 0 { 0.6 } else { 0.1 };
+            let mut q = unit_square();
+            for c in &mut q {
+                *c += DVec3::new(next() - 0.5, next() - 0.5, next() - 0.5) * distortion;
+            }
+            let x = DVec3::new(next() * 2.0 - 0.5, next() * 2.0 - 0.5, next() * 1.6 - 0.8);
+            let got = closest(x, &q);
+            let (d2, _) = oracle(x, &q);
+            assert!(
+                got.d2.sqrt() <= d2.sqrt() + 1e-10,
+                "case {case}: {} worse than the oracle's {}",
+                got.d2.sqrt(),
+                d2.sqrt()
+            );
+            assert!(
+                got.d2.sqrt() >= d2.sqrt() - 1e-9,
+                "case {case}: {} below the oracle's {}: not a point of the quad",
+                got.d2.sqrt(),
+                d2.sqrt()
+            );
+            let patch = Patch::new(&q);
+            assert!((patch.at(got.st) - got.point).length() < 1e-14);
+        }
+    }
+
+    #[test]
+    fn degenerate_quads() {
+        // Two corners merged (a triangle) and a quad collapsed to a segment.
+        let mut q = unit_square();
+        q[2] = q[1];
+        let x = DVec3::new(0.9, 0.9, 0.1);
+        let (d2, _) = oracle(x, &q);
+        assert!((closest(x, &q).d2.sqrt() - d2.sqrt()).abs() < 1e-10);
+        let q = [DVec3::ZERO, DVec3::X, DVec3::X, DVec3::ZERO];
+        let p = closest(DVec3::new(0.5, 1.0, 0.0), &q);
+        assert!((p.d2 - 1.0).abs() < 1e-14);
+    }
+
+    #[test]
+    fn bound_cuts_far_quads() {
+        let q = unit_square();
+        assert!(closest_below(DVec3::new(0.5, 0.5, 2.0), &q, 3.9).is_none());
+        assert!(closest_below(DVec3::new(0.5, 0.5, 2.0), &q, 4.0 + 1e-12).is_some());
+    }
+}

@@ -1,0 +1,203 @@
+//! What the gap search asks of a body: its cells near a box, their faces and displacements. The
+//! lattice locator's uniform body and the adaptive locator's leaves answer it.
+
+use glam::DVec3;
+
+use crate::adaptive::AdaptiveLocator;
+use crate::lattice::{CellId, Lattice};
+use crate::locate::{LatticeLocator, Locator};
+
+/// A locator whose body has a boundary surface to measure gaps to: [`LatticeLocator`] and
+/// [`AdaptiveLocator`]. Sealed: its methods are the crate's own.
+pub trait Surface: Locator + sealed::Faces {}
+
+impl Surface for LatticeLocator<'_> {}
+impl Surface for AdaptiveLocator<'_> {}
+
+pub(crate) use sealed::{Cell, Coverage};
+
+pub(crate) mod sealed {
+    use super::*;
+
+    /// A cell the search visits: its id, level (0 on uniform bodies) and indices on its level's
+    /// lattice.
+    #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+    pub struct Cell {
+        pub id: u32,
+        pub level: u8,
+        pub ijk: [u32; 3],
+    }
+
+    /// How much of a face is on the boundary surface.
+    #[derive(Clone, Debug, PartialEq)]
+    pub enum Coverage {
+        /// All of it is covered from the other side: not on the surface.
+        Covered,
+        /// None of it is covered: all of it is on the surface.
+        Open,
+        /// The squares [s0, t0, s1, t1] (face coordinates) are on the surface, the rest covered.
+        Partial(smallvec::SmallVec<[[f64; 4]; 4]>),
+    }
+
+    /// The body's side of the gap search.
+    pub trait Faces {
+        /// The (base) lattice.
+        fn lattice(&self) -> &Lattice;
+        /// Every node's displacement.
+        fn displacements(&self) -> &[DVec3];
+        /// The cell of id `id`, if it is an active cell (a leaf).
+        fn cell(&self, id: u32) -> Option<Cell>;
+        /// The cell's undeformed lowest corner: the frame its faces are measured in.
+        fn cell_origin(&self, cell: Cell) -> DVec3;
+        /// The cell's edge lengths.
+        fn size(&self, cell: Cell) -> DVec3;
+        /// Every active cell whose closed undeformed box meets [`low`, `high`] (lattice
+        /// coordinates), each once.
+        fn cells_in_box(&self, low: DVec3, high: DVec3, visit: impl FnMut(Cell));
+        /// How much of local face `face` of `cell` is on the boundary surface.
+        fn coverage(&self, cell: Cell, face: usize) -> Coverage;
+        /// The corner displacements of `cell`, VTK order.
+        fn corner_displacements(&self, cell: Cell) -> [DVec3; 8];
+    }
+
+    /// Cell index range along one axis of the cells (`n` of them) whose closed interval meets
+    /// [`low`, `high`]: `None` when none does (or on NaN).
+    fn axis_range(low: f64, high: f64, n: u32) -> Option<(u32, u32)> {
+        if !(high >= 0.0 && low <= f64::from(n)) {
+            return None;
+        }
+        // The cell whose upper face is at `low` meets the closed box too.
+        let lo = ((low - 1.0).ceil().max(0.0) as u32).min(n - 1);
+        let hi = (high.floor().max(0.0) as u32).min(n - 1);
+        Some((lo, hi))
+    }
+
+    impl Faces for LatticeLocator<'_> {
+        fn lattice(&self) -> &Lattice {
+            self.body().lattice()
+        }
+
+        fn displacements(&self) -> &[DVec3] {
+            self.body().displacements()
+        }
+
+        fn cell(&self, id: u32) -> Option<Cell> {
+            let body = self.body();
+            let ijk = body.lattice().cell_ijk(CellId(id))?;
+            body.is_active(CellId(id))
+                .then_some(Cell { id, level: 0, ijk })
+        }
+
+        #[inline]
+        fn cell_origin(&self, cell: Cell) -> DVec3 {
+            self.body().lattice().node_position(cell.ijk)
+        }
+
+        #[inline]
+        fn size(&self, _: Cell) -> DVec3 {
+            self.body().lattice().h()
+        }
+
+        fn cells_in_box(&self, low: DVec3, high: DVec3, mut visit: impl FnMut(Cell)) {
+            let lattice = self.body().lattice();
+            let n = lattice.cells();
+            let mut r = [(0, 0); 3];
+            for a in 0..3 {
+                match axis_range(low[a], high[a], n[a]) {
+                    Some(range) => r[a] = range,
+                    None => return,
+                }
+            }
+            for k in r[2].0..=r[2].1 {
+                for j in r[1].0..=r[1].1 {
+                    for i in r[0].0..=r[0].1 {
+                        let id = lattice.cell_id([i, j, k]);
+                        if self.body().is_active(id) {
+                            visit(Cell {
+                                id: id.0,
+                                level: 0,
+                                ijk: [i, j, k],
+                            });
+                        }
+                    }
+                }
+            }
+        }
+
+        fn coverage(&self, cell: Cell, face: usize) -> Coverage {
+            let body = self.body();
+            let axis = face / 2;
+            let mut across = cell.ijk;
+            if face % 2 == 1 {
+                across[axis] += 1;
+                if across[axis] >= body.lattice().cells()[axis] {
+                    return Coverage::Open;
+                }
+            } else if across[axis] == 0 {
+                return Coverage::Open;
+            } else {
+                across[axis] -= 1;
+            }
+            if body.is_active(body.lattice().cell_id(across)) {
+                Coverage::Covered
+            } else {
+                Coverage::Open
+            }
+        }
+
+        #[inline]
+        fn corner_displacements(&self, cell: Cell) -> [DVec3; 8] {
+            self.body().corner_displacements(cell.ijk)
+        }
+    }
+
+    impl Faces for AdaptiveLocator<'_> {
+        fn lattice(&self) -> &Lattice {
+            self.body().lattice()
+        }
+
+        fn displacements(&self) -> &[DVec3] {
+            self.body().displacements()
+        }
+
+        fn cell(&self, id: u32) -> Option<Cell> {
+            let leaf = *self.body().leaves().get(id as usize)?;
+            Some(Cell {
+                id,
+                level: leaf.level,
+                ijk: leaf.ijk,
+            })
+        }
+
+        #[inline]
+        fn cell_origin(&self, cell: Cell) -> DVec3 {
+            self.body()
+                .leaf_origin(crate::Leaf::new(cell.level, cell.ijk))
+        }
+
+        #[inline]
+        fn size(&self, cell: Cell) -> DVec3 {
+            self.body().spacing(cell.level)
+        }
+
+        fn cells_in_box(&self, low: DVec3, high: DVec3, mut visit: impl FnMut(Cell)) {
+            self.body().for_each_leaf_in_box(low, high, |id, leaf| {
+                visit(Cell {
+                    id,
+                    level: leaf.level,
+                    ijk: leaf.ijk,
+                });
+            });
+        }
+
+        fn coverage(&self, cell: Cell, face: usize) -> Coverage {
+            self.body()
+                .face_coverage(crate::Leaf::new(cell.level, cell.ijk), face)
+        }
+
+        #[inline]
+        fn corner_displacements(&self, cell: Cell) -> [DVec3; 8] {
+            self.body().leaf_displacements(cell.id)
+        }
+    }
+}

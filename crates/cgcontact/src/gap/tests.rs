@@ -1,0 +1,536 @@
+//! The gap search against a brute-force oracle: every boundary face of the body (found by its own
+//! definition, sampled across each face on adaptive bodies), each measured by a dense grid of its
+//! quad polished by a pattern search (no Newton, no certificate, no closed-form edges).
+
+use bitvec::prelude::*;
+use glam::{DVec2, DVec3};
+
+use super::*;
+use crate::{AdaptiveBody, AdaptiveLocator, Body, Lattice, LatticeLocator, Leaf, Settings};
+
+/// The oracle's answer for one point.
+#[derive(Debug)]
+struct Oracle {
+    dist: f64,
+    point: DVec3,
+    /// The face normal at the closest point (outward), when it is inside its face.
+    interior_normal: Option<DVec3>,
+}
+
+/// A face of the surface for the oracle: deformed corners (world coordinates).
+type Quad = [DVec3; 4];
+
+fn bilinear(q: &Quad, st: DVec2) -> DVec3 {
+    let (s, t) = (st.x, st.y);
+    0.25 * ((1.0 - s) * (1.0 - t) * q[0]
+        + (1.0 + s) * (1.0 - t) * q[1]
+        + (1.0 + s) * (1.0 + t) * q[2]
+        + (1.0 - s) * (1.0 + t) * q[3])
+}
+
+/// The outward normal of a quad at `st`, from the shape functions' derivatives.
+fn oracle_normal(q: &Quad, st: DVec2) -> DVec3 {
+    let (s, t) = (st.x, st.y);
+    let ds = 0.25 * (-(1.0 - t) * q[0] + (1.0 - t) * q[1] + (1.0 + t) * q[2] - (1.0 + t) * q[3]);
+    let dt = 0.25 * (-(1.0 - s) * q[0] - (1.0 + s) * q[1] + (1.0 + s) * q[2] + (1.0 - s) * q[3]);
+    ds.cross(dt).normalize()
+}
+
+/// Closest point of one quad: a 48 × 48 grid, then a pattern search down to 1e-15.
+fn oracle_quad(x: DVec3, q: &Quad) -> (f64, DVec2) {
+    let n = 48;
+    let mut best = (f64::INFINITY, DVec2::ZERO);
+    for i in 0..=n {
+        for j in 0..=n {
+            let st = DVec2::new(
+                -1.0 + 2.0 * f64::from(i) / f64::from(n),
+                -1.0 + 2.0 * f64::from(j) / f64::from(n),
+            );
+            let d2 = (bilinear(q, st) - x).length_squared();
+            if d2 < best.0 {
+                best = (d2, st);
+            }
+        }
+    }
+    let (mut d2, mut st) = best;
+    let mut step = 2.0 / f64::from(n);
+    while step > 1e-15 {
+        let mut improved = false;
+        for dir in [
+            DVec2::X,
+            -DVec2::X,
+            DVec2::Y,
+            -DVec2::Y,
+            DVec2::ONE,
+            -DVec2::ONE,
+            DVec2::new(1.0, -1.0),
+            DVec2::new(-1.0, 1.0),
+        ] {
+            let cand = (st + dir * step).clamp(DVec2::NEG_ONE, DVec2::ONE);
+            let c2 = (bilinear(q, cand) - x).length_squared();
+            if c2 < d2 {
+                (d2, st) = (c2, cand);
+                improved = true;
+            }
+        }
+        if !improved {
+            step *= 0.5;
+        }
+    }
+    (d2, st)
+}
+
+/// The closest point over all `faces` (brute force).
+fn oracle(x: DVec3, faces: &[Quad]) -> Oracle {
+    let mut best = (f64::INFINITY, DVec2::ZERO, 0);
+    for (i, q) in faces.iter().enumerate() {
+        let (d2, st) = oracle_quad(x, q);
+        if d2 < best.0 {
+            best = (d2, st, i);
+        }
+    }
+    let (d2, st, i) = best;
+    let q = &faces[i];
+    let interior = st.x.abs() < 1.0 - 1e-9 && st.y.abs() < 1.0 - 1e-9;
+    Oracle {
+        dist: d2.sqrt(),
+        point: bilinear(q, st),
+        interior_normal: interior.then(|| oracle_normal(q, st)),
+    }
+}
+
+/// Boundary faces of a uniform body by the definition: an active cell's face whose neighbour
+/// across is outside the lattice or inactive.
+fn uniform_faces(body: &Body) -> Vec<Quad> {
+    let lattice = body.lattice();
+    let n = lattice.cells();
+    let mut faces = Vec::new();
+    for cell in body.active_cells() {
+        let ijk = lattice.cell_ijk(cell).unwrap();
+        let corners = body.corners(cell).unwrap();
+        for (f, fc) in FACE_CORNERS.iter().enumerate() {
+            let axis = f / 2;
+            let step: i64 = if f % 2 == 1 { 1 } else { -1 };
+            let across = i64::from(ijk[axis]) + step;
+            let open = if across < 0 || across >= i64::from(n[axis]) {
+                true
+            } else {
+                let mut other = ijk;
+                other[axis] = across as u32;
+                !body.is_active(lattice.cell_id(other))
+            };
+            if open {
+                faces.push(fc.map(|c| corners[c]));
+            }
+        }
+    }
+    faces
+}
+
+/// Boundary faces of an adaptive body by the definition, sampled: each face is cut into its
+/// finest-level squares, and a square is open when the point just across its centre is in no
+/// leaf. Each open square is the quad through the deformed points (the leaf's trilinear map) of
+/// its corners, ordered so that its normal points outwards.
+fn adaptive_faces(body: &AdaptiveBody) -> Vec<Quad> {
+    let lattice = body.lattice();
+    let fine = body.spacing(body.finest_level());
+    let upper = lattice.upper();
+    let mut faces = Vec::new();
+    for (id, &leaf) in body.leaves().iter().enumerate() {
+        let cell = CellId(id as u32);
+        let low = body.leaf_origin(leaf);
+        let size = body.spacing(leaf.level);
+        let per = 1u32 << (body.finest_level() - leaf.level);
+        for f in 0..6 {
+            let axis = f / 2;
+            let side = if f % 2 == 1 { 1.0 } else { -1.0 };
+            let (a1, a2) = ((axis + 1) % 3, (axis + 2) % 3);
+            for i in 0..per {
+                for j in 0..per {
+                    let mut p = low;
+                    p[a1] += (f64::from(i) + 0.5) * fine[a1];
+                    p[a2] += (f64::from(j) + 0.5) * fine[a2];
+                    p[axis] += if side > 0.0 {
+                        size[axis] + 0.25 * fine[axis]
+                    } else {
+                        -0.25 * fine[axis]
+                    };
+                    let outside = p.cmplt(lattice.origin()).any() || p.cmpgt(upper).any();
+                    if !(outside || body.leaf_at(p).is_none()) {
+                        continue;
+                    }
+                    let xi = |di: u32, dj: u32| {
+                        let mut xi = DVec3::ZERO;
+                        xi[axis] = side;
+                        xi[a1] = -1.0 + 2.0 * f64::from(i + di) / f64::from(per);
+                        xi[a2] = -1.0 + 2.0 * f64::from(j + dj) / f64::from(per);
+                        body.point_at(cell, xi).unwrap()
+                    };
+                    let mut q = [xi(0, 0), xi(1, 0), xi(1, 1), xi(0, 1)];
+                    if oracle_normal(&q, DVec2::ZERO)[axis] * side < 0.0 {
+                        q.swap(1, 3);
+                    }
+                    faces.push(q);
+                }
+            }
+        }
+    }
+    faces
+}
+
+/// A smooth displacement field of amplitude `amp` (per unit h).
+fn field(x: DVec3, h: DVec3, amp: f64) -> DVec3 {
+    let y = x / h;
+    DVec3::new(
+        (0.7 * y.x + 1.3 * y.y).sin(),
+        (0.9 * y.y - 0.4 * y.z).cos(),
+        (0.5 * y.z + 0.8 * y.x).sin(),
+    ) * h
+        * amp
+}
+
+/// A uniform body 5 × 4 × 3 with a step (a concave edge and corner) and a hole, displaced.
+fn stepped_body(origin: DVec3, h: DVec3, amp: f64) -> Body {
+    let lattice = Lattice::new(origin, h, [5, 4, 3]).unwrap();
+    let mut active = bitvec![1; lattice.cell_count()];
+    for k in 0..3u32 {
+        for j in 0..4u32 {
+            for i in 0..5u32 {
+                // The step: the upper layer only over i < 3; a hole through the middle.
+                let step = k == 2 && i >= 3;
+                let hole = i == 1 && j == 2;
+                if step || hole {
+                    active.set(lattice.cell_id([i, j, k]).index(), false);
+                }
+            }
+        }
+    }
+    // The field is a function of the position relative to the origin: offset bodies move alike.
+    let dense: Vec<DVec3> = (0..lattice.node_count())
+        .map(|n| {
+            field(
+                lattice.node_position(lattice.node_ijk(n).unwrap()) - origin,
+                h,
+                amp,
+            )
+        })
+        .collect();
+    Body::from_dense(lattice, active, &dense).unwrap()
+}
+
+/// Deterministic points in the box [low, high].
+fn points_in(low: DVec3, high: DVec3, count: usize, mut seed: u64) -> Vec<DVec3> {
+    let mut next = move || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        (seed >> 11) as f64 / (1u64 << 53) as f64
+    };
+    (0..count)
+        .map(|_| low + (high - low) * DVec3::new(next(), next(), next()))
+        .collect()
+}
+
+/// Checks every point's answer against the oracle: the gap and the closest point within 1e-10·h,
+/// the normal within 1e-8 (against the face's where the closest point is inside a face), the
+/// sign against the locator, `None` beyond the distance; and x = c + gap·n.
+fn check(finder: &GapFinder<'_, impl Surface>, faces: &[Quad], points: &[DVec3], h: f64) {
+    let d = finder.distance();
+    let (mut found, mut none, mut interior, mut boundary, mut negative) = (0, 0, 0, 0, 0);
+    for (i, &x) in points.iter().enumerate() {
+        let want = oracle(x, faces);
+        let got = finder.gap(x).unwrap();
+        // Points within rounding of the search distance may go either way.
+        if (want.dist - d).abs() < 1e-9 * h {
+            continue;
+        }
+        let Some(c) = got else {
+            assert!(
+                want.dist > d,
+                "point {i} {x}: None, but the surface is {} away (D = {d})",
+                want.dist
+            );
+            none += 1;
+            continue;
+        };
+        assert!(want.dist <= d, "point {i}: found beyond D: {c:?}");
+        found += 1;
+        assert!(
+            (c.gap.abs() - want.dist).abs() <= 1e-10 * h,
+            "point {i} {x}: |gap| {} against the oracle's {}",
+            c.gap.abs(),
+            want.dist
+        );
+        // The closest point is unique unless two faces tie: compare it where the oracle's is.
+        let along = (c.point - want.point).length();
+        assert!(
+            along <= 1e-10 * h || (c.point - x).length() - want.dist <= 1e-10 * h,
+            "point {i}: closest point {} against the oracle's {}",
+            c.point,
+            want.point
+        );
+        let held = finder.surface.locate(x).unwrap().is_some();
+        assert_eq!(
+            c.gap < 0.0,
+            held && c.gap != 0.0,
+            "point {i}: sign of {}",
+            c.gap
+        );
+        if c.gap < 0.0 {
+            negative += 1;
+        }
+        assert!((c.normal.length() - 1.0).abs() < 1e-12, "point {i}: |n|");
+        assert!(
+            (c.point + c.gap * c.normal - x).length() <= 1e-9 * h,
+            "point {i}: x != c + gap n: {x} {c:?} {want:?}"
+        );
+        if c.interior {
+            interior += 1;
+            if let (Some(n), true) = (want.interior_normal, along <= 1e-9 * h) {
+                assert!(
+                    (c.normal - n).length() < 1e-8,
+                    "point {i}: normal {} against {n}",
+                    c.normal
+                );
+            }
+        } else {
+            boundary += 1;
+        }
+        // The warm start answers the same.
+        let warm = finder.regap(x, &Ok(Some(c))).unwrap().unwrap();
+        assert!((warm.gap - c.gap).abs() <= 1e-12 * h, "point {i}: warm gap");
+    }
+    // The scenes exercise every case.
+    assert!(found > 20 && none > 0, "found {found}, none {none}");
+    assert!(
+        interior > 0 && boundary > 0 && negative > 0,
+        "interior {interior}, edges and corners {boundary}, inside {negative}"
+    );
+}
+
+#[test]
+fn uniform_body_against_the_oracle() {
+    let h = DVec3::new(0.5, 0.7, 0.3);
+    let body = stepped_body(DVec3::new(-1.0, 2.0, 0.5), h, 0.08);
+    let locator = LatticeLocator::new(&body, Settings::default()).unwrap();
+    let finder = GapFinder::new(&locator, 0.6).unwrap();
+    let faces = uniform_faces(&body);
+    let lattice = body.lattice();
+    let points = points_in(lattice.origin() - 0.8, lattice.upper() + 0.8, 400, 0x5eed);
+    check(&finder, &faces, &points, h.min_element());
+}
+
+#[test]
+fn huge_offsets_answer_as_at_the_origin() {
+    let h = DVec3::new(0.5, 0.7, 0.3);
+    let offset = DVec3::new(1e6, -3e6, 2e6);
+    let near = stepped_body(DVec3::ZERO, h, 0.08);
+    let far = stepped_body(offset, h, 0.08);
+    let near_locator = LatticeLocator::new(&near, Settings::default()).unwrap();
+    let far_locator = LatticeLocator::new(&far, Settings::default()).unwrap();
+    let near_finder = GapFinder::new(&near_locator, 0.6).unwrap();
+    let far_finder = GapFinder::new(&far_locator, 0.6).unwrap();
+    let points = points_in(DVec3::splat(-0.5), near.lattice().upper() + 0.5, 300, 0xfa2);
+    let mut compared = 0;
+    for &x in &points {
+        let a = near_finder.gap(x).unwrap();
+        let b = far_finder.gap(x + offset).unwrap();
+        match (a, b) {
+            (Some(a), Some(b)) => {
+                // The coordinates' own rounding at 3e6 is 5e-10: the answers agree to that.
+                assert!((a.gap - b.gap).abs() < 1e-8, "{} against {}", a.gap, b.gap);
+                assert!((a.point + offset - b.point).length() < 1e-8);
+                compared += 1;
+            }
+            (None, None) => {}
+            (a, b) => {
+                let d = a.or(b).unwrap().gap.abs();
+                assert!((d - 0.6).abs() < 1e-8, "{a:?} against {b:?}");
+            }
+        }
+    }
+    assert!(compared > 100);
+}
+
+#[test]
+fn points_on_the_surface_have_gap_zero() {
+    let h = DVec3::new(0.5, 0.7, 0.3);
+    let body = stepped_body(DVec3::new(3.0, 1.0, -2.0), h, 0.08);
+    let locator = LatticeLocator::new(&body, Settings::default()).unwrap();
+    let finder = GapFinder::new(&locator, 0.1).unwrap();
+    let faces = uniform_faces(&body);
+    let mut checked = 0;
+    for (i, q) in faces.iter().enumerate() {
+        for st in [DVec2::new(0.3, -0.6), DVec2::new(1.0, 0.2), DVec2::ONE] {
+            let x = bilinear(q, st);
+            let c = finder.gap(x).unwrap().expect("on the surface");
+            assert!(c.gap.abs() <= 1e-12, "face {i} at {st}: gap {}", c.gap);
+            assert!((c.point - x).length() <= 1e-12);
+            checked += 1;
+        }
+    }
+    assert!(checked > 100);
+}
+
+#[test]
+fn nearest_face_changes_along_a_line() {
+    // A line passing over the step's convex and concave edges, just above the surface.
+    let h = DVec3::new(0.5, 0.7, 0.3);
+    let body = stepped_body(DVec3::ZERO, h, 0.03);
+    let locator = LatticeLocator::new(&body, Settings::default()).unwrap();
+    let finder = GapFinder::new(&locator, 1.0).unwrap();
+    let faces = uniform_faces(&body);
+    let points: Vec<DVec3> = (0..=120)
+        .map(|i| DVec3::new(-0.4 + 3.3 * f64::from(i) / 120.0, 0.35, 0.98))
+        .collect();
+    let mut seen = std::collections::BTreeSet::new();
+    for &x in &points {
+        let c = finder.gap(x).unwrap().unwrap();
+        let want = oracle(x, &faces);
+        assert!((c.gap.abs() - want.dist).abs() <= 1e-10 * 0.3, "{x}");
+        seen.insert((c.face.local, c.interior));
+    }
+    assert!(
+        seen.len() >= 3,
+        "the line crosses several faces and edges: {seen:?}"
+    );
+}
+
+#[test]
+fn far_and_deep_points_are_none_and_bad_points_refused() {
+    let h = DVec3::splat(1.0);
+    let lattice = Lattice::new(DVec3::ZERO, h, [6, 6, 6]).unwrap();
+    let body = Body::full(lattice);
+    let locator = LatticeLocator::new(&body, Settings::default()).unwrap();
+    let finder = GapFinder::new(&locator, 1.0).unwrap();
+    assert_eq!(finder.gap(DVec3::splat(3.0)), Ok(None), "deep inside");
+    assert_eq!(finder.gap(DVec3::new(3.0, 3.0, 8.5)), Ok(None), "far above");
+    let c = finder.gap(DVec3::new(3.0, 3.0, 5.25)).unwrap().unwrap();
+    assert!((c.gap + 0.75).abs() < 1e-15 && c.normal == DVec3::Z && c.face.local == 5);
+    assert_eq!(
+        finder.gap(DVec3::new(f64::NAN, 0.0, 0.0)),
+        Err(PointError::NonFinite)
+    );
+    assert!(GapFinder::new(&locator, -1.0).is_err());
+    assert!(GapFinder::new(&locator, f64::INFINITY).is_err());
+    // A bad hint is only a hint.
+    let x = DVec3::new(2.5, -0.5, 2.5);
+    let cold = finder.gap(x).unwrap();
+    for hint in [
+        Face {
+            cell: CellId(0),
+            local: 0,
+        },
+        Face {
+            cell: CellId(10_000),
+            local: 1,
+        },
+        Face {
+            cell: CellId(3),
+            local: 9,
+        },
+    ] {
+        let fake = Contact {
+            face: hint,
+            ..cold.unwrap()
+        };
+        assert_eq!(
+            finder.regap(x, &Ok(Some(fake))).unwrap().map(|c| c.gap),
+            cold.map(|c| c.gap)
+        );
+    }
+}
+
+#[test]
+fn batched_and_warm_answers_are_the_single_ones() {
+    let h = DVec3::new(0.5, 0.7, 0.3);
+    let body = stepped_body(DVec3::ZERO, h, 0.08);
+    let locator = LatticeLocator::new(&body, Settings::default()).unwrap();
+    let finder = GapFinder::new(&locator, 0.5).unwrap();
+    let points = points_in(DVec3::splat(-0.7), body.lattice().upper() + 0.7, 3000, 99);
+    let mut all = Vec::new();
+    finder.gap_all_into(&points, &mut all);
+    for (x, a) in points.iter().zip(&all) {
+        assert_eq!(*a, finder.gap(*x));
+    }
+    let cold = all.clone();
+    finder.regap_all(&points, &mut all);
+    for (a, b) in all.iter().zip(&cold) {
+        assert_eq!(a.map(|c| c.map(|c| c.gap)), b.map(|c| c.map(|c| c.gap)));
+    }
+}
+
+/// An adaptive body: a 3 × 3 × 2 base lattice, one base cell refined twice in a corner (a level
+/// jump of two), one refined once with a hole at level 1, and a missing base cell.
+fn adaptive_body(amp: f64) -> AdaptiveBody {
+    let h = DVec3::new(0.8, 0.6, 0.5);
+    let lattice = Lattice::new(DVec3::new(0.5, -1.0, 2.0), h, [3, 3, 2]).unwrap();
+    let mut leaves = Vec::new();
+    for k in 0..2 {
+        for j in 0..3 {
+            for i in 0..3 {
+                let base = Leaf::new(0, [i, j, k]);
+                match (i, j, k) {
+                    (2, 2, 1) => {} // missing
+                    (1, 1, 1) => {
+                        for (c, child) in base.children().into_iter().enumerate() {
+                            if c == 0 {
+                                leaves.extend(child.children());
+                            } else {
+                                leaves.push(child);
+                            }
+                        }
+                    }
+                    (0, 0, 0) => {
+                        // A hole at level 1: the upper-corner child is missing.
+                        leaves.extend(base.children().into_iter().take(7));
+                    }
+                    _ => leaves.push(base),
+                }
+            }
+        }
+    }
+    let mut body = AdaptiveBody::from_leaves(lattice, leaves).unwrap();
+    body.update_independent(|_, x, u| *u = field(x, h, amp))
+        .unwrap();
+    body
+}
+
+#[test]
+fn adaptive_body_against_the_oracle() {
+    let body = adaptive_body(0.05);
+    let locator = AdaptiveLocator::new(&body, Settings::default()).unwrap();
+    let finder = GapFinder::new(&locator, 0.4).unwrap();
+    let faces = adaptive_faces(&body);
+    let lattice = body.lattice();
+    let points = points_in(lattice.origin() - 0.5, lattice.upper() + 0.5, 400, 0xada);
+    check(&finder, &faces, &points, 0.5 / 4.0);
+    // A fine face against a coarse leaf is interior: a point just inside the refined cell's
+    // lower face towards its coarse neighbour is deep, not on the surface.
+    let x = body.leaf_origin(Leaf::new(0, [1, 1, 1])) + DVec3::new(0.01, 0.3, 0.25);
+    let c = finder.gap(x).unwrap();
+    assert!(c.is_none_or(|c| c.gap < -0.05), "{c:?}");
+}
+
+#[test]
+fn uniform_and_one_level_adaptive_bodies_agree() {
+    let h = DVec3::new(0.5, 0.7, 0.3);
+    let body = stepped_body(DVec3::ZERO, h, 0.0);
+    let leaves: Vec<Leaf> = body
+        .active_cells()
+        .map(|c| Leaf::new(0, body.lattice().cell_ijk(c).unwrap()))
+        .collect();
+    let mut adaptive = AdaptiveBody::from_leaves(*body.lattice(), leaves).unwrap();
+    adaptive
+        .update_independent(|_, x, u| *u = field(x, h, 0.08))
+        .unwrap();
+    let body = stepped_body(DVec3::ZERO, h, 0.08);
+    let a = LatticeLocator::new(&body, Settings::default()).unwrap();
+    let b = AdaptiveLocator::new(&adaptive, Settings::default()).unwrap();
+    let fa = GapFinder::new(&a, 0.5).unwrap();
+    let fb = GapFinder::new(&b, 0.5).unwrap();
+    for x in points_in(DVec3::splat(-0.6), body.lattice().upper() + 0.6, 500, 5) {
+        let (p, q) = (fa.gap(x).unwrap(), fb.gap(x).unwrap());
+        assert_eq!(p.map(|c| c.gap), q.map(|c| c.gap), "{x}");
+    }
+}
