@@ -10,8 +10,8 @@ use cgcontact_io::{
 };
 use clap::Args;
 
-use crate::output::{check_outputs, prepare_folder};
-use crate::run::{SearchArgs, Searched, search};
+use crate::output::{check_outputs, prepare_folder, write_owner_rows};
+use crate::run::{SearchArgs, Searched, StrategyName, search_listing_owners};
 
 /// Locate the points of a CSV file in a VTK mesh of hexahedra on a cartesian lattice.
 #[derive(Args, Debug)]
@@ -22,7 +22,12 @@ The mesh is a VTK unstructured grid of hexahedra (legacy .vtk ASCII/binary or XM
 a cartesian lattice, or whose cells are dyadic refinements of one (an adaptive mesh: levels are detected
 from the cell sizes, cells and nodes may come in any order); the displacement is the point-data vector `displacement` (or --displacement NAME).
 The points file has three columns x,y,z and an optional header line. Results: CSV with header
-point,cell,xi,eta,zeta,... where cell is the 0-based input cell index, or -1 when not found.")]
+point,cell,xi,eta,zeta,... where cell is the 0-based input cell index, or -1 when not found.
+
+With --all-owners, a point on a face, edge or node shared by several cells (or on a fine/coarse
+interface, or at a hanging node) gets one row per cell holding it: the same point index repeated,
+cells ascending, each row with its own xi; a point no cell holds keeps its one row with cell -1:
+  cgcontact locate --mesh block.vtu --points contact.csv --out owners.csv --all-owners")]
 pub struct LocateArgs {
     /// The mesh (.vtk or .vtu).
     #[arg(long, value_name = "FILE")]
@@ -43,12 +48,30 @@ pub struct LocateArgs {
     /// coarse cell's interpolation there) instead of warning.
     #[arg(long)]
     strict: bool,
+    /// Write a results row for every cell holding a point, not one cell per point.
+    ///
+    /// A point on a shared face has 2 rows, on an edge 4, at a node 8 (on an adaptive mesh, a
+    /// hanging node's coarse cell and fine cells): the point index repeated, cells ascending in
+    /// the input numbering, each row with its own xi. A point no cell holds keeps its one row
+    /// with cell -1. Not with --strategy noderad-seed (its loose Newton misses owners); --vtk
+    /// still shows one cell per point.
+    #[arg(long)]
+    all_owners: bool,
     #[command(flatten)]
     search: SearchArgs,
 }
 
 pub fn run(args: &LocateArgs) -> Result<()> {
     // Every setting and every output checked before any file is read or any work done.
+    if args.all_owners && args.search.strategy == StrategyName::NoderadSeed {
+        // Its owners would be wrong, not merely incomplete: the seed's Newton stops at a physical
+        // residual of 0.1 and then tests |ξ| ≤ 1 with no tolerance, so at a shared node it keeps
+        // whichever owners its loose ξ happens to fall in (and may name a cell that does not hold
+        // the point at all).
+        anyhow::bail!(
+            "--all-owners cannot be used with --strategy noderad-seed: the seed's Newton stops at a residual of 0.1 and tests |xi| <= 1 without tolerance, so it misses cells sharing a face, edge or node (use --strategy noderad: the same filter with the exact Newton)"
+        );
+    }
     let pool = args.search.check()?;
     let inputs = [
         ("--mesh", args.mesh.as_path()),
@@ -109,11 +132,14 @@ pub fn run(args: &LocateArgs) -> Result<()> {
         MeshBody::Adaptive(m) => (&m.body).into(),
     };
     let cells = mesh.cells();
-    let Searched {
-        answers,
-        tried,
-        mut summary,
-    } = search(body, &points, &args.search, &pool)?;
+    let (
+        Searched {
+            answers,
+            tried,
+            mut summary,
+        },
+        owners,
+    ) = search_listing_owners(body, &points, &args.search, &pool, args.all_owners)?;
     summary.displacement = mesh.has_displacement().then(|| {
         args.displacement
             .clone()
@@ -126,7 +152,13 @@ pub fn run(args: &LocateArgs) -> Result<()> {
             .unwrap_or(*cell);
     }
     if let Some(out) = &args.out {
-        write_results_counted(out, &answers, &tried, cells)?;
+        match &owners {
+            // Owners are named as the `cell` column names them: by their input cell index.
+            Some(owners) => {
+                write_owner_rows(out, owners.per_point(), &tried, |c| cells.input_cell(c))?;
+            }
+            None => write_results_counted(out, &answers, &tried, cells)?,
+        }
         summary.files.push(out.display().to_string());
     }
     if let Some([mesh_path, points_path]) = &vtk_files {

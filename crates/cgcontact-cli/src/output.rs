@@ -5,10 +5,53 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Result, bail};
+use cgcontact::{CellId, Hit};
 
 /// Write `text` to `path`, whole or not at all.
 pub fn write_text(path: &Path, text: &str) -> Result<()> {
     cgcontact_io::write_file(path, |out| Ok(out.write_all(text.as_bytes())?))?;
+    Ok(())
+}
+
+/// Write the results of `locate --all-owners`: the header and columns of the usual results file
+/// (`cgcontact_io::write_results_counted`), but one row per owner of each point, the point's
+/// index repeated, cells ascending in the input mesh's numbering (`input_cell` maps the locator's
+/// cell ids to it), each row with that owner's ξ, iterations, residual and the inversions the
+/// search had tried when it found it. A point with no owner (outside, or refused) keeps its one
+/// row as the usual file writes it: `point,-1,NaN,NaN,NaN,0,NaN,tried`.
+pub fn write_owner_rows<'a>(
+    path: &Path,
+    owners: impl Iterator<Item = &'a [Hit]>,
+    tried: &[u32],
+    input_cell: impl Fn(CellId) -> Option<usize>,
+) -> Result<()> {
+    cgcontact_io::write_file(path, |out| {
+        writeln!(out, "{}", cgcontact_io::RESULTS_HEADER.join(","))?;
+        // Reused for every point: at most a few owners each, sorted by their input cell.
+        let mut rows: Vec<(i64, &Hit)> = Vec::new();
+        for (point, hits) in owners.enumerate() {
+            if hits.is_empty() {
+                let inversions = tried.get(point).copied().unwrap_or(0);
+                writeln!(out, "{point},-1,NaN,NaN,NaN,0,NaN,{inversions}")?;
+                continue;
+            }
+            rows.clear();
+            rows.extend(
+                hits.iter()
+                    .map(|hit| (input_cell(hit.cell).map_or(-1, |c| c as i64), hit)),
+            );
+            // The locator sorts by its own ids (lattice cells); the file names input cells.
+            rows.sort_by_key(|&(cell, _)| cell);
+            for (cell, hit) in &rows {
+                writeln!(
+                    out,
+                    "{point},{cell},{},{},{},{},{},{}",
+                    hit.xi.x, hit.xi.y, hit.xi.z, hit.iterations, hit.residual, hit.inversions
+                )?;
+            }
+        }
+        Ok(())
+    })?;
     Ok(())
 }
 

@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use cgcontact::glam::DVec3;
-use cgcontact::{AdaptiveLocator, Answer, LatticeLocator, Locator, Precision, Settings};
+use cgcontact::{AdaptiveLocator, Answer, Hit, LatticeLocator, Locator, Precision, Settings};
 use cgcontact_baseline::{
     BodyRef, BruteForce, CentroidRadius, Inversion, NodeRadius, NodeRadiusOptions, RTree,
 };
@@ -181,6 +181,22 @@ pub struct Summary {
     pub inverted_cells: Vec<usize>,
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub files: Vec<String>,
+    /// With `locate --all-owners`: what listing every owner found; absent otherwise.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub owners: Option<OwnersSummary>,
+}
+
+/// What `locate --all-owners` found, for the summary.
+#[derive(Serialize, Debug, Clone, Copy)]
+pub struct OwnersSummary {
+    /// Rows of the results: one per owner, one for each point with none.
+    pub rows: usize,
+    /// Points held by more than one cell (on a shared face, edge or node, or a hanging node).
+    pub points_with_several_owners: usize,
+    /// The most owners of any point.
+    pub most_owners: usize,
+    /// Time listing the owners of every point (a second pass, after the timed query).
+    pub seconds: f64,
 }
 
 impl Summary {
@@ -244,6 +260,21 @@ impl Summary {
                     min * 1e3,
                     median * 1e3,
                     self.points as f64 / min.max(1e-12)
+                )?;
+            }
+            if let Some(owners) = &self.owners {
+                say!(
+                    "all owners: {} rows for {} points, {} point{} with several owners (up to {}), listed in {:.3} ms",
+                    owners.rows,
+                    self.points,
+                    owners.points_with_several_owners,
+                    if owners.points_with_several_owners == 1 {
+                        ""
+                    } else {
+                        "s"
+                    },
+                    owners.most_owners,
+                    owners.seconds * 1e3
                 )?;
             }
             for file in &self.files {
@@ -310,6 +341,19 @@ pub fn search(
     args: &SearchArgs,
     pool: &rayon::ThreadPool,
 ) -> Result<Searched> {
+    search_listing_owners(body, points, args, pool, false).map(|(searched, _)| searched)
+}
+
+/// [`search`], and with `all_owners` every cell holding each point too (`Locator::locate_owners`,
+/// with the same locator, in a second pass after the timed query; its time and counts go to the
+/// summary's `owners`).
+pub fn search_listing_owners(
+    body: BodyRef<'_>,
+    points: &[DVec3],
+    args: &SearchArgs,
+    pool: &rayon::ThreadPool,
+    all_owners: bool,
+) -> Result<(Searched, Option<OwnerLists>)> {
     let settings = args.settings()?;
     let setup = Instant::now();
     let locator = build_locator(args.strategy, body, settings)?;
@@ -320,7 +364,7 @@ pub fn search(
         StrategyName::Lattice | StrategyName::Rtree => 1 << 18,
         _ => 1 << 10,
     };
-    let progress = progress_bar(points.len() as u64, args.quiet || args.json);
+    let progress = progress_bar(points.len() as u64, args.quiet || args.json, "locating");
     let query = Instant::now();
     let mut answers = Vec::with_capacity(points.len());
     let mut buffer = Vec::with_capacity(chunk.min(points.len()));
@@ -354,6 +398,11 @@ pub fn search(
         0 => (None, None),
         n => (Some(repeats[0]), Some(repeats[n / 2])),
     };
+    let owners = all_owners.then(|| {
+        let start = Instant::now();
+        let lists = list_owners(&*locator, points, pool, args.quiet || args.json);
+        (lists, start.elapsed().as_secs_f64())
+    });
 
     let located: Vec<_> = answers.iter().filter_map(|a| a.ok().flatten()).collect();
     let invalid_points = answers.iter().filter(|a| a.is_err()).count();
@@ -410,12 +459,90 @@ pub fn search(
         .map(|(cell, _)| cell.index())
         .collect(),
         files: Vec::new(),
+        owners: owners
+            .as_ref()
+            .map(|(lists, seconds)| lists.summary(*seconds)),
     };
-    Ok(Searched {
-        answers,
-        tried,
-        summary,
-    })
+    Ok((
+        Searched {
+            answers,
+            tried,
+            summary,
+        },
+        owners.map(|(lists, _)| lists),
+    ))
+}
+
+/// Every cell holding each point, point by point in input order: the owners of point p are
+/// `hits[ends[p - 1]..ends[p]]` (from 0 for the first point), ascending by the locator's cell id.
+/// A point no cell holds, and a point refused (NaN or infinite coordinates), has none.
+/// Kept flat: a point costs one offset and its hits, not a list of eight inline.
+pub struct OwnerLists {
+    pub hits: Vec<Hit>,
+    pub ends: Vec<usize>,
+}
+
+impl OwnerLists {
+    /// The owners of each point, in input order.
+    pub fn per_point(&self) -> impl Iterator<Item = &[Hit]> + '_ {
+        let starts = std::iter::once(0).chain(self.ends.iter().copied());
+        starts
+            .zip(self.ends.iter().copied())
+            .map(|(start, end)| &self.hits[start..end])
+    }
+
+    fn summary(&self, seconds: f64) -> OwnersSummary {
+        let counts = || self.per_point().map(<[Hit]>::len);
+        OwnersSummary {
+            rows: counts().map(|n| n.max(1)).sum(),
+            points_with_several_owners: counts().filter(|&n| n > 1).count(),
+            most_owners: counts().max().unwrap_or(0),
+            seconds,
+        }
+    }
+}
+
+/// [`Locator::locate_owners`] for every point on `pool`, in chunks that keep the progress bar
+/// moving; each chunk is split over the pool and its lists are appended in input order, so the
+/// result does not depend on the thread count.
+fn list_owners(
+    locator: &dyn Locator,
+    points: &[DVec3],
+    pool: &rayon::ThreadPool,
+    quiet: bool,
+) -> OwnerLists {
+    // 4096 points: their lists (eight hits inline each) take about 2 MB before they are flattened.
+    const CHUNK: usize = 1 << 12;
+    let progress = progress_bar(points.len() as u64, quiet, "listing owners");
+    let start = Instant::now();
+    let mut lists = OwnerLists {
+        hits: Vec::with_capacity(points.len()),
+        ends: Vec::with_capacity(points.len()),
+    };
+    let mut chunk_lists = Vec::with_capacity(CHUNK.min(points.len()));
+    pool.install(|| {
+        for part in points.chunks(CHUNK) {
+            part.par_iter()
+                .with_min_len(64)
+                // A refused point has no owner: its row is that of a point not found, as with `locate`.
+                .map(|&x| locator.locate_owners(x).unwrap_or_default())
+                .collect_into_vec(&mut chunk_lists);
+            for owners in &chunk_lists {
+                lists.hits.extend_from_slice(owners);
+                lists.ends.push(lists.hits.len());
+            }
+            if let Some(bar) = &progress {
+                bar.inc(part.len() as u64);
+                if start.elapsed().as_secs_f64() > 1.0 && bar.is_hidden() {
+                    bar.set_draw_target(ProgressDrawTarget::stderr());
+                }
+            }
+        }
+    });
+    if let Some(bar) = progress {
+        bar.finish_and_clear();
+    }
+    lists
 }
 
 /// What [`search`] found: the answers, the Newton inversions each point's search tried (failed
@@ -426,16 +553,16 @@ pub struct Searched {
     pub summary: Summary,
 }
 
-/// A progress bar on stderr, hidden until shown (by the caller, after a second) and never shown
-/// when stderr is not a terminal or the user asked for quiet.
-fn progress_bar(len: u64, quiet: bool) -> Option<ProgressBar> {
+/// A progress bar on stderr for the step `what` ("locating"), hidden until shown (by the caller,
+/// after a second) and never shown when stderr is not a terminal or the user asked for quiet.
+fn progress_bar(len: u64, quiet: bool, what: &str) -> Option<ProgressBar> {
     if quiet || !std::io::stderr().is_terminal() {
         return None;
     }
     let bar = ProgressBar::with_draw_target(Some(len), ProgressDrawTarget::hidden());
     bar.set_style(
         ProgressStyle::with_template(
-            "{spinner} locating [{bar:40}] {pos}/{len} points ({rate}, {eta} left)",
+            "{spinner} {msg} [{bar:40}] {pos}/{len} points ({rate}, {eta} left)",
         )
         .expect("the template is valid")
         // Whole points per second: indicatif's own {per_sec} prints four decimals.
@@ -447,5 +574,6 @@ fn progress_bar(len: u64, quiet: bool) -> Option<ProgressBar> {
         )
         .progress_chars("=> "),
     );
+    bar.set_message(what.to_owned());
     Some(bar)
 }
