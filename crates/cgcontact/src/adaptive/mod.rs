@@ -527,6 +527,12 @@ impl AdaptiveBody {
             + self.hanging.heap_bytes()
     }
 
+    /// The leaf at base lattice coordinates `t` clamped into the lattice's box, with its id.
+    #[inline]
+    pub(crate) fn leaf_near(&self, t: DVec3) -> Option<(u32, Leaf)> {
+        self.forest.leaf_at(t)
+    }
+
     /// Calls `visit(id, leaf)` for every leaf whose closed undeformed box meets [`low`, `high`]
     /// (base lattice coordinates), each once.
     pub(crate) fn for_each_leaf_in_box(
@@ -571,7 +577,7 @@ impl AdaptiveBody {
         ) {
             Some(true) => Coverage::Covered,
             Some(false) => Coverage::Open,
-            None => Coverage::Partial(open),
+            None => Coverage::Partial(open.into_vec().into_boxed_slice()),
         }
     }
 

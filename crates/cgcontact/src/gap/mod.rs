@@ -102,7 +102,12 @@ struct Best {
     origin: DVec3,
     locus: Locus,
     normal: DVec3,
+    /// Distances below this are left to the locator's sign (a millionth of the cell's size).
+    band: f64,
 }
+
+/// Every local face, as a bit set.
+const ALL_FACES: u8 = 0b11_1111;
 
 /// Relative slack of the pruning bounds: a face never is dropped by a rounding of its bound.
 const SLACK: f64 = 1e-12;
@@ -146,7 +151,7 @@ impl<'l, L: Surface> GapFinder<'l, L> {
 
     /// The contact quantities of `x`.
     pub fn gap(&self, x: DVec3) -> GapAnswer {
-        self.search(x, None, &mut Vec::new())
+        self.search(x, None)
     }
 
     /// [`GapFinder::gap`] with the previous answer of the same point as a hint: its face is
@@ -157,7 +162,7 @@ impl<'l, L: Surface> GapFinder<'l, L> {
             Ok(Some(contact)) => Some(contact.face),
             _ => None,
         };
-        self.search(x, hint, &mut Vec::new())
+        self.search(x, hint)
     }
 
     /// [`GapFinder::gap`] for every point, in parallel on the current rayon pool, answers in
@@ -167,9 +172,9 @@ impl<'l, L: Surface> GapFinder<'l, L> {
         out.resize(points.len(), Ok(None));
         out.par_chunks_mut(256)
             .zip(points.par_chunks(256))
-            .for_each_init(Vec::new, |scratch, (out, points)| {
+            .for_each(|(out, points)| {
                 for (o, &x) in out.iter_mut().zip(points) {
-                    *o = self.search(x, None, scratch);
+                    *o = self.search(x, None);
                 }
             });
     }
@@ -184,110 +189,143 @@ impl<'l, L: Surface> GapFinder<'l, L> {
         answers
             .par_chunks_mut(256)
             .zip(points.par_chunks(256))
-            .for_each_init(Vec::new, |scratch, (out, points)| {
+            .for_each(|(out, points)| {
                 for (o, &x) in out.iter_mut().zip(points) {
                     let hint = match o {
                         Ok(Some(contact)) => Some(contact.face),
                         _ => None,
                     };
-                    *o = self.search(x, hint, scratch);
+                    *o = self.search(x, hint);
                 }
             });
     }
 
     /// The search of one point (see the module), with the cells to visit gathered in `scratch`.
-    fn search(&self, x: DVec3, hint: Option<Face>, scratch: &mut Vec<(f64, Cell)>) -> GapAnswer {
-        let inside = self.surface.locate(x)?.is_some();
+    fn search(&self, x: DVec3, hint: Option<Face>) -> GapAnswer {
+        if !x.is_finite() {
+            return Err(PointError::NonFinite);
+        }
         let d = self.distance;
         let mut best: Option<Best> = None;
         let mut best_d2 = d * d;
-        if let Some(face) = hint {
-            if let Some(cell) = self.surface.cell(face.cell.0) {
-                if face.local < 6 {
-                    let f = usize::from(face.local);
-                    let coverage = self.surface.coverage(cell, f);
-                    if coverage != Coverage::Covered {
-                        let u = self.surface.corner_displacements(cell);
-                        self.offer_face(x, cell, &u, f, &coverage, &mut best, &mut best_d2);
-                    }
-                }
-            }
-        }
         let lattice = self.surface.lattice();
         let inv_h = lattice.h().recip();
-        let slack = DVec3::splat(d) + lattice.h() * 1e-9;
-        let low = (x - lattice.origin() - self.u_range.high - slack) * inv_h;
-        let high = (x - lattice.origin() - self.u_range.low + slack) * inv_h;
-        scratch.clear();
         let range = self.u_range;
+        // First the hinted face's cell (the previous answer's), or else the cell at x's
+        // undeformed position (x less the middle of the displacement range, clamped into the
+        // lattice): its faces usually set a bound that shrinks the box to a cell or two. The
+        // hinted face is measured first, so that on a tie it stays the answer.
+        let hinted = hint.and_then(|face| Some((self.surface.cell(face.cell.0)?, face.local)));
+        let first = match hinted {
+            Some((cell, local)) if local < 6 => {
+                self.offer_cell(x, cell, 1 << local, &mut best, &mut best_d2);
+                self.offer_cell(x, cell, ALL_FACES & !(1 << local), &mut best, &mut best_d2);
+                Some(cell)
+            }
+            _ => {
+                let t = (x - lattice.origin() - 0.5 * (range.low + range.high)) * inv_h;
+                let first = self.surface.cell_near(t);
+                if let Some(cell) = first {
+                    self.offer_cell(x, cell, ALL_FACES, &mut best, &mut best_d2);
+                }
+                first
+            }
+        };
+        let first = first.map_or(u32::MAX, |cell| cell.id);
+        // Then every cell of the lattice bound's box for the best distance so far, each pruned by
+        // its own bound with the best distance when its turn comes.
+        let reach = DVec3::splat(best_d2.sqrt()) + lattice.h() * 1e-9;
+        let low = (x - lattice.origin() - range.high - reach) * inv_h;
+        let high = (x - lattice.origin() - range.low + reach) * inv_h;
         self.surface.cells_in_box(low, high, |cell| {
+            if cell.id == first {
+                return;
+            }
             let origin = self.surface.cell_origin(cell);
             let size = self.surface.size(cell);
-            let bound = box_distance2(x - origin, range.low, size + range.high);
-            if bound <= best_d2 * (1.0 + SLACK) {
-                scratch.push((bound, cell));
+            if box_distance2(x - origin, range.low, size + range.high) <= best_d2 * (1.0 + SLACK) {
+                self.offer_cell(x, cell, ALL_FACES, &mut best, &mut best_d2);
             }
         });
-        scratch.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.id.cmp(&b.1.id)));
-        for &(bound, cell) in scratch.iter() {
-            if bound > best_d2 * (1.0 + SLACK) {
-                break;
-            }
-            let origin = self.surface.cell_origin(cell);
-            let size = self.surface.size(cell);
-            let xl = x - origin;
-            let mut u: Option<[DVec3; 8]> = None;
-            for f in 0..6 {
-                if hint
-                    == Some(Face {
-                        cell: CellId(cell.id),
-                        local: f as u8,
-                    })
-                {
-                    continue;
-                }
-                // The undeformed face, shifted by the displacement range.
-                let axis = f / 2;
-                let (mut lo, mut hi) = (range.low, size + range.high);
-                if f % 2 == 0 {
-                    hi[axis] = range.high[axis];
-                } else {
-                    lo[axis] = size[axis] + range.low[axis];
-                }
-                if box_distance2(xl, lo, hi) > best_d2 * (1.0 + SLACK) {
-                    continue;
-                }
-                let coverage = self.surface.coverage(cell, f);
-                if coverage == Coverage::Covered {
-                    continue;
-                }
-                let u = u.get_or_insert_with(|| self.surface.corner_displacements(cell));
-                self.offer_face(x, cell, u, f, &coverage, &mut best, &mut best_d2);
-            }
-        }
-        Ok(best.map(|b| {
-            let dist = b.d2.sqrt();
-            let gap = if dist == 0.0 {
-                0.0
-            } else if inside {
-                -dist
-            } else {
-                dist
-            };
-            let point = b.origin + b.local;
-            let normal = match b.locus {
-                Locus::Boundary if dist > 0.0 => ((x - b.origin) - b.local) / gap,
-                _ => b.normal,
-            };
-            Contact {
-                gap,
-                point,
-                normal,
-                face: b.face,
-                st: b.st,
-                interior: b.locus == Locus::Interior,
-            }
+        let Some(b) = best else {
+            return Ok(None);
+        };
+        let dist = b.d2.sqrt();
+        // x − c, in the closest face's cell frame.
+        let away = (x - b.origin) - b.local;
+        // The sign: a point inside the body reaches its closest surface point c from inside (the
+        // segment to c crosses no surface), so where c is inside a face, x − c, normal to it,
+        // points against its outward normal. Near the surface (where the locator's inside
+        // tolerance decides), and at edges and corners, the locator says.
+        let side = away.dot(b.normal);
+        let inside = if b.locus == Locus::Interior && dist > b.band && side.abs() >= 0.5 * dist {
+            side < 0.0
+        } else {
+            self.surface.locate(x)?.is_some()
+        };
+        let gap = if dist == 0.0 {
+            0.0
+        } else if inside {
+            -dist
+        } else {
+            dist
+        };
+        let normal = match b.locus {
+            Locus::Boundary if dist > 0.0 => away / gap,
+            _ => b.normal,
+        };
+        Ok(Some(Contact {
+            gap,
+            point: b.origin + b.local,
+            normal,
+            face: b.face,
+            st: b.st,
+            interior: b.locus == Locus::Interior,
         }))
+    }
+
+    /// Measures the faces of `cell` in the bit set `faces` (bit f: local face f) that can be
+    /// nearer than the best so far and are on the surface.
+    #[inline]
+    fn offer_cell(
+        &self,
+        x: DVec3,
+        cell: Cell,
+        faces: u8,
+        best: &mut Option<Best>,
+        best_d2: &mut f64,
+    ) {
+        let faces = faces & self.surface.open_faces(cell);
+        if faces == 0 {
+            return;
+        }
+        let range = self.u_range;
+        let origin = self.surface.cell_origin(cell);
+        let size = self.surface.size(cell);
+        let xl = x - origin;
+        let mut u: Option<[DVec3; 8]> = None;
+        for f in 0..6 {
+            if faces & (1 << f) == 0 {
+                continue;
+            }
+            // The undeformed face, shifted by the displacement range.
+            let axis = f / 2;
+            let (mut lo, mut hi) = (range.low, size + range.high);
+            if f % 2 == 0 {
+                hi[axis] = range.high[axis];
+            } else {
+                lo[axis] = size[axis] + range.low[axis];
+            }
+            if box_distance2(xl, lo, hi) > *best_d2 * (1.0 + SLACK) {
+                continue;
+            }
+            let coverage = self.surface.coverage(cell, f);
+            if coverage == Coverage::Covered {
+                continue;
+            }
+            let u = u.get_or_insert_with(|| self.surface.corner_displacements(cell));
+            self.offer_face(x, cell, u, f, &coverage, best, best_d2);
+        }
     }
 
     /// Measures the open part of face `f` of `cell` (corner displacements `u`): all of it, or
@@ -308,7 +346,7 @@ impl<'l, L: Surface> GapFinder<'l, L> {
             Coverage::Covered => {}
             Coverage::Open => self.offer(x, cell, u, f, None, best, best_d2),
             Coverage::Partial(squares) => {
-                for &square in squares {
+                for &square in squares.iter() {
                     self.offer(x, cell, u, f, Some(square), best, best_d2);
                 }
             }
@@ -375,6 +413,7 @@ impl<'l, L: Surface> GapFinder<'l, L> {
             origin,
             locus: p.locus,
             normal: patch.normal(p.st).normalize_or_zero(),
+            band: 1e-6 * size.min_element(),
         });
     }
 }

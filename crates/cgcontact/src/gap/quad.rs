@@ -72,6 +72,22 @@ impl Patch {
         (self.b + self.d * st.y).cross(self.c + self.d * st.x)
     }
 
+    /// The start of the descent: x projected onto the parallelogram a + b·s + c·t (the patch
+    /// without its twist), in the square; the centre when that is degenerate. Exact for an
+    /// untwisted face, within the twist's order otherwise.
+    #[inline]
+    fn flat_guess(&self, x: DVec3) -> DVec2 {
+        let r = x - self.a;
+        let (bb, bc, cc) = (self.b.dot(self.b), self.b.dot(self.c), self.c.dot(self.c));
+        let det = bb * cc - bc * bc;
+        if !(det > 1e-12 * bb * cc) {
+            return DVec2::ZERO;
+        }
+        let (rb, rc) = (r.dot(self.b), r.dot(self.c));
+        DVec2::new((cc * rb - bc * rc) / det, (bb * rc - bc * rb) / det)
+            .clamp(DVec2::NEG_ONE, DVec2::ONE)
+    }
+
     /// The sub-patch over [s0, s1] × [t0, t1] (itself a bilinear patch), by its corners.
     pub(crate) fn sub(&self, lo: DVec2, hi: DVec2) -> [DVec3; 4] {
         [
@@ -84,11 +100,12 @@ impl Patch {
 
     /// Whether |S − x|² is convex on the whole patch: its Hessian JᵀJ + (r·d)·[[0, 1], [1, 0]]
     /// (r = S − x) is positive definite when the smallest eigenvalue of JᵀJ, at least
-    /// |Sₛ × Sₜ|² / (|Sₛ|² + |Sₜ|²), exceeds |r·d| ≤ max |qᵢ − x|·|d| (S lies in the corners' hull).
-    /// Sₛ × Sₜ = b×c + s·(b×d) + t·(d×c) is affine in (s, t), so |b×c| − |b×d| − |d×c| bounds
-    /// its length from below.
-    fn convex_for(&self, x: DVec3, corners: &[DVec3; 4]) -> bool {
-        let dd = self.d.length();
+    /// |Sₛ × Sₜ|² / (|Sₛ|² + |Sₜ|²), exceeds |r·d|. Over the square,
+    /// r·d = (a − x)·d + (b·d)·s + (c·d)·t + (d·d)·s·t, so |r·d| ≤ |(a − x)·d| + |b·d| + |c·d| + |d|²
+    /// (small for a point near a face twisted along its normal); Sₛ × Sₜ = b×c + s·(b×d) + t·(d×c)
+    /// is affine in (s, t), so |b×c| − |b×d| − |d×c| bounds its length from below.
+    fn convex_for(&self, x: DVec3) -> bool {
+        let dd = self.d.length_squared();
         if dd == 0.0 {
             // A parallelogram: |S − x|² is a convex quadratic.
             return true;
@@ -99,24 +116,23 @@ impl Patch {
         if n_low <= 0.0 {
             return false;
         }
-        let bl = self.b.length() + dd;
-        let cl = self.c.length() + dd;
-        let r_max = corners
-            .iter()
-            .map(|&q| (q - x).length_squared())
-            .fold(0.0, f64::max)
-            .sqrt();
+        let d = dd.sqrt();
+        let bl = self.b.length() + d;
+        let cl = self.c.length() + d;
+        let twist = (self.a - x).dot(self.d).abs()
+            + self.b.dot(self.d).abs()
+            + self.c.dot(self.d).abs()
+            + dd;
         // With a margin for rounding: a wrong "convex" would be the only way to miss a minimum.
-        n_low * n_low > 1.01 * (bl * bl + cl * cl) * r_max * dd
+        n_low * n_low > 1.01 * (bl * bl + cl * cl) * twist
     }
 
-    /// Newton's method on ∇|S − x|²/2 from `st`, kept in the square [lo, hi] (a sub-square of
-    /// [−1, 1]²): the interior stationary point it converges to, if any. A step leaving the
-    /// sub-square is cut back to its border; a second exit means the minimum of this start is on
-    /// the border, which the edges cover.
+    /// Newton's method on ∇|S − x|²/2 from `st`, with backtracking that keeps it in the square
+    /// [lo, hi] (a sub-square of [−1, 1]²) and never uphill: the interior stationary point it
+    /// converges to, if any (`None` when it stalls against the border, whose points the edges
+    /// cover).
     fn descend(&self, x: DVec3, mut st: DVec2, lo: DVec2, hi: DVec2) -> Option<DVec2> {
         let r0 = self.a - x;
-        let mut exits = 0;
         for _ in 0..NEWTON_ITERATIONS {
             let ss = self.b + self.d * st.y;
             let sc = self.c + self.d * st.x;
@@ -139,22 +155,35 @@ impl Patch {
                 -(h11 * g.x - h01_full * g.y) / det,
                 -(h00 * g.y - h01_full * g.x) / det,
             );
-            let next = st + step;
-            let clamped = next.clamp(lo, hi);
-            if clamped != next {
-                exits += 1;
-                if exits > 1 {
+            // Quadratic convergence: after a step this small the next would be below rounding
+            // (and rounding may then make any step look uphill).
+            if step.abs().max_element() <= 1e-13 {
+                st = (st + step).clamp(lo, hi);
+                // A stationary point strictly inside the whole face (border points are the
+                // edges').
+                return (st.x.abs() < 1.0 && st.y.abs() < 1.0).then_some(st);
+            }
+            // Backtracking: the step is a descent direction (the Hessian, or JᵀJ, is positive
+            // definite), so some fraction of it stays in the square and does not go uphill,
+            // unless the minimum of this start is on the square's border (then the edges have it).
+            let f0 = r.length_squared();
+            let mut scale = 1.0;
+            loop {
+                let next = st + step * scale;
+                let inside = next.cmpge(lo).all() && next.cmple(hi).all();
+                // Not uphill, up to the rounding of |S − x|² itself (near the minimum a good
+                // step may not lower its rounded value).
+                if inside && (self.at(next) - x).length_squared() <= f0 * (1.0 + 1e-14) {
+                    st = next;
+                    break;
+                }
+                scale *= 0.5;
+                if scale < 1.0 / 1024.0 {
                     return None;
                 }
             }
-            let moved = (clamped - st).abs().max_element();
-            st = clamped;
-            if moved <= 1e-15 {
-                break;
-            }
         }
-        // A stationary point strictly inside the whole face (border points are the edges').
-        (st.x.abs() < 1.0 && st.y.abs() < 1.0).then_some(st)
+        None
     }
 
     /// Offers the interior stationary point reached from the centre of [lo, hi] to `best`.
@@ -185,7 +214,7 @@ impl Patch {
         if box_distance2(x, low, high) > best.d2 {
             return;
         }
-        if depth == MAX_DEPTH || Patch::new(&corners).convex_for(x, &corners) {
+        if depth == MAX_DEPTH || Patch::new(&corners).convex_for(x) {
             self.offer_interior(x, lo, hi, best);
             return;
         }
@@ -229,6 +258,22 @@ fn closest(x: DVec3, q: &[DVec3; 4]) -> QuadPoint {
 /// [`closest`], or `None` when no point of the quad is within squared distance `bound` (the
 /// search is then cut short).
 pub(crate) fn closest_below(x: DVec3, q: &[DVec3; 4], bound: f64) -> Option<QuadPoint> {
+    let patch = Patch::new(q);
+    let (lo, hi) = (DVec2::NEG_ONE, DVec2::ONE);
+    let convex = patch.convex_for(x);
+    if convex {
+        // A stationary point of a convex function is its minimum: the edges need no look.
+        if let Some(st) = patch.descend(x, patch.flat_guess(x), lo, hi) {
+            let point = patch.at(st);
+            let d2 = (point - x).length_squared();
+            return (d2 <= bound).then_some(QuadPoint {
+                d2,
+                st,
+                point,
+                locus: Locus::Interior,
+            });
+        }
+    }
     let mut best = QuadPoint {
         d2: f64::INFINITY,
         st: DVec2::ZERO,
@@ -254,11 +299,8 @@ pub(crate) fn closest_below(x: DVec3, q: &[DVec3; 4], bound: f64) -> Option<Quad
             };
         }
     }
-    let patch = Patch::new(q);
-    let (lo, hi) = (DVec2::NEG_ONE, DVec2::ONE);
-    if patch.convex_for(x, q) {
-        patch.offer_interior(x, lo, hi, &mut best);
-    } else {
+    // Convex without an interior stationary point: the minimum is on an edge.
+    if !convex {
         patch.search(x, lo, hi, 0, &mut best);
     }
     (best.d2 <= bound).then_some(best)
@@ -378,7 +420,7 @@ mod tests {
         .enumerate()
         {
             let patch = Patch::new(&q);
-            if !patch.convex_for(x, &q) {
+            if !patch.convex_for(x) {
                 several += 1;
             }
             let got = closest(x, &q);

@@ -36,7 +36,7 @@ pub(crate) mod sealed {
         /// None of it is covered: all of it is on the surface.
         Open,
         /// The squares [s0, t0, s1, t1] (face coordinates) are on the surface, the rest covered.
-        Partial(smallvec::SmallVec<[[f64; 4]; 4]>),
+        Partial(Box<[[f64; 4]]>),
     }
 
     /// The body's side of the gap search.
@@ -47,6 +47,8 @@ pub(crate) mod sealed {
         fn displacements(&self) -> &[DVec3];
         /// The cell of id `id`, if it is an active cell (a leaf).
         fn cell(&self, id: u32) -> Option<Cell>;
+        /// The active cell nearest to lattice coordinates `t` (clamped into the lattice), if any.
+        fn cell_near(&self, t: DVec3) -> Option<Cell>;
         /// The cell's undeformed lowest corner: the frame its faces are measured in.
         fn cell_origin(&self, cell: Cell) -> DVec3;
         /// The cell's edge lengths.
@@ -54,7 +56,11 @@ pub(crate) mod sealed {
         /// Every active cell whose closed undeformed box meets [`low`, `high`] (lattice
         /// coordinates), each once.
         fn cells_in_box(&self, low: DVec3, high: DVec3, visit: impl FnMut(Cell));
-        /// How much of local face `face` of `cell` is on the boundary surface.
+        /// The local faces of `cell` (bit f: face f) that may be on the boundary surface, from
+        /// a cheap look at its neighbours; [`Faces::coverage`] settles the others.
+        fn open_faces(&self, cell: Cell) -> u8;
+        /// How much of local face `face` of `cell`, one of its [`Faces::open_faces`], is on the
+        /// boundary surface.
         fn coverage(&self, cell: Cell, face: usize) -> Coverage;
         /// The corner displacements of `cell`, VTK order.
         fn corner_displacements(&self, cell: Cell) -> [DVec3; 8];
@@ -62,17 +68,36 @@ pub(crate) mod sealed {
 
     /// Cell index range along one axis of the cells (`n` of them) whose closed interval meets
     /// [`low`, `high`]: `None` when none does (or on NaN).
+    #[inline]
     fn axis_range(low: f64, high: f64, n: u32) -> Option<(u32, u32)> {
         if !(high >= 0.0 && low <= f64::from(n)) {
             return None;
         }
-        // The cell whose upper face is at `low` meets the closed box too.
-        let lo = ((low - 1.0).ceil().max(0.0) as u32).min(n - 1);
-        let hi = (high.floor().max(0.0) as u32).min(n - 1);
-        Some((lo, hi))
+        // The cell whose upper face is at `low` meets the closed box too: from ⌈low − 1⌉. No
+        // `ceil`/`floor` (libm calls without SSE4.1): truncation is floor for values ≥ 0.
+        let below = low - 1.0;
+        let lo = if below > 0.0 {
+            let t = below as u32;
+            t + u32::from(f64::from(t) < below)
+        } else {
+            0
+        };
+        Some((lo.min(n - 1), (high as u32).min(n - 1)))
     }
 
     impl Faces for LatticeLocator<'_> {
+        #[inline]
+        fn cell_near(&self, t: DVec3) -> Option<Cell> {
+            let lattice = self.body().lattice();
+            let ijk = lattice.clamped_cell(t);
+            let id = lattice.cell_id(ijk);
+            self.body().is_active(id).then_some(Cell {
+                id: id.0,
+                level: 0,
+                ijk,
+            })
+        }
+
         fn lattice(&self) -> &Lattice {
             self.body().lattice()
         }
@@ -101,6 +126,7 @@ pub(crate) mod sealed {
         fn cells_in_box(&self, low: DVec3, high: DVec3, mut visit: impl FnMut(Cell)) {
             let lattice = self.body().lattice();
             let n = lattice.cells();
+            let full = self.body().active_count() == lattice.cell_count();
             let mut r = [(0, 0); 3];
             for a in 0..3 {
                 match axis_range(low[a], high[a], n[a]) {
@@ -112,7 +138,7 @@ pub(crate) mod sealed {
                 for j in r[1].0..=r[1].1 {
                     for i in r[0].0..=r[0].1 {
                         let id = lattice.cell_id([i, j, k]);
-                        if self.body().is_active(id) {
+                        if full || self.body().is_active(id) {
                             visit(Cell {
                                 id: id.0,
                                 level: 0,
@@ -124,25 +150,36 @@ pub(crate) mod sealed {
             }
         }
 
-        fn coverage(&self, cell: Cell, face: usize) -> Coverage {
+        /// Exact: a face is open where the cell across is outside the lattice or inactive. On
+        /// a body whose every lattice cell is active, only the lattice's own faces are.
+        #[inline]
+        fn open_faces(&self, cell: Cell) -> u8 {
             let body = self.body();
-            let axis = face / 2;
-            let mut across = cell.ijk;
-            if face % 2 == 1 {
-                across[axis] += 1;
-                if across[axis] >= body.lattice().cells()[axis] {
-                    return Coverage::Open;
+            let lattice = body.lattice();
+            let n = lattice.cells();
+            let full = body.active_count() == lattice.cell_count();
+            let mut open = 0;
+            for face in 0..6 {
+                let axis = face / 2;
+                let mut across = cell.ijk;
+                let border = if face % 2 == 1 {
+                    across[axis] += 1;
+                    across[axis] >= n[axis]
+                } else {
+                    let border = across[axis] == 0;
+                    across[axis] = across[axis].wrapping_sub(1);
+                    border
+                };
+                if border || (!full && !body.is_active(lattice.cell_id(across))) {
+                    open |= 1 << face;
                 }
-            } else if across[axis] == 0 {
-                return Coverage::Open;
-            } else {
-                across[axis] -= 1;
             }
-            if body.is_active(body.lattice().cell_id(across)) {
-                Coverage::Covered
-            } else {
-                Coverage::Open
-            }
+            open
+        }
+
+        #[inline]
+        fn coverage(&self, _: Cell, _: usize) -> Coverage {
+            Coverage::Open
         }
 
         #[inline]
@@ -152,6 +189,16 @@ pub(crate) mod sealed {
     }
 
     impl Faces for AdaptiveLocator<'_> {
+        #[inline]
+        fn cell_near(&self, t: DVec3) -> Option<Cell> {
+            let (id, leaf) = self.body().leaf_near(t)?;
+            Some(Cell {
+                id,
+                level: leaf.level,
+                ijk: leaf.ijk,
+            })
+        }
+
         fn lattice(&self) -> &Lattice {
             self.body().lattice()
         }
@@ -188,6 +235,11 @@ pub(crate) mod sealed {
                     ijk: leaf.ijk,
                 });
             });
+        }
+
+        #[inline]
+        fn open_faces(&self, _: Cell) -> u8 {
+            0b11_1111
         }
 
         fn coverage(&self, cell: Cell, face: usize) -> Coverage {

@@ -1,0 +1,62 @@
+//! Contact quantities on the seed's scene: the signed gap, closest point and normal of the 6,700
+//! sphere points to the fine block's deformed surface (20 × 40 × 20 cells, h = 0.25, the top
+//! indented by 0.45 h), search distance D = h, one thread, f64. Beside it, in the same run:
+//! locating the same points, and the warm gap (each point's previous face measured first).
+//! Printed once: how many points are within D, the penetration (the most negative gap), and how
+//! many closest points lie on an edge or corner rather than inside a face.
+//!
+//! Run: `cargo bench -p cgcontact-benches --bench gap`
+
+use std::hint::black_box;
+
+use cgcontact::glam::DVec3;
+use cgcontact::{GapFinder, LatticeLocator, Locator, Settings};
+use cgcontact_scenes::SphereOnBlock;
+use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+
+fn gap(c: &mut Criterion) {
+    let scene = SphereOnBlock::fine()
+        .build("sphere-fine")
+        .expect("the seed's scene");
+    let points = scene.contact_points.clone();
+    let h = scene.body.lattice().h().z;
+    let locator = LatticeLocator::new(&scene.body, Settings::default()).expect("valid settings");
+    let finder = GapFinder::new(&locator, h).expect("a valid distance");
+
+    let answers: Vec<_> = points.iter().map(|&x| finder.gap(x)).collect();
+    let found: Vec<_> = answers.iter().filter_map(|a| a.ok().flatten()).collect();
+    let penetration = found.iter().map(|c| c.gap).fold(f64::INFINITY, f64::min);
+    println!(
+        "{} sphere points, D = h = {h}: {} within D, {} inside the block, penetration {:.6} \
+         (= {:.3} h), {} closest points on an edge or corner",
+        points.len(),
+        found.len(),
+        found.iter().filter(|c| c.gap < 0.0).count(),
+        penetration,
+        penetration / h,
+        found.iter().filter(|c| !c.interior).count(),
+    );
+
+    let one = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .expect("pool");
+    let mut group = c.benchmark_group("gap/sphere-6700-f64");
+    group.throughput(Throughput::Elements(points.len() as u64));
+    let mut located = Vec::with_capacity(points.len());
+    group.bench_function("locate, 1 thread", |b| {
+        b.iter(|| one.install(|| locator.locate_all_into(black_box(&points), &mut located)))
+    });
+    let mut gaps = Vec::with_capacity(points.len());
+    group.bench_function("gap D = h, 1 thread", |b| {
+        b.iter(|| one.install(|| finder.gap_all_into(black_box(&points), &mut gaps)))
+    });
+    finder.gap_all_into(&points, &mut gaps);
+    group.bench_function("gap D = h, warm, 1 thread", |b| {
+        b.iter(|| one.install(|| finder.regap_all(black_box(&points), &mut gaps)))
+    });
+    group.finish();
+}
+
+criterion_group!(benches, gap);
+criterion_main!(benches);
