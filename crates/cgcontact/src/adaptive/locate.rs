@@ -10,6 +10,9 @@
 //!
 //! On a body of one level every step computes what the uniform locator computes, in the same
 //! order, so the predicted leaf's answers are bitwise the uniform locator's.
+//!
+//! `relocate` (solver loops) inverts the previous answer's leaf first, from its ξ, as the uniform
+//! locator's `locate/warm.rs` does, in lanes for `relocate_all`.
 
 use glam::{DVec3, Vec3A};
 use rayon::prelude::*;
@@ -22,7 +25,7 @@ use crate::lanes::{Lanes, MAX_W, Real as _, V3, Wide as _};
 use crate::lattice::CellId;
 #[cfg(target_arch = "x86_64")]
 use crate::locate::Isa;
-use crate::locate::{Answer, Collect, Hit, Locator, Owners};
+use crate::locate::{Answer, Collect, Hit, Locator, Owners, warm_start};
 use crate::reach::{self, Range};
 use crate::settings::{CandidateOrder, InsideTolerance, Precision, Settings};
 use crate::{Error, PointError};
@@ -115,6 +118,56 @@ impl<'a> AdaptiveLocator<'a> {
             Precision::F64 => self.search_with::<Hex8Map>(x, &options, &mut collect, tried),
             Precision::F32 => self.search_with::<Hex8Map32>(x, &options, &mut collect, tried),
         })
+    }
+
+    /// [`Locator::relocate`]; the inversions tried go to `tried` (the hinted one included).
+    fn relocate_counted(&self, x: DVec3, previous: &Answer, tried: &mut u32) -> Answer {
+        // The cold search's admission first: refused and unreachable points answer as there.
+        let Some(inside_tol) = self.admit.admit(x)? else {
+            return Ok(None);
+        };
+        let options = NewtonOptions {
+            inside_tol,
+            ..self.newton
+        };
+        Ok(match self.settings.precision {
+            Precision::F64 => self.relocate_with::<Hex8Map>(x, previous, &options, tried),
+            Precision::F32 => self.relocate_with::<Hex8Map32>(x, previous, &options, tried),
+        })
+    }
+
+    /// The previous hit's leaf (when it is one of this body's) inverted first, from the previous
+    /// ξ, with the cold search's kernel and options; the cold search when it does not hold `x`.
+    #[inline(always)]
+    fn relocate_with<K: Kernel>(
+        &self,
+        x: DVec3,
+        previous: &Answer,
+        options: &NewtonOptions,
+        tried: &mut u32,
+    ) -> Option<Hit> {
+        let body = self.body;
+        if let Ok(Some(hint)) = previous
+            && let Some(&leaf) = body.leaves.get(hint.cell.index())
+        {
+            let map = K::lattice_cell(
+                body.spacing(leaf.level),
+                &body.leaf_displacements(hint.cell.0),
+            );
+            let inversion =
+                map.invert_f64(x - body.leaf_origin(leaf), warm_start(hint.xi), options);
+            *tried += 1;
+            if inversion.status == Status::Inside {
+                return Some(Hit {
+                    cell: hint.cell,
+                    xi: inversion.xi.clamp(DVec3::NEG_ONE, DVec3::ONE),
+                    iterations: inversion.iterations,
+                    residual: inversion.residual,
+                    inversions: 1,
+                });
+            }
+        }
+        self.search_with::<K>(x, options, &mut Collect::First, tried)
     }
 
     /// Local coordinates in `leaf` of the undeformed point at base lattice coordinates `t`.
@@ -544,6 +597,120 @@ impl AdaptiveLocator<'_> {
     }
 }
 
+impl AdaptiveLocator<'_> {
+    /// [`Locator::relocate`] for a chunk of points, `answers` holding the hints and taking the
+    /// answers: in lanes where [`AdaptiveLocator::locate_chunk`] uses them, one point at a time
+    /// otherwise. The answers are bitwise those of [`Locator::relocate`].
+    fn relocate_chunk(&self, points: &[DVec3], answers: &mut [Answer]) {
+        #[cfg(target_arch = "x86_64")]
+        match Isa::get() {
+            // SAFETY: as in `locate_chunk`: `Isa::get` answers only what this CPU has.
+            #[allow(unsafe_code)]
+            Isa::Avx512 => return unsafe { self.relocate_chunk_avx512(points, answers) },
+            #[allow(unsafe_code)]
+            Isa::Avx2 => return unsafe { self.relocate_chunk_avx2(points, answers) },
+            Isa::Portable => {}
+        }
+        match self.settings.precision {
+            Precision::F64 => {
+                for (answer, &x) in answers.iter_mut().zip(points) {
+                    *answer = self.relocate(x, answer);
+                }
+            }
+            Precision::F32 => self.relocate_chunk_lanes::<glam::Vec4>(points, answers),
+        }
+    }
+
+    /// [`AdaptiveLocator::relocate_chunk`] in lanes `V`: for `V::W` points at once, the hinted
+    /// leaves inverted from the hints' ξ, each lane with its leaf's spacing; the remainder, and
+    /// every point without a usable hint or not found inside its hinted leaf on the lanes' common
+    /// path, through [`Locator::relocate`].
+    #[inline(always)]
+    pub(crate) fn relocate_chunk_lanes<V: Lanes>(&self, points: &[DVec3], answers: &mut [Answer])
+    where
+        V::Node: LaneNodes,
+    {
+        let w = V::W;
+        let batches = points.len() / w;
+        for b in 0..batches {
+            let range = b * w..(b + 1) * w;
+            self.relocate_batch::<V>(&points[range.clone()], &mut answers[range]);
+        }
+        for (answer, &x) in answers.iter_mut().zip(points).skip(batches * w) {
+            *answer = self.relocate(x, answer);
+        }
+    }
+
+    /// One batch of `V::W` points of [`AdaptiveLocator::relocate_chunk_lanes`].
+    #[inline(always)]
+    fn relocate_batch<V: Lanes>(&self, xs: &[DVec3], answers: &mut [Answer])
+    where
+        V::Node: LaneNodes,
+    {
+        let body = self.body;
+        let mut take = 0u32;
+        let mut tol = [0.0; MAX_W];
+        let mut cell = [CellId(0); MAX_W];
+        // Lanes not taken read leaf 0's corners (there is one: a lane took a leaf), and are ignored.
+        let mut rows = [[0u32; 8]; MAX_W];
+        let mut half = [DVec3::ZERO; MAX_W];
+        let mut x_local = [DVec3::ZERO; MAX_W];
+        let mut xi0 = [DVec3::ZERO; MAX_W];
+        for l in 0..V::W {
+            // Lanes refused or out of reach, and lanes without a usable hint, go to `relocate`.
+            let Ok(Some(inside_tol)) = self.admit.admit(xs[l]) else {
+                continue;
+            };
+            let Ok(Some(hint)) = &answers[l] else {
+                continue;
+            };
+            let Some(&leaf) = body.leaves.get(hint.cell.index()) else {
+                continue;
+            };
+            tol[l] = inside_tol;
+            cell[l] = hint.cell;
+            rows[l] = body.corners[hint.cell.index()];
+            half[l] = body.spacing(leaf.level) * 0.5;
+            x_local[l] = xs[l] - body.leaf_origin(leaf);
+            xi0[l] = warm_start(hint.xi);
+            take |= 1 << l;
+        }
+        let mut found = 0;
+        if take != 0 {
+            let nodes = V::Node::of(self);
+            let mut maps = Maps::<V>::from_nodes(|l, c| &nodes[rows[l][c] as usize]);
+            maps.add_lattice_lanes(lanes3::<V>(|l| half[l]));
+            let inside = V::splat(V::S::of(1.0)) + V::from_fn(|l| V::S::of(tol[l]));
+            let (xi, rr, iterations, inside_lanes) = maps.invert(
+                lanes3::<V>(|l| x_local[l]),
+                lanes3::<V>(|l| xi0[l]),
+                inside,
+                V::mask_from_bits(take),
+                &self.newton,
+            );
+            let xi = xi.widen().clamp(-1.0, 1.0);
+            let residual = rr.widen().sqrt();
+            for (l, answer) in answers.iter_mut().enumerate() {
+                if inside_lanes & (1 << l) != 0 {
+                    *answer = Ok(Some(Hit {
+                        cell: cell[l],
+                        xi: xi.lane(l),
+                        iterations: iterations[l],
+                        residual: residual.lane(l),
+                        inversions: 1,
+                    }));
+                }
+            }
+            found = inside_lanes;
+        }
+        for (l, (answer, &x)) in answers.iter_mut().zip(xs).enumerate() {
+            if found & (1 << l) == 0 {
+                *answer = self.relocate(x, answer);
+            }
+        }
+    }
+}
+
 /// The displacements as the lanes read them: the body's f64 ones, or the locator's f32 copy.
 pub(crate) trait LaneNodes: Copy + 'static {
     fn of<'l>(locator: &'l AdaptiveLocator<'_>) -> &'l [Self];
@@ -584,6 +751,23 @@ impl Locator for AdaptiveLocator<'_> {
         self.search(x, Collect::All(&mut owners), &mut 0)?;
         owners.sort_unstable_by_key(|hit| hit.cell);
         Ok(owners)
+    }
+
+    /// The previous hit's leaf first, from its ξ (see the trait).
+    fn relocate(&self, x: DVec3, previous: &Answer) -> Answer {
+        self.relocate_counted(x, previous, &mut 0)
+    }
+
+    /// In lanes as [`Locator::locate_all_into`] (the hinted leaves of 4 or 8 points inverted at
+    /// once); the answers are bitwise those of [`Locator::relocate`].
+    fn relocate_all(&self, points: &[DVec3], answers: &mut Vec<Answer>) {
+        if answers.len() != points.len() {
+            return self.locate_all_into(points, answers);
+        }
+        answers
+            .par_chunks_mut(256)
+            .zip(points.par_chunks(256))
+            .for_each(|(answers, points)| self.relocate_chunk(points, answers));
     }
 
     /// Batched: the common path of 8 points at a time, step by step, so that their memory loads
@@ -695,6 +879,82 @@ mod tests {
                 assert!(found > 150, "{found}");
             }
         }
+    }
+
+    /// Runs `entry`, a warm lane path, with each of `precisions` and compares each answer bitwise
+    /// with the scalar `relocate`'s. The hints are the answers at points moved by up to a tenth of
+    /// the base spacing (some hinted leaves hold their point, some do not), with refusals and ids
+    /// out of range among them.
+    fn check_warm(
+        precisions: &[Settings],
+        entry: impl Fn(&AdaptiveLocator<'_>, &[DVec3], &mut [Answer]),
+    ) {
+        let (body, points) = scene();
+        let h = body.spacing(0);
+        for &settings in precisions {
+            let locator = AdaptiveLocator::new(&body, settings).unwrap();
+            let hints: Vec<Answer> = points
+                .iter()
+                .enumerate()
+                .map(|(i, &x)| match i % 11 {
+                    0 => Err(PointError::NonFinite),
+                    1 => locator.locate(x).map(|hit| {
+                        hit.map(|hit| Hit {
+                            cell: CellId(body.cell_count() as u32),
+                            ..hit
+                        })
+                    }),
+                    _ => locator.locate(x + h * 0.1 * ((i % 7) as f64 / 3.0 - 1.0)),
+                })
+                .collect();
+            let mut out = hints.clone();
+            entry(&locator, &points, &mut out);
+            let mut one = 0;
+            for ((&x, hint), answer) in points.iter().zip(&hints).zip(&out) {
+                assert_eq!(bits(answer), bits(&locator.relocate(x, hint)), "at {x}");
+                one += usize::from(matches!(answer, Ok(Some(hit)) if hit.inversions == 1));
+            }
+            assert!(one > 100, "{one}");
+        }
+    }
+
+    #[test]
+    fn warm_portable_lanes_answer_bitwise_as_the_scalar_relocate() {
+        let (f64s, f32s) = (Settings::default(), Settings::f32());
+        check_warm(&[f32s], |l, p, o| {
+            l.relocate_chunk_lanes::<glam::Vec4>(p, o)
+        });
+        check_warm(&[f64s], |l, p, o| l.relocate_chunk_lanes::<f64>(p, o));
+        // Whatever this machine dispatches to.
+        check_warm(&[f64s, f32s], |l, p, o| l.relocate_chunk(p, o));
+    }
+
+    #[test]
+    #[cfg(target_arch = "x86_64")]
+    #[cfg_attr(not(cgcontact_host_avx2), ignore = "this CPU has no AVX2")]
+    fn warm_avx2_lanes_answer_bitwise_as_the_scalar_relocate() {
+        assert!(std::is_x86_feature_detected!("avx2"));
+        // SAFETY: AVX2 was detected just above.
+        #[allow(unsafe_code)]
+        check_warm(&[Settings::default(), Settings::f32()], |l, p, o| unsafe {
+            l.relocate_chunk_avx2(p, o)
+        });
+    }
+
+    #[test]
+    #[cfg(target_arch = "x86_64")]
+    #[cfg_attr(
+        not(cgcontact_host_avx512),
+        ignore = "this CPU has no AVX-512F and AVX-512VL"
+    )]
+    fn warm_avx512_lanes_answer_bitwise_as_the_scalar_relocate() {
+        use std::is_x86_feature_detected as has;
+        assert!(has!("avx2") && has!("avx512f") && has!("avx512vl"));
+        // SAFETY: AVX2, AVX-512F and AVX-512VL were detected just above.
+        #[allow(unsafe_code)]
+        check_warm(&[Settings::default(), Settings::f32()], |l, p, o| unsafe {
+            l.relocate_chunk_avx512(p, o)
+        });
     }
 
     #[test]

@@ -344,6 +344,33 @@ impl LatticeLocator<'_> {
             Precision::F64 => self.locate_chunk_with::<F64x4>(points, out),
         }
     }
+
+    /// The warm start's lanes (`warm.rs`) in AVX registers, compiled for AVX2.
+    ///
+    /// # Safety
+    /// The CPU must have AVX2 (`is_x86_feature_detected!("avx2")`).
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn relocate_chunk_avx2(&self, points: &[DVec3], answers: &mut [Answer]) {
+        self.relocate_chunk_avx(points, answers);
+    }
+
+    /// The same compiled with AVX-512VL as well (32 vector registers; the same IEEE operations).
+    ///
+    /// # Safety
+    /// The CPU must have AVX2, AVX-512F and AVX-512VL.
+    #[target_feature(enable = "avx2,avx512f,avx512vl")]
+    pub(super) unsafe fn relocate_chunk_avx512(&self, points: &[DVec3], answers: &mut [Answer]) {
+        self.relocate_chunk_avx(points, answers);
+    }
+
+    /// The warm start's AVX lanes of the settings' precision.
+    #[inline(always)]
+    fn relocate_chunk_avx(&self, points: &[DVec3], answers: &mut [Answer]) {
+        match self.settings.precision {
+            Precision::F32 => self.relocate_chunk_with::<F32x8>(points, answers),
+            Precision::F64 => self.relocate_chunk_with::<F64x4>(points, answers),
+        }
+    }
 }
 
 impl crate::adaptive::AdaptiveLocator<'_> {
@@ -372,6 +399,33 @@ impl crate::adaptive::AdaptiveLocator<'_> {
         match self.settings().precision {
             Precision::F32 => self.locate_chunk_lanes::<Hex8Map32, F32x8>(points, out),
             Precision::F64 => self.locate_chunk_lanes::<Hex8Map, F64x4>(points, out),
+        }
+    }
+
+    /// The warm start's lanes in AVX registers, compiled for AVX2.
+    ///
+    /// # Safety
+    /// The CPU must have AVX2 (`is_x86_feature_detected!("avx2")`).
+    #[target_feature(enable = "avx2")]
+    pub(crate) unsafe fn relocate_chunk_avx2(&self, points: &[DVec3], answers: &mut [Answer]) {
+        self.relocate_chunk_avx(points, answers);
+    }
+
+    /// The same compiled with AVX-512VL as well (32 vector registers; the same IEEE operations).
+    ///
+    /// # Safety
+    /// The CPU must have AVX2, AVX-512F and AVX-512VL.
+    #[target_feature(enable = "avx2,avx512f,avx512vl")]
+    pub(crate) unsafe fn relocate_chunk_avx512(&self, points: &[DVec3], answers: &mut [Answer]) {
+        self.relocate_chunk_avx(points, answers);
+    }
+
+    /// The warm start's AVX lanes of the settings' precision.
+    #[inline(always)]
+    fn relocate_chunk_avx(&self, points: &[DVec3], answers: &mut [Answer]) {
+        match self.settings().precision {
+            Precision::F32 => self.relocate_chunk_lanes::<F32x8>(points, answers),
+            Precision::F64 => self.relocate_chunk_lanes::<F64x4>(points, answers),
         }
     }
 }

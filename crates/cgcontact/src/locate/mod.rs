@@ -6,6 +6,7 @@
 //! | `scalar.rs` | the search one point at a time: admit, predict, invert the predicted cell |
 //! | `rings.rs` | after a miss: every other cell that can hold the point, nearest shell first ([`rings::Rings`]) |
 //! | `batched.rs` | `locate_all`'s common path, 4 or 8 points per SIMD lane set, and the instruction-set dispatch |
+//! | `warm.rs` | `relocate`: the previous answer's cell inverted first, from its ξ (solver loops), one point or a lane set at a time |
 //! | `avx.rs` | the AVX lane types, private to the `#[target_feature]` entry points that use them |
 //!
 //! The batched path is written once: the lane traits and the portable lanes are in `crate::lanes`,
@@ -29,6 +30,7 @@ mod batched;
 pub(crate) use batched::Isa;
 mod rings;
 mod scalar;
+mod warm;
 
 use glam::{DVec3, Vec3A};
 use rayon::prelude::*;
@@ -42,6 +44,7 @@ use crate::settings::{InsideTolerance, Precision, Settings};
 use crate::{Error, PointError};
 
 pub(crate) use scalar::Collect;
+pub(crate) use warm::start as warm_start;
 /// A located point: the cell holding it and its local coordinates there.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Hit {
@@ -104,6 +107,46 @@ pub trait Locator: Sync {
         let mut out = Vec::with_capacity(points.len());
         self.locate_all_into(points, &mut out);
         out
+    }
+
+    /// [`Locator::locate`] warm-started: `previous` is this point's answer from an earlier search
+    /// (the last iteration of a solver loop, whose displacements changed a little since).
+    ///
+    /// The answer is always one a cold search could give:
+    /// - a point [`Locator::locate`] refuses or answers `Ok(None)` gets the same answer, whatever
+    ///   the hint;
+    /// - a cell returned is among [`Locator::locate_owners`]`(x)`; when that has exactly one owner,
+    ///   it is [`Locator::locate`]'s cell, with the same ξ up to the Newton tolerance (within
+    ///   1e-12 with the f64 defaults, about 1e-6 with f32: two starts, one root).
+    ///
+    /// Any `previous` is accepted: a miss, a refused point or a cell out of range or inactive is
+    /// no hint, and a hint whose cell no longer holds the point costs one inversion before the
+    /// cold search. The lattice and adaptive locators invert the previous hit's cell first,
+    /// starting from its ξ, and return it when it holds the point (`inversions` 1, no hashing);
+    /// a hit found after that failed try counts it in `inversions`. The default is the cold
+    /// search (the baselines).
+    fn relocate(&self, x: DVec3, previous: &Answer) -> Answer {
+        let _ = previous;
+        self.locate(x)
+    }
+
+    /// [`Locator::relocate`] for every point, in parallel on the current rayon pool: `answers`
+    /// holds the previous answers (one per point, in input order) and is overwritten in place
+    /// with the new ones (no allocation per point). When its length is not `points`' it holds no
+    /// usable hints: it is resized and every point is located cold ([`Locator::locate_all_into`]).
+    fn relocate_all(&self, points: &[DVec3], answers: &mut Vec<Answer>) {
+        if answers.len() != points.len() {
+            return self.locate_all_into(points, answers);
+        }
+        // Pieces of 256 points, as `locate_all_into`'s.
+        answers
+            .par_chunks_mut(256)
+            .zip(points.par_chunks(256))
+            .for_each(|(answers, points)| {
+                for (answer, &x) in answers.iter_mut().zip(points) {
+                    *answer = self.relocate(x, answer);
+                }
+            });
     }
 }
 
@@ -232,6 +275,23 @@ impl Locator for LatticeLocator<'_> {
         out.par_chunks_mut(256)
             .zip(points.par_chunks(256))
             .for_each(|(out, points)| self.locate_chunk(points, out));
+    }
+
+    #[inline]
+    fn relocate(&self, x: DVec3, previous: &Answer) -> Answer {
+        self.relocate_counted(x, previous, &mut 0)
+    }
+
+    /// Batched as [`Locator::locate_all_into`]: the hinted cells of 4 or 8 points inverted at
+    /// once; the answers are bitwise those of [`Locator::relocate`].
+    fn relocate_all(&self, points: &[DVec3], answers: &mut Vec<Answer>) {
+        if answers.len() != points.len() {
+            return self.locate_all_into(points, answers);
+        }
+        answers
+            .par_chunks_mut(256)
+            .zip(points.par_chunks(256))
+            .for_each(|(answers, points)| self.relocate_chunk(points, answers));
     }
 }
 
@@ -395,6 +455,104 @@ mod tests {
                 check(&locator, &points, &out);
             }
         }
+    }
+
+    /// Runs `entry`, a warm lane path, on every lane scene with f64 and f32 locators (`f64_too`
+    /// false: f32 only) and checks its answers bitwise against the scalar [`Locator::relocate`].
+    /// The hints are the answers at points moved by up to a tenth of a cell (some hinted cells
+    /// hold their point, some do not), with misses, refusals and ids out of range among them.
+    fn check_warm_lanes(
+        f64_too: bool,
+        entry: impl Fn(&LatticeLocator<'_>, &[DVec3], &mut [Answer]),
+    ) {
+        for (body, points, order) in lane_scenes() {
+            let precisions: &[Settings] = if f64_too {
+                &[Settings::default(), Settings::f32()]
+            } else {
+                &[Settings::f32()]
+            };
+            let h = body.lattice().h();
+            for &base in precisions {
+                let locator = LatticeLocator::new(&body, Settings { order, ..base }).unwrap();
+                let hints: Vec<Answer> = points
+                    .iter()
+                    .enumerate()
+                    .map(|(i, &x)| match i % 11 {
+                        0 => Err(PointError::NonFinite),
+                        1 => locator.locate(x).map(|hit| {
+                            hit.map(|hit| Hit {
+                                cell: CellId(u32::MAX - 1),
+                                ..hit
+                            })
+                        }),
+                        _ => locator.locate(x + h * 0.1 * ((i % 7) as f64 / 3.0 - 1.0)),
+                    })
+                    .collect();
+                let mut out = hints.clone();
+                entry(&locator, &points, &mut out);
+                let mut one = 0;
+                for ((&x, hint), answer) in points.iter().zip(&hints).zip(&out) {
+                    assert_eq!(bits(answer), bits(&locator.relocate(x, hint)), "at {x}");
+                    one += usize::from(matches!(answer, Ok(Some(hit)) if hit.inversions == 1));
+                }
+                // Hinted cells that hold their point: a few on the sparse body, hundreds elsewhere.
+                let least = if body.active_count() < 50 { 5 } else { 300 };
+                assert!(one > least, "{one}");
+            }
+        }
+    }
+
+    /// The warm start's portable lanes (glam's `Vec4`, 4 × f32) and its dispatch: answers bitwise
+    /// those of the scalar `relocate`.
+    #[test]
+    fn warm_portable_lanes_answer_bitwise_as_the_scalar_relocate() {
+        check_warm_lanes(false, |locator, points, out| {
+            locator.relocate_chunk_with::<glam::Vec4>(points, out)
+        });
+        check_warm_lanes(true, |locator, points, out| {
+            locator.relocate_chunk(points, out)
+        });
+    }
+
+    /// The warm start's AVX2 entry point, forced. Ignored where the build machine has no AVX2.
+    #[test]
+    #[cfg(target_arch = "x86_64")]
+    #[cfg_attr(not(cgcontact_host_avx2), ignore = "this CPU has no AVX2")]
+    fn warm_avx2_lanes_answer_bitwise_as_the_scalar_relocate() {
+        assert!(
+            std::is_x86_feature_detected!("avx2"),
+            "built where AVX2 was detected, run where it is not"
+        );
+        check_warm_lanes(true, |locator, points, out| {
+            // SAFETY: AVX2 was detected just above.
+            #[allow(unsafe_code)]
+            unsafe {
+                locator.relocate_chunk_avx2(points, out)
+            }
+        });
+    }
+
+    /// The warm start's AVX-512VL entry point, forced. Ignored where the build machine lacks
+    /// AVX-512F/VL.
+    #[test]
+    #[cfg(target_arch = "x86_64")]
+    #[cfg_attr(
+        not(cgcontact_host_avx512),
+        ignore = "this CPU has no AVX-512F and AVX-512VL"
+    )]
+    fn warm_avx512_lanes_answer_bitwise_as_the_scalar_relocate() {
+        use std::is_x86_feature_detected as has;
+        assert!(
+            has!("avx2") && has!("avx512f") && has!("avx512vl"),
+            "built where AVX-512VL was detected, run where it is not"
+        );
+        check_warm_lanes(true, |locator, points, out| {
+            // SAFETY: AVX2, AVX-512F and AVX-512VL were detected just above.
+            #[allow(unsafe_code)]
+            unsafe {
+                locator.relocate_chunk_avx512(points, out)
+            }
+        });
     }
 
     /// The portable lanes (glam's `Vec4`, 4 × f32), on every target: answers bitwise those of the

@@ -50,6 +50,22 @@ impl LatticeLocator<'_> {
         })
     }
 
+    /// The first hit of the search for `x`, already admitted with `options` (its inside
+    /// tolerance): [`LatticeLocator::search`] after `admit`, for a caller that admitted `x` itself.
+    #[inline]
+    pub(super) fn search_admitted(
+        &self,
+        x: DVec3,
+        options: &NewtonOptions,
+        tried: &mut u32,
+    ) -> Option<Hit> {
+        let collect = &mut Collect::First;
+        match self.settings.precision {
+            Precision::F64 => self.search_with::<Hex8Map>(x, options, collect, tried),
+            Precision::F32 => self.search_with::<Hex8Map32>(x, options, collect, tried),
+        }
+    }
+
     /// Invert candidate cell `ijk` (active) for `x`; `t_guess` is the predicted undeformed position in
     /// lattice coordinates (gives the starting ξ), `u_map` the cell's displacement map when the caller
     /// already has it.

@@ -1,0 +1,250 @@
+//! Warm starts: [`Locator::relocate`] for the lattice locator. A solver relocates the same points
+//! at every Newton iteration with displacements that changed a little, so the cell of the previous
+//! answer almost always still holds the point: it is inverted first, from the previous ξ, with no
+//! hashing and no guess; the cold search (`scalar.rs`) answers only when it does not hold it.
+
+use glam::DVec3;
+
+use super::batched::Nodes;
+use super::{Answer, Hit, LatticeLocator, Locator};
+use crate::hex8::lanes::Maps;
+use crate::hex8::{Hex8Map, Hex8Map32, Kernel, NewtonOptions, Status};
+use crate::lanes::{Lanes, MAX_W, Real as _, V3, Wide as _};
+use crate::lattice::CellId;
+use crate::settings::Precision;
+
+/// A usable hint: the previous answer's cell, its lattice indices and the starting ξ.
+#[derive(Clone, Copy)]
+struct Hint {
+    cell: CellId,
+    ijk: [u32; 3],
+    xi0: DVec3,
+}
+
+/// The starting ξ of a hint: the previous ξ, or the centre when it is not finite (a hand-made
+/// answer); `invert` clamps it into [−1, 1]³.
+#[inline(always)]
+pub(crate) fn start(xi: DVec3) -> DVec3 {
+    if xi.is_finite() { xi } else { DVec3::ZERO }
+}
+
+impl LatticeLocator<'_> {
+    /// The hint `previous` gives: a hit in an active cell of this lattice, or none (a miss, a
+    /// refused point, a cell out of range or inactive).
+    #[inline(always)]
+    fn hint(&self, previous: &Answer) -> Option<Hint> {
+        let Ok(Some(hit)) = previous else {
+            return None;
+        };
+        let ijk = self.body.lattice().cell_ijk(hit.cell)?;
+        self.body.is_active(hit.cell).then_some(Hint {
+            cell: hit.cell,
+            ijk,
+            xi0: start(hit.xi),
+        })
+    }
+
+    /// [`Locator::relocate`]; the inversions tried go to `tried` (the hinted one included).
+    #[inline]
+    pub(super) fn relocate_counted(&self, x: DVec3, previous: &Answer, tried: &mut u32) -> Answer {
+        // The cold search's admission first: refused and unreachable points answer as there.
+        let Some(inside_tol) = self.admit.admit(x)? else {
+            return Ok(None);
+        };
+        let options = NewtonOptions {
+            inside_tol,
+            ..self.newton
+        };
+        if let Some(hint) = self.hint(previous) {
+            *tried += 1;
+            let hit = match self.settings.precision {
+                Precision::F64 => self.invert_hint::<Hex8Map>(x, hint, &options),
+                Precision::F32 => self.invert_hint::<Hex8Map32>(x, hint, &options),
+            };
+            if hit.is_some() {
+                return Ok(hit);
+            }
+        }
+        Ok(self.search_admitted(x, &options, tried))
+    }
+
+    /// The hinted cell inverted for `x` from the hint's ξ, with the cold search's kernel and
+    /// options: the hit when it ends inside.
+    #[inline(always)]
+    fn invert_hint<K: Kernel>(&self, x: DVec3, hint: Hint, options: &NewtonOptions) -> Option<Hit> {
+        let lattice = self.body.lattice();
+        let map = K::lattice_cell(lattice.h(), &self.body.corner_displacements(hint.ijk));
+        let inversion = map.invert_f64(x - lattice.node_position(hint.ijk), hint.xi0, options);
+        (inversion.status == Status::Inside).then(|| Hit {
+            cell: hint.cell,
+            xi: inversion.xi.clamp(DVec3::NEG_ONE, DVec3::ONE),
+            iterations: inversion.iterations,
+            residual: inversion.residual,
+            inversions: 1,
+        })
+    }
+
+    /// [`Locator::relocate`] for a chunk of points, `answers` holding the hints and taking the
+    /// answers: batched where the cold search is ([`LatticeLocator::locate_chunk`]'s choice), one
+    /// point at a time otherwise. The answers are bitwise those of [`Locator::relocate`].
+    pub(super) fn relocate_chunk(&self, points: &[DVec3], answers: &mut [Answer]) {
+        #[cfg(target_arch = "x86_64")]
+        match super::Isa::get() {
+            // SAFETY: `Isa::get` answers `Avx512` only where AVX2, AVX-512F and AVX-512VL were
+            // detected on this CPU, `Avx2` only where AVX2 was: the entry points' requirements.
+            #[allow(unsafe_code)]
+            super::Isa::Avx512 => return unsafe { self.relocate_chunk_avx512(points, answers) },
+            #[allow(unsafe_code)]
+            super::Isa::Avx2 => return unsafe { self.relocate_chunk_avx2(points, answers) },
+            super::Isa::Portable => {}
+        }
+        match self.settings.precision {
+            Precision::F32 => self.relocate_chunk_with::<glam::Vec4>(points, answers),
+            Precision::F64 => {
+                for (answer, &x) in answers.iter_mut().zip(points) {
+                    *answer = self.relocate(x, answer);
+                }
+            }
+        }
+    }
+
+    /// [`LatticeLocator::relocate_chunk`] in lanes `V`: W points at a time, their hinted cells
+    /// inverted at once (the lane Newton of the cold batched path, from the hints' ξ); the
+    /// remainder, and every point without a usable hint or whose hinted cell does not end inside
+    /// on the lanes' common path, through [`Locator::relocate`].
+    ///
+    /// Software-pipelined as the cold path: the next W points' hints are read and their corners
+    /// loaded before the current W are inverted, in two fronts used in turn.
+    #[inline(always)]
+    pub(super) fn relocate_chunk_with<V: Lanes>(&self, points: &[DVec3], answers: &mut [Answer])
+    where
+        V::Node: Nodes,
+    {
+        let w = V::W;
+        let batches = points.len() / w;
+        let mut fronts = [WarmFront::<V>::new(), WarmFront::<V>::new()];
+        if batches > 0 {
+            self.warm_front(&points[..w], &answers[..w], &mut fronts[0]);
+        }
+        for b in 0..batches {
+            if b + 1 < batches {
+                let (next, front) = ((b + 1) * w..(b + 2) * w, &mut fronts[(b + 1) % 2]);
+                self.warm_front(&points[next.clone()], &answers[next], front);
+            }
+            let (current, front) = (b * w..(b + 1) * w, &fronts[b % 2]);
+            self.warm_back(&points[current.clone()], front, &mut answers[current]);
+        }
+        for (answer, &x) in answers.iter_mut().zip(points).skip(batches * w) {
+            *answer = self.relocate(x, answer);
+        }
+    }
+
+    /// The first half of a warm batch: which lanes have a usable hint (and are admitted), and
+    /// their hinted cells' displacement maps.
+    #[inline(always)]
+    fn warm_front<V: Lanes>(&self, xs: &[DVec3], hints: &[Answer], front: &mut WarmFront<V>)
+    where
+        V::Node: Nodes,
+    {
+        let lattice = self.body.lattice();
+        let mut base = [0usize; MAX_W];
+        front.take = 0;
+        for l in 0..V::W {
+            // Lanes refused or out of reach, and lanes without a usable hint, go to `relocate`.
+            let Ok(Some(inside_tol)) = self.admit.admit(xs[l]) else {
+                continue;
+            };
+            let Some(hint) = self.hint(&hints[l]) else {
+                continue;
+            };
+            front.tol[l] = inside_tol;
+            front.cell[l] = hint.cell;
+            front.x_local[l] = xs[l] - lattice.node_position(hint.ijk);
+            front.xi0[l] = hint.xi0;
+            base[l] = lattice.node_index(hint.ijk);
+            front.take |= 1 << l;
+        }
+        if front.take != 0 {
+            // The corners of each lane's hinted cell (active: every corner has a displacement;
+            // lanes not taken read the lattice's first cell, and are ignored).
+            let nodes = V::Node::of(self);
+            let zero = V::Node::ZERO;
+            front.maps = Maps::from_nodes(|l, c| self.body.corner_entry(nodes, base[l], c, &zero));
+        }
+    }
+
+    /// The second half of a warm batch: one Newton inversion of each taken lane's hinted cell;
+    /// every other lane through [`Locator::relocate`].
+    #[inline(always)]
+    fn warm_back<V: Lanes>(&self, xs: &[DVec3], front: &WarmFront<V>, answers: &mut [Answer])
+    where
+        V::Node: Nodes,
+    {
+        let take = front.take;
+        let mut found = 0;
+        if take != 0 {
+            let mut maps = front.maps;
+            maps.add_lattice(self.body.lattice().h());
+            let lanes3 = |v: &[DVec3; MAX_W]| V3::<V> {
+                x: V::from_fn(|l| V::S::of(v[l].x)),
+                y: V::from_fn(|l| V::S::of(v[l].y)),
+                z: V::from_fn(|l| V::S::of(v[l].z)),
+            };
+            let inside = V::splat(V::S::of(1.0)) + V::from_fn(|l| V::S::of(front.tol[l]));
+            let (xi, rr, iterations, inside_lanes) = maps.invert(
+                lanes3(&front.x_local),
+                lanes3(&front.xi0),
+                inside,
+                V::mask_from_bits(take),
+                &self.newton,
+            );
+            let xi = xi.widen().clamp(-1.0, 1.0);
+            let residual = rr.widen().sqrt();
+            for (l, answer) in answers.iter_mut().enumerate() {
+                if inside_lanes & (1 << l) != 0 {
+                    *answer = Ok(Some(Hit {
+                        cell: front.cell[l],
+                        xi: xi.lane(l),
+                        iterations: iterations[l],
+                        residual: residual.lane(l),
+                        inversions: 1,
+                    }));
+                }
+            }
+            found = inside_lanes;
+        }
+        for (l, (answer, &x)) in answers.iter_mut().zip(xs).enumerate() {
+            if found & (1 << l) == 0 {
+                *answer = self.relocate(x, answer);
+            }
+        }
+    }
+}
+
+/// The first half of a warm batch of W points ([`LatticeLocator::relocate_chunk_with`]): per lane
+/// its inside tolerance, hinted cell, position in that cell's local frame and starting ξ (valid
+/// in the lanes `take` has), and the hinted cells' displacement maps.
+struct WarmFront<V: Lanes> {
+    take: u32,
+    tol: [f64; MAX_W],
+    cell: [CellId; MAX_W],
+    x_local: [DVec3; MAX_W],
+    xi0: [DVec3; MAX_W],
+    maps: Maps<V>,
+}
+
+impl<V: Lanes> WarmFront<V> {
+    #[inline(always)]
+    fn new() -> Self {
+        Self {
+            take: 0,
+            tol: [0.0; MAX_W],
+            cell: [CellId(0); MAX_W],
+            x_local: [DVec3::ZERO; MAX_W],
+            xi0: [DVec3::ZERO; MAX_W],
+            maps: Maps {
+                a: [V3::splat(DVec3::ZERO); 8],
+            },
+        }
+    }
+}
