@@ -9,7 +9,6 @@
 
 use std::hint::black_box;
 
-use cgcontact::glam::DVec3;
 use cgcontact::{GapFinder, LatticeLocator, Locator, Settings};
 use cgcontact_scenes::SphereOnBlock;
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};

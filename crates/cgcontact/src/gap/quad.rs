@@ -80,7 +80,8 @@ impl Patch {
         let r = x - self.a;
         let (bb, bc, cc) = (self.b.dot(self.b), self.b.dot(self.c), self.c.dot(self.c));
         let det = bb * cc - bc * bc;
-        if !(det > 1e-12 * bb * cc) {
+        // (NaN, from a degenerate face, fails the test too.)
+        if det.is_nan() || det <= 1e-12 * bb * cc {
             return DVec2::ZERO;
         }
         let (rb, rc) = (r.dot(self.b), r.dot(self.c));

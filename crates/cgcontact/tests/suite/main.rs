@@ -5,3 +5,4 @@ mod adaptive;
 mod common;
 mod extremes;
 mod locate_property;
+mod warm;

@@ -4,16 +4,13 @@
 //! and misses as the cold search; a cell returned is one of `locate_owners`; with a single owner,
 //! the cold search's cell and ξ. A hinted cell that still holds its point costs one inversion.
 
-#[path = "suite/common/mod.rs"]
-mod common;
-
 use cgcontact::{
     AdaptiveBody, AdaptiveLocator, Answer, Body, CellId, Hit, Lattice, LatticeLocator, Leaf,
     Locator, PointError, Precision, Settings,
 };
 use glam::DVec3;
 
-use common::Rng;
+use crate::common::Rng;
 
 /// How far a warm ξ may be from the cold one, with a single owner: the Newton tolerance is
 /// reached from two different starts. Quadratic convergence leaves f64 rounding (measured here:
@@ -250,7 +247,7 @@ fn uniform_body(seed: u64) -> Body {
         [12, 10, 8],
     )
     .unwrap();
-    common::body(lattice, 0.08, 0.3, DVec3::new(0.2, -0.1, 0.0), 0.05, seed)
+    crate::common::body(lattice, 0.08, 0.3, DVec3::new(0.2, -0.1, 0.0), 0.05, seed)
 }
 
 /// Every displacement moved by up to `step` h per component, as one solver iteration does.
