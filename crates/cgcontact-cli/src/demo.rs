@@ -1,16 +1,16 @@
 //! `cgcontact demo`: the seed's sphere-on-block case, built in.
 
 use std::path::PathBuf;
+use std::time::Instant;
 
 use anyhow::Result;
-use cgcontact_io::{
-    CellMap, write_deformed_adaptive_vtu, write_deformed_vtu, write_points_vtu,
-    write_results_counted,
-};
+use cgcontact::{AdaptiveLocator, GapAnswer, GapFinder, LatticeLocator, Settings};
+use cgcontact_io::{CellMap, write_deformed_adaptive_vtu, write_deformed_vtu, write_points_vtu};
 use cgcontact_scenes::{SphereOnAdaptiveBlock, SphereOnBlock};
 use clap::Args;
 
-use crate::output::{prepare_folder, say};
+use crate::locate::gap_summary;
+use crate::output::{prepare_folder, say, write_owner_rows};
 use crate::picture::{adaptive_patch_svg, contact_patch_svg};
 use crate::run::{SearchArgs, Searched, search};
 
@@ -22,9 +22,11 @@ use crate::run::{SearchArgs, Searched, search};
   cgcontact demo --strategy noderad-seed --json
   cgcontact demo --adaptive
 
-Writes to DIR: results.csv (point,cell,xi,eta,zeta,...), block.vtu (the deformed block with the number
-of points each cell holds), points.vtu (the contact points with their cell and ξ) for ParaView, and
-contact.svg (the top of the block with the located cells shaded and the contact points drawn).
+Writes to DIR: results.csv (point,cell,xi,eta,zeta,..., then each point's gap to the block's surface
+within h: gap,cx,cy,cz,nx,ny,nz,face_cell,face), block.vtu (the deformed block with the number of
+points each cell holds), points.vtu (the contact points with their cell and ξ) for ParaView, and
+contact.svg (the top of the block with the located cells shaded and the contact points coloured by
+gap). The summary reports the sphere's penetration: its most negative gap.
 With --adaptive the block is refined by halving under the sphere (2 levels within 1 mm of the contact
 patch, 2:1 balanced): block.vtu carries a `level` cell array and the picture outlines each level.")]
 pub struct DemoArgs {
@@ -75,10 +77,20 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         )?;
         // A leaf's id is its index in the mesh written.
         let cells = CellMap::identity(scene.body.cell_count());
-        write_results_counted(&results, &answers, &tried, &cells)?;
+        let distance = scene.body.lattice().h().min_element();
+        let start = Instant::now();
+        let locator = AdaptiveLocator::new(&scene.body, Settings::default())?;
+        let mut gaps = Vec::new();
+        pool.install(|| {
+            GapFinder::new(&locator, distance)
+                .map(|f| f.gap_all_into(&scene.contact_points, &mut gaps))
+        })?;
+        let mut summary = summary;
+        summary.gap = Some(gap_summary(&gaps, distance, start.elapsed().as_secs_f64()));
+        write_rows(&results, &answers, &tried, &cells, &gaps)?;
         write_deformed_adaptive_vtu(&block, &scene.body, &answers)?;
         write_points_vtu(&points, &scene.contact_points, &answers, &cells)?;
-        adaptive_patch_svg(&picture, &scene, &answers)?;
+        adaptive_patch_svg(&picture, &scene, &answers, &gaps, distance)?;
         summary
     } else {
         let scene = knobs.build(name)?;
@@ -93,10 +105,20 @@ pub fn run(args: &DemoArgs) -> Result<()> {
             &pool,
         )?;
         let cells = CellMap::ascending(&scene.body);
-        write_results_counted(&results, &answers, &tried, &cells)?;
+        let distance = scene.body.lattice().h().min_element();
+        let start = Instant::now();
+        let locator = LatticeLocator::new(&scene.body, Settings::default())?;
+        let mut gaps = Vec::new();
+        pool.install(|| {
+            GapFinder::new(&locator, distance)
+                .map(|f| f.gap_all_into(&scene.contact_points, &mut gaps))
+        })?;
+        let mut summary = summary;
+        summary.gap = Some(gap_summary(&gaps, distance, start.elapsed().as_secs_f64()));
+        write_rows(&results, &answers, &tried, &cells, &gaps)?;
         write_deformed_vtu(&block, &scene.body, &cells, &answers, false)?;
         write_points_vtu(&points, &scene.contact_points, &answers, &cells)?;
-        contact_patch_svg(&picture, &scene, &answers)?;
+        contact_patch_svg(&picture, &scene, &answers, &gaps, distance)?;
         summary
     };
     summary.files = [results, block, points, picture]
@@ -114,4 +136,19 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         )?;
     }
     summary.print(&args.search)
+}
+
+/// The results file, one row per contact point, with its gap columns.
+fn write_rows(
+    path: &std::path::Path,
+    answers: &[cgcontact::Answer],
+    tried: &[u32],
+    cells: &CellMap,
+    gaps: &[GapAnswer],
+) -> Result<()> {
+    let one = answers.iter().map(|a| match a {
+        Ok(Some(hit)) => std::slice::from_ref(hit),
+        _ => &[],
+    });
+    write_owner_rows(path, one, tried, |c| cells.input_cell(c), Some(gaps))
 }

@@ -5,7 +5,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Result, bail};
-use cgcontact::{CellId, Hit};
+use cgcontact::{CellId, GapAnswer, Hit};
 
 /// Write `text` to `path`, whole or not at all.
 pub fn write_text(path: &Path, text: &str) -> Result<()> {
@@ -18,21 +18,50 @@ pub fn write_text(path: &Path, text: &str) -> Result<()> {
 /// index repeated, cells ascending in the input mesh's numbering (`input_cell` maps the locator's
 /// cell ids to it), each row with that owner's ξ, iterations, residual and the inversions the
 /// search had tried when it found it. A point with no owner (outside, or refused) keeps its one
-/// row as the usual file writes it: `point,-1,NaN,NaN,NaN,0,NaN,tried`.
+/// row as the usual file writes it: `point,-1,NaN,NaN,NaN,0,NaN,tried`. One hit per point gives
+/// the usual file. With `gaps` (`locate --gap`), every row of point p ends with p's
+/// [`GAP_HEADER`] columns, empty where its surface is farther than the search distance.
 pub fn write_owner_rows<'a>(
     path: &Path,
     owners: impl Iterator<Item = &'a [Hit]>,
     tried: &[u32],
     input_cell: impl Fn(CellId) -> Option<usize>,
+    gaps: Option<&[GapAnswer]>,
 ) -> Result<()> {
     cgcontact_io::write_file(path, |out| {
-        writeln!(out, "{}", cgcontact_io::RESULTS_HEADER.join(","))?;
+        write!(out, "{}", cgcontact_io::RESULTS_HEADER.join(","))?;
+        if gaps.is_some() {
+            write!(out, ",{}", GAP_HEADER.join(","))?;
+        }
+        writeln!(out)?;
+        // The gap columns of point p: empty where the surface is farther than D.
+        let gap_columns = |point: usize| -> String {
+            match gaps.and_then(|g| g.get(point)) {
+                None => String::new(),
+                Some(Ok(Some(c))) => {
+                    let face_cell = input_cell(c.face.cell).map_or(-1, |i| i as i64);
+                    format!(
+                        ",{},{},{},{},{},{},{},{face_cell},{}",
+                        c.gap,
+                        c.point.x,
+                        c.point.y,
+                        c.point.z,
+                        c.normal.x,
+                        c.normal.y,
+                        c.normal.z,
+                        c.face.local
+                    )
+                }
+                Some(_) => ",".repeat(GAP_HEADER.len()),
+            }
+        };
         // Reused for every point: at most a few owners each, sorted by their input cell.
         let mut rows: Vec<(i64, &Hit)> = Vec::new();
         for (point, hits) in owners.enumerate() {
+            let gap = gap_columns(point);
             if hits.is_empty() {
                 let inversions = tried.get(point).copied().unwrap_or(0);
-                writeln!(out, "{point},-1,NaN,NaN,NaN,0,NaN,{inversions}")?;
+                writeln!(out, "{point},-1,NaN,NaN,NaN,0,NaN,{inversions}{gap}")?;
                 continue;
             }
             rows.clear();
@@ -45,7 +74,7 @@ pub fn write_owner_rows<'a>(
             for (cell, hit) in &rows {
                 writeln!(
                     out,
-                    "{point},{cell},{},{},{},{},{},{}",
+                    "{point},{cell},{},{},{},{},{},{}{gap}",
                     hit.xi.x, hit.xi.y, hit.xi.z, hit.iterations, hit.residual, hit.inversions
                 )?;
             }
@@ -54,6 +83,19 @@ pub fn write_owner_rows<'a>(
     })?;
     Ok(())
 }
+
+/// The columns `locate --gap` appends to each results row.
+pub const GAP_HEADER: [&str; 9] = [
+    "gap",
+    "cx",
+    "cy",
+    "cz",
+    "nx",
+    "ny",
+    "nz",
+    "face_cell",
+    "face",
+];
 
 /// Standard output could not be written. A closed pipe (`cgcontact ... | head -c 1`) is a normal end
 /// of the program; anything else (a full disk) is an error.

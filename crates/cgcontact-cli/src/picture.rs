@@ -6,7 +6,7 @@ use std::path::Path;
 
 use anyhow::{Result, anyhow};
 use cgcontact::glam::DVec3;
-use cgcontact::{Answer, CellId};
+use cgcontact::{Answer, CellId, GapAnswer};
 use cgcontact_scenes::{AdaptiveScene, Scene};
 use plotters::prelude::*;
 
@@ -20,6 +20,10 @@ struct Face {
 
 /// What the picture shows, whatever the body.
 struct Patch<'a> {
+    /// Each contact point's gap to the block's surface (`None`: farther than the search distance).
+    gaps: &'a [GapAnswer],
+    /// The search distance of `gaps`.
+    distance: f64,
     name: &'a str,
     sphere: (DVec3, f64),
     contact_points: &'a [DVec3],
@@ -30,9 +34,16 @@ struct Patch<'a> {
 }
 
 /// Write `path` (SVG): the deformed top face of every column of cells, shaded by how many located
-/// points the column holds, and the contact points (located: red; not located: grey) projected on
-/// the x–y plane. Only the region around the sphere is drawn.
-pub fn contact_patch_svg(path: &Path, scene: &Scene, answers: &[Answer]) -> Result<()> {
+/// points the column holds, and the contact points projected on the x–y plane, coloured by their
+/// gap to the block's surface (`gaps`, within `distance`; grey beyond). Only the region around the
+/// sphere is drawn.
+pub fn contact_patch_svg(
+    path: &Path,
+    scene: &Scene,
+    answers: &[Answer],
+    gaps: &[GapAnswer],
+    distance: f64,
+) -> Result<()> {
     let body = &scene.body;
     let lattice = body.lattice();
     let [nx, ny, nz] = lattice.cells();
@@ -57,6 +68,8 @@ pub fn contact_patch_svg(path: &Path, scene: &Scene, answers: &[Answer]) -> Resu
         }
     }
     let patch = Patch {
+        gaps,
+        distance,
         name: &scene.name,
         sphere: scene.sphere,
         contact_points: &scene.contact_points,
@@ -64,12 +77,18 @@ pub fn contact_patch_svg(path: &Path, scene: &Scene, answers: &[Answer]) -> Resu
         faces,
         levels: 1,
     };
-    draw_svg(path, &patch, answers)
+    draw_svg(path, &patch)
 }
 
 /// [`contact_patch_svg`] for an adaptive scene: the top face of every leaf on the block's top,
 /// shaded by the located points the leaf holds, outlined in its level's colour.
-pub fn adaptive_patch_svg(path: &Path, scene: &AdaptiveScene, answers: &[Answer]) -> Result<()> {
+pub fn adaptive_patch_svg(
+    path: &Path,
+    scene: &AdaptiveScene,
+    answers: &[Answer],
+    gaps: &[GapAnswer],
+    distance: f64,
+) -> Result<()> {
     let body = &scene.body;
     let top = f64::from(body.lattice().cells()[2]);
     // Counted per column, as the uniform picture does: a located point counts for the top leaf
@@ -99,6 +118,8 @@ pub fn adaptive_patch_svg(path: &Path, scene: &AdaptiveScene, answers: &[Answer]
         })
         .collect();
     let patch = Patch {
+        gaps,
+        distance,
         name: &scene.name,
         sphere: scene.sphere,
         contact_points: &scene.contact_points,
@@ -106,7 +127,7 @@ pub fn adaptive_patch_svg(path: &Path, scene: &AdaptiveScene, answers: &[Answer]
         faces,
         levels: body.finest_level() + 1,
     };
-    draw_svg(path, &patch, answers)
+    draw_svg(path, &patch)
 }
 
 /// Corners 4, 5, 6, 7 (the top face) seen from above.
@@ -127,10 +148,10 @@ fn outline(level: u8) -> RGBColor {
     }
 }
 
-fn draw_svg(path: &Path, patch: &Patch<'_>, answers: &[Answer]) -> Result<()> {
+fn draw_svg(path: &Path, patch: &Patch<'_>) -> Result<()> {
     let mut svg = String::new();
     let root = SVGBackend::with_string(&mut svg, (800, 880)).into_drawing_area();
-    draw_contact_patch(root, path, patch, answers)?;
+    draw_contact_patch(root, path, patch)?;
     crate::output::write_text(path, &svg)
 }
 
@@ -139,7 +160,6 @@ fn draw_contact_patch(
     root: DrawingArea<SVGBackend<'_>, plotters::coord::Shift>,
     path: &Path,
     patch: &Patch<'_>,
-    answers: &[Answer],
 ) -> Result<()> {
     let most = patch.faces.iter().map(|f| f.held).max().unwrap_or(0).max(1);
     let (center, radius) = patch.sphere;
@@ -158,7 +178,7 @@ fn draw_contact_patch(
     let mut chart = ChartBuilder::on(&root)
         .caption(
             format!(
-                "{}: the block's top seen from above, cells shaded by the contact points they hold",
+                "{}: the block's top seen from above, cells shaded by the points they hold, points by gap",
                 patch.name
             ),
             ("sans-serif", 16),
@@ -191,25 +211,40 @@ fn draw_contact_patch(
         }))
         .map_err(|e| fail(&e))?;
 
-    // Contact points on the lower half of the sphere, the side facing the block.
-    let shown = patch
+    // Contact points on the lower half of the sphere, the side facing the block, coloured by gap:
+    // red shades inside the block (the deepest the darkest), blue shades apart, grey beyond the
+    // search distance. Drawn far to near, so that the penetrating points show on top.
+    let deepest = patch
+        .gaps
+        .iter()
+        .filter_map(|g| g.ok().flatten())
+        .map(|c| -c.gap)
+        .fold(0.0, f64::max);
+    let mut shown: Vec<(DVec3, Option<f64>)> = patch
         .contact_points
         .iter()
-        .zip(answers)
-        .filter(|(x, _)| x.z <= center.z);
-    let (located, free): (Vec<_>, Vec<_>) = shown.partition(|(_, a)| matches!(a, Ok(Some(_))));
-    chart
-        .draw_series(
-            free.iter()
-                .map(|(x, _)| Circle::new((x.x, x.y), 1, RGBColor(150, 150, 150).filled())),
-        )
-        .map_err(|e| fail(&e))?;
-    chart
-        .draw_series(
-            located
+        .zip(
+            patch
+                .gaps
                 .iter()
-                .map(|(x, _)| Circle::new((x.x, x.y), 2, RGBColor(200, 0, 0).filled())),
+                .map(|g| g.ok().flatten().map(|c| c.gap))
+                .chain(std::iter::repeat(None)),
         )
+        .filter(|(x, _)| x.z <= center.z)
+        .map(|(x, g)| (*x, g))
+        .collect();
+    shown.sort_by(|a, b| {
+        let key = |g: Option<f64>| g.unwrap_or(f64::INFINITY);
+        key(b.1).total_cmp(&key(a.1))
+    });
+    chart
+        .draw_series(shown.iter().map(|(x, g)| {
+            let (colour, size) = match g {
+                None => (RGBColor(170, 170, 170), 1),
+                Some(g) => (gap_colour(*g, deepest, patch.distance), 2),
+            };
+            Circle::new((x.x, x.y), size, colour.filled())
+        }))
         .map_err(|e| fail(&e))?;
     // A length scale: a bar of a round length, a fifth of the width or less, in the bottom left.
     let width = x1 - x0;
@@ -254,18 +289,22 @@ fn draw_contact_patch(
             };
             (label, shade(n, most).filled(), false)
         })
-        .chain([
-            (
-                "contact point located".to_owned(),
-                RGBColor(200, 0, 0).filled(),
-                true,
-            ),
-            (
-                "not located".to_owned(),
-                RGBColor(150, 150, 150).filled(),
-                true,
-            ),
-        ])
+        .chain(
+            [
+                (format!("gap {:.3}", -deepest), -deepest),
+                ("gap 0".to_owned(), 0.0),
+                (format!("gap {}", patch.distance), patch.distance),
+            ]
+            .into_iter()
+            // No penetration: no key for it.
+            .filter(|&(_, g)| deepest > 0.0 || g >= 0.0)
+            .map(|(label, g)| (label, gap_colour(g, deepest, patch.distance).filled(), true)),
+        )
+        .chain([(
+            format!("beyond {}", patch.distance),
+            RGBColor(170, 170, 170).filled(),
+            true,
+        )])
         .chain(levels)
         .collect();
     let (mut at, mut row) = (20, 0);
@@ -301,16 +340,43 @@ fn draw_contact_patch(
     Ok(())
 }
 
-/// The shade of a column holding `count` of at most `most` located points.
+/// The colour of a contact point of gap `gap`: from yellow at 0 to dark red at `-deepest` inside
+/// the block, from light to dark blue at `distance` apart.
+fn gap_colour(gap: f64, deepest: f64, distance: f64) -> RGBColor {
+    let mix = |a: (f64, f64, f64), b: (f64, f64, f64), t: f64| {
+        let t = t.clamp(0.0, 1.0);
+        RGBColor(
+            (a.0 + (b.0 - a.0) * t) as u8,
+            (a.1 + (b.1 - a.1) * t) as u8,
+            (a.2 + (b.2 - a.2) * t) as u8,
+        )
+    };
+    if gap < 0.0 {
+        mix(
+            (255.0, 200.0, 0.0),
+            (170.0, 0.0, 0.0),
+            -gap / deepest.max(f64::MIN_POSITIVE),
+        )
+    } else {
+        mix(
+            (120.0, 200.0, 255.0),
+            (0.0, 50.0, 190.0),
+            gap / distance.max(f64::MIN_POSITIVE),
+        )
+    }
+}
+
+/// The shade of a column holding `count` of at most `most` located points: greens, so that the
+/// points' gap colours (reds and blues) stand out on them.
 fn shade(count: u32, most: u32) -> RGBColor {
     if count == 0 {
         RGBColor(245, 245, 245)
     } else {
         let t = 0.3 + 0.7 * f64::from(count) / f64::from(most.max(1));
         RGBColor(
-            255,
-            (230.0 * (1.0 - t)) as u8 + 20,
-            (120.0 * (1.0 - t)) as u8,
+            (235.0 - 120.0 * t) as u8,
+            (240.0 - 60.0 * t) as u8,
+            (225.0 - 120.0 * t) as u8,
         )
     }
 }

@@ -184,6 +184,24 @@ pub struct Summary {
     /// With `locate --all-owners`: what listing every owner found; absent otherwise.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub owners: Option<OwnersSummary>,
+    /// With `locate --gap D`: the contact quantities found; absent otherwise.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gap: Option<GapSummary>,
+}
+
+/// What `locate --gap D` found, for the summary.
+#[derive(Serialize, Debug, Clone, Copy)]
+pub struct GapSummary {
+    /// The search distance D.
+    pub distance: f64,
+    /// Points whose closest surface point is within D.
+    pub within: usize,
+    /// Of those, points inside the body (negative gap).
+    pub inside: usize,
+    /// The most negative gap (the deepest penetration), if any point is inside.
+    pub penetration: Option<f64>,
+    /// Time measuring the gaps of every point.
+    pub seconds: f64,
 }
 
 /// What `locate --all-owners` found, for the summary.
@@ -275,6 +293,19 @@ impl Summary {
                     },
                     owners.most_owners,
                     owners.seconds * 1e3
+                )?;
+            }
+            if let Some(gap) = &self.gap {
+                say!(
+                    "gap: {} of {} points within {} of the surface, {} inside{}, measured in {:.3} ms",
+                    gap.within,
+                    self.points,
+                    gap.distance,
+                    gap.inside,
+                    gap.penetration
+                        .map(|p| format!(" (penetration {p:.6e})"))
+                        .unwrap_or_default(),
+                    gap.seconds * 1e3
                 )?;
             }
             for file in &self.files {
@@ -462,6 +493,7 @@ pub fn search_listing_owners(
         owners: owners
             .as_ref()
             .map(|(lists, seconds)| lists.summary(*seconds)),
+        gap: None,
     };
     Ok((
         Searched {
