@@ -4,7 +4,9 @@
  * Which deformed hexahedron of a lattice-meshed body holds each point, and the point's local
  * coordinates xi in [-1, 1]^3 there (VTK corner order, corner 0 at (-1, -1, -1)). Bodies are
  * uniform (one lattice) or h-adaptive (cells halved per level, hanging nodes constrained to their
- * coarse neighbour: cgc_body_from_mesh detects which).
+ * coarse neighbour: cgc_body_from_mesh detects which). cgc_gap gives the signed gap of points to
+ * the body's deformed boundary surface within a search distance, the closest point there, the
+ * outward normal and the face.
  *
  *   cgc_body *body;  cgc_locator *loc;
  *   cgc_body_from_lattice(origin, h, counts, NULL, 0, &body);      // or cgc_body_from_mesh
@@ -12,25 +14,27 @@
  *   for (each solver iteration) {
  *       cgc_body_set_displacements(body, u, n_nodes, CGC_LAYOUT_NODE_MAJOR);
  *       cgc_locate(loc, points, n, cells, xi, status);
+ *       cgc_gap(loc, points, n, distance, gap, closest, normal, face_cell, face);  // any NULL
  *   }
  *   cgc_locator_free(loc);  cgc_body_free(body);
  *
  * Errors: every call returns a cgc_error; CGC_ERROR_OK (0) is success. cgc_last_error() gives the
  * message of the calling thread's last failure. NULL pointers, wrong lengths, misaligned arrays and
  * NaN/infinite values are reported as errors, never crashes, and a failed call changes nothing
- * (except cgc_locate with a non-finite point, which answers every point and says so). A bug inside
+ * (except cgc_locate and cgc_gap with a non-finite point, which answer every point and say so). A bug inside
  * the library (a Rust panic) is caught and returned as CGC_ERROR_PANIC: nothing unwinds into C.
  *
  * Arrays: points and node coordinates are x, y, z per point (3 n doubles, 8-byte aligned), read in
  * place. Displacements are node-major or component-major (cgc_layout constants). Outputs are
  * caller-owned: cells (n int64), xi (3 n doubles, xi eta zeta per point), status (n bytes,
- * optional); they must not overlap each other or the inputs.
+ * optional); cgc_gap's gap (n doubles), closest and normal (3 n doubles each), face_cell (n
+ * int64) and face (n int32), each optional; they must not overlap each other or the inputs.
  *
  * Threads: every function may be called from any thread, and the same handles may be used from
- * several threads at once. cgc_locate and cgc_locator_query_seconds only read the body (any number
- * run together, each on the locator's threads); cgc_body_set_displacements waits until no query of
- * that body is running, and queries wait for it, so an answer never mixes old and new
- * displacements. cgc_last_error is per thread. Not allowed (undefined behaviour, as for any C
+ * several threads at once. cgc_locate, cgc_gap and cgc_locator_query_seconds only read the body
+ * (any number run together, each on the locator's threads); cgc_body_set_displacements waits
+ * until no query of that body is running, and queries wait for it, so an answer never mixes old
+ * and new displacements. cgc_last_error is per thread. Not allowed (undefined behaviour, as for any C
  * handle): using a handle after freeing it, or freeing it while another thread uses it. A locator
  * shares its body: freeing the body handle first is fine, the body lives on until its last
  * locator is freed.
@@ -46,7 +50,9 @@
 #include <stdint.h>
 
 // The version of the C ABI: it changes whenever a signature, a struct or a constant of
-// `cgcontact.h` changes incompatibly. Compare with `cgc_abi_version()` at run time.
+// `cgcontact.h` changes incompatibly. Compare with `cgc_abi_version()` at run time. New
+// functions are compatible and leave it unchanged: `cgc_gap` was added within ABI 1, so a
+// program that may load an older library of ABI 1 looks it up with `dlsym`.
 #define CGC_ABI_VERSION 1
 
 // Displacements given node by node: x, y, z of node 0, then of node 1, ... (an n × 3 row-major
@@ -239,6 +245,50 @@ void cgc_body_free(cgc_body *body);
 // string belongs to the library and stays valid until the next failing call on this thread.
 // Thread-safe: each thread has its own message.
 const char *cgc_last_error(void);
+
+// The signed gap of `n_points` points to the body's deformed boundary surface, searched within
+// `distance`. `points` holds `3 n_points` doubles, x y z per point, read in place. The boundary
+// surface is every face of an active cell (a leaf, on an adaptive body) that no other active cell
+// covers, deformed into a bilinear quad. For each point i, writes:
+//
+// - `gap[i]`: the distance to the closest point of that surface, negative when a cell of the
+//   body holds the point (the locator's answer, with its inside tolerance), 0 on the surface;
+// - `closest[3i..3i+3]`: that closest point;
+// - `normal[3i..3i+3]`: the unit outward normal, so that point = closest + gap · normal (the
+//   face's normal where the closest point lies inside a face, the direction from it to the point
+//   where it lies on an edge or a corner);
+// - `face_cell[i]`: the cell of the face holding the closest point, numbered as `cgc_locate`
+//   numbers cells (lattice cell numbers, or 0-based places in `cells` for a body from
+//   `cgc_body_from_mesh`); on an edge or a corner shared by several faces, one of them;
+// - `face[i]`: which face of that cell, 0..5: face f lies at local coordinate f / 2 (ξ, η, ζ)
+//   = −1 for even f and +1 for odd f, through the VTK corners {0 4 7 3}, {1 2 6 5}, {0 1 5 4},
+//   {3 7 6 2}, {0 3 2 1}, {4 5 6 7} (5 is the top, ζ = +1).
+//
+// Where the surface is farther than `distance` from a point (outside the body, or deep inside
+// it), its gap, closest point and normal
+// are NaN and its `face_cell` and `face` −1; likewise for a point with a NaN or infinite
+// coordinate, and then the call returns `CGC_ERROR_NON_FINITE_POINT` after writing every answer
+// (the message names the first such point). The cost grows with `distance`: give the largest
+// gap the solver needs, not more.
+//
+// Each output may be NULL, to skip it; those given hold `n_points` values (`3 n_points` for
+// `closest` and `normal`). `distance` must be finite and ≥ 0 (else
+// `CGC_ERROR_INVALID_ARGUMENT`, and nothing is written). Answers use the body's displacements at
+// the time of the call, on the locator's threads; the search is the lattice's for either
+// strategy, with the locator's precision and tolerances deciding the sign near the surface.
+//
+// # Safety
+// `locator` must be a live handle or NULL; the arrays must hold the stated lengths, and the
+// output arrays must not overlap each other or `points`.
+cgc_error cgc_gap(const cgc_locator *locator,
+                  const double *points,
+                  size_t n_points,
+                  double distance,
+                  double *gap,
+                  double *closest,
+                  double *normal,
+                  int64_t *face_cell,
+                  int32_t *face);
 
 // Writes the default settings for `precision` (`CGC_PRECISION_F64` or `CGC_PRECISION_F32`) to
 // `*settings`: the lattice strategy, the library's measured default tolerances, every core.

@@ -14,6 +14,7 @@
 //! | [`cgc_body_hanging_count`] | how many nodes hang on a coarser neighbour (0 for a uniform body) |
 //! | [`cgc_settings_init`], [`cgc_locator_new`] | a locator with settings (strategy, precision, tolerances, threads) |
 //! | [`cgc_locate`] | n points → cell (−1 none), ξ (n × 3), a status per point |
+//! | [`cgc_gap`] | n points → signed gap to the deformed boundary surface within a distance, closest point, outward normal, face (cell and local face) |
 //! | [`cgc_last_error`] | the message of the calling thread's last failure |
 //!
 //! Every call returns a [`CgcError`] code; nothing unwinds across the boundary (a panic becomes
@@ -49,6 +50,7 @@
 
 mod body;
 mod error;
+mod gap;
 mod locate;
 mod raw;
 
@@ -58,6 +60,7 @@ pub use body::{
     cgc_body_set_displacements,
 };
 pub use error::{CgcError, cgc_last_error};
+pub use gap::cgc_gap;
 pub use locate::{
     CGC_POINT_INSIDE, CGC_POINT_NON_FINITE, CGC_POINT_OUTSIDE, CGC_PRECISION_F32,
     CGC_PRECISION_F64, CGC_STRATEGY_BRUTE, CGC_STRATEGY_LATTICE, CgcLocator, CgcSettings,
@@ -65,7 +68,9 @@ pub use locate::{
 };
 
 /// The version of the C ABI: it changes whenever a signature, a struct or a constant of
-/// `cgcontact.h` changes incompatibly. Compare with `cgc_abi_version()` at run time.
+/// `cgcontact.h` changes incompatibly. Compare with `cgc_abi_version()` at run time. New
+/// functions are compatible and leave it unchanged: `cgc_gap` was added within ABI 1, so a
+/// program that may load an older library of ABI 1 looks it up with `dlsym`.
 pub const CGC_ABI_VERSION: u32 = 1;
 
 /// The ABI version of the library loaded: `CGC_ABI_VERSION` of its build.

@@ -90,11 +90,25 @@ fn bad_precision(precision: u32) -> Failure {
 pub struct CgcLocator {
     body: Arc<RwLock<BodyState>>,
     strategy: u32,
-    settings: Settings,
+    pub(crate) settings: Settings,
     pool: Option<rayon::ThreadPool>,
 }
 
 impl CgcLocator {
+    /// Runs `f` on the body's current state, on this locator's threads (the body stays read-locked
+    /// meanwhile, so that an update waits for it).
+    pub(crate) fn on_body<R: Send>(
+        &self,
+        f: impl FnOnce(&BodyState) -> Result<R, Failure> + Send,
+    ) -> Result<R, Failure> {
+        let state = CgcBody::read(&self.body);
+        let state = &*state;
+        match &self.pool {
+            Some(pool) => pool.install(|| f(state)),
+            None => f(state),
+        }
+    }
+
     /// Runs `f` with a locator over the body's current displacements, on this locator's threads.
     fn with<R: Send>(
         &self,
@@ -197,7 +211,7 @@ pub unsafe extern "C" fn cgc_locator_new(
 
 /// Points per piece of a query: each piece's answers are converted into the caller's arrays while
 /// they are still in cache (2,048 answers take 115 kB).
-const PIECE: usize = 2048;
+pub(crate) const PIECE: usize = 2048;
 
 /// Locates `n_points` points. `points` holds `3 n_points` doubles, x y z per point (an n × 3
 /// row-major array in C, 3 × n in MATLAB or Fortran), read in place. Writes for each point its cell

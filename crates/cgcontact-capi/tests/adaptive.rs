@@ -7,7 +7,9 @@ use std::ffi::CStr;
 use std::ptr;
 
 use cgcontact::glam::DVec3;
-use cgcontact::{AdaptiveBody, AdaptiveLocator, CellId, Lattice, Leaf, Locator, Settings};
+use cgcontact::{
+    AdaptiveBody, AdaptiveLocator, CellId, GapFinder, Lattice, Leaf, Locator, Settings,
+};
 use cgcontact_baseline::BruteForce;
 use cgcontact_capi::*;
 
@@ -493,4 +495,75 @@ fn bad_adaptive_meshes_are_refused_naming_the_cell() {
         assert!(handle.is_null());
         assert!(last_error().contains(&what), "{what}: {}", last_error());
     }
+}
+
+/// `cgc_gap` on the shuffled adaptive mesh (hanging faces partly covered, leaves of 3 levels):
+/// the adaptive locator's `GapFinder` answers, faces named by the input cell.
+#[test]
+fn adaptive_mesh_gaps_are_the_gap_finders() {
+    let body = scene();
+    let input = input(&body);
+    let (points, _) = points(&body);
+    let distance = 0.2;
+    let locator = AdaptiveLocator::new(&body, Settings::default()).unwrap();
+    let mut expected = Vec::new();
+    GapFinder::new(&locator, distance)
+        .unwrap()
+        .gap_all_into(&points, &mut expected);
+    let handles = Handles::new(&input, CGC_STRATEGY_LATTICE, CGC_PRECISION_F64);
+    let n = points.len();
+    let flat: Vec<f64> = points.iter().flat_map(|p| p.to_array()).collect();
+    let (mut gap, mut closest, mut normal) = (vec![7.0; n], vec![7.0; 3 * n], vec![7.0; 3 * n]);
+    let (mut face_cell, mut face) = (vec![7i64; n], vec![7i32; n]);
+    // SAFETY: the arrays hold n or 3 n values and do not overlap.
+    let code = unsafe {
+        cgc_gap(
+            handles.locator,
+            flat.as_ptr(),
+            n,
+            distance,
+            gap.as_mut_ptr(),
+            closest.as_mut_ptr(),
+            normal.as_mut_ptr(),
+            face_cell.as_mut_ptr(),
+            face.as_mut_ptr(),
+        )
+    };
+    assert_eq!(code, CgcError::Ok, "{}", last_error());
+    // The body detected from the input's nodes may differ from `body` by a rounding of the
+    // lattice, as in `shuffled_adaptive_mesh_answers_as_the_adaptive_locator`: 1e-12, not bits.
+    let (mut inside, mut near, mut far) = (0, 0, 0);
+    for (i, answer) in expected.iter().enumerate() {
+        let at = |v: &[f64]| DVec3::from_slice(&v[3 * i..3 * i + 3]);
+        match answer {
+            Ok(Some(c)) => {
+                assert!(
+                    (gap[i] - c.gap).abs() < 1e-12,
+                    "point {i}: {} vs {}",
+                    gap[i],
+                    c.gap
+                );
+                assert!((at(&closest) - c.point).length() < 1e-12, "point {i}");
+                assert!((at(&normal) - c.normal).length() < 1e-9, "point {i}");
+                // Leaf c is input cell c (`input` lists the body's leaves in order).
+                assert_eq!(face_cell[i], i64::from(c.face.cell.0), "point {i}");
+                assert_eq!(face[i], i32::from(c.face.local), "point {i}");
+                if c.gap < 0.0 {
+                    inside += 1;
+                } else {
+                    near += 1;
+                }
+            }
+            Ok(None) => {
+                assert!(gap[i].is_nan() && at(&closest).is_nan() && at(&normal).is_nan());
+                assert_eq!((face_cell[i], face[i]), (-1, -1), "point {i}");
+                far += 1;
+            }
+            Err(e) => panic!("point {i}: {e}"),
+        }
+    }
+    assert!(
+        inside > 300 && near > 300 && far > 300,
+        "{inside} {near} {far}"
+    );
 }
