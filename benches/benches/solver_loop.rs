@@ -2,8 +2,9 @@
 //! points made from known (cell, ξ), relocated at each of 20 Newton iterations after the
 //! displacements moved a little. Each iteration adds to every displacement a deterministic
 //! pseudo-random amount of up to 1 % of h per component (a hash of the iteration and the node),
-//! rebuilds the locator (`LatticeLocator::new`) and relocates every point: "cold" with
-//! `locate_all_into`, "warm" with `relocate_all` and the previous iteration's answers as hints.
+//! rebuilds the locator (`LatticeLocator::new`), relocates every point and measures the gaps of
+//! the seed's 6,700 sphere points within h: "cold" with `locate_all_into` and `gap_all_into`,
+//! "warm" with `relocate_all` and `regap_all`, the previous iteration's answers as hints.
 //! f64 and f32, one thread; printed once: Newton inversions per located point of each.
 //!
 //! Also the last iterations of a converged solve, where the displacements no longer change: one
@@ -16,8 +17,10 @@ use std::hint::black_box;
 use std::time::{Duration, Instant};
 
 use cgcontact::glam::DVec3;
-use cgcontact::{AdaptiveLocator, Answer, Body, LatticeLocator, Locator, Settings};
-use cgcontact_scenes::{adaptive_block, indented_block};
+use cgcontact::{
+    AdaptiveLocator, Answer, Body, GapAnswer, GapFinder, LatticeLocator, Locator, Settings,
+};
+use cgcontact_scenes::{SphereOnBlock, adaptive_block, indented_block};
 use criterion::{Criterion, SamplingMode, Throughput, criterion_group, criterion_main};
 
 const POINTS: usize = 1_000_000;
@@ -57,12 +60,15 @@ struct Tally {
 }
 
 /// The solver loop: `ITERATIONS` times, move every displacement of `body` by up to `STEP` h,
-/// rebuild the locator and relocate `points` into `answers` (which holds the answers of the
-/// iteration before: a cold search of the starting displacements for the first).
+/// rebuild the locator, relocate `points` into `answers` and measure the gaps of `sphere` within
+/// h into `gaps` (each holding the answers of the iteration before: a cold search of the starting
+/// displacements for the first).
 fn solver_loop(
     body: &mut Body,
     points: &[DVec3],
     answers: &mut Vec<Answer>,
+    sphere: &[DVec3],
+    gaps: &mut Vec<GapAnswer>,
     settings: Settings,
     start: Start,
 ) -> Tally {
@@ -79,9 +85,16 @@ fn solver_loop(
         })
         .expect("finite displacements");
         let locator = LatticeLocator::new(body, settings).expect("valid settings");
+        let finder = GapFinder::new(&locator, H).expect("a valid distance");
         match start {
-            Start::Cold => locator.locate_all_into(points, answers),
-            Start::Warm => locator.relocate_all(points, answers),
+            Start::Cold => {
+                locator.locate_all_into(points, answers);
+                finder.gap_all_into(sphere, gaps);
+            }
+            Start::Warm => {
+                locator.relocate_all(points, answers);
+                finder.regap_all(sphere, gaps);
+            }
         }
         for hit in answers.iter().filter_map(|a| a.ok().flatten()) {
             tally.inversions += u64::from(hit.inversions);
@@ -95,6 +108,10 @@ fn solver_loop(
 fn solver(c: &mut Criterion) {
     let scene = indented_block([20, 40, 20], DVec3::splat(H), POINTS, SEED).expect("valid scene");
     let points: Vec<DVec3> = scene.known.iter().map(|k| k.x).collect();
+    let sphere = SphereOnBlock::fine()
+        .build("sphere-fine")
+        .expect("the seed's scene")
+        .contact_points;
     let start_u = scene.body.displacements().to_vec();
     let one = rayon::ThreadPoolBuilder::new()
         .num_threads(1)
@@ -105,20 +122,48 @@ fn solver(c: &mut Criterion) {
         let mut body = scene.body.clone();
         body.set_displacements(&start_u).expect("same body");
         let mut answers = Vec::with_capacity(POINTS);
-        LatticeLocator::new(&body, settings)
-            .expect("valid settings")
-            .locate_all_into(&points, &mut answers);
-        (body, answers)
+        let locator = LatticeLocator::new(&body, settings).expect("valid settings");
+        locator.locate_all_into(&points, &mut answers);
+        let mut gaps = Vec::with_capacity(sphere.len());
+        GapFinder::new(&locator, H)
+            .expect("a valid distance")
+            .gap_all_into(&sphere, &mut gaps);
+        (body, answers, gaps)
     };
     for (name, settings) in [("f64", Settings::default()), ("f32", Settings::f32())] {
         // Once, untimed: inversions per located point of each start, and the same answers.
         let runs = [Start::Cold, Start::Warm].map(|start| {
-            let (mut body, mut answers) = fresh(settings);
-            let tally =
-                one.install(|| solver_loop(&mut body, &points, &mut answers, settings, start));
-            (tally, answers, body)
+            let (mut body, mut answers, mut gaps) = fresh(settings);
+            let tally = one.install(|| {
+                solver_loop(
+                    &mut body,
+                    &points,
+                    &mut answers,
+                    &sphere,
+                    &mut gaps,
+                    settings,
+                    start,
+                )
+            });
+            (tally, answers, body, gaps)
         });
-        let [(cold, cold_answers, body), (warm, warm_answers, _)] = &runs;
+        let [
+            (cold, cold_answers, body, cold_gaps),
+            (warm, warm_answers, _, warm_gaps),
+        ] = &runs;
+        // Warm gaps are the cold ones.
+        let worst = cold_gaps
+            .iter()
+            .zip(warm_gaps)
+            .map(|(a, b)| match (a, b) {
+                (Ok(Some(a)), Ok(Some(b))) => (a.gap - b.gap).abs(),
+                (Ok(None), Ok(None)) => 0.0,
+                _ => f64::INFINITY,
+            })
+            .fold(0.0, f64::max);
+        println!(
+            "solver loop {name}: last gaps of the sphere points, warm against cold: worst {worst:e}"
+        );
         // Where the last answers differ, both cells must hold the point (a shared face).
         let locator = LatticeLocator::new(body, settings).expect("valid settings");
         let (mut differ, mut shared) = (0, 0);
@@ -164,19 +209,21 @@ fn solver(c: &mut Criterion) {
                 b.iter_custom(|loops| {
                     let mut timed = Duration::ZERO;
                     for _ in 0..loops {
-                        let (mut body, mut answers) = fresh(settings);
+                        let (mut body, mut answers, mut gaps) = fresh(settings);
                         let begin = Instant::now();
                         let tally = one.install(|| {
                             solver_loop(
                                 &mut body,
                                 black_box(&points),
                                 &mut answers,
+                                black_box(&sphere),
+                                &mut gaps,
                                 settings,
                                 start,
                             )
                         });
                         timed += begin.elapsed();
-                        black_box((tally, &answers));
+                        black_box((tally, &answers, &gaps));
                     }
                     timed
                 })

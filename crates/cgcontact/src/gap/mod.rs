@@ -211,6 +211,15 @@ impl<'l, L: Surface> GapFinder<'l, L> {
         let lattice = self.surface.lattice();
         let inv_h = lattice.h().recip();
         let range = self.u_range;
+        // Farther than D from the lattice's box shifted by the displacement range: no face near.
+        let reach = box_distance2(
+            x - lattice.origin(),
+            range.low,
+            lattice.upper() - lattice.origin() + range.high,
+        );
+        if reach > best_d2 * (1.0 + SLACK) {
+            return Ok(None);
+        }
         // First the hinted face's cell (the previous answer's), or else the cell at x's
         // undeformed position (x less the middle of the displacement range, clamped into the
         // lattice): its faces usually set a bound that shrinks the box to a cell or two. The
@@ -277,7 +286,8 @@ impl<'l, L: Surface> GapFinder<'l, L> {
         Ok(Some(Contact {
             gap,
             point: b.origin + b.local,
-            normal,
+            // (+ 0 turns a −0 component into 0: files show "0", not "-0".)
+            normal: normal + DVec3::ZERO,
             face: b.face,
             st: b.st,
             interior: b.locus == Locus::Interior,
