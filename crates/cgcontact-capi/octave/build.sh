@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Builds the Octave MEX file: bash crates/cgcontact-capi/octave/build.sh OUTDIR
-# writes OUTDIR/cgcontact_whereami.mex, statically linked to the release build of cgcontact-capi
+# writes OUTDIR/cgcontact_whereami.mex (with cgcontact_body.m and cgcontact_gap.m), statically linked to the release build of cgcontact-capi
 # (no LD_LIBRARY_PATH needed): Octave loads it with addpath(OUTDIR) alone.
 # Needs mkoctfile (Debian: apt-get install -y octave liboctave-dev). Honours CARGO_TARGET_DIR.
 set -euo pipefail
@@ -18,6 +18,6 @@ mkdir -p "$out"
 # --exclude-libs keeps the Rust library's symbols private to the MEX file.
 mkoctfile --mex -O2 -I"$here/../include" "$here/cgcontact_whereami.c" "$lib" \
     -Wl,--exclude-libs,ALL -lpthread -ldl -lm -o "$out/cgcontact_whereami.mex"
-# The handle class that frees its body when cleared.
-cp "$here/cgcontact_body.m" "$out/"
-echo "wrote $out/cgcontact_whereami.mex and $out/cgcontact_body.m"
+# The handle class that frees its body when cleared, and the gap call's wrapper.
+cp "$here/cgcontact_body.m" "$here/cgcontact_gap.m" "$out/"
+echo "wrote $out/cgcontact_whereami.mex, $out/cgcontact_body.m and $out/cgcontact_gap.m"

@@ -4,8 +4,9 @@
 %   B = cgcontact_body(XYZ_N0, Topology);   % 3 x m nodes, 8 x e 1-based topology (VTK order)
 %   update(B, U);                           % m x 3 displacements, each iteration
 %   [E, PosL] = locate(B, XYZ);             % as cgcontact_whereami(XYZ, XYZ_N0, Topology, U)
+%   [G, C, N, FE, F] = gap(B, XYZ, D);      % gaps to the surface within D (cgcontact_whereami 'gap')
 %
-% A handle object over cgcontact_whereami's 'new', 'update', 'locate' and 'free' (build.sh puts it
+% A handle object over cgcontact_whereami's 'new', 'update', 'locate', 'gap' and 'free' (build.sh puts it
 % beside cgcontact_whereami.mex). Options as for cgcontact_whereami.
 classdef cgcontact_body < handle
   properties (SetAccess = private)
@@ -21,6 +22,9 @@ classdef cgcontact_body < handle
     end
     function [E, PosL] = locate(obj, XYZ)
       [E, PosL] = cgcontact_whereami('locate', obj.id, XYZ);
+    end
+    function [G, C, N, FE, F] = gap(obj, XYZ, D)
+      [G, C, N, FE, F] = cgcontact_whereami('gap', obj.id, XYZ, D);
     end
     function delete(obj)
       if obj.id > 0

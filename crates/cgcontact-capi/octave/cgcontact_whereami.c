@@ -25,9 +25,21 @@
  *   H = cgcontact_whereami('new', XYZ_N0, Topology [, Options])
  *   cgcontact_whereami('update', H, U)
  *   [E, PosL] = cgcontact_whereami('locate', H, XYZ)
+ *   [G, C, N, FE, F] = cgcontact_whereami('gap', H, XYZ, D)    % gaps to the surface, within D
  *   S = cgcontact_whereami('query_seconds', H, XYZ, Repeats)   % the library's own query time
  *   cgcontact_whereami('free', H)                               % optional
  *   N = cgcontact_whereami('handles')                           % how many are live
+ *
+ * 'gap' measures each point's signed gap to the body's deformed boundary surface (the faces no
+ * other element covers), searched within D >= 0 (finite):
+ *     G   1 x n   the distance to the closest surface point, negative inside the body
+ *     C   3 x n   that closest point
+ *     N   3 x n   the unit outward normal there: XYZ = C + G .* N
+ *     FE  1 x n   1-based element whose face holds C (0 when none)
+ *     F   1 x n   which face of it, 0..5 as in the C ABI: face f at local coordinate f/2 (xi, eta,
+ *                 zeta) = -1 for even f, +1 for odd f (5 is the top, zeta = +1); -1 when none
+ * G, C and N are NaN, FE 0 and F -1 where the surface is farther than D (outside or deep inside).
+ * cgcontact_gap(H or B, XYZ, D) (beside the MEX file) is the same call.
  *
  * cgcontact_body.m (beside the MEX file) wraps these in a handle object that frees its body when
  * cleared: B = cgcontact_body(XYZ_N0, Topology); update(B, U); [E, PosL] = locate(B, XYZ).
@@ -248,6 +260,46 @@ static void locate(entry *e, const mxArray *points, mxArray **out, int n_out, in
     else mxDestroyArray(local);
 }
 
+/* [G, C, N, FE, F] for points XYZ (3 x n) within D. */
+static void gap(entry *e, const mxArray *points, const mxArray *distance, mxArray **out, int n_out) {
+    size_t n = matrix(points, "XYZ", 3, "3 x n, one point per column");
+    if (!mxIsDouble(distance) || mxIsComplex(distance) || mxGetNumberOfElements(distance) != 1)
+        FAIL("badInput", "D must be a real double scalar");
+    double d = mxGetScalar(distance);
+    if (!(isfinite(d) && d >= 0)) FAIL("badInput", "D must be finite and at least 0, got %g", d);
+    /* As in locate: the face's element (int64) is written into FE's own memory and converted in
+     * place; the local face (int32) goes through a small array of its own. */
+    mxArray *g = mxCreateUninitNumericMatrix(1, n, mxDOUBLE_CLASS, mxREAL);
+    mxArray *c = mxCreateUninitNumericMatrix(3, n, mxDOUBLE_CLASS, mxREAL);
+    mxArray *normal = mxCreateUninitNumericMatrix(3, n, mxDOUBLE_CLASS, mxREAL);
+    mxArray *fe = mxCreateUninitNumericMatrix(1, n, mxDOUBLE_CLASS, mxREAL);
+    mxArray *f = mxCreateUninitNumericMatrix(1, n, mxDOUBLE_CLASS, mxREAL);
+    int64_t *cells = (int64_t *)mxGetData(fe);
+    int32_t *faces = mxMalloc((n ? n : 1) * sizeof *faces);
+    cgc_error code = cgc_gap(e->locator, mxGetPr(points), n, d, mxGetPr(g), mxGetPr(c),
+                             mxGetPr(normal), cells, faces);
+    if (code == CGC_ERROR_NON_FINITE_POINT) {
+        const double *p = mxGetPr(points);
+        size_t k = 0;
+        while (k < n && isfinite(p[3 * k]) && isfinite(p[3 * k + 1]) && isfinite(p[3 * k + 2])) k++;
+        FAIL("nonFinitePoint", "XYZ(:, %d) = [%g; %g; %g] is not finite", (int)k + 1,
+             p[3 * k], p[3 * k + 1], p[3 * k + 2]);
+    }
+    if (code != CGC_ERROR_OK) fail_cgc(code, "gap");
+    double *FE = mxGetPr(fe), *F = mxGetPr(f);
+    for (size_t i = 0; i < n; i++) {
+        int64_t cell = cells[i]; /* read as written, then overwritten as a double */
+        FE[i] = (double)(cell + 1);
+        F[i] = (double)faces[i];
+    }
+    mxFree(faces);
+    mxArray *all[5] = {g, c, normal, fe, f};
+    for (int k = 0; k < 5; k++) {
+        if (k < (n_out > 1 ? n_out : 1)) out[k] = all[k];
+        else mxDestroyArray(all[k]);
+    }
+}
+
 /* --- handles ------------------------------------------------------------------------------- */
 
 static entry *lookup(const mxArray *h) {
@@ -300,6 +352,10 @@ void mexFunction(int nlhs, mxArray *plhs[], int nrhs, const mxArray *prhs[]) {
         } else if (!strcmp(command, "locate")) {
             args(nrhs, 3, 3, "[E, PosL] = cgcontact_whereami('locate', H, XYZ)");
             locate(lookup(prhs[1]), prhs[2], plhs, nlhs, 0);
+        } else if (!strcmp(command, "gap")) {
+            args(nrhs, 4, 4, "[G, C, N, FE, F] = cgcontact_whereami('gap', H, XYZ, D)");
+            if (nlhs > 5) FAIL("usage", "at most five outputs: [G, C, N, FE, F]");
+            gap(lookup(prhs[1]), prhs[2], prhs[3], plhs, nlhs);
         } else if (!strcmp(command, "query_seconds")) {
             args(nrhs, 3, 4, "S = cgcontact_whereami('query_seconds', H, XYZ [, Repeats])");
             entry *e = lookup(prhs[1]);
@@ -318,7 +374,7 @@ void mexFunction(int nlhs, mxArray *plhs[], int nrhs, const mxArray *prhs[]) {
             for (size_t i = 0; i < table_len; i++) live += table[i].body != NULL;
             plhs[0] = mxCreateDoubleScalar(live);
         } else {
-            FAIL("usage", "unknown command '%s' (new, update, locate, query_seconds, free, handles)", command);
+            FAIL("usage", "unknown command '%s' (new, update, locate, gap, query_seconds, free, handles)", command);
         }
         return;
     }

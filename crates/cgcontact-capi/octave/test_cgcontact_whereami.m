@@ -5,8 +5,8 @@
 % Builds a lattice block with a smooth displacement here in Octave, writes it as a legacy ASCII
 % .vtk mesh and a points CSV, runs `cgcontact locate` on them, and checks that the MEX file gives
 % the same answers: the same cells, xi within 1e-12. Then the same for an adaptive block (three
-% refinement levels, hanging nodes set by the Q1 rule), and the hanging-node error. Then checks
-% that bad inputs raise errors.
+% refinement levels, hanging nodes set by the Q1 rule), and the hanging-node error. Then the
+% gaps of points to a 2 x 2 x 2 block (known answers), and that bad inputs raise errors.
 % Any failure ends Octave with a non-zero exit status.
 1;
 
@@ -273,6 +273,45 @@ expect_error('cgcontact:notLattice', @() cgcontact_whereami(XYZa, N0a, Tover, []
 cgcontact_whereami('free', Ha);
 clear Ba;
 printf('adaptive: handles agree; a hanging node off its constraint is refused; fill_hanging fills it\n');
+
+% --- gaps: known answers on a 2 x 2 x 2 block of unit cells --------------------------------
+[I, J, K] = ndgrid(0:2, 0:2, 0:2);
+Ng = [I(:) J(:) K(:)]';                          % node 1 + i + 3 (j + 3 k)
+corners = [0 0 0; 1 0 0; 1 1 0; 0 1 0; 0 0 1; 1 0 1; 1 1 1; 0 1 1];
+Tg = zeros(8, 8);                                % element 1 + i + 2 (j + 2 k), VTK order
+for c = 0:7
+  ijk = [mod(c, 2), mod(floor(c / 2), 2), floor(c / 4)];
+  for v = 1:8
+    Tg(v, c + 1) = 1 + [1 3 9] * (ijk + corners(v, :))';
+  end
+end
+Bg = cgcontact_body(Ng, Tg);
+P = [0.5 0.5 2.3; 0.5 0.5 1.8; -0.25 1.5 0.5; 2.2 2.2 2.2; 0.5 0.5 3.0]';
+[G, C, N, FE, F] = gap(Bg, P, 0.5);
+near = @(a, b) all(abs(a(:) - b(:)) < 1e-12);
+check(near(G(1:3), [0.3 -0.2 0.25]), 'gaps above, below and beside a face: %s', mat2str(G));
+check(near(C(:, 1:3), [0.5 0.5 2; 0.5 0.5 2; 0 1.5 0.5]'), 'closest points: %s', mat2str(C));
+check(near(N(:, 1:3), [0 0 1; 0 0 1; -1 0 0]'), 'normals: %s', mat2str(N));
+check(isequal(FE(1:3), [5 5 3]) && isequal(F(1:3), [5 5 0]), 'faces: %s %s', mat2str(FE), mat2str(F));
+check(near(G(4), 0.2 * sqrt(3)) && near(C(:, 4), [2; 2; 2]) && near(N(:, 4), [1; 1; 1] / sqrt(3)) ...
+      && FE(4) == 8, 'the corner (2, 2, 2): %g %s %s %d', G(4), mat2str(C(:, 4)), mat2str(N(:, 4)), FE(4));
+check(isnan(G(5)) && all(isnan([C(:, 5); N(:, 5)])) && FE(5) == 0 && F(5) == -1, ...
+      'beyond D: %g %d %d', G(5), FE(5), F(5));
+check(near(P(:, 1:4), C(:, 1:4) + G(1:4) .* N(:, 1:4)), 'XYZ = C + G .* N');
+% Translated by 0.1 up: the point 0.3 above the top is now 0.2 above; the same through the
+% wrapper and a plain handle.
+update(Bg, repmat([0 0 0.1], 27, 1));
+[G2, C2, N2, FE2, F2] = cgcontact_gap(Bg, P(:, 1), 0.5);
+check(near(G2, 0.2) && near(C2, [0.5; 0.5; 2.1]) && near(N2, [0; 0; 1]) && FE2 == 5 && F2 == 5, ...
+      'translated block: %g %s', G2, mat2str(C2));
+check(isequal(cgcontact_gap(Bg.id, P(:, 1), 0.5), G2), 'cgcontact_gap with a handle number');
+check(isequal(gap(Bg, zeros(3, 0), 0.5), zeros(1, 0)), 'no points');
+expect_error('cgcontact:badInput', @() gap(Bg, P, -1), 'gap with D = -1');
+expect_error('cgcontact:badInput', @() gap(Bg, P, NaN), 'gap with D = NaN');
+expect_error('cgcontact:badSize', @() gap(Bg, P', 0.5), 'gap with XYZ'' (n x 3)');
+expect_error('cgcontact:nonFinitePoint', @() gap(Bg, [P [NaN; 0; 0]], 0.5), 'gap with a NaN point');
+clear Bg;
+printf('gap: known gaps, closest points, normals and faces on a 2 x 2 x 2 block, translated too\n');
 
 % --- bad input raises errors, never crashes -----------------------------------------------
 printf('bad input:\n');

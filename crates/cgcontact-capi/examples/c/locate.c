@@ -1,5 +1,6 @@
 /*
- * cgcontact from C: build a lattice body, deform it, locate points, print and check the answers.
+ * cgcontact from C: build a lattice body, deform it, locate points and measure gaps to its
+ * surface, print and check the answers.
  *
  * The points are made from known (cell, xi): the deformed point at xi of a chosen cell, computed
  * here with the trilinear map, so the program checks the library against an answer it constructed
@@ -126,6 +127,41 @@ int main(void) {
     if (worst > 1e-12) {
         fprintf(stderr, "largest xi error %.3e exceeds 1e-12\n", worst);
         wrong++;
+    }
+
+    /* Gaps: the centre c of the top face of cell (1, 1, NZ - 1) lies on the deformed surface (gap
+     * 0, face 5 of that cell); the point c + 0.05 n, n the normal found there, is 0.05 above it
+     * with c still its closest point. Up to 0.2 away is searched. */
+    {
+        const double top[3] = {0.0, 0.0, 1.0};
+        double at[6], gap[2], closest[6], normal[6];
+        int64_t face_cell[2];
+        int32_t face[2];
+        deformed_point(1, 1, NZ - 1, top, at);
+        if (!check(cgc_gap(locator, at, 1, 0.2, gap, closest, normal, face_cell, face), "cgc_gap"))
+            return 1;
+        for (int a = 0; a < 3; a++) at[3 + a] = at[a] + 0.05 * normal[a];
+        if (!check(cgc_gap(locator, at, 2, 0.2, gap, closest, normal, face_cell, face), "cgc_gap"))
+            return 1;
+        const int64_t cell = 1 + NX * (1 + NY * (NZ - 1));
+        for (int p = 0; p < 2; p++)
+            printf("gap of (% .6f, % .6f, % .6f): % .12f, face %d of cell %lld, normal (% .6f, % .6f, % .6f)\n",
+                   at[3 * p], at[3 * p + 1], at[3 * p + 2], gap[p], (int)face[p],
+                   (long long)face_cell[p], normal[3 * p], normal[3 * p + 1], normal[3 * p + 2]);
+        double off = 0.0;
+        for (int a = 0; a < 3; a++) off += fabs(closest[3 + a] - at[a]);
+        if (fabs(gap[0]) > 1e-12 || fabs(gap[1] - 0.05) > 1e-9 || off > 1e-9 || face[0] != 5 ||
+            face[1] != 5 || face_cell[0] != cell || face_cell[1] != cell) {
+            fprintf(stderr, "wrong gaps at the top face of cell %lld\n", (long long)cell);
+            wrong++;
+        }
+        /* Farther than the search distance: NaN and -1. A negative distance is an error. */
+        at[5] += 1.0;
+        cgc_gap(locator, at, 2, 0.2, gap, closest, normal, face_cell, face);
+        if (!isnan(gap[1]) || face_cell[1] != -1 || face[1] != -1) wrong++;
+        cgc_error bad = cgc_gap(locator, at, 2, -1.0, gap, NULL, NULL, NULL, NULL);
+        printf("a negative distance: code %d, \"%s\"\n", (int)bad, cgc_last_error());
+        if (bad != CGC_ERROR_INVALID_ARGUMENT) wrong++;
     }
 
     /* Errors are codes with a message, never crashes. */
