@@ -314,6 +314,22 @@ impl<'l, L: Surface> GapFinder<'l, L> {
         let size = self.surface.size(cell);
         let xl = x - origin;
         let mut u: Option<[DVec3; 8]> = None;
+        if faces == ALL_FACES {
+            // Every face may be open (an adaptive leaf: its coverage is a forest walk): the
+            // deformed corners' box of the whole cell first, tight where the displacement range
+            // is wide against the cell.
+            let corners = u.insert(self.surface.corner_displacements(cell));
+            let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+            for (c, u) in corners.iter().enumerate() {
+                let [a, b, e] = crate::lattice::CORNER_OFFSETS[c];
+                let p = DVec3::new(f64::from(a), f64::from(b), f64::from(e)) * size + *u;
+                lo = lo.min(p);
+                hi = hi.max(p);
+            }
+            if box_distance2(xl, lo, hi) > *best_d2 * (1.0 + SLACK) {
+                return;
+            }
+        }
         for f in 0..6 {
             if faces & (1 << f) == 0 {
                 continue;
@@ -329,11 +345,24 @@ impl<'l, L: Surface> GapFinder<'l, L> {
             if box_distance2(xl, lo, hi) > *best_d2 * (1.0 + SLACK) {
                 continue;
             }
+            let u = u.get_or_insert_with(|| self.surface.corner_displacements(cell));
+            // The deformed face's corners' box: tight where the displacement range is not (a
+            // fine leaf under a wide range). Checked before the coverage, which on an adaptive
+            // body walks the forest.
+            let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+            for &c in &FACE_CORNERS[f] {
+                let [a, b, e] = crate::lattice::CORNER_OFFSETS[c];
+                let p = DVec3::new(f64::from(a), f64::from(b), f64::from(e)) * size + u[c];
+                lo = lo.min(p);
+                hi = hi.max(p);
+            }
+            if box_distance2(xl, lo, hi) > *best_d2 * (1.0 + SLACK) {
+                continue;
+            }
             let coverage = self.surface.coverage(cell, f);
             if coverage == Coverage::Covered {
                 continue;
             }
-            let u = u.get_or_insert_with(|| self.surface.corner_displacements(cell));
             self.offer_face(x, cell, u, f, &coverage, best, best_d2);
         }
     }
