@@ -10,10 +10,12 @@
 //!
 //! The search is exact and complete within the search distance D without any global structure:
 //! a face point c = X + u(X) within D of x has X in [x − D − u_high, x + D − u_low] (u's range
-//! per axis), so only the faces of the cells meeting that box can be closest. They are visited
-//! nearest first by a lower bound (the cell's box shifted by the displacement range, then the
-//! face's, then its deformed corners' box), and the visit stops at the first bound beyond the
-//! best distance found. Each face left gets the exact closest point of its quad ([`quad`]).
+//! per axis), so only the faces of the cells meeting that box can be closest. A point farther than
+//! D from the whole lattice's shifted box is answered at once. Otherwise the cell at the point's
+//! undeformed position (or the previous answer's, on a warm start) is measured first; its best
+//! distance then shrinks the box, whose cells are each dropped by lower bounds in turn (the cell's
+//! box shifted by the displacement range, its faces', their deformed corners' boxes) before the
+//! coverage of a face is settled and the exact closest point of its quad is found (`quad.rs`).
 //!
 //! | file | what |
 //! |---|---|
@@ -200,7 +202,7 @@ impl<'l, L: Surface> GapFinder<'l, L> {
             });
     }
 
-    /// The search of one point (see the module), with the cells to visit gathered in `scratch`.
+    /// The search of one point (see the module), `hint` the previous answer's face.
     fn search(&self, x: DVec3, hint: Option<Face>) -> GapAnswer {
         if !x.is_finite() {
             return Err(PointError::NonFinite);
