@@ -332,7 +332,7 @@ impl<'l, L: Surface> GapFinder<'l, L> {
                 return;
             }
         }
-        for f in 0..6 {
+        for (f, face_corners) in FACE_CORNERS.iter().enumerate() {
             if faces & (1 << f) == 0 {
                 continue;
             }
@@ -352,7 +352,7 @@ impl<'l, L: Surface> GapFinder<'l, L> {
             // fine leaf under a wide range). Checked before the coverage, which on an adaptive
             // body walks the forest.
             let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
-            for &c in &FACE_CORNERS[f] {
+            for &c in face_corners {
                 let [a, b, e] = crate::lattice::CORNER_OFFSETS[c];
                 let p = DVec3::new(f64::from(a), f64::from(b), f64::from(e)) * size + u[c];
                 lo = lo.min(p);
