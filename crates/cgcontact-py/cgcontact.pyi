@@ -1,0 +1,102 @@
+"""Contact search on cartesian hexahedral lattices: numpy in, numpy out.
+
+Find the hexahedron of a deformed body holding each point and its local coordinates xi in
+[-1, 1]^3 (VTK corner 0 at (-1, -1, -1)), every cell holding a point, and signed gaps to the
+body's deformed boundary surface. Queries release the GIL; C-contiguous float64 (n, 3) arrays are
+read in place, anything else array-like is converted once.
+"""
+
+import os
+from typing import Dict, List, Literal, Optional, Sequence, Tuple, Union, overload
+
+import numpy as np
+import numpy.typing as npt
+
+__version__: str
+
+Strategy = Literal["lattice", "centroid", "noderad", "noderad-seed", "rtree", "brute"]
+Xi = Tuple[float, float, float]
+
+class Body:
+    """A deformed body of hexahedra on a cartesian lattice (uniform, or adaptive: dyadic
+    refinements of one with hanging nodes). Locators made from it share it and see every later
+    `set_displacements`."""
+
+    def __init__(
+        self,
+        origin: Sequence[float],
+        spacing: Sequence[float],
+        counts: Sequence[int],
+        active: Optional[npt.ArrayLike] = None,
+    ) -> None:
+        """A body on a lattice of `counts` cells per axis. `active`: one flag per lattice cell,
+        x fastest (flat, or shape (nz, ny, nx)); None for every cell. Cells are numbered
+        i + nx (j + ny k); `set_displacements` takes one row per lattice node,
+        i + (nx + 1)(j + (ny + 1) k)."""
+    @staticmethod
+    def from_hexes(nodes: npt.ArrayLike, hexes: npt.ArrayLike) -> "Body":
+        """A body from undeformed nodes (n, 3) and hexahedra (m, 8) of 0-based node numbers in
+        VTK order; the lattice is detected. Cells are numbered by their row in `hexes`."""
+    def set_displacements(self, u: npt.ArrayLike, fill_hanging: bool = False) -> None:
+        """Sets every displacement in place: one row (ux, uy, uz) per node (`node_count`). On an
+        adaptive body a hanging node's row must be its constraint's value unless `fill_hanging`.
+        On error (ValueError) the body keeps its displacements."""
+    @property
+    def node_count(self) -> int:
+        """Rows `set_displacements` takes."""
+    @property
+    def cell_count(self) -> int:
+        """Cells searched: active cells, or an adaptive body's leaves."""
+    @property
+    def is_adaptive(self) -> bool: ...
+    @property
+    def hanging_count(self) -> int: ...
+
+class Locator:
+    """Finds the cell of a body holding each point. Each query searches the body's current
+    displacements."""
+
+    def __init__(
+        self,
+        body: Body,
+        strategy: Strategy = "lattice",
+        precision: Literal["f64", "f32"] = "f64",
+        tol: Optional[float] = None,
+        max_iter: Optional[int] = None,
+        threads: Optional[int] = None,
+    ) -> None:
+        """`tol`: Newton step tolerance in xi units (default 1e-10 in f64, 1e-5 in f32);
+        `max_iter`: Newton iterations per candidate cell; `threads`: a pool of its own (None:
+        every core)."""
+    @property
+    def strategy(self) -> Strategy: ...
+    def locate(
+        self, points: npt.ArrayLike
+    ) -> Tuple[npt.NDArray[np.int64], npt.NDArray[np.float64]]:
+        """(cell int64[n], xi float64[n, 3]) for points (n, 3): -1 and NaN where no cell holds
+        the point. Cells are numbered as the body's input (rows of `hexes`, cells of the file,
+        or lattice cells). A NaN or infinite point raises ValueError naming its row."""
+    @overload
+    def locate_owners(self, x: Sequence[float]) -> List[Tuple[int, Xi]]: ...
+    @overload
+    def locate_owners(self, x: npt.NDArray[np.float64]) -> Union[List[Tuple[int, Xi]], List[List[Tuple[int, Xi]]]]: ...
+    def locate_owners(self, x: npt.ArrayLike) -> Union[List[Tuple[int, Xi]], List[List[Tuple[int, Xi]]]]:
+        """Every cell holding the point x (3,): [(cell, xi), ...], cells ascending; for x of
+        shape (n, 3), one such list per point."""
+    def gap(self, points: npt.ArrayLike, dist: float) -> Dict[str, np.ndarray]:
+        """Signed gaps to the deformed boundary surface within `dist`: "gap" float64[n]
+        (negative inside), "closest" float64[n, 3], "normal" float64[n, 3] (point = closest +
+        gap * normal), "face_cell" int64[n], "face" int32[n] (VTK local face 0-5); NaN and -1
+        where the surface is farther than `dist`."""
+
+def read_mesh(
+    path: Union[str, os.PathLike],
+    displacement: Optional[str] = "displacement",
+    strict: bool = False,
+) -> Body:
+    """Reads a VTK mesh (.vtk or .vtu) as `cgcontact locate --mesh` does. `displacement`: the
+    point-data array ("displacement": used if present; another name: required; None: read
+    undeformed). Cells are numbered by their place in the file."""
+
+def _data_address(points: npt.ArrayLike) -> int:
+    """The address of the first value the bindings read for `points` (a test probe)."""

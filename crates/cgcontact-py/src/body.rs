@@ -1,0 +1,494 @@
+//! Bodies: from a lattice, from nodes and hexahedra (the lattice detected as the C API and the
+//! command line detect it), or from a VTK file; displacements set in place.
+
+use std::sync::{Arc, PoisonError, RwLock, RwLockReadGuard};
+
+use cgcontact::glam::DVec3;
+use cgcontact::{AdaptiveBody, Body, CellId, Lattice};
+use cgcontact_baseline::BodyRef;
+use cgcontact_io::{CellMap, HexMesh, LATTICE_TOLERANCE, MeshBody};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+
+use crate::arrays;
+
+/// Rounding allowance relative to a value's magnitude (as `cgcontact-io`'s checks).
+const ROUNDING_SLACK: f64 = 4.0 * f64::EPSILON;
+
+/// A library or input error as Python's `ValueError`.
+pub fn value_error(e: impl std::fmt::Display) -> PyErr {
+    PyValueError::new_err(e.to_string())
+}
+
+/// The body a `Body` holds: one lattice level, or an adaptive body of several.
+#[derive(Debug)]
+pub enum AnyBody {
+    /// Every cell one cell of the lattice.
+    Uniform(Body),
+    /// Leaves of several refinement levels of a base lattice.
+    Adaptive(AdaptiveBody),
+}
+
+impl AnyBody {
+    /// The body as the baselines take it.
+    pub fn as_ref(&self) -> BodyRef<'_> {
+        match self {
+            Self::Uniform(body) => body.into(),
+            Self::Adaptive(body) => body.into(),
+        }
+    }
+}
+
+/// The Q1 constraints of an adaptive body's hanging nodes, flattened to independent nodes: what
+/// an update checks in the caller's values before the body takes them.
+#[derive(Debug, Default)]
+struct Hanging {
+    /// (hanging node, end of its parents in `parents`), ascending by node.
+    rows: Vec<(u32, u32)>,
+    /// (independent node, weight).
+    parents: Vec<(u32, f64)>,
+}
+
+impl Hanging {
+    fn of(body: &AdaptiveBody) -> Self {
+        let mut hanging = Self::default();
+        for node in body.hanging_nodes() {
+            let parents = body
+                .constraint(node)
+                .expect("a hanging node has a constraint");
+            hanging
+                .parents
+                .extend(parents.into_iter().map(|(p, w)| (p as u32, w)));
+            // Node and parent counts fit u32: the body indexes its nodes with u32.
+            hanging
+                .rows
+                .push((node as u32, hanging.parents.len() as u32));
+        }
+        hanging
+    }
+
+    /// The hanging nodes farther than `tol` from their constraint in `u`: how many, and the worst
+    /// (node, by how much).
+    fn violations(&self, u: &[DVec3], tol: f64) -> (usize, Option<(usize, f64)>) {
+        let (mut count, mut worst) = (0, None);
+        let mut start = 0;
+        for &(node, end) in &self.rows {
+            let value: DVec3 = self.parents[start..end as usize]
+                .iter()
+                .map(|&(p, w)| w * u[p as usize])
+                .sum();
+            start = end as usize;
+            let off = (u[node as usize] - value).abs().max_element();
+            if off > tol {
+                count += 1;
+                if worst.is_none_or(|(_, w)| off > w) {
+                    worst = Some((node as usize, off));
+                }
+            }
+        }
+        (count, worst)
+    }
+}
+
+/// What a `Body` holds; shared with the locators made from it.
+#[derive(Debug)]
+pub struct BodyState {
+    pub body: AnyBody,
+    /// The mesh's cell numbering, for bodies given as nodes and cells; `None` for lattice bodies,
+    /// whose cells are numbered as the lattice's.
+    cells: Option<CellMap>,
+    /// Number of displacement rows the caller passes (lattice nodes, or input nodes).
+    pub source_count: usize,
+    /// For each of the body's displacement slots, the caller's node that gives it; `None` when slot
+    /// s is node s (a lattice body with every cell active).
+    source_of_slot: Option<Vec<u32>>,
+    /// Further caller's nodes at a slot's node (an unmerged mesh): (node, slot).
+    duplicates: Vec<(usize, usize)>,
+    /// The hanging nodes' constraints (none for uniform bodies).
+    hanging: Hanging,
+    /// The displacements in slot order, reused by every update.
+    scratch: Vec<DVec3>,
+}
+
+impl BodyState {
+    fn lattice(body: Body) -> Self {
+        let lattice = body.lattice();
+        // Lattice node indices fit u32 (`Lattice::new` refuses more nodes).
+        let source_of_slot = (body.node_count() != lattice.node_count())
+            .then(|| body.nodes().map(|n| n as u32).collect());
+        Self {
+            scratch: vec![DVec3::ZERO; body.node_count()],
+            source_count: lattice.node_count(),
+            source_of_slot,
+            duplicates: Vec::new(),
+            hanging: Hanging::default(),
+            cells: None,
+            body: AnyBody::Uniform(body),
+        }
+    }
+
+    /// The state of the body detected from `mesh` (`found` is `mesh.to_body()`).
+    fn mesh(mesh: &HexMesh, found: MeshBody) -> Self {
+        match found {
+            MeshBody::Uniform(found) => uniform_state(mesh, found.body, found.cells),
+            MeshBody::Adaptive(found) => adaptive_state(mesh, found.body, found.cells),
+        }
+    }
+
+    /// The caller's cell number of the body's cell `cell`: the input cell for a mesh (as the
+    /// command line's `cell` column), the lattice cell for a lattice body.
+    #[inline]
+    pub fn cell_number(&self, cell: CellId) -> i64 {
+        match &self.cells {
+            None => i64::from(cell.0),
+            Some(map) => map.input_cell(cell).map_or(-1, |c| c as i64),
+        }
+    }
+
+    /// The caller's node that gives slot `slot`.
+    fn source(&self, slot: usize) -> usize {
+        self.source_of_slot
+            .as_ref()
+            .map_or(slot, |source| source[slot] as usize)
+    }
+
+    /// Sets every displacement from the caller's rows, or changes nothing and says why.
+    fn set_displacements(&mut self, u: &[DVec3], fill: bool) -> Result<(), String> {
+        let n = self.source_count;
+        if u.len() != n {
+            return Err(format!(
+                "displacements: the body has {n} nodes, got {} rows",
+                u.len()
+            ));
+        }
+        let non_finite = |node: usize, value: DVec3| {
+            format!("displacement row {node} (0-based) is not finite: {value}")
+        };
+        match &self.source_of_slot {
+            None => self.scratch.copy_from_slice(u),
+            Some(source) => {
+                for (slot, &node) in self.scratch.iter_mut().zip(source) {
+                    *slot = u[node as usize];
+                }
+            }
+        }
+        if let Some(s) = self.scratch.iter().position(|v| !v.is_finite()) {
+            return Err(non_finite(self.source(s), self.scratch[s]));
+        }
+        let h = match &self.body {
+            AnyBody::Uniform(body) => body.lattice().h(),
+            AnyBody::Adaptive(body) => body.lattice().h(),
+        };
+        let tol = LATTICE_TOLERANCE * h.max_element();
+        for &(node, slot) in &self.duplicates {
+            let (value, first) = (u[node], self.scratch[slot]);
+            if !value.is_finite() {
+                return Err(non_finite(node, value));
+            }
+            if (value - first).abs().max_element()
+                > tol + ROUNDING_SLACK * first.abs().max_element()
+            {
+                return Err(format!(
+                    "nodes {} and {node} (0-based) coincide but their displacements differ: {first} and {value}",
+                    self.source(slot)
+                ));
+            }
+        }
+        match &mut self.body {
+            AnyBody::Uniform(body) => body
+                .set_displacements(&self.scratch)
+                .map_err(|e| e.to_string())?,
+            AnyBody::Adaptive(body) => {
+                if !fill {
+                    check_hanging(
+                        body,
+                        &self.hanging,
+                        &self.scratch,
+                        self.source_of_slot.as_deref(),
+                    )?;
+                }
+                body.set_displacements(&self.scratch)
+                    .map_err(|e| e.to_string())?;
+                if fill {
+                    body.fill_hanging();
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// An error naming how many hanging nodes of `body` break their constraint in `u` (slot order)
+/// and the worst, as the caller's node `source[slot]`; `Ok` when none does (the tolerance the
+/// command line warns at: 1e-9 of the finest spacing plus the largest displacement's rounding).
+fn check_hanging(
+    body: &AdaptiveBody,
+    hanging: &Hanging,
+    u: &[DVec3],
+    source: Option<&[u32]>,
+) -> Result<(), String> {
+    if hanging.rows.is_empty() {
+        return Ok(());
+    }
+    let largest = u.iter().fold(0.0f64, |m, v| m.max(v.abs().max_element()));
+    let tol = LATTICE_TOLERANCE * body.spacing(body.finest_level()).min_element()
+        + ROUNDING_SLACK * largest;
+    let (count, worst) = hanging.violations(u, tol);
+    let Some((slot, by)) = worst else {
+        return Ok(());
+    };
+    let node = source.map_or(slot, |s| s[slot] as usize);
+    let at = body.node_position(slot).unwrap_or(DVec3::NAN);
+    Err(format!(
+        "displacements: {count} of {} hanging nodes break their constraint by more than {tol:.1e}; the worst, node {node} (0-based) at {at}, by {by:.3e}: the deformed mesh would gap or overlap there (give each hanging node the trilinear interpolation of the coarse cell it hangs on, or pass fill_hanging=True)",
+        hanging.rows.len()
+    ))
+}
+
+/// The state of a uniform body detected from `mesh`: which input node gives each slot.
+fn uniform_state(mesh: &HexMesh, body: Body, cells: CellMap) -> BodyState {
+    let lattice = *body.lattice();
+    let slot_nodes: Vec<usize> = body.nodes().collect();
+    let mut slot_of_input = vec![UNSET; mesh.points.len()];
+    for (input, corners) in mesh.cells.iter().enumerate() {
+        let cell = cells
+            .lattice_cell(input)
+            .expect("one lattice cell per input cell");
+        let ijk = lattice
+            .cell_ijk(cell)
+            .expect("detected cells lie in the lattice");
+        for (&node, lattice_node) in corners.iter().zip(lattice.corner_nodes(ijk)) {
+            slot_of_input[node as usize] = slot_nodes
+                .binary_search(&lattice_node)
+                .expect("corners of active cells are body nodes");
+        }
+    }
+    let (source_of_slot, duplicates) = sources(&slot_of_input, slot_nodes.len());
+    BodyState {
+        scratch: vec![DVec3::ZERO; slot_nodes.len()],
+        source_count: mesh.points.len(),
+        source_of_slot: Some(source_of_slot),
+        duplicates,
+        hanging: Hanging::default(),
+        cells: Some(cells),
+        body: AnyBody::Uniform(body),
+    }
+}
+
+/// The state of an adaptive body detected from `mesh`, whose leaf `c` is input cell `c` with its
+/// corners in the same (VTK) order.
+fn adaptive_state(mesh: &HexMesh, body: AdaptiveBody, cells: CellMap) -> BodyState {
+    let mut slot_of_input = vec![UNSET; mesh.points.len()];
+    for (input, corners) in mesh.cells.iter().enumerate() {
+        let nodes = body
+            .cell_nodes(CellId(input as u32))
+            .expect("a leaf per input cell");
+        for (&node, slot) in corners.iter().zip(nodes) {
+            slot_of_input[node as usize] = slot;
+        }
+    }
+    let (source_of_slot, duplicates) = sources(&slot_of_input, body.node_count());
+    BodyState {
+        scratch: vec![DVec3::ZERO; body.node_count()],
+        source_count: mesh.points.len(),
+        source_of_slot: Some(source_of_slot),
+        duplicates,
+        hanging: Hanging::of(&body),
+        cells: Some(cells),
+        body: AnyBody::Adaptive(body),
+    }
+}
+
+/// An input node no cell uses.
+const UNSET: usize = usize::MAX;
+
+/// From each input node's slot (or `UNSET`): the first input node of each slot, and the further
+/// input nodes at a slot already given, as (node, slot).
+fn sources(slot_of_input: &[usize], slots: usize) -> (Vec<u32>, Vec<(usize, usize)>) {
+    let mut source_of_slot = vec![u32::MAX; slots];
+    let mut duplicates = Vec::new();
+    for (node, &slot) in slot_of_input
+        .iter()
+        .enumerate()
+        .filter(|(_, s)| **s != UNSET)
+    {
+        if source_of_slot[slot] == u32::MAX {
+            source_of_slot[slot] = node as u32;
+        } else {
+            duplicates.push((node, slot));
+        }
+    }
+    (source_of_slot, duplicates)
+}
+
+/// A deformed body of hexahedra on a cartesian lattice.
+///
+/// Build one with `Body(origin, spacing, counts, active=None)`, `Body.from_hexes(nodes, hexes)`
+/// or `cgcontact.read_mesh(path)`. Locators made from a body share it: they see every later
+/// `set_displacements`.
+#[pyclass(name = "Body", module = "cgcontact", frozen)]
+pub struct PyBody {
+    pub(crate) state: Arc<RwLock<BodyState>>,
+}
+
+impl PyBody {
+    pub(crate) fn new_state(state: BodyState) -> Self {
+        Self {
+            state: Arc::new(RwLock::new(state)),
+        }
+    }
+
+    /// The body from a mesh of nodes and hexahedra, as `HexMesh::to_body` detects it.
+    pub(crate) fn from_mesh(mesh: &HexMesh, found: MeshBody) -> Self {
+        Self::new_state(BodyState::mesh(mesh, found))
+    }
+
+    /// The state for reading (updates check before they write, so a poisoned lock holds a whole
+    /// state).
+    pub(crate) fn read(state: &RwLock<BodyState>) -> RwLockReadGuard<'_, BodyState> {
+        state.read().unwrap_or_else(PoisonError::into_inner)
+    }
+}
+
+#[pymethods]
+impl PyBody {
+    /// A body on a lattice: `origin` and `spacing` (3 floats each), `counts` cells per axis.
+    /// `active` is None (every cell) or one flag per lattice cell, x fastest (a flat array, or one
+    /// of shape (nz, ny, nx)). The body starts undeformed; its cells are numbered as the
+    /// lattice's, `i + nx (j + ny k)`, and `set_displacements` takes one row per lattice node,
+    /// `i + (nx + 1)(j + (ny + 1) k)`.
+    #[new]
+    #[pyo3(signature = (origin, spacing, counts, active = None))]
+    fn new(
+        origin: [f64; 3],
+        spacing: [f64; 3],
+        counts: [u32; 3],
+        active: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<Self> {
+        let (origin, h) = (DVec3::from_array(origin), DVec3::from_array(spacing));
+        if !(origin.is_finite() && h.is_finite()) {
+            return Err(PyValueError::new_err(format!(
+                "the lattice's origin {origin} or spacing {h} is not finite"
+            )));
+        }
+        let lattice = Lattice::new(origin, h, counts).map_err(value_error)?;
+        let body = match active {
+            None => Body::full(lattice),
+            Some(active) => {
+                let flags = arrays::flags(active)?;
+                if flags.len() != lattice.cell_count() {
+                    return Err(PyValueError::new_err(format!(
+                        "active: the lattice has {} cells, got {} flags",
+                        lattice.cell_count(),
+                        flags.len()
+                    )));
+                }
+                let ids = flags.iter().enumerate().filter(|(_, f)| **f);
+                Body::from_cells(lattice, ids.map(|(c, _)| CellId(c as u32)))
+                    .map_err(value_error)?
+            }
+        };
+        Ok(Self::new_state(BodyState::lattice(body)))
+    }
+
+    /// A body from undeformed `nodes` (n, 3) and `hexes` (m, 8) of 0-based node numbers in VTK
+    /// hexahedron order; the lattice (one level, or dyadic refinements with hanging nodes) is
+    /// detected from the nodes. Cells are numbered by their row in `hexes`;
+    /// `set_displacements` takes one row per node.
+    #[staticmethod]
+    fn from_hexes(
+        py: Python<'_>,
+        nodes: &Bound<'_, PyAny>,
+        hexes: &Bound<'_, PyAny>,
+    ) -> PyResult<Self> {
+        let (rows, _) = arrays::rows(nodes, "nodes", false)?;
+        let points = rows.vectors()?.into_owned();
+        arrays::finite(&points, "nodes")?;
+        let topology = arrays::hexes(hexes, "hexes")?;
+        if topology.is_empty() {
+            return Err(PyValueError::new_err("hexes: the mesh has no cell"));
+        }
+        let n = points.len();
+        let mut cells = Vec::with_capacity(topology.len());
+        for (c, corners) in topology.iter().enumerate() {
+            let mut cell = [0u32; 8];
+            for (k, &node) in corners.iter().enumerate() {
+                cell[k] = u32::try_from(node)
+                    .ok()
+                    .filter(|&i| (i as usize) < n)
+                    .ok_or_else(|| {
+                        PyValueError::new_err(format!(
+                            "hexes row {c} corner {k}: node {node} is not one of the {n} nodes (numbered from 0)"
+                        ))
+                    })?;
+            }
+            cells.push(cell);
+        }
+        let mesh = HexMesh {
+            points,
+            cells,
+            displacement: None,
+        };
+        let found = py.detach(|| mesh.to_body()).map_err(value_error)?;
+        Ok(Self::from_mesh(&mesh, found))
+    }
+
+    /// Sets every displacement, in place: `u` has one row (ux, uy, uz) per node (`node_count`).
+    /// On an adaptive body each hanging node's row must be its constraint's value (the trilinear
+    /// interpolation of the coarse cell it hangs on) unless `fill_hanging` sets it so. On any
+    /// error (a shape, a NaN, a hanging node off its constraint) the body keeps its displacements.
+    #[pyo3(signature = (u, fill_hanging = false))]
+    fn set_displacements(
+        &self,
+        py: Python<'_>,
+        u: &Bound<'_, PyAny>,
+        fill_hanging: bool,
+    ) -> PyResult<()> {
+        let (rows, _) = arrays::rows(u, "u", false)?;
+        let u = rows.vectors()?;
+        let u: &[DVec3] = &u;
+        py.detach(|| {
+            let mut state = self.state.write().unwrap_or_else(PoisonError::into_inner);
+            state.set_displacements(u, fill_hanging)
+        })
+        .map_err(PyValueError::new_err)
+    }
+
+    /// How many rows `set_displacements` takes: the lattice's nodes for a lattice body, the nodes
+    /// given for a mesh.
+    #[getter]
+    fn node_count(&self) -> usize {
+        Self::read(&self.state).source_count
+    }
+
+    /// Cells searched: the active cells, or an adaptive body's leaves.
+    #[getter]
+    fn cell_count(&self) -> usize {
+        Self::read(&self.state).body.as_ref().cell_count()
+    }
+
+    /// Whether the body has cells of several refinement levels.
+    #[getter]
+    fn is_adaptive(&self) -> bool {
+        matches!(Self::read(&self.state).body, AnyBody::Adaptive(_))
+    }
+
+    /// Hanging nodes (0 for a uniform body).
+    #[getter]
+    fn hanging_count(&self) -> usize {
+        Self::read(&self.state).hanging.rows.len()
+    }
+
+    fn __repr__(&self) -> String {
+        let state = Self::read(&self.state);
+        let kind = match state.body {
+            AnyBody::Uniform(_) => "uniform",
+            AnyBody::Adaptive(_) => "adaptive",
+        };
+        format!(
+            "<cgcontact.Body {kind}: {} cells, {} nodes>",
+            state.body.as_ref().cell_count(),
+            state.source_count
+        )
+    }
+}

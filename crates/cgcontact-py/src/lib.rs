@@ -1,0 +1,90 @@
+//! Python bindings of cgcontact: contact search on cartesian hexahedral lattices, numpy in and
+//! numpy out.
+//!
+//! The module `cgcontact` holds `Body`, `Locator` and `read_mesh`; `cgcontact.pyi` documents
+//! them for Python. Built with maturin as an abi3 wheel (`pip install ./crates/cgcontact-py`)
+//! and tested with pytest (`tests/`), outside the Rust workspace.
+
+#![forbid(unsafe_code)]
+
+mod arrays;
+mod body;
+mod locator;
+
+use std::ffi::CString;
+
+use cgcontact_io::{DEFAULT_DISPLACEMENT, DisplacementArray, MeshBody, read_hex_mesh};
+use pyo3::exceptions::{PyUserWarning, PyValueError};
+use pyo3::prelude::*;
+
+use crate::body::{PyBody, value_error};
+use crate::locator::PyLocator;
+
+/// Reads a VTK mesh of hexahedra (legacy .vtk or XML .vtu) whose nodes lie on a cartesian
+/// lattice, or whose cells are dyadic refinements of one, as `cgcontact locate --mesh` does.
+/// `displacement` names the point-data array of displacements: by default "displacement" if
+/// the file has one (else the body is undeformed); another name must be in the file; None reads
+/// the mesh undeformed. Cells are numbered by their place in the file and `set_displacements`
+/// takes one row per node of the file. An adaptive mesh whose hanging nodes break their
+/// constraint gives a warning, or a ValueError with `strict`.
+#[pyfunction]
+#[pyo3(signature = (path, displacement = Some(DEFAULT_DISPLACEMENT.to_owned()), strict = false))]
+fn read_mesh(
+    py: Python<'_>,
+    path: std::path::PathBuf,
+    displacement: Option<String>,
+    strict: bool,
+) -> PyResult<PyBody> {
+    let array = match displacement {
+        None => DisplacementArray::Ignore,
+        Some(name) if name == DEFAULT_DISPLACEMENT => DisplacementArray::Default,
+        Some(name) => DisplacementArray::Named(name),
+    };
+    let (mesh, found) = py
+        .detach(|| {
+            let mesh = read_hex_mesh(&path, &array)?;
+            let found = mesh.to_body().map_err(|e| e.in_file(&path))?;
+            Ok::<_, cgcontact_io::IoError>((mesh, found))
+        })
+        .map_err(value_error)?;
+    if let MeshBody::Adaptive(adaptive) = &found {
+        let report = adaptive.constraints;
+        if let (false, Some((node, by))) = (report.holds(), report.worst) {
+            let position = adaptive.body.node_position(node).unwrap_or_default();
+            let message = format!(
+                "{}: {} of {} hanging nodes break their constraint by more than {:.1e}; the worst, at {position}, by {by:.3e}: the deformed mesh gaps or overlaps there",
+                path.display(),
+                report.violating,
+                report.hanging,
+                adaptive.constraint_tolerance,
+            );
+            if strict {
+                return Err(PyValueError::new_err(message));
+            }
+            let message = CString::new(message).unwrap_or_default();
+            PyErr::warn(py, &py.get_type::<PyUserWarning>(), &message, 1)?;
+        }
+    }
+    Ok(PyBody::from_mesh(&mesh, found))
+}
+
+/// The address of the first value the bindings read for `points`: the array's own buffer when
+/// it is read in place (a C-contiguous float64 array), else that of the converted copy. For tests
+/// that check an array is not copied.
+#[pyfunction]
+fn _data_address(points: &Bound<'_, PyAny>) -> PyResult<usize> {
+    let (rows, _) = arrays::rows(points, "points", false)?;
+    let vectors = rows.vectors()?;
+    Ok(vectors.as_ptr() as usize)
+}
+
+/// The `cgcontact` module.
+#[pymodule]
+fn cgcontact(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<PyBody>()?;
+    m.add_class::<PyLocator>()?;
+    m.add_function(wrap_pyfunction!(read_mesh, m)?)?;
+    m.add_function(wrap_pyfunction!(_data_address, m)?)?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    Ok(())
+}

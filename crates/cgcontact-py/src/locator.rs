@@ -1,0 +1,391 @@
+//! Locators: every strategy of the command line by name, queries on numpy arrays with the GIL
+//! released.
+
+use std::sync::{Arc, RwLock};
+
+use cgcontact::glam::DVec3;
+use cgcontact::{AdaptiveLocator, Answer, GapAnswer, GapFinder, LatticeLocator, Locator, Settings};
+use cgcontact_baseline::{
+    BodyRef, BruteForce, CentroidRadius, Inversion, NodeRadius, NodeRadiusOptions, RTree,
+};
+use numpy::{IntoPyArray, PyArray1, PyArray2, PyArrayMethods};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList};
+use rayon::prelude::*;
+
+use crate::arrays;
+use crate::body::{AnyBody, BodyState, PyBody, value_error};
+
+/// What `locate` returns: the cells, and xi.
+type Located<'py> = (Bound<'py, PyArray1<i64>>, Bound<'py, PyArray2<f64>>);
+
+/// Points per piece when answers are turned into arrays in parallel.
+const PIECE: usize = 4096;
+
+/// The search strategies, named as the command line's `--strategy`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Strategy {
+    Lattice,
+    Centroid,
+    Noderad,
+    NoderadSeed,
+    Rtree,
+    Brute,
+}
+
+impl Strategy {
+    const NAMES: [(&'static str, Self); 6] = [
+        ("lattice", Self::Lattice),
+        ("centroid", Self::Centroid),
+        ("noderad", Self::Noderad),
+        ("noderad-seed", Self::NoderadSeed),
+        ("rtree", Self::Rtree),
+        ("brute", Self::Brute),
+    ];
+
+    fn parse(name: &str) -> PyResult<Self> {
+        let wanted = name.replace('_', "-");
+        Self::NAMES
+            .iter()
+            .find(|(n, _)| *n == wanted)
+            .map(|&(_, s)| s)
+            .ok_or_else(|| {
+                let names: Vec<&str> = Self::NAMES.iter().map(|(n, _)| *n).collect();
+                PyValueError::new_err(format!(
+                    "strategy {name:?}: must be one of {}",
+                    names.join(", ")
+                ))
+            })
+    }
+
+    fn name(self) -> &'static str {
+        Self::NAMES
+            .iter()
+            .find(|(_, s)| *s == self)
+            .map_or("?", |(n, _)| n)
+    }
+
+    /// The strategy over `body`, built as the command line builds it.
+    fn build<'a>(
+        self,
+        body: BodyRef<'a>,
+        settings: Settings,
+    ) -> Result<Box<dyn Locator + 'a>, cgcontact::Error> {
+        let node_radius = |inversion| {
+            NodeRadius::with_options(
+                body,
+                settings,
+                NodeRadiusOptions {
+                    inversion,
+                    ..Default::default()
+                },
+            )
+        };
+        Ok(match self {
+            Self::Lattice => match body {
+                BodyRef::Uniform(body) => Box::new(LatticeLocator::new(body, settings)?),
+                BodyRef::Adaptive(body) => Box::new(AdaptiveLocator::new(body, settings)?),
+            },
+            Self::Brute => Box::new(BruteForce::new(body, settings)?),
+            Self::Centroid => Box::new(CentroidRadius::new(body, settings)?),
+            Self::Noderad => Box::new(node_radius(Inversion::Exact)?),
+            Self::NoderadSeed => Box::new(node_radius(Inversion::SeedFaithful)?),
+            Self::Rtree => Box::new(RTree::new(body, settings)?),
+        })
+    }
+}
+
+/// The error for the first point a query refused (a NaN or infinite coordinate).
+fn refused(points: &[DVec3], row: usize) -> PyErr {
+    PyValueError::new_err(format!(
+        "points row {row} (0-based) is not finite: {}",
+        points[row]
+    ))
+}
+
+/// Finds the cell of a body holding each point, and its local coordinates.
+///
+/// The locator shares its body: each query searches the body's current displacements (the
+/// strategy's setup, a pass over the nodes for the lattice strategy, runs again at each query).
+/// Queries release the GIL and run on `threads` worker threads (None: every core).
+#[pyclass(name = "Locator", module = "cgcontact", frozen)]
+pub struct PyLocator {
+    body: Arc<RwLock<BodyState>>,
+    strategy: Strategy,
+    settings: Settings,
+    pool: Option<rayon::ThreadPool>,
+}
+
+impl PyLocator {
+    /// Runs `f` with the strategy over the body's current state, on this locator's threads (the
+    /// body stays read-locked meanwhile, so that an update waits for it).
+    fn with<R: Send>(&self, f: impl FnOnce(&dyn Locator, &BodyState) -> R + Send) -> PyResult<R> {
+        let run = || {
+            let state = PyBody::read(&self.body);
+            let locator = self
+                .strategy
+                .build(state.body.as_ref(), self.settings)
+                .map_err(value_error)?;
+            Ok(f(&*locator, &state))
+        };
+        match &self.pool {
+            Some(pool) => pool.install(run),
+            None => run(),
+        }
+    }
+
+    /// Runs `f` on this locator's threads.
+    fn on_threads<R: Send>(&self, f: impl FnOnce() -> R + Send) -> R {
+        match &self.pool {
+            Some(pool) => pool.install(f),
+            None => f(),
+        }
+    }
+}
+
+#[pymethods]
+impl PyLocator {
+    /// A locator over `body`. `strategy` is one of "lattice" (this library's), "centroid",
+    /// "noderad", "noderad-seed", "rtree" or "brute" (the command line's baselines);
+    /// `precision` "f64" or "f32"; `tol` the Newton step tolerance in xi units (default 1e-10 in
+    /// f64, 1e-5 in f32); `max_iter` the Newton iteration limit per candidate cell; `threads`
+    /// the worker threads of a pool of its own (None: every core, rayon's global pool).
+    #[new]
+    #[pyo3(signature = (body, strategy = "lattice", precision = "f64", tol = None, max_iter = None, threads = None))]
+    fn new(
+        body: &PyBody,
+        strategy: &str,
+        precision: &str,
+        tol: Option<f64>,
+        max_iter: Option<u32>,
+        threads: Option<usize>,
+    ) -> PyResult<Self> {
+        let strategy = Strategy::parse(strategy)?;
+        let mut settings = match precision {
+            "f64" => Settings::default(),
+            "f32" => Settings::f32(),
+            _ => {
+                return Err(PyValueError::new_err(format!(
+                    "precision {precision:?}: must be \"f64\" or \"f32\""
+                )));
+            }
+        };
+        if let Some(tol) = tol {
+            settings.newton_tol = tol;
+        }
+        if let Some(max_iter) = max_iter {
+            settings.max_iter = max_iter;
+        }
+        settings.validate().map_err(value_error)?;
+        let pool = match threads {
+            None => None,
+            Some(0) => return Err(PyValueError::new_err("threads must be at least 1")),
+            Some(n) => Some(
+                rayon::ThreadPoolBuilder::new()
+                    .num_threads(n.min(1024))
+                    .build()
+                    .map_err(|e| PyValueError::new_err(format!("{n} threads: {e}")))?,
+            ),
+        };
+        Ok(Self {
+            body: Arc::clone(&body.state),
+            strategy,
+            settings,
+            pool,
+        })
+    }
+
+    /// The strategy's name.
+    #[getter]
+    fn strategy(&self) -> &'static str {
+        self.strategy.name()
+    }
+
+    /// Locates every point of `points` (n, 3). Returns `(cell, xi)`: int64[n], the cell holding
+    /// each point (-1 where none does), and float64[n, 3], its local coordinates in [-1, 1]^3
+    /// (NaN where not found). Cells are numbered as the body's input: rows of `hexes`, cells of
+    /// the VTK file, or lattice cells. A C-contiguous float64 array is read in place.
+    fn locate<'py>(&self, py: Python<'py>, points: &Bound<'py, PyAny>) -> PyResult<Located<'py>> {
+        let (rows, _) = arrays::rows(points, "points", false)?;
+        let vectors = rows.vectors()?;
+        let points: &[DVec3] = &vectors;
+        let n = points.len();
+        let (cells, xi) = py.detach(|| {
+            self.with(|locator, state| {
+                let mut answers = Vec::new();
+                locator.locate_all_into(points, &mut answers);
+                if let Some(row) = answers.iter().position(Result::is_err) {
+                    return Err(refused(points, row));
+                }
+                Ok(to_arrays(&answers, state))
+            })
+        })??;
+        let xi = xi.into_pyarray(py).reshape([n, 3])?;
+        Ok((cells.into_pyarray(py), xi))
+    }
+
+    /// Every cell holding the point `x` (3 floats): a list of `(cell, xi)`, cells ascending, xi a
+    /// tuple of 3 floats; empty when no cell holds it. A point on a shared face has 2 owners, on
+    /// an edge 4, at a node 8. With `x` of shape (n, 3), one such list per point.
+    fn locate_owners<'py>(
+        &self,
+        py: Python<'py>,
+        x: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyList>> {
+        let (rows, single) = arrays::rows(x, "x", true)?;
+        let vectors = rows.vectors()?;
+        let points: &[DVec3] = &vectors;
+        let owners = py
+            .detach(|| {
+                self.with(|locator, state| {
+                    points
+                        .par_iter()
+                        .enumerate()
+                        .map(|(row, &x)| {
+                            let owners = locator.locate_owners(x).map_err(|_| row)?;
+                            Ok(owners
+                                .iter()
+                                .map(|hit| (state.cell_number(hit.cell), hit.xi.to_array().into()))
+                                .collect::<Vec<(i64, (f64, f64, f64))>>())
+                        })
+                        .collect::<Result<Vec<_>, usize>>()
+                })
+            })?
+            .map_err(|row| refused(points, row))?;
+        if single {
+            let one = owners.into_iter().next().unwrap_or_default();
+            return PyList::new(py, one);
+        }
+        let lists = owners
+            .into_iter()
+            .map(|o| PyList::new(py, o))
+            .collect::<PyResult<Vec<_>>>()?;
+        PyList::new(py, lists)
+    }
+
+    /// Signed gaps of `points` (n, 3) to the body's deformed boundary surface, searched within
+    /// `dist` (finite, at least 0). Returns a dict of arrays: "gap" float64[n] (negative inside
+    /// the body), "closest" float64[n, 3] (the closest surface point), "normal" float64[n, 3] (the
+    /// unit outward normal there: point = closest + gap * normal), "face_cell" int64[n] (the cell
+    /// of the face, numbered as `locate` numbers cells) and "face" int32[n] (its VTK local face
+    /// 0-5); NaN and -1 where the surface is farther than `dist`. Measured in f64 with the
+    /// library's default Newton settings whatever the locator's (as `cgcontact locate --gap`).
+    fn gap<'py>(
+        &self,
+        py: Python<'py>,
+        points: &Bound<'py, PyAny>,
+        dist: f64,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        if !(dist.is_finite() && dist >= 0.0) {
+            return Err(PyValueError::new_err(format!(
+                "dist {dist}: the search distance must be a finite number at least 0"
+            )));
+        }
+        let (rows, _) = arrays::rows(points, "points", false)?;
+        let vectors = rows.vectors()?;
+        let points: &[DVec3] = &vectors;
+        let n = points.len();
+        let out = py.detach(|| {
+            self.on_threads(|| -> PyResult<GapArrays> {
+                let state = PyBody::read(&self.body);
+                let settings = Settings::default();
+                let mut gaps = Vec::new();
+                match &state.body {
+                    AnyBody::Uniform(body) => {
+                        let locator = LatticeLocator::new(body, settings).map_err(value_error)?;
+                        GapFinder::new(&locator, dist)
+                            .map_err(value_error)?
+                            .gap_all_into(points, &mut gaps);
+                    }
+                    AnyBody::Adaptive(body) => {
+                        let locator = AdaptiveLocator::new(body, settings).map_err(value_error)?;
+                        GapFinder::new(&locator, dist)
+                            .map_err(value_error)?
+                            .gap_all_into(points, &mut gaps);
+                    }
+                }
+                if let Some(row) = gaps.iter().position(Result::is_err) {
+                    return Err(refused(points, row));
+                }
+                Ok(GapArrays::of(&gaps, &state))
+            })
+        })?;
+        let dict = PyDict::new(py);
+        dict.set_item("gap", out.gap.into_pyarray(py))?;
+        dict.set_item("closest", out.closest.into_pyarray(py).reshape([n, 3])?)?;
+        dict.set_item("normal", out.normal.into_pyarray(py).reshape([n, 3])?)?;
+        dict.set_item("face_cell", out.face_cell.into_pyarray(py))?;
+        dict.set_item("face", out.face.into_pyarray(py))?;
+        Ok(dict)
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "<cgcontact.Locator {} ({:?})>",
+            self.strategy.name(),
+            self.settings.precision
+        )
+    }
+}
+
+/// Answers as arrays: cells in the caller's numbering (-1 where none) and xi (NaN where none).
+fn to_arrays(answers: &[Answer], state: &BodyState) -> (Vec<i64>, Vec<f64>) {
+    let mut cells = vec![0i64; answers.len()];
+    let mut xi = vec![0.0f64; 3 * answers.len()];
+    cells
+        .par_chunks_mut(PIECE)
+        .zip(xi.par_chunks_mut(3 * PIECE))
+        .zip(answers.par_chunks(PIECE))
+        .for_each(|((cells, xi), answers)| {
+            for ((cell, xi), answer) in cells.iter_mut().zip(xi.chunks_exact_mut(3)).zip(answers) {
+                let (c, x) = match answer {
+                    Ok(Some(hit)) => (state.cell_number(hit.cell), hit.xi),
+                    _ => (-1, DVec3::NAN),
+                };
+                *cell = c;
+                x.write_to_slice(xi);
+            }
+        });
+    (cells, xi)
+}
+
+/// Gap answers as flat arrays.
+struct GapArrays {
+    gap: Vec<f64>,
+    closest: Vec<f64>,
+    normal: Vec<f64>,
+    face_cell: Vec<i64>,
+    face: Vec<i32>,
+}
+
+impl GapArrays {
+    fn of(gaps: &[GapAnswer], state: &BodyState) -> Self {
+        let n = gaps.len();
+        let mut out = Self {
+            gap: Vec::with_capacity(n),
+            closest: Vec::with_capacity(3 * n),
+            normal: Vec::with_capacity(3 * n),
+            face_cell: Vec::with_capacity(n),
+            face: Vec::with_capacity(n),
+        };
+        for answer in gaps {
+            let (gap, closest, normal, cell, face) = match answer {
+                Ok(Some(contact)) => (
+                    contact.gap,
+                    contact.point,
+                    contact.normal,
+                    state.cell_number(contact.face.cell),
+                    i32::from(contact.face.local),
+                ),
+                Ok(None) | Err(_) => (f64::NAN, DVec3::NAN, DVec3::NAN, -1, -1),
+            };
+            out.gap.push(gap);
+            out.closest.extend_from_slice(&closest.to_array());
+            out.normal.extend_from_slice(&normal.to_array());
+            out.face_cell.push(cell);
+            out.face.push(face);
+        }
+        out
+    }
+}

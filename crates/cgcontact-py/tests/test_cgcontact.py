@@ -1,0 +1,333 @@
+"""The Python bindings against the command line on generated scenes, and on small bodies whose
+answers are known.
+
+The command line binary is $CGCONTACT_BIN; without it, the workspace's release binary is built
+with cargo. Run with `pytest crates/cgcontact-py/tests` once the module is installed.
+"""
+
+import json
+import os
+import pathlib
+import subprocess
+import threading
+
+import numpy as np
+import pytest
+
+import cgcontact
+
+ROOT = pathlib.Path(__file__).resolve().parents[3]
+STRATEGIES = ["lattice", "centroid", "noderad", "noderad-seed", "rtree", "brute"]
+# Every STRIDE-th point for the strategy comparison: brute force tries every cell.
+STRIDE = 40
+GAP_DISTANCE = 0.3
+
+
+@pytest.fixture(scope="session")
+def cli():
+    """The command line binary."""
+    given = os.environ.get("CGCONTACT_BIN")
+    if given:
+        return given
+    subprocess.run(
+        ["cargo", "build", "--release", "--locked", "-p", "cgcontact-cli"], cwd=ROOT, check=True
+    )
+    meta = json.loads(
+        subprocess.run(
+            ["cargo", "metadata", "--format-version", "1", "--no-deps"],
+            cwd=ROOT,
+            check=True,
+            capture_output=True,
+        ).stdout
+    )
+    return str(pathlib.Path(meta["target_directory"]) / "release" / "cgcontact")
+
+
+def run(cli, *args):
+    subprocess.run([cli, *map(str, args)], check=True, capture_output=True)
+
+
+def read_csv(path):
+    """A results CSV as a structured array; empty fields (gap columns) read as NaN."""
+    return np.genfromtxt(path, delimiter=",", names=True, dtype=float)
+
+
+@pytest.fixture(scope="session", params=["sphere-fine", "sphere-adaptive"])
+def scene(request, cli, tmp_path_factory):
+    """A generated scene: its folder, body and points."""
+    folder = tmp_path_factory.mktemp(request.param)
+    run(cli, "scene", request.param, "--out", folder)
+    points = np.loadtxt(folder / "points.csv", delimiter=",", skiprows=1)
+    body = cgcontact.read_mesh(str(folder / "mesh.vtu"))
+    return folder, body, points
+
+
+def test_the_scenes_are_what_they_say(scene):
+    folder, body, points = scene
+    assert body.is_adaptive == ("adaptive" in folder.name)
+    assert points.shape[1] == 3 and len(points) > 10_000
+
+
+def test_locate_matches_the_command_line(scene, cli):
+    folder, body, points = scene
+    run(cli, "locate", "--mesh", folder / "mesh.vtu", "--points", folder / "points.csv",
+        "--out", folder / "results.csv", "-q")
+    expected = read_csv(folder / "results.csv")
+    cell, xi = cgcontact.Locator(body).locate(points)
+    assert cell.dtype == np.int64 and xi.dtype == np.float64 and xi.shape == (len(points), 3)
+    np.testing.assert_array_equal(cell, expected["cell"].astype(np.int64))
+    want = np.column_stack([expected["xi"], expected["eta"], expected["zeta"]])
+    np.testing.assert_array_equal(np.isnan(xi), np.isnan(want))
+    np.testing.assert_allclose(xi, want, rtol=0, atol=1e-12, equal_nan=True)
+    assert (cell >= 0).sum() > len(points) // 2
+
+
+def test_located_points_match_the_known_answers(scene):
+    folder, body, points = scene
+    known = read_csv(folder / "known.csv")
+    rows = known["point"].astype(int)
+    cell, xi = cgcontact.Locator(body).locate(points[rows])
+    np.testing.assert_array_equal(cell, known["cell"].astype(np.int64))
+    want = np.column_stack([known["xi"], known["eta"], known["zeta"]])
+    np.testing.assert_allclose(xi, want, rtol=0, atol=1e-8)
+
+
+@pytest.mark.parametrize("strategy", STRATEGIES)
+def test_every_strategy_matches_the_command_line(scene, cli, strategy):
+    folder, body, points = scene
+    subset = folder / "subset.csv"
+    if not subset.exists():
+        np.savetxt(subset, points[::STRIDE], delimiter=",", header="x,y,z", comments="",
+                   fmt="%.17g")
+    out = folder / f"results-{strategy}.csv"
+    run(cli, "locate", "--mesh", folder / "mesh.vtu", "--points", subset, "--out", out,
+        "--strategy", strategy, "-q")
+    expected = read_csv(out)
+    locator = cgcontact.Locator(body, strategy=strategy)
+    assert locator.strategy == strategy
+    cell, xi = locator.locate(np.loadtxt(subset, delimiter=",", skiprows=1))
+    np.testing.assert_array_equal(cell, expected["cell"].astype(np.int64))
+    want = np.column_stack([expected["xi"], expected["eta"], expected["zeta"]])
+    np.testing.assert_allclose(xi, want, rtol=0, atol=1e-12, equal_nan=True)
+
+
+def test_gap_matches_the_command_line(scene, cli):
+    folder, body, points = scene
+    out = folder / "gap.csv"
+    run(cli, "locate", "--mesh", folder / "mesh.vtu", "--points", folder / "points.csv",
+        "--out", out, "--gap", GAP_DISTANCE, "-q")
+    expected = read_csv(out)
+    got = cgcontact.Locator(body).gap(points, GAP_DISTANCE)
+    assert got["face_cell"].dtype == np.int64 and got["face"].dtype == np.int32
+    np.testing.assert_allclose(got["gap"], expected["gap"], rtol=0, atol=1e-12, equal_nan=True)
+    for name, columns in [("closest", ["cx", "cy", "cz"]), ("normal", ["nx", "ny", "nz"])]:
+        want = np.column_stack([expected[c] for c in columns])
+        np.testing.assert_allclose(got[name], want, rtol=0, atol=1e-12, equal_nan=True)
+    for name in ["face_cell", "face"]:
+        want = np.nan_to_num(expected[name], nan=-1).astype(np.int64)
+        np.testing.assert_array_equal(got[name], want)
+    within = ~np.isnan(got["gap"])
+    assert within.any() and (~within).any() and (got["gap"][within] < 0).any()
+
+
+def test_owners_match_the_command_line(scene, cli):
+    folder, body, points = scene
+    out = folder / "owners.csv"
+    run(cli, "locate", "--mesh", folder / "mesh.vtu", "--points", folder / "points.csv",
+        "--out", out, "--all-owners", "-q")
+    expected = read_csv(out)
+    lists = cgcontact.Locator(body).locate_owners(points)
+    assert len(lists) == len(points)
+    rows = [(p, c, x) for p, owners in enumerate(lists) for c, x in owners]
+    # The command line keeps one row with cell -1 for a point without owners.
+    rows += [(p, -1, (np.nan,) * 3) for p, owners in enumerate(lists) if not owners]
+    rows.sort(key=lambda r: (r[0], r[1]))
+    np.testing.assert_array_equal([r[0] for r in rows], expected["point"].astype(int))
+    np.testing.assert_array_equal([r[1] for r in rows], expected["cell"].astype(int))
+    want = np.column_stack([expected["xi"], expected["eta"], expected["zeta"]])
+    np.testing.assert_allclose([r[2] for r in rows], want, rtol=0, atol=1e-12, equal_nan=True)
+
+
+def test_read_mesh_without_its_displacement_is_undeformed(scene):
+    folder, body, points = scene
+    undeformed = cgcontact.read_mesh(str(folder / "mesh.vtu"), displacement=None)
+    a, _ = cgcontact.Locator(body).locate(points)
+    b, _ = cgcontact.Locator(undeformed).locate(points)
+    assert (a != b).any()
+    with pytest.raises(ValueError, match="no_such_array"):
+        cgcontact.read_mesh(str(folder / "mesh.vtu"), displacement="no_such_array")
+
+
+# Small bodies whose answers are known.
+
+ORIGIN, SPACING, COUNTS = (1.0, -2.0, 0.5), (0.5, 0.25, 1.0), (3, 2, 2)
+
+
+def lattice_hexes():
+    """The nodes and VTK hexahedra of the lattice ORIGIN, SPACING, COUNTS (cells x fastest)."""
+    nx, ny, nz = COUNTS
+    k, j, i = np.meshgrid(np.arange(nz + 1), np.arange(ny + 1), np.arange(nx + 1), indexing="ij")
+    nodes = np.column_stack([i.ravel(), j.ravel(), k.ravel()]) * SPACING + ORIGIN
+    node = lambda i, j, k: i + (nx + 1) * (j + (ny + 1) * k)
+    hexes = []
+    for k in range(nz):
+        for j in range(ny):
+            for i in range(nx):
+                hexes.append([node(i, j, k), node(i + 1, j, k), node(i + 1, j + 1, k),
+                              node(i, j + 1, k), node(i, j, k + 1), node(i + 1, j, k + 1),
+                              node(i + 1, j + 1, k + 1), node(i, j + 1, k + 1)])
+    return nodes, np.array(hexes)
+
+
+def cell_points():
+    """A point in each lattice cell at a known xi, and the cells and xi."""
+    nx, ny, nz = COUNTS
+    xi = np.array([0.25, -0.5, 0.75])
+    cells, points = [], []
+    for k in range(nz):
+        for j in range(ny):
+            for i in range(nx):
+                cells.append(i + nx * (j + ny * k))
+                points.append(ORIGIN + (np.array([i, j, k]) + (xi + 1) / 2) * SPACING)
+    return np.array(points), np.array(cells), xi
+
+
+def test_a_lattice_body_and_the_same_hexes_answer_alike():
+    points, cells, xi = cell_points()
+    nodes, hexes = lattice_hexes()
+    for body in [cgcontact.Body(ORIGIN, SPACING, COUNTS), cgcontact.Body.from_hexes(nodes, hexes)]:
+        cell, got = cgcontact.Locator(body).locate(points)
+        np.testing.assert_array_equal(cell, cells)
+        np.testing.assert_allclose(got, np.tile(xi, (len(cells), 1)), atol=1e-12)
+        assert body.node_count == len(nodes) and body.cell_count == len(hexes)
+
+
+def test_displacements_move_the_cells():
+    points, cells, xi = cell_points()
+    nodes, hexes = lattice_hexes()
+    shift = np.array([0.01, -0.02, 0.03])
+    for body in [cgcontact.Body(ORIGIN, SPACING, COUNTS), cgcontact.Body.from_hexes(nodes, hexes)]:
+        locator = cgcontact.Locator(body)
+        body.set_displacements(np.tile(shift, (body.node_count, 1)))
+        cell, got = locator.locate(points + shift)
+        np.testing.assert_array_equal(cell, cells)
+        np.testing.assert_allclose(got, np.tile(xi, (len(cells), 1)), atol=1e-9)
+
+
+def test_inactive_cells_hold_nothing():
+    points, cells, _ = cell_points()
+    active = np.ones(len(cells), dtype=bool)
+    active[[0, 5]] = False
+    cell, xi = cgcontact.Locator(cgcontact.Body(ORIGIN, SPACING, COUNTS, active)).locate(points)
+    np.testing.assert_array_equal(cell, np.where(active, cells, -1))
+    assert np.isnan(xi[~active]).all()
+
+
+def test_a_point_on_a_node_has_eight_owners():
+    body = cgcontact.Body(ORIGIN, SPACING, COUNTS)
+    node = np.array(ORIGIN) + np.array(SPACING) * (1, 1, 1)
+    owners = cgcontact.Locator(body).locate_owners(node)
+    assert sorted(c for c, _ in owners) == [0, 1, 3, 4, 6, 7, 9, 10]
+    assert all(np.allclose(np.abs(x), 1) for _, x in owners)
+    assert cgcontact.Locator(body).locate_owners(node - 100) == []
+
+
+def test_precision_threads_and_inputs_converted_answer_alike():
+    points, cells, xi = cell_points()
+    body = cgcontact.Body(ORIGIN, SPACING, COUNTS)
+    for locator in [cgcontact.Locator(body, precision="f32"), cgcontact.Locator(body, threads=1),
+                    cgcontact.Locator(body, tol=1e-12, max_iter=30)]:
+        for given in [points, points.tolist(), np.asfortranarray(points),
+                      points.astype(np.float32), points[:, [0, 1, 2]]]:
+            cell, got = locator.locate(given)
+            np.testing.assert_array_equal(cell, cells)
+            np.testing.assert_allclose(got, np.tile(xi, (len(cells), 1)), atol=1e-4)
+    cell, got = cgcontact.Locator(body).locate(np.empty((0, 3)))
+    assert cell.shape == (0,) and got.shape == (0, 3)
+
+
+def test_gap_on_a_block_is_the_distance_to_its_faces():
+    body = cgcontact.Body((0, 0, 0), (1, 1, 1), (2, 2, 2))
+    points = np.array([[1.0, 1.0, 2.5], [0.5, 1.0, 1.0], [5.0, 5.0, 5.0]])
+    got = cgcontact.Locator(body).gap(points, 1.0)
+    np.testing.assert_allclose(got["gap"][:2], [0.5, -0.5], atol=1e-12)
+    np.testing.assert_allclose(got["closest"][0], [1, 1, 2], atol=1e-12)
+    np.testing.assert_allclose(got["normal"][0], [0, 0, 1], atol=1e-12)
+    np.testing.assert_allclose(got["normal"][1], [-1, 0, 0], atol=1e-12)
+    assert np.isnan(got["gap"][2]) and got["face_cell"][2] == -1 and got["face"][2] == -1
+    assert got["face"][1] == 0
+
+
+def test_a_c_contiguous_float64_array_is_read_in_place():
+    """The documented probe: `_data_address` returns the address the bindings read from."""
+    points, _, _ = cell_points()
+    assert points.flags.c_contiguous and points.dtype == np.float64
+    assert cgcontact._data_address(points) == points.__array_interface__["data"][0]
+    # A view starting at a later row is read in place too.
+    assert cgcontact._data_address(points[2:]) == points[2:].__array_interface__["data"][0]
+    # Anything else is converted: Fortran order, float32, a list.
+    for other in [np.asfortranarray(points), points.astype(np.float32)]:
+        assert cgcontact._data_address(other) != other.__array_interface__["data"][0]
+    cgcontact._data_address(points.tolist())
+
+
+def test_queries_release_the_gil():
+    """Queries in several Python threads at once answer as one thread does."""
+    points, cells, _ = cell_points()
+    points = np.repeat(points, 2000, axis=0)
+    locator = cgcontact.Locator(cgcontact.Body(ORIGIN, SPACING, COUNTS), threads=1)
+    results = [None] * 4
+
+    def work(k):
+        results[k] = locator.locate(points)[0]
+
+    threads = [threading.Thread(target=work, args=(k,)) for k in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    for cell in results:
+        np.testing.assert_array_equal(cell, np.repeat(cells, 2000))
+
+
+# Bad input: ValueError naming what is wrong, never a panic.
+
+
+@pytest.mark.parametrize(
+    "call, message",
+    [
+        (lambda l, b: l.locate(np.zeros((4, 2))), r"shape \(n, 3\)"),
+        (lambda l, b: l.locate(np.zeros(3)), r"shape \(n, 3\)"),
+        (lambda l, b: l.locate([[0, 0, 0], [0, np.nan, 0]]), "row 1"),
+        (lambda l, b: l.locate_owners([0, np.inf, 0]), "row 0"),
+        (lambda l, b: l.gap([[0, 0, 0], [1, 1, 1], [np.nan, 0, 0]], 1.0), "row 2"),
+        (lambda l, b: l.gap(np.zeros((1, 3)), -1.0), "distance"),
+        (lambda l, b: l.gap(np.zeros((1, 3)), np.inf), "distance"),
+        (lambda l, b: l.locate([["a", "b", "c"]]), None),
+        (lambda l, b: b.set_displacements(np.zeros((5, 3))), "got 5 rows"),
+        (lambda l, b: b.set_displacements(np.where(np.arange(36 * 3).reshape(36, 3) == 31, np.nan, 0)),
+         "row 10"),
+        (lambda l, b: cgcontact.Locator(b, strategy="kdtree"), "kdtree"),
+        (lambda l, b: cgcontact.Locator(b, precision="f16"), "f16"),
+        (lambda l, b: cgcontact.Locator(b, tol=-1.0), None),
+        (lambda l, b: cgcontact.Locator(b, max_iter=0), None),
+        (lambda l, b: cgcontact.Locator(b, threads=0), "threads"),
+        (lambda l, b: cgcontact.Body((0, 0, 0), (0, 1, 1), (1, 1, 1)), None),
+        (lambda l, b: cgcontact.Body((0, 0, 0), (1, 1, 1), (2, 2, 2), active=[True] * 7), "8 cells"),
+        (lambda l, b: cgcontact.Body((np.nan, 0, 0), (1, 1, 1), (1, 1, 1)), "not finite"),
+        (lambda l, b: cgcontact.Body.from_hexes(lattice_hexes()[0], lattice_hexes()[1] + 100),
+         "hexes row 0 corner 0"),
+        (lambda l, b: cgcontact.Body.from_hexes(lattice_hexes()[0], lattice_hexes()[1][:, :4]),
+         r"shape \(n, 8\)"),
+        (lambda l, b: cgcontact.Body.from_hexes(np.where(np.arange(36 * 3).reshape(36, 3) == 7,
+                                                         np.nan, lattice_hexes()[0]),
+                                                lattice_hexes()[1]), "nodes row 2"),
+        (lambda l, b: cgcontact.Body.from_hexes(np.zeros((8, 3)), np.zeros((0, 8))), "no cell"),
+        (lambda l, b: cgcontact.Body.from_hexes(lattice_hexes()[0] * [1, 1, 0], lattice_hexes()[1]), None),
+        (lambda l, b: cgcontact.read_mesh("/no/such/mesh.vtu"), "mesh.vtu"),
+    ],
+)
+def test_bad_input_raises_value_error(call, message):
+    body = cgcontact.Body(ORIGIN, SPACING, COUNTS)
+    with pytest.raises(ValueError, match=message):
+        call(cgcontact.Locator(body), body)
