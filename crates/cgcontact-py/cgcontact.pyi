@@ -71,11 +71,15 @@ class Locator:
     @property
     def strategy(self) -> Strategy: ...
     def locate(
-        self, points: npt.ArrayLike
+        self,
+        points: npt.ArrayLike,
+        out: Optional[Tuple[npt.NDArray[np.int64], npt.NDArray[np.float64]]] = None,
     ) -> Tuple[npt.NDArray[np.int64], npt.NDArray[np.float64]]:
         """(cell int64[n], xi float64[n, 3]) for points (n, 3): -1 and NaN where no cell holds
         the point. Cells are numbered as the body's input (rows of `hexes`, cells of the file,
-        or lattice cells). A NaN or infinite point raises ValueError naming its row."""
+        or lattice cells). A NaN or infinite point raises ValueError naming its row. With
+        `out=(cell, xi)` (C-contiguous int64[n] and float64[n, 3]) the answers are written
+        there and `out` is returned."""
     @overload
     def locate_owners(self, x: Sequence[float]) -> List[Tuple[int, Xi]]: ...
     @overload

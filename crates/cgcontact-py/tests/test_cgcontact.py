@@ -246,6 +246,20 @@ def test_precision_threads_and_inputs_converted_answer_alike():
     assert cell.shape == (0,) and got.shape == (0, 3)
 
 
+def test_locate_writes_into_out_arrays():
+    points, cells, xi = cell_points()
+    locator = cgcontact.Locator(cgcontact.Body(ORIGIN, SPACING, COUNTS))
+    out = (np.full(len(points), 7, dtype=np.int64), np.zeros((len(points), 3)))
+    cell, got = locator.locate(points, out=out)
+    assert cell is out[0] and got is out[1]
+    np.testing.assert_array_equal(out[0], cells)
+    np.testing.assert_allclose(out[1], np.tile(xi, (len(cells), 1)), atol=1e-12)
+    with pytest.raises(ValueError, match="out must be"):
+        locator.locate(points, out=(out[0][:-1], out[1][:-1]))
+    with pytest.raises(ValueError, match="out must be"):
+        locator.locate(points, out=(out[0], np.asfortranarray(out[1])))
+
+
 def test_gap_on_a_block_is_the_distance_to_its_faces():
     body = cgcontact.Body((0, 0, 0), (1, 1, 1), (2, 2, 2))
     points = np.array([[1.0, 1.0, 2.5], [0.5, 1.0, 1.0], [5.0, 5.0, 5.0]])
