@@ -1,15 +1,14 @@
 //! `cgcontact demo`: the seed's sphere-on-block case, built in.
 
 use std::path::PathBuf;
-use std::time::Instant;
 
 use anyhow::Result;
-use cgcontact::{AdaptiveLocator, GapAnswer, GapFinder, LatticeLocator, Settings};
+use cgcontact::GapAnswer;
 use cgcontact_io::{CellMap, write_deformed_adaptive_vtu, write_deformed_vtu, write_points_vtu};
 use cgcontact_scenes::{SphereOnAdaptiveBlock, SphereOnBlock};
 use clap::Args;
 
-use crate::locate::gap_summary;
+use crate::locate::measure_gaps;
 use crate::output::{prepare_folder, say, write_owner_rows};
 use crate::picture::{adaptive_patch_svg, contact_patch_svg};
 use crate::run::{SearchArgs, Searched, search};
@@ -78,15 +77,10 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         // A leaf's id is its index in the mesh written.
         let cells = CellMap::identity(scene.body.cell_count());
         let distance = scene.body.lattice().h().min_element();
-        let start = Instant::now();
-        let locator = AdaptiveLocator::new(&scene.body, Settings::default())?;
-        let mut gaps = Vec::new();
-        pool.install(|| {
-            GapFinder::new(&locator, distance)
-                .map(|f| f.gap_all_into(&scene.contact_points, &mut gaps))
-        })?;
+        let (gaps, gap) =
+            measure_gaps((&scene.body).into(), &scene.contact_points, distance, &pool);
         let mut summary = summary;
-        summary.gap = Some(gap_summary(&gaps, distance, start.elapsed().as_secs_f64()));
+        summary.gap = Some(gap);
         write_rows(&results, &answers, &tried, &cells, &gaps)?;
         write_deformed_adaptive_vtu(&block, &scene.body, &answers)?;
         write_points_vtu(&points, &scene.contact_points, &answers, &cells)?;
@@ -106,15 +100,10 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         )?;
         let cells = CellMap::ascending(&scene.body);
         let distance = scene.body.lattice().h().min_element();
-        let start = Instant::now();
-        let locator = LatticeLocator::new(&scene.body, Settings::default())?;
-        let mut gaps = Vec::new();
-        pool.install(|| {
-            GapFinder::new(&locator, distance)
-                .map(|f| f.gap_all_into(&scene.contact_points, &mut gaps))
-        })?;
+        let (gaps, gap) =
+            measure_gaps((&scene.body).into(), &scene.contact_points, distance, &pool);
         let mut summary = summary;
-        summary.gap = Some(gap_summary(&gaps, distance, start.elapsed().as_secs_f64()));
+        summary.gap = Some(gap);
         write_rows(&results, &answers, &tried, &cells, &gaps)?;
         write_deformed_vtu(&block, &scene.body, &cells, &answers, false)?;
         write_points_vtu(&points, &scene.contact_points, &answers, &cells)?;

@@ -169,24 +169,8 @@ pub fn run(args: &LocateArgs) -> Result<()> {
             .unwrap_or(*cell);
     }
     let gaps = args.gap.map(|d| {
-        let start = Instant::now();
-        let settings = Settings::default();
-        let mut gaps = Vec::new();
-        pool.install(|| match &mesh {
-            MeshBody::Uniform(m) => {
-                let locator = LatticeLocator::new(&m.body, settings).expect("default settings");
-                GapFinder::new(&locator, d)
-                    .expect("a checked distance")
-                    .gap_all_into(&points, &mut gaps);
-            }
-            MeshBody::Adaptive(m) => {
-                let locator = AdaptiveLocator::new(&m.body, settings).expect("default settings");
-                GapFinder::new(&locator, d)
-                    .expect("a checked distance")
-                    .gap_all_into(&points, &mut gaps);
-            }
-        });
-        summary.gap = Some(gap_summary(&gaps, d, start.elapsed().as_secs_f64()));
+        let (gaps, gap) = measure_gaps(body, &points, d, &pool);
+        summary.gap = Some(gap);
         gaps
     });
     if let Some(out) = &args.out {
@@ -224,8 +208,38 @@ pub fn run(args: &LocateArgs) -> Result<()> {
     summary.print(&args.search)
 }
 
+/// The contact quantities of `points` towards `body`'s boundary surface within `distance` (finite,
+/// at least 0: checked by the caller), measured in f64 with the exact `GapFinder` on `pool`, and
+/// their summary.
+pub fn measure_gaps(
+    body: BodyRef<'_>,
+    points: &[cgcontact::glam::DVec3],
+    distance: f64,
+    pool: &rayon::ThreadPool,
+) -> (Vec<GapAnswer>, GapSummary) {
+    let start = Instant::now();
+    let settings = Settings::default();
+    let mut gaps = Vec::new();
+    pool.install(|| match body {
+        BodyRef::Uniform(body) => {
+            let locator = LatticeLocator::new(body, settings).expect("default settings");
+            GapFinder::new(&locator, distance)
+                .expect("a checked distance")
+                .gap_all_into(points, &mut gaps);
+        }
+        BodyRef::Adaptive(body) => {
+            let locator = AdaptiveLocator::new(body, settings).expect("default settings");
+            GapFinder::new(&locator, distance)
+                .expect("a checked distance")
+                .gap_all_into(points, &mut gaps);
+        }
+    });
+    let summary = gap_summary(&gaps, distance, start.elapsed().as_secs_f64());
+    (gaps, summary)
+}
+
 /// The summary of the gaps of every point within `distance`, measured in `seconds`.
-pub fn gap_summary(gaps: &[GapAnswer], distance: f64, seconds: f64) -> GapSummary {
+fn gap_summary(gaps: &[GapAnswer], distance: f64, seconds: f64) -> GapSummary {
     let found = gaps.iter().filter_map(|g| g.ok().flatten());
     let (mut within, mut inside, mut penetration) = (0, 0, None::<f64>);
     for contact in found {

@@ -172,16 +172,7 @@ impl Forest {
 
     /// The leaf holding the finest-level cell `q` (indices at level `finest`), if any.
     pub(super) fn leaf_at_finest(&self, q: [u32; 3], finest: u8) -> Option<u32> {
-        let f = u32::from(finest);
-        let mut entry = self.base_entry(q.map(|v| v >> f));
-        let mut depth = 0;
-        while entry & NODE != 0 && entry != EMPTY {
-            depth += 1;
-            let shift = f - depth;
-            let child =
-                ((q[0] >> shift) & 1) | (((q[1] >> shift) & 1) << 1) | (((q[2] >> shift) & 1) << 2);
-            entry = self.tree[(entry & !NODE) as usize][child as usize];
-        }
+        let (entry, _) = self.probe(q, finest);
         (entry != EMPTY).then_some(entry)
     }
 
