@@ -35,30 +35,14 @@ pub fn write_owner_rows<'a>(
         }
         writeln!(out)?;
         // The gap columns of point p: empty where the surface is farther than D.
-        let gap_columns = |point: usize| -> String {
-            match gaps.and_then(|g| g.get(point)) {
-                None => String::new(),
-                Some(Ok(Some(c))) => {
-                    let face_cell = input_cell(c.face.cell).map_or(-1, |i| i as i64);
-                    format!(
-                        ",{},{},{},{},{},{},{},{face_cell},{}",
-                        c.gap,
-                        c.point.x,
-                        c.point.y,
-                        c.point.z,
-                        c.normal.x,
-                        c.normal.y,
-                        c.normal.z,
-                        c.face.local
-                    )
-                }
-                Some(_) => ",".repeat(GAP_HEADER.len()),
-            }
-        };
+        // The gap columns of each point, in one buffer rewritten for each.
+        let mut gap = String::new();
         // Reused for every point: at most a few owners each, sorted by their input cell.
         let mut rows: Vec<(i64, &Hit)> = Vec::new();
         for (point, hits) in owners.enumerate() {
-            let gap = gap_columns(point);
+            if let Some(gaps) = gaps {
+                gap_columns(&mut gap, gaps.get(point), &input_cell);
+            }
             if hits.is_empty() {
                 let inversions = tried.get(point).copied().unwrap_or(0);
                 writeln!(out, "{point},-1,NaN,NaN,NaN,0,NaN,{inversions}{gap}")?;
@@ -82,6 +66,39 @@ pub fn write_owner_rows<'a>(
         Ok(())
     })?;
     Ok(())
+}
+
+/// Writes into `buf` (cleared first) the gap columns of a point of answer `gap`, each preceded by
+/// its comma: empty where the surface is farther than the search distance or the point was
+/// refused; `face_cell` in the input numbering (`input_cell`).
+fn gap_columns(
+    buf: &mut String,
+    gap: Option<&GapAnswer>,
+    input_cell: &impl Fn(CellId) -> Option<usize>,
+) {
+    use std::fmt::Write as _;
+    buf.clear();
+    match gap {
+        Some(Ok(Some(c))) => {
+            let face_cell = input_cell(c.face.cell).map_or(-1, |i| i as i64);
+            write!(
+                buf,
+                ",{},{},{},{},{},{},{},{face_cell},{}",
+                c.gap,
+                c.point.x,
+                c.point.y,
+                c.point.z,
+                c.normal.x,
+                c.normal.y,
+                c.normal.z,
+                c.face.local
+            )
+            .expect("writing to a String cannot fail");
+        }
+        _ => {
+            buf.extend(std::iter::repeat_n(',', GAP_HEADER.len()));
+        }
+    }
 }
 
 /// The columns `locate --gap` appends to each results row.

@@ -307,55 +307,61 @@ pub(crate) fn closest_below(x: DVec3, q: &[DVec3; 4], bound: f64) -> Option<Quad
     (best.d2 <= bound).then_some(best)
 }
 
+/// The closest point to `x` of the surface `at` over [−1, 1]², by brute force: the best of an
+/// (n + 1)² grid, then a pattern search (8 directions, halving the step) down to 1e-15. The
+/// tests' oracle, sharing nothing with the search above.
+#[cfg(test)]
+pub(crate) fn grid_oracle(x: DVec3, at: impl Fn(DVec2) -> DVec3, n: u32) -> (f64, DVec2) {
+    let mut best = (f64::INFINITY, DVec2::ZERO);
+    for i in 0..=n {
+        for j in 0..=n {
+            let st = DVec2::new(
+                -1.0 + 2.0 * f64::from(i) / f64::from(n),
+                -1.0 + 2.0 * f64::from(j) / f64::from(n),
+            );
+            let d2 = (at(st) - x).length_squared();
+            if d2 < best.0 {
+                best = (d2, st);
+            }
+        }
+    }
+    let (mut d2, mut st) = best;
+    let mut step = 2.0 / f64::from(n);
+    while step > 1e-15 {
+        let mut improved = false;
+        for dir in [
+            DVec2::X,
+            -DVec2::X,
+            DVec2::Y,
+            -DVec2::Y,
+            DVec2::ONE,
+            -DVec2::ONE,
+            DVec2::new(1.0, -1.0),
+            DVec2::new(-1.0, 1.0),
+        ] {
+            let cand = (st + dir * step).clamp(DVec2::NEG_ONE, DVec2::ONE);
+            let c2 = (at(cand) - x).length_squared();
+            if c2 < d2 {
+                (d2, st) = (c2, cand);
+                improved = true;
+            }
+        }
+        if !improved {
+            step *= 0.5;
+        }
+    }
+    (d2, st)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    /// An independent answer: the best of a dense grid of the patch, polished by a projected
-    /// gradient descent with a shrinking step (no Newton, no certificate, no edges' closed form).
+    /// An independent answer: the best of a dense grid of the patch, polished by a pattern
+    /// search (no Newton, no certificate, no edges' closed form).
     fn oracle(x: DVec3, q: &[DVec3; 4]) -> (f64, DVec2) {
         let patch = Patch::new(q);
-        let n = 200;
-        let mut best = (f64::INFINITY, DVec2::ZERO);
-        for i in 0..=n {
-            for j in 0..=n {
-                let st = DVec2::new(
-                    -1.0 + 2.0 * f64::from(i) / f64::from(n),
-                    -1.0 + 2.0 * f64::from(j) / f64::from(n),
-                );
-                let d2 = (patch.at(st) - x).length_squared();
-                if d2 < best.0 {
-                    best = (d2, st);
-                }
-            }
-        }
-        // Coordinate-wise golden-free refinement: pattern search down to 1e-15.
-        let (mut d2, mut st) = best;
-        let mut step = 2.0 / f64::from(n);
-        while step > 1e-15 {
-            let mut improved = false;
-            for dir in [
-                DVec2::X,
-                -DVec2::X,
-                DVec2::Y,
-                -DVec2::Y,
-                DVec2::ONE,
-                -DVec2::ONE,
-                DVec2::new(1.0, -1.0),
-                DVec2::new(-1.0, 1.0),
-            ] {
-                let cand = (st + dir * step).clamp(DVec2::NEG_ONE, DVec2::ONE);
-                let c2 = (patch.at(cand) - x).length_squared();
-                if c2 < d2 {
-                    (d2, st) = (c2, cand);
-                    improved = true;
-                }
-            }
-            if !improved {
-                step *= 0.5;
-            }
-        }
-        (d2, st)
+        grid_oracle(x, |st| patch.at(st), 200)
     }
 
     fn unit_square() -> [DVec3; 4] {

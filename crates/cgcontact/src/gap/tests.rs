@@ -38,46 +38,7 @@ fn oracle_normal(q: &Quad, st: DVec2) -> DVec3 {
 
 /// Closest point of one quad: a 48 × 48 grid, then a pattern search down to 1e-15.
 fn oracle_quad(x: DVec3, q: &Quad) -> (f64, DVec2) {
-    let n = 48;
-    let mut best = (f64::INFINITY, DVec2::ZERO);
-    for i in 0..=n {
-        for j in 0..=n {
-            let st = DVec2::new(
-                -1.0 + 2.0 * f64::from(i) / f64::from(n),
-                -1.0 + 2.0 * f64::from(j) / f64::from(n),
-            );
-            let d2 = (bilinear(q, st) - x).length_squared();
-            if d2 < best.0 {
-                best = (d2, st);
-            }
-        }
-    }
-    let (mut d2, mut st) = best;
-    let mut step = 2.0 / f64::from(n);
-    while step > 1e-15 {
-        let mut improved = false;
-        for dir in [
-            DVec2::X,
-            -DVec2::X,
-            DVec2::Y,
-            -DVec2::Y,
-            DVec2::ONE,
-            -DVec2::ONE,
-            DVec2::new(1.0, -1.0),
-            DVec2::new(-1.0, 1.0),
-        ] {
-            let cand = (st + dir * step).clamp(DVec2::NEG_ONE, DVec2::ONE);
-            let c2 = (bilinear(q, cand) - x).length_squared();
-            if c2 < d2 {
-                (d2, st) = (c2, cand);
-                improved = true;
-            }
-        }
-        if !improved {
-            step *= 0.5;
-        }
-    }
-    (d2, st)
+    super::quad::grid_oracle(x, |st| bilinear(q, st), 48)
 }
 
 /// The closest point over all `faces` (brute force).
