@@ -11,7 +11,7 @@
 //! | [`hex8`] | trilinear map, Jacobian and the safeguarded Newton inversion, in f64 and f32 from one source |
 //! | [`LatticeLocator`] | hashes a point to its lattice cell and inverts only the few neighbours that can hold it; complete for any valid mesh |
 //! | [`Locator`] | the trait every strategy implements (the baselines crate adds the seed's filters, an R-tree and brute force) |
-//! | [`Settings`] | precision, Newton tolerance, iteration limit, inside tolerance, candidate order |
+//! | [`Settings`] | precision, Newton tolerance, iteration limit, inside tolerance, candidate order, [`Schedule`] of the batched queries |
 //!
 //! ```
 //! use cgcontact::{Body, Lattice, LatticeLocator, Locator, Settings};
@@ -46,6 +46,7 @@ mod lanes;
 mod lattice;
 mod locate;
 mod reach;
+mod schedule;
 mod settings;
 
 pub use adaptive::{AdaptiveBody, AdaptiveLocator, Leaf};
@@ -55,6 +56,7 @@ pub use gap::{Contact, Face, GapAnswer, GapFinder, Surface};
 pub use glam;
 pub use lattice::{CORNER_OFFSETS, CellId, Lattice};
 pub use locate::{Answer, Hit, LatticeLocator, Locator, Owners};
+pub use schedule::Schedule;
 pub use settings::{CandidateOrder, InsideTolerance, Precision, Settings};
 
 /// The README's examples, compiled and run as doctests so that it cannot drift from the code.

@@ -5,7 +5,7 @@ use glam::DVec3;
 use crate::lanes::Lanes;
 
 use crate::hex8::NewtonOptions;
-use crate::{Error, Lattice};
+use crate::{Error, Lattice, Schedule};
 
 /// Floating-point precision of the Newton kernel.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -46,6 +46,9 @@ pub struct Settings {
     pub inside_tol: f64,
     /// Candidate order of the lattice locator.
     pub order: CandidateOrder,
+    /// The order in which the batched queries visit their points (the answers do not depend on
+    /// it).
+    pub schedule: Schedule,
 }
 
 impl Default for Settings {
@@ -56,6 +59,7 @@ impl Default for Settings {
             max_iter: Self::MAX_ITER,
             inside_tol: Self::INSIDE_TOL,
             order: CandidateOrder::Predicted,
+            schedule: Schedule::Auto,
         }
     }
 }

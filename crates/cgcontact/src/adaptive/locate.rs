@@ -15,7 +15,6 @@
 //! locator's `locate/warm.rs` does, in lanes for `relocate_all`.
 
 use glam::{DVec3, Vec3A};
-use rayon::prelude::*;
 use smallvec::SmallVec;
 
 use super::{AdaptiveBody, Leaf};
@@ -27,6 +26,7 @@ use crate::lattice::CellId;
 use crate::locate::Isa;
 use crate::locate::{Answer, Collect, Hit, Locator, Owners, warm_start};
 use crate::reach::{self, Range};
+use crate::schedule::{Layout, Scheduler};
 use crate::settings::{CandidateOrder, InsideTolerance, Precision, Settings};
 use crate::{Error, PointError};
 
@@ -47,6 +47,8 @@ pub struct AdaptiveLocator<'a> {
     /// With f32 precision, the displacements rounded to f32 in node order (16 bytes per node),
     /// as the f32 lanes read them. Empty with f64.
     u_f32: Vec<Vec3A>,
+    /// The batched queries' schedule and its sort's buffers.
+    scheduler: Scheduler<Answer>,
 }
 
 impl<'a> AdaptiveLocator<'a> {
@@ -80,7 +82,23 @@ impl<'a> AdaptiveLocator<'a> {
                 Precision::F32 => body.u.iter().map(|u| u.as_vec3a()).collect(),
                 Precision::F64 => Vec::new(),
             },
+            scheduler: Scheduler::new(settings.schedule),
         })
+    }
+
+    /// The body as the schedule sees it: its base lattice and finest level, and the bytes of
+    /// nodal data the batched path reads (displacements, corner tables, octrees: what decides
+    /// [`crate::Schedule::Auto`]).
+    pub(crate) fn layout(&self) -> Layout<'_> {
+        let u = match self.settings.precision {
+            Precision::F64 => size_of_val(self.body.u.as_slice()),
+            Precision::F32 => size_of_val(self.u_f32.as_slice()),
+        };
+        Layout {
+            lattice: self.body.lattice(),
+            level: self.body.finest,
+            bytes: u + size_of_val(self.body.corners.as_slice()) + self.body.forest.heap_bytes(),
+        }
     }
 
     /// The body searched.
@@ -764,10 +782,10 @@ impl Locator for AdaptiveLocator<'_> {
         if answers.len() != points.len() {
             return self.locate_all_into(points, answers);
         }
-        answers
-            .par_chunks_mut(256)
-            .zip(points.par_chunks(256))
-            .for_each(|(answers, points)| self.relocate_chunk(points, answers));
+        self.scheduler
+            .run(self.layout(), points, answers, true, |points, answers| {
+                self.relocate_chunk(points, answers)
+            });
     }
 
     /// Batched: the common path of 8 points at a time, step by step, so that their memory loads
@@ -780,9 +798,10 @@ impl Locator for AdaptiveLocator<'_> {
             out.clear();
             out.resize(points.len(), Ok(None));
         }
-        out.par_chunks_mut(256)
-            .zip(points.par_chunks(256))
-            .for_each(|(out, points)| self.locate_chunk(points, out));
+        self.scheduler
+            .run(self.layout(), points, out, false, |points, out| {
+                self.locate_chunk(points, out)
+            });
     }
 }
 

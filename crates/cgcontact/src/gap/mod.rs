@@ -27,10 +27,10 @@ mod quad;
 mod surface;
 
 use glam::{DVec2, DVec3};
-use rayon::prelude::*;
 
 use crate::lattice::CellId;
 use crate::reach::Range;
+use crate::schedule::Scheduler;
 use crate::{Error, PointError};
 use quad::{Locus, Patch, box_distance2};
 use surface::Cell;
@@ -91,6 +91,8 @@ pub struct GapFinder<'l, L> {
     surface: &'l L,
     distance: f64,
     u_range: Range,
+    /// The batched queries' schedule (the locator's) and its sort's buffers.
+    scheduler: Scheduler<GapAnswer>,
 }
 
 /// The best face so far.
@@ -142,6 +144,7 @@ impl<'l, L: Surface> GapFinder<'l, L> {
             surface,
             distance,
             u_range,
+            scheduler: Scheduler::new(surface.schedule().0),
         })
     }
 
@@ -170,15 +173,11 @@ impl<'l, L: Surface> GapFinder<'l, L> {
     /// [`GapFinder::gap`] for every point, in parallel on the current rayon pool, answers in
     /// input order, written into `out` (resized).
     pub fn gap_all_into(&self, points: &[DVec3], out: &mut Vec<GapAnswer>) {
-        out.clear();
-        out.resize(points.len(), Ok(None));
-        out.par_chunks_mut(256)
-            .zip(points.par_chunks(256))
-            .for_each(|(out, points)| {
-                for (o, &x) in out.iter_mut().zip(points) {
-                    *o = self.search(x, None);
-                }
-            });
+        if out.len() != points.len() {
+            out.clear();
+            out.resize(points.len(), Ok(None));
+        }
+        self.batch(points, out, false);
     }
 
     /// [`GapFinder::regap`] for every point, in parallel: `answers` holds the previous answers
@@ -188,13 +187,18 @@ impl<'l, L: Surface> GapFinder<'l, L> {
             self.gap_all_into(points, answers);
             return;
         }
-        answers
-            .par_chunks_mut(256)
-            .zip(points.par_chunks(256))
-            .for_each(|(out, points)| {
+        self.batch(points, answers, true);
+    }
+
+    /// The batched queries, scheduled as the locator's settings say; with `warm`, each answer's
+    /// previous value is its hint.
+    fn batch(&self, points: &[DVec3], out: &mut [GapAnswer], warm: bool) {
+        let (_, layout) = self.surface.schedule();
+        self.scheduler
+            .run(layout, points, out, warm, |points, out| {
                 for (o, &x) in out.iter_mut().zip(points) {
                     let hint = match o {
-                        Ok(Some(contact)) => Some(contact.face),
+                        Ok(Some(contact)) if warm => Some(contact.face),
                         _ => None,
                     };
                     *o = self.search(x, hint);

@@ -3,9 +3,11 @@
 
 use glam::DVec3;
 
+use crate::Schedule;
 use crate::adaptive::AdaptiveLocator;
 use crate::lattice::{CellId, Lattice};
 use crate::locate::{LatticeLocator, Locator};
+use crate::schedule::Layout;
 
 /// A locator whose body has a boundary surface to measure gaps to: [`LatticeLocator`] and
 /// [`AdaptiveLocator`]. Sealed: its methods are the crate's own.
@@ -45,6 +47,8 @@ pub(crate) mod sealed {
         fn lattice(&self) -> &Lattice;
         /// Every node's displacement.
         fn displacements(&self) -> &[DVec3];
+        /// The batched queries' schedule (the locator's) and the body as it sees it.
+        fn schedule(&self) -> (Schedule, Layout<'_>);
         /// The cell of id `id`, if it is an active cell (a leaf).
         fn cell(&self, id: u32) -> Option<Cell>;
         /// The active cell nearest to lattice coordinates `t` (clamped into the lattice), if any.
@@ -104,6 +108,10 @@ pub(crate) mod sealed {
 
         fn displacements(&self) -> &[DVec3] {
             self.body().displacements()
+        }
+
+        fn schedule(&self) -> (Schedule, Layout<'_>) {
+            (self.settings().schedule, self.layout())
         }
 
         fn cell(&self, id: u32) -> Option<Cell> {
@@ -205,6 +213,10 @@ pub(crate) mod sealed {
 
         fn displacements(&self) -> &[DVec3] {
             self.body().displacements()
+        }
+
+        fn schedule(&self) -> (Schedule, Layout<'_>) {
+            (self.settings().schedule, self.layout())
         }
 
         fn cell(&self, id: u32) -> Option<Cell> {

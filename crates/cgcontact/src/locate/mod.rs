@@ -40,6 +40,7 @@ use crate::body::Body;
 use crate::hex8::NewtonOptions;
 use crate::lattice::CellId;
 use crate::reach::{self, Pyramid, Range};
+use crate::schedule::{Layout, Scheduler};
 use crate::settings::{InsideTolerance, Precision, Settings};
 use crate::{Error, PointError};
 
@@ -174,6 +175,8 @@ pub struct LatticeLocator<'a> {
     u_f32: Vec<Vec3A>,
     /// Every cell of the lattice is active: the batched path skips the activity lookup.
     all_active: bool,
+    /// The batched queries' schedule and its sort's buffers.
+    scheduler: Scheduler<Answer>,
 }
 
 impl<'a> LatticeLocator<'a> {
@@ -208,7 +211,22 @@ impl<'a> LatticeLocator<'a> {
                 Precision::F64 => Vec::new(),
             },
             all_active: body.active_count() == lattice.cell_count(),
+            scheduler: Scheduler::new(settings.schedule),
         })
+    }
+
+    /// The body as the schedule sees it: its lattice, and the bytes of nodal data the batched
+    /// path reads (what decides [`crate::Schedule::Auto`]).
+    pub(crate) fn layout(&self) -> Layout<'_> {
+        let u = match self.settings.precision {
+            Precision::F64 => size_of_val(self.body.displacements()),
+            Precision::F32 => size_of_val(self.u_f32.as_slice()),
+        };
+        Layout {
+            lattice: self.body.lattice(),
+            level: 0,
+            bytes: u + self.pyramid.as_ref().map_or(0, Pyramid::heap_bytes),
+        }
     }
 
     /// The body searched.
@@ -230,11 +248,12 @@ impl<'a> LatticeLocator<'a> {
     }
 
     /// Bytes this locator keeps on the heap besides the body (the f32 copy of the displacements,
-    /// the per-block displacement ranges).
+    /// the per-block displacement ranges, the batched queries' sort buffers).
     #[must_use]
     pub fn heap_bytes(&self) -> usize {
         self.u_f32.capacity() * size_of::<Vec3A>()
             + self.pyramid.as_ref().map_or(0, Pyramid::heap_bytes)
+            + self.scheduler.heap_bytes()
     }
 }
 
@@ -271,10 +290,10 @@ impl Locator for LatticeLocator<'_> {
             out.clear();
             out.resize(points.len(), Ok(None));
         }
-        // Pieces of 256 points: a point costs ~100 ns, so finer splitting only adds rayon's bookkeeping.
-        out.par_chunks_mut(256)
-            .zip(points.par_chunks(256))
-            .for_each(|(out, points)| self.locate_chunk(points, out));
+        self.scheduler
+            .run(self.layout(), points, out, false, |points, out| {
+                self.locate_chunk(points, out)
+            });
     }
 
     #[inline]
@@ -288,10 +307,10 @@ impl Locator for LatticeLocator<'_> {
         if answers.len() != points.len() {
             return self.locate_all_into(points, answers);
         }
-        answers
-            .par_chunks_mut(256)
-            .zip(points.par_chunks(256))
-            .for_each(|(answers, points)| self.relocate_chunk(points, answers));
+        self.scheduler
+            .run(self.layout(), points, answers, true, |points, answers| {
+                self.relocate_chunk(points, answers)
+            });
     }
 }
 

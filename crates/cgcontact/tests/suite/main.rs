@@ -5,4 +5,5 @@ mod adaptive;
 mod common;
 mod extremes;
 mod locate_property;
+mod schedule;
 mod warm;

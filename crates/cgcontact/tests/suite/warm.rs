@@ -96,9 +96,9 @@ fn relocate_and_check(
 }
 
 /// A hit's fields as bits.
-type HitBits = (CellId, [u64; 3], u32, u64, u32);
+pub(crate) type HitBits = (CellId, [u64; 3], u32, u64, u32);
 
-fn bits(a: &Answer) -> Result<Option<HitBits>, PointError> {
+pub(crate) fn bits(a: &Answer) -> Result<Option<HitBits>, PointError> {
     a.map(|hit| {
         hit.map(|h| {
             (
@@ -114,7 +114,7 @@ fn bits(a: &Answer) -> Result<Option<HitBits>, PointError> {
 
 /// Points of a body: `known` made from (cell, ξ) by `point_at` (a third of them on a face), random
 /// points over `low`..`high` (some outside), and refused ones.
-fn points(
+pub(crate) fn points(
     rng: &mut Rng,
     cells: usize,
     point_at: impl Fn(CellId, DVec3) -> Option<DVec3>,
@@ -240,7 +240,7 @@ fn check_wrong_hints(
 }
 
 /// A uniform body with holes, distorted, on a lattice away from the origin.
-fn uniform_body(seed: u64) -> Body {
+pub(crate) fn uniform_body(seed: u64) -> Body {
     let lattice = Lattice::new(
         DVec3::new(-12.0, 40.5, 3.0),
         DVec3::new(0.3, 0.25, 0.4),
@@ -251,7 +251,7 @@ fn uniform_body(seed: u64) -> Body {
 }
 
 /// Every displacement moved by up to `step` h per component, as one solver iteration does.
-fn perturb_uniform(body: &mut Body, step: f64, seed: u64) {
+pub(crate) fn perturb_uniform(body: &mut Body, step: f64, seed: u64) {
     let mut rng = Rng(seed);
     let h = body.lattice().h();
     body.update_displacements(|_, _, u| *u += step * h * rng.vec(-1.0, 1.0))
@@ -311,7 +311,7 @@ fn uniform_relocate_answers_as_the_cold_search_after_a_solver_step() {
 
 /// A base lattice of 4 × 3 × 3 cells, one removed, two refined (one of their children once more:
 /// a jump of two levels against its coarse neighbours), displaced smoothly with nodal jitter.
-fn adaptive_body(seed: u64) -> AdaptiveBody {
+pub(crate) fn adaptive_body(seed: u64) -> AdaptiveBody {
     let lattice = Lattice::new(
         DVec3::new(7.0, -2.0, 100.25),
         DVec3::new(0.5, 0.4, 0.3),

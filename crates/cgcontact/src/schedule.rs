@@ -1,0 +1,473 @@
+//! The order in which the batched queries visit their points.
+//!
+//! On a body whose nodal data fits in the caches, any order is as fast as any other. On a large
+//! one (a 4.2 M-cell block holds 100 MB of displacements) points in random order miss the caches
+//! at every corner load, and the batched queries lose two thirds of their speed. So, above a
+//! measured size, they first group the points by the lattice block they fall in (a counting sort
+//! on a coarse block index: O(n), two passes, in parallel), answer them block by block, and put
+//! the answers back in input order. Each point's answer depends on that point alone, so the
+//! answers are bitwise the same whatever the schedule; only the order of the work changes.
+//!
+//! The sort's buffers (two indices and one answer per point) live in a pool inside the
+//! locator and are reused by later calls of the same size or smaller.
+
+use std::sync::atomic::{AtomicU32, Ordering::Relaxed};
+use std::sync::{Mutex, TryLockError};
+
+use glam::DVec3;
+use rayon::prelude::*;
+
+use crate::Lattice;
+
+/// How the batched queries (`locate_all_into`, `relocate_all`, `gap_all_into`, `regap_all`)
+/// order their work. The answers are returned in input order and are bitwise the same under
+/// every schedule.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Schedule {
+    /// [`Schedule::Blocked`] with [`Schedule::AUTO_LOG2_CELLS`] when the body's nodal data
+    /// exceeds [`Schedule::AUTO_BYTES`] and there are at least [`Schedule::AUTO_MIN_POINTS`]
+    /// points; otherwise the input order.
+    #[default]
+    Auto,
+    /// The points in the order given, in pieces of 256 across the threads.
+    Input,
+    /// The points grouped by lattice blocks of 2^`log2_cells` cells per axis (blocks of the base
+    /// lattice on an adaptive body), blocks in lattice order, then answered block by block. The
+    /// block is enlarged while the lattice has more than 2^20 blocks.
+    Blocked {
+        /// Base 2 logarithm of a block's edge, in cells.
+        log2_cells: u8,
+    },
+}
+
+impl Schedule {
+    /// [`Schedule::Auto`] sorts above this many bytes of nodal data (displacements, and for an
+    /// adaptive body its corner tables and octrees): about where the sort starts to pay on the
+    /// machine of docs/benchmarks.md (between the 128,000-cell block, 3 MB, where it costs a
+    /// little, and the 1 M-cell block, 25 MB, where it doubles the speed).
+    pub const AUTO_BYTES: usize = 8 << 20;
+    /// The block edge (log2, in cells) of [`Schedule::Auto`]: 8 × 8 × 8 cells, 17 KB of f64
+    /// displacements, measured best among 4, 8 and 16.
+    pub const AUTO_LOG2_CELLS: u8 = 3;
+    /// Fewer points than this are answered in input order by [`Schedule::Auto`]: the sort's
+    /// fixed costs (a histogram of every block) would not pay.
+    pub const AUTO_MIN_POINTS: usize = 16_384;
+
+    /// The block edge (log2, cells) to sort by for `points` points on a body of `bytes` of nodal
+    /// data, or `None` for the input order.
+    pub(crate) fn resolve(self, bytes: usize, points: usize) -> Option<u8> {
+        match self {
+            Schedule::Auto => (bytes > Self::AUTO_BYTES && points >= Self::AUTO_MIN_POINTS)
+                .then_some(Self::AUTO_LOG2_CELLS),
+            Schedule::Input => None,
+            Schedule::Blocked { log2_cells } => Some(log2_cells),
+        }
+    }
+}
+
+/// At most this many blocks: the histograms stay small whatever the lattice.
+const MAX_BLOCKS: u64 = 1 << 20;
+/// Points per piece of the sort's passes (at least), and per piece of the answering pass.
+const SORT_PIECE: usize = 1 << 14;
+const CHUNK: usize = 256;
+
+/// The blocks of a lattice: a point's block is the block of the cell its undeformed position
+/// falls in, clamped into the lattice (NaN to block 0): any block would do, the key only orders
+/// the work.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Blocks {
+    origin: DVec3,
+    /// 1 / (h · 2^log2).
+    inv: DVec3,
+    counts: [u32; 3],
+}
+
+impl Blocks {
+    /// The blocks of 2^`log2` cells of `lattice` refined `level` times (enlarged while there
+    /// are more than 2^20 blocks).
+    pub(crate) fn new(lattice: &Lattice, level: u8, mut log2: u8) -> Self {
+        let cells = lattice.cells().map(|n| u64::from(n) << level.min(32));
+        let count = |log2: u8| cells.map(|n| n.div_ceil(1u64 << log2.min(63)).max(1));
+        while count(log2).iter().fold(1u64, |p, &n| p.saturating_mul(n)) > MAX_BLOCKS {
+            log2 += 1;
+        }
+        let size = lattice.h() * 2f64.powi(i32::from(log2) - i32::from(level));
+        Self {
+            origin: lattice.origin(),
+            inv: size.recip(),
+            // At most 2^20 blocks in all.
+            counts: count(log2).map(|n| n as u32),
+        }
+    }
+
+    fn len(&self) -> usize {
+        self.counts.iter().map(|&n| n as usize).product()
+    }
+
+    #[inline(always)]
+    fn key(&self, x: DVec3) -> usize {
+        let t = (x - self.origin) * self.inv;
+        // `max` maps negatives and NaN to 0, `as` saturates.
+        let b = [0, 1, 2].map(|a| (t[a].max(0.0) as u32).min(self.counts[a] - 1) as usize);
+        b[0] + self.counts[0] as usize * (b[1] + self.counts[1] as usize * b[2])
+    }
+}
+
+/// What the schedule needs to know of a body: its lattice, refined `level` times (an adaptive
+/// body's finest level), and the bytes of nodal data its searches read.
+#[derive(Clone, Copy, Debug)]
+pub struct Layout<'a> {
+    pub(crate) lattice: &'a Lattice,
+    pub(crate) level: u8,
+    pub(crate) bytes: usize,
+}
+
+/// The sort's buffers, reused across calls.
+#[derive(Debug)]
+struct Workspace<T> {
+    /// Input index of each point in sorted order.
+    perm: Vec<AtomicU32>,
+    /// Sorted position of each input point.
+    rank: Vec<u32>,
+    /// Answers in sorted order.
+    sorted: Vec<T>,
+    /// Per piece, the count (then the next position) of each block.
+    counts: Vec<u32>,
+}
+
+impl<T> Default for Workspace<T> {
+    fn default() -> Self {
+        Self {
+            perm: Vec::new(),
+            rank: Vec::new(),
+            sorted: Vec::new(),
+            counts: Vec::new(),
+        }
+    }
+}
+
+impl<T> Workspace<T> {
+    fn heap_bytes(&self) -> usize {
+        self.perm.capacity() * size_of::<AtomicU32>()
+            + self.rank.capacity() * size_of::<u32>()
+            + self.sorted.capacity() * size_of::<T>()
+            + self.counts.capacity() * size_of::<u32>()
+    }
+}
+
+/// A locator's schedule and the sort's buffers. Cloning gives an empty pool.
+pub(crate) struct Scheduler<T> {
+    schedule: Schedule,
+    pool: Mutex<Workspace<T>>,
+}
+
+impl<T> Clone for Scheduler<T> {
+    fn clone(&self) -> Self {
+        Self::new(self.schedule)
+    }
+}
+
+impl<T> std::fmt::Debug for Scheduler<T> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Scheduler")
+            .field("schedule", &self.schedule)
+            .field("pool_bytes", &self.heap_bytes())
+            .finish()
+    }
+}
+
+impl<T> Scheduler<T> {
+    pub(crate) fn new(schedule: Schedule) -> Self {
+        Self {
+            schedule,
+            pool: Mutex::new(Workspace::default()),
+        }
+    }
+
+    /// Bytes of the pooled buffers (0 while another call holds them).
+    pub(crate) fn heap_bytes(&self) -> usize {
+        match self.pool.try_lock() {
+            Ok(ws) => ws.heap_bytes(),
+            Err(TryLockError::Poisoned(p)) => p.into_inner().heap_bytes(),
+            Err(TryLockError::WouldBlock) => 0,
+        }
+    }
+}
+
+impl<T: Copy + Send + Sync> Scheduler<T> {
+    /// Answers `points` into `out` (same length) by `chunk`, which answers any run of points into
+    /// a run of answers of the same length, on the current rayon pool: in input order in pieces
+    /// of 256, or sorted by the blocks of the body's `layout`, as the schedule decides. With `warm`, `chunk` also reads each answer's previous value (the warm
+    /// start's hint), which then travels with its point.
+    pub(crate) fn run(
+        &self,
+        layout: Layout<'_>,
+        points: &[DVec3],
+        out: &mut [T],
+        warm: bool,
+        chunk: impl Fn(&[DVec3], &mut [T]) + Sync,
+    ) {
+        debug_assert_eq!(points.len(), out.len());
+        let Some(log2) = self
+            .schedule
+            .resolve(layout.bytes, points.len())
+            .filter(|_| points.len() > 1)
+        else {
+            out.par_chunks_mut(CHUNK)
+                .zip(points.par_chunks(CHUNK))
+                .for_each(|(out, points)| chunk(points, out));
+            return;
+        };
+        let blocks = Blocks::new(layout.lattice, layout.level, log2);
+        // The pool, or fresh buffers when another call on this locator holds it.
+        let mut fresh = None;
+        let mut guard = match self.pool.try_lock() {
+            Ok(ws) => Some(ws),
+            Err(TryLockError::Poisoned(p)) => Some(p.into_inner()),
+            Err(TryLockError::WouldBlock) => None,
+        };
+        let ws = match guard.as_deref_mut() {
+            Some(ws) => ws,
+            None => fresh.insert(Workspace::default()),
+        };
+        blocked(&blocks, points, out, ws, warm, &chunk);
+    }
+}
+
+/// The blocked schedule: a parallel counting sort of the points by block, the answers in sorted
+/// order, then back to input order.
+fn blocked<T: Copy + Send + Sync>(
+    blocks: &Blocks,
+    points: &[DVec3],
+    out: &mut [T],
+    ws: &mut Workspace<T>,
+    warm: bool,
+    chunk: &(impl Fn(&[DVec3], &mut [T]) + Sync),
+) {
+    let n = points.len();
+    assert!(
+        u32::try_from(n).is_ok(),
+        "at most 2^32 - 1 points per batch"
+    );
+    let keys = blocks.len();
+    let pieces = rayon::current_num_threads().clamp(1, n.div_ceil(SORT_PIECE));
+    let piece = n.div_ceil(pieces);
+
+    // Counts per piece and block.
+    ws.counts.clear();
+    ws.counts.resize(pieces * keys, 0);
+    ws.counts
+        .par_chunks_mut(keys)
+        .zip(points.par_chunks(piece))
+        .for_each(|(counts, points)| {
+            for &x in points {
+                counts[blocks.key(x)] += 1;
+            }
+        });
+    // Each (block, piece)'s first position: blocks in order, pieces in order within a block (so
+    // the sort is stable).
+    let mut next = 0u32;
+    for key in 0..keys {
+        for p in 0..pieces {
+            let slot = &mut ws.counts[p * keys + key];
+            let count = *slot;
+            *slot = next;
+            next += count;
+        }
+    }
+    // Every point's position. `perm`'s slots are written by whichever piece owns the point,
+    // each once (the positions are a permutation), hence the atomics: relaxed stores, the
+    // passes' joins order them before the reads.
+    ws.perm.truncate(n);
+    ws.perm.resize_with(n, || AtomicU32::new(0));
+    ws.rank.resize(n, 0);
+    let perm = &ws.perm;
+    ws.counts
+        .par_chunks_mut(keys)
+        .zip(points.par_chunks(piece))
+        .zip(ws.rank.par_chunks_mut(piece))
+        .enumerate()
+        .for_each(|(p, ((next, points), rank))| {
+            for (j, (&x, rank)) in points.iter().zip(rank).enumerate() {
+                let slot = &mut next[blocks.key(x)];
+                *rank = *slot;
+                perm[*slot as usize].store((p * piece + j) as u32, Relaxed);
+                *slot += 1;
+            }
+        });
+
+    // The answers in sorted order, gathered points in chunks of 256.
+    // Every slot is overwritten below (by the gather of the warm start or by `chunk`): a buffer
+    // of the right length is reused without a pass over it.
+    if ws.sorted.len() != n {
+        ws.sorted.clear();
+        ws.sorted.resize(n, out[0]);
+    }
+    if warm {
+        ws.sorted
+            .par_chunks_mut(SORT_PIECE)
+            .zip(perm.par_chunks(SORT_PIECE))
+            .for_each(|(sorted, perm)| {
+                for (s, i) in sorted.iter_mut().zip(perm) {
+                    *s = out[i.load(Relaxed) as usize];
+                }
+            });
+    }
+    ws.sorted
+        .par_chunks_mut(CHUNK)
+        .zip(perm.par_chunks(CHUNK))
+        .for_each(|(sorted, perm)| {
+            let mut gathered = [DVec3::ZERO; CHUNK];
+            for (g, i) in gathered.iter_mut().zip(perm) {
+                *g = points[i.load(Relaxed) as usize];
+            }
+            chunk(&gathered[..perm.len()], sorted);
+        });
+    // Back to input order.
+    let sorted = &ws.sorted;
+    out.par_chunks_mut(SORT_PIECE)
+        .zip(ws.rank.par_chunks(SORT_PIECE))
+        .for_each(|(out, rank)| {
+            for (o, &r) in out.iter_mut().zip(rank) {
+                *o = sorted[r as usize];
+            }
+        });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn layout(lattice: &Lattice, level: u8, bytes: usize) -> Layout<'_> {
+        Layout {
+            lattice,
+            level,
+            bytes,
+        }
+    }
+
+    fn lattice() -> Lattice {
+        Lattice::new(
+            DVec3::new(-1.0, 2.0, 0.5),
+            DVec3::new(0.5, 0.25, 1.0),
+            [16, 9, 5],
+        )
+        .unwrap()
+    }
+
+    /// Points anywhere, outside and NaN included; each answer a function of its point alone
+    /// (its bits) and of the chunk's call, so that a point answered twice or out of place shows.
+    fn points(n: usize) -> Vec<DVec3> {
+        (0..n)
+            .map(|i| {
+                let f = (i as f64 * 0.618_033_988_749_895).fract();
+                let g = (i as f64 * 0.414_213_562_373_095).fract();
+                match i % 97 {
+                    0 => DVec3::NAN,
+                    1 => DVec3::splat(-1e9),
+                    _ => DVec3::new(-2.0 + 12.0 * f, 1.0 + 4.0 * g, 0.5 + 5.0 * (f * g)),
+                }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn blocked_answers_are_the_input_orders() {
+        let lattice = lattice();
+        let points = points(40_000);
+        let answer = |x: DVec3| (x.x.to_bits() ^ x.y.to_bits().rotate_left(7), x.z.to_bits());
+        let chunk = |p: &[DVec3], o: &mut [(u64, u64)]| {
+            for (o, &x) in o.iter_mut().zip(p) {
+                *o = answer(x);
+            }
+        };
+        let expected: Vec<_> = points.iter().map(|&x| answer(x)).collect();
+        for schedule in [
+            Schedule::Input,
+            Schedule::Blocked { log2_cells: 0 },
+            Schedule::Blocked { log2_cells: 2 },
+            Schedule::Blocked { log2_cells: 30 },
+        ] {
+            let scheduler = Scheduler::new(schedule);
+            for threads in [1, 3] {
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .unwrap();
+                // Twice: the second call reuses the pool's buffers; then fewer points.
+                for n in [points.len(), points.len(), 1_000] {
+                    let mut out = vec![(0, 0); n];
+                    pool.install(|| {
+                        scheduler.run(
+                            layout(&lattice, 0, usize::MAX),
+                            &points[..n],
+                            &mut out,
+                            false,
+                            chunk,
+                        )
+                    });
+                    assert_eq!(out, expected[..n], "{schedule:?}, {threads} threads, {n}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn warm_answers_travel_with_their_points() {
+        let lattice = lattice();
+        let points = points(20_000);
+        // The chunk adds its point's bits to the previous answer.
+        let chunk = |p: &[DVec3], o: &mut [u64]| {
+            for (o, &x) in o.iter_mut().zip(p) {
+                *o = o.wrapping_mul(31).wrapping_add(x.x.to_bits());
+            }
+        };
+        let previous: Vec<u64> = (0..points.len() as u64).map(|i| i * 7 + 1).collect();
+        let expected: Vec<u64> = previous
+            .iter()
+            .zip(&points)
+            .map(|(&p, x)| p.wrapping_mul(31).wrapping_add(x.x.to_bits()))
+            .collect();
+        let scheduler = Scheduler::new(Schedule::Blocked { log2_cells: 1 });
+        let mut out = previous.clone();
+        scheduler.run(layout(&lattice, 1, 0), &points, &mut out, true, chunk);
+        assert_eq!(out, expected);
+    }
+
+    #[test]
+    fn blocks_sort_by_lattice_block() {
+        let lattice = lattice();
+        let blocks = Blocks::new(&lattice, 0, 2);
+        assert_eq!(blocks.counts, [4, 3, 2]);
+        // One level finer, blocks of 2^3 finer cells: the same blocks.
+        let finer = Blocks::new(&lattice, 1, 3);
+        assert_eq!((finer.counts, finer.inv), (blocks.counts, blocks.inv));
+        // The cell (5, 4, 3) is in block (1, 1, 0); NaN and far points are clamped.
+        let x = lattice.node_position([5, 4, 3]) + DVec3::splat(0.01);
+        assert_eq!(blocks.key(x), 1 + 4);
+        assert_eq!(blocks.key(DVec3::NAN), 0);
+        assert_eq!(blocks.key(DVec3::splat(1e300)), blocks.len() - 1);
+        // A huge lattice gets larger blocks, at most 2^20 of them.
+        let huge = Lattice::new(DVec3::ZERO, DVec3::ONE, [2000, 1000, 1000]).unwrap();
+        let big = Blocks::new(&huge, 0, 0);
+        assert!(big.len() as u64 <= MAX_BLOCKS && big.len() as u64 > MAX_BLOCKS / 8);
+        let deep = Blocks::new(&lattice, 20, 0);
+        assert!(deep.len() as u64 <= MAX_BLOCKS && deep.len() as u64 > MAX_BLOCKS / 8);
+    }
+
+    #[test]
+    fn auto_sorts_only_large_bodies_and_batches() {
+        let auto = Schedule::Auto;
+        assert_eq!(auto.resolve(Schedule::AUTO_BYTES, 1 << 20), None);
+        assert_eq!(
+            auto.resolve(Schedule::AUTO_BYTES + 1, Schedule::AUTO_MIN_POINTS),
+            Some(Schedule::AUTO_LOG2_CELLS)
+        );
+        assert_eq!(
+            auto.resolve(usize::MAX, Schedule::AUTO_MIN_POINTS - 1),
+            None
+        );
+        assert_eq!(Schedule::Input.resolve(usize::MAX, 1 << 20), None);
+        assert_eq!(Schedule::Blocked { log2_cells: 4 }.resolve(0, 2), Some(4));
+    }
+}

@@ -1,0 +1,201 @@
+//! The batched queries' schedules (`Settings::schedule`): sorting the points by lattice block
+//! changes the order of the work, never an answer. Every batched query (`locate_all_into`,
+//! `relocate_all`, `gap_all_into`, `regap_all`) of the lattice and adaptive locators, in f64 and
+//! f32, on one and three threads, answers bit for bit as the input order and as the one-point
+//! query, with points inside, on faces, outside, refused, and repeated.
+
+use cgcontact::{
+    AdaptiveLocator, Answer, GapAnswer, GapFinder, LatticeLocator, Locator, Schedule, Settings,
+    Surface,
+};
+use glam::DVec3;
+
+use crate::common::Rng;
+use crate::warm::{adaptive_body, bits, perturb_uniform, points, uniform_body};
+
+const SCHEDULES: [Schedule; 5] = [
+    Schedule::Input,
+    Schedule::Auto,
+    Schedule::Blocked { log2_cells: 0 },
+    Schedule::Blocked { log2_cells: 2 },
+    Schedule::Blocked { log2_cells: 40 },
+];
+
+/// `copies` shuffled copies of `points`: enough points for several pieces of the sort on
+/// several threads, each point answered more than once.
+fn shuffled(points: &[DVec3], copies: usize, seed: u64) -> Vec<DVec3> {
+    let mut all: Vec<DVec3> = (0..copies).flat_map(|_| points.iter().copied()).collect();
+    let mut rng = Rng(seed);
+    for i in (1..all.len()).rev() {
+        all.swap(i, rng.below(i + 1));
+    }
+    all
+}
+
+fn pools() -> Vec<rayon::ThreadPool> {
+    [1, 3]
+        .map(|n| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(n)
+                .build()
+                .unwrap()
+        })
+        .into()
+}
+
+fn assert_bitwise(got: &[Answer], expected: &[Answer], what: &str) {
+    assert_eq!(got.len(), expected.len(), "{what}");
+    for (i, (a, b)) in got.iter().zip(expected).enumerate() {
+        assert_eq!(bits(a), bits(b), "{what}: point {i}");
+    }
+}
+
+/// Cold and warm batches of `make(settings)` under every schedule against the one-point queries.
+fn check_locator<L: Locator>(make: impl Fn(Settings) -> L, points: &[DVec3], hints: &[Answer]) {
+    for base in [Settings::default(), Settings::f32()] {
+        let reference = make(base);
+        let cold: Vec<Answer> = points.iter().map(|&x| reference.locate(x)).collect();
+        let warm: Vec<Answer> = points
+            .iter()
+            .zip(hints)
+            .map(|(&x, hint)| reference.relocate(x, hint))
+            .collect();
+        assert!(
+            cold.iter().filter(|a| matches!(a, Ok(Some(_)))).count() > points.len() / 2,
+            "most points are located"
+        );
+        for schedule in SCHEDULES {
+            let locator = make(Settings { schedule, ..base });
+            for pool in pools() {
+                let what = format!(
+                    "{schedule:?}, {:?}, {} threads",
+                    base.precision,
+                    pool.current_num_threads()
+                );
+                // Twice into one buffer (the pool's buffers reused), then a shorter batch.
+                let mut out = Vec::new();
+                for _ in 0..2 {
+                    pool.install(|| locator.locate_all_into(points, &mut out));
+                    assert_bitwise(&out, &cold, &format!("locate_all, {what}"));
+                }
+                let short = points.len() / 3;
+                pool.install(|| locator.locate_all_into(&points[..short], &mut out));
+                assert_bitwise(&out, &cold[..short], &format!("short, {what}"));
+                let mut answers = hints.to_vec();
+                pool.install(|| locator.relocate_all(points, &mut answers));
+                assert_bitwise(&answers, &warm, &format!("relocate_all, {what}"));
+            }
+        }
+    }
+}
+
+#[test]
+fn uniform_batches_answer_alike_under_every_schedule() {
+    let mut body = uniform_body(31);
+    let lattice = *body.lattice();
+    let base = points(
+        &mut Rng(4),
+        lattice.cell_count(),
+        |cell, xi| body.point_at(cell, xi),
+        lattice.origin() - 0.5,
+        lattice.upper() + 0.5,
+    );
+    let points = shuffled(&base, 20, 9);
+    let hints = LatticeLocator::new(&body, Settings::default())
+        .unwrap()
+        .locate_all(&points);
+    perturb_uniform(&mut body, 0.01, 5);
+    check_locator(
+        |settings| LatticeLocator::new(&body, settings).unwrap(),
+        &points,
+        &hints,
+    );
+}
+
+#[test]
+fn adaptive_batches_answer_alike_under_every_schedule() {
+    let body = adaptive_body(8);
+    let lattice = *body.lattice();
+    let base = points(
+        &mut Rng(6),
+        body.cell_count(),
+        |cell, xi| body.point_at(cell, xi),
+        lattice.origin() - 0.3,
+        lattice.upper() + 0.3,
+    );
+    let points = shuffled(&base, 20, 2);
+    // Hints from the same body: the warm path's common case (the hinted leaf holds the point).
+    let hints = AdaptiveLocator::new(&body, Settings::default())
+        .unwrap()
+        .locate_all(&points);
+    check_locator(
+        |settings| AdaptiveLocator::new(&body, settings).unwrap(),
+        &points,
+        &hints,
+    );
+}
+
+/// `gap_all_into` and `regap_all` under every schedule against `gap` and `regap`.
+fn check_gaps<L: Surface>(make: impl Fn(Settings) -> L, points: &[DVec3], distance: f64) {
+    let reference = make(Settings::default());
+    let finder = GapFinder::new(&reference, distance).unwrap();
+    let cold: Vec<GapAnswer> = points.iter().map(|&x| finder.gap(x)).collect();
+    // Hints: the answers of the points one place along (mostly wrong faces).
+    let mut hints = cold.clone();
+    hints.rotate_left(1);
+    let warm: Vec<GapAnswer> = points
+        .iter()
+        .zip(&hints)
+        .map(|(&x, hint)| finder.regap(x, hint))
+        .collect();
+    assert!(cold.iter().filter(|a| matches!(a, Ok(Some(_)))).count() > points.len() / 2);
+    for schedule in SCHEDULES {
+        let locator = make(Settings {
+            schedule,
+            ..Settings::default()
+        });
+        let finder = GapFinder::new(&locator, distance).unwrap();
+        for pool in pools() {
+            let what = format!("{schedule:?}, {} threads", pool.current_num_threads());
+            let mut out = Vec::new();
+            pool.install(|| finder.gap_all_into(points, &mut out));
+            assert!(out == cold, "gap_all_into, {what}");
+            let mut answers = hints.clone();
+            pool.install(|| finder.regap_all(points, &mut answers));
+            assert!(answers == warm, "regap_all, {what}");
+        }
+    }
+}
+
+#[test]
+fn gap_batches_answer_alike_under_every_schedule() {
+    let body = uniform_body(12);
+    let lattice = *body.lattice();
+    let base = points(
+        &mut Rng(3),
+        lattice.cell_count(),
+        |cell, xi| body.point_at(cell, xi),
+        lattice.origin() - 0.5,
+        lattice.upper() + 0.5,
+    );
+    check_gaps(
+        |settings| LatticeLocator::new(&body, settings).unwrap(),
+        &shuffled(&base, 3, 1),
+        1.0,
+    );
+
+    let body = adaptive_body(5);
+    let lattice = *body.lattice();
+    let base = points(
+        &mut Rng(7),
+        body.cell_count(),
+        |cell, xi| body.point_at(cell, xi),
+        lattice.origin() - 0.3,
+        lattice.upper() + 0.3,
+    );
+    check_gaps(
+        |settings| AdaptiveLocator::new(&body, settings).unwrap(),
+        &shuffled(&base, 3, 4),
+        0.5,
+    );
+}
