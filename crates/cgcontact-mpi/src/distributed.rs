@@ -1,0 +1,811 @@
+//! The distributed body (setup) and its locator (queries).
+//!
+//! # How a point gets the serial answer
+//! The lattice is cut into blocks of `block`³ cells. Setup makes each block's **home**: the rank
+//! holding most of its active cells (the lowest such rank on a tie), or, for a block with no
+//! active cell, the home of the first block near enough to hold its points' cells. A point goes to
+//! the home of the block of the lattice cell it lies in (clamped into the lattice), and only there.
+//!
+//! The serial search of a point x reads and inverts only cells in the box x − [min(u, 0),
+//! max(u, 0)] (per axis, u the displacements) widened by a cell or two: the cell holding x (for
+//! the predicted displacement), the predicted cell, the cells of the refined guess and the ring
+//! walk (`cgcontact`'s `locate/scalar.rs` and `locate/rings.rs`). So each home receives, besides its
+//! blocks' cells, a **halo**: every active cell within that reach of its blocks, with its corner
+//! displacements. It also receives the cells holding the global extremes of each displacement
+//! component, so that its local body has the global displacement range, on which the search's
+//! box, inside tolerance and admission test depend. On that local body the core's own search
+//! visits exactly the cells it visits on the whole body, in the same order from the same
+//! starting guess: the answer (cell, ξ, iterations, residual and inversions, bit for bit) is the
+//! serial one, and so is the tie rule on a face shared by two ranks' cells, whatever the
+//! partition. No order key needs comparing across ranks.
+//!
+//! Memory per rank: its home blocks' cells plus the halo (O(own cells) for a compact partition),
+//! one `u32` per block for the home map, and the points routed to it.
+
+use std::time::Instant;
+
+use cgcontact::glam::DVec3;
+use cgcontact::{
+    Answer, Body, CellId, Hit, Lattice, LatticeLocator, Locator, PointError, Settings,
+};
+use mpi::collective::SystemOperation;
+use mpi::traits::*;
+
+use crate::error::Error;
+use crate::exchange::{Traffic, all_reduce, exchange, from_order_key, order_key};
+
+/// No rank is home to this block: no active cell is near enough to hold a point there.
+const NO_HOME: u32 = u32::MAX;
+
+/// Cells added to each side of the reach: the cell holding x, the neighbours whose nodes its corner
+/// displacements share, and the inside tolerance's widening.
+const MARGIN: f64 = 3.0;
+
+/// Words per cell record: the cell id, then 8 corners × 3 displacement components (f64 bits).
+const CELL_WORDS: usize = 25;
+
+/// Words per answer on the way back (see [`encode`]).
+const ANSWER_WORDS: usize = 6;
+
+/// One active cell a rank holds: its lattice cell id and its corners' displacements (VTK order).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct OwnedCell {
+    /// The lattice cell.
+    pub cell: CellId,
+    /// The displacements of its 8 corners, in VTK order (`Body::cell_displacements`' order).
+    pub u: [DVec3; 8],
+}
+
+/// The setup's settings.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Config {
+    /// The core locator's settings, the same on every rank.
+    pub settings: Settings,
+    /// Edge of the ownership map's blocks, in cells (default 8: 512 cells a block).
+    pub block: u32,
+}
+
+impl Default for Config {
+    fn default() -> Self {
+        Self {
+            settings: Settings::default(),
+            block: 8,
+        }
+    }
+}
+
+/// What the setup cost this rank.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SetupStats {
+    /// Wall time of [`DistributedBody::new`] on this rank, in seconds.
+    pub seconds: f64,
+    /// Its messages and bytes.
+    pub traffic: Traffic,
+    /// Cells this rank was given.
+    pub own_cells: usize,
+    /// Cells of its local body: its home blocks' cells, their halo and the extreme cells.
+    pub local_cells: usize,
+    /// Blocks of the ownership map (every rank keeps the whole map: one `u32` each).
+    pub blocks: usize,
+    /// Blocks this rank is home to.
+    pub home_blocks: usize,
+    /// Heap bytes of the local body (`Body::heap_bytes`).
+    pub body_bytes: usize,
+}
+
+/// What one query cost this rank, phase by phase.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct QueryStats {
+    /// Points this rank asked about.
+    pub points: usize,
+    /// Points other ranks (and this one) routed here to search.
+    pub searched: usize,
+    /// Routing: each point's home, the points sorted by it and sent.
+    pub routing_seconds: f64,
+    /// The local search of the points received.
+    pub search_seconds: f64,
+    /// The answers encoded, sent back and put in input order.
+    pub return_seconds: f64,
+    /// Routing's messages and bytes.
+    pub routing: Traffic,
+    /// The return's messages and bytes.
+    pub returned: Traffic,
+}
+
+/// The answers of a distributed query, in the input order of this rank's points.
+#[derive(Clone, Debug, Default)]
+pub struct Located {
+    /// One answer per point, bitwise the serial `LatticeLocator::locate_all`'s on the whole body.
+    pub answers: Vec<Answer>,
+    /// The Newton inversions each point's search tried, failed ones included (the serial
+    /// `Locator::locate_counted`'s count): what `cgcontact locate` writes for points not located.
+    pub tried: Vec<u32>,
+    /// What it cost this rank.
+    pub stats: QueryStats,
+}
+
+/// The ownership map: blocks of the lattice and the home rank of each.
+#[derive(Clone, Debug)]
+struct Blocks {
+    /// Edge of a block, in cells.
+    size: u32,
+    /// Blocks per axis.
+    counts: [u32; 3],
+    /// The home rank of each block (x fastest), or [`NO_HOME`].
+    home: Vec<u32>,
+}
+
+impl Blocks {
+    fn index(&self, b: [u32; 3]) -> usize {
+        let [nx, ny, _] = self.counts.map(|n| n as usize);
+        b[0] as usize + nx * (b[1] as usize + ny * b[2] as usize)
+    }
+
+    fn of_cell(&self, ijk: [u32; 3]) -> [u32; 3] {
+        ijk.map(|i| i / self.size)
+    }
+}
+
+/// A body spread over the ranks of a communicator, ready to build locators: each rank's local body
+/// holds what its points' serial searches read (see the module docs).
+#[derive(Clone, Debug)]
+pub struct DistributedBody {
+    lattice: Lattice,
+    settings: Settings,
+    blocks: Blocks,
+    /// Cells per axis that a point of a block may read below and above the block.
+    before: [u32; 3],
+    after: [u32; 3],
+    /// The local body; `None` when this rank is home to no block with cells.
+    body: Option<Body>,
+    stats: SetupStats,
+}
+
+impl DistributedBody {
+    /// Collective: every rank of `comm` calls it, with the same `lattice` and `config` and its own
+    /// cells (any subset of the body's active cells; each active cell on exactly one rank; none is
+    /// fine). Fails on every rank when any rank's input is bad, naming the fault on that rank.
+    pub fn new<C: Communicator>(
+        comm: &C,
+        lattice: Lattice,
+        cells: &[OwnedCell],
+        config: Config,
+    ) -> Result<Self, Error> {
+        let start = Instant::now();
+        let mut traffic = Traffic::default();
+        let rank = comm.rank();
+        let size = comm.size() as usize;
+        // 1. Check this rank's cells; agree on failure, on a non-empty body and on the global range
+        //    of each displacement component, all in one reduction (a minimum is the maximum of
+        //    the complement of its order key).
+        let local = check_cells(&lattice, cells, &config);
+        let (mut low, mut high) = ([u64::MAX; 3], [0u64; 3]);
+        for cell in cells {
+            for u in cell.u {
+                for a in 0..3 {
+                    low[a] = low[a].min(order_key(u[a]));
+                    high[a] = high[a].max(order_key(u[a]));
+                }
+            }
+        }
+        let failed = if local.is_err() {
+            u64::MAX - rank as u64
+        } else {
+            0
+        };
+        let mut words = vec![failed, u64::from(!cells.is_empty())];
+        words.extend(high);
+        words.extend(low.map(|k| !k));
+        let agreed = all_reduce(comm, &words, SystemOperation::max(), &mut traffic);
+        if agreed[0] != 0 {
+            local?;
+            return Err(Error::OnAnotherRank {
+                rank: (u64::MAX - agreed[0]) as i32,
+            });
+        }
+        if agreed[1] == 0 {
+            return Err(Error::EmptyBody);
+        }
+        let high_key: [u64; 3] = [agreed[2], agreed[3], agreed[4]];
+        let low_key: [u64; 3] = [!agreed[5], !agreed[6], !agreed[7]];
+        let u_high = DVec3::from_array(high_key.map(from_order_key));
+        let u_low = DVec3::from_array(low_key.map(from_order_key));
+
+        // 2. The cells holding the six extremes, sent to every rank: the lowest rank holding each
+        //    names it, then one reduction carries them (only that rank's words are non-zero).
+        let extremes: Vec<(usize, usize)> = (0..3)
+            .flat_map(|a| [(a, high_key[a]), (a, !low_key[a])])
+            .enumerate()
+            .filter_map(|(slot, (a, key))| {
+                let want = if slot % 2 == 0 { key } else { !key };
+                cells
+                    .iter()
+                    .position(|c| c.u.iter().any(|u| order_key(u[a]) == want))
+                    .map(|at| (slot, at))
+            })
+            .collect();
+        let mut holders = vec![u64::MAX; 6];
+        for &(slot, _) in &extremes {
+            holders[slot] = rank as u64;
+        }
+        let holders = all_reduce(comm, &holders, SystemOperation::min(), &mut traffic);
+        let mut extreme_words = vec![0u64; 6 * CELL_WORDS];
+        for &(slot, at) in &extremes {
+            if holders[slot] == rank as u64 {
+                write_cell(&cells[at], &mut extreme_words[slot * CELL_WORDS..]);
+            }
+        }
+        let extreme_words = all_reduce(comm, &extreme_words, SystemOperation::max(), &mut traffic);
+
+        // 3. The ownership map: one reduction over the blocks of (count of cells, rank) packed so
+        //    that the maximum is the rank holding most, the lowest on a tie.
+        let block = config.block;
+        let counts = lattice.cells().map(|n| n.div_ceil(block));
+        let block_count: usize = counts.iter().map(|&n| n as usize).product();
+        let mut blocks = Blocks {
+            size: block,
+            counts,
+            home: vec![NO_HOME; block_count],
+        };
+        let mut held = vec![0u64; block_count];
+        for cell in cells {
+            let ijk = lattice.cell_ijk(cell.cell).expect("checked in range");
+            held[blocks.index(blocks.of_cell(ijk))] += 1;
+        }
+        for words in &mut held {
+            if *words > 0 {
+                *words = *words << 32 | (u64::from(u32::MAX) - rank as u64);
+            }
+        }
+        let held = all_reduce(comm, &held, SystemOperation::max(), &mut traffic);
+        for (home, &words) in blocks.home.iter_mut().zip(&held) {
+            if words != 0 {
+                *home = u32::MAX - (words & 0xffff_ffff) as u32;
+            }
+        }
+        let h = lattice.h();
+        let reach = |u: DVec3| -> [u32; 3] {
+            let cells = (u.max(DVec3::ZERO) / h).ceil() + MARGIN;
+            [0, 1, 2].map(|a| cells[a].min(f64::from(lattice.cells()[a])) as u32)
+        };
+        // A point at x reads cells near x − u: below x by up to max(u, 0), above by -min(u, 0).
+        let before = reach(u_high);
+        let after = reach(-u_low);
+        adopt_empty_blocks(&mut blocks, &lattice, before, after);
+
+        // 4. Each cell to every home whose blocks' reach holds it.
+        let mut outgoing = vec![Vec::new(); size];
+        let mut homes = Vec::with_capacity(8);
+        for cell in cells {
+            let ijk = lattice.cell_ijk(cell.cell).expect("checked in range");
+            homes.clear();
+            for_blocks_reaching(&blocks, &lattice, ijk, before, after, |b| {
+                let home = blocks.home[blocks.index(b)];
+                if home != NO_HOME && !homes.contains(&home) {
+                    homes.push(home);
+                }
+            });
+            for &home in &homes {
+                let out: &mut Vec<u64> = &mut outgoing[home as usize];
+                let at = out.len();
+                out.resize(at + CELL_WORDS, 0);
+                write_cell(cell, &mut out[at..]);
+            }
+        }
+        let (received, _) = exchange(comm, &outgoing, &mut traffic);
+        drop(outgoing);
+
+        // 5. The local body: the cells received and the extreme cells, checked for a cell held
+        //    twice and a node given two displacements, then agreed on.
+        let home_blocks = blocks.home.iter().filter(|&&h| h == rank as u32).count();
+        let local_cells: Vec<OwnedCell> =
+            received.chunks_exact(CELL_WORDS).map(read_cell).collect();
+        drop(received);
+        let built = if local_cells.is_empty() {
+            Ok(None)
+        } else {
+            let extremes = extreme_words.chunks_exact(CELL_WORDS).map(read_cell);
+            local_body(&lattice, local_cells, extremes).map(Some)
+        };
+        let failed = if built.is_err() {
+            u64::MAX - rank as u64
+        } else {
+            0
+        };
+        let agreed = all_reduce(comm, &[failed], SystemOperation::max(), &mut traffic);
+        if agreed[0] != 0 {
+            built?;
+            return Err(Error::OnAnotherRank {
+                rank: (u64::MAX - agreed[0]) as i32,
+            });
+        }
+        let body = built.expect("agreed: no rank failed");
+        let stats = SetupStats {
+            seconds: start.elapsed().as_secs_f64(),
+            traffic,
+            own_cells: cells.len(),
+            local_cells: body.as_ref().map_or(0, Body::active_count),
+            blocks: block_count,
+            home_blocks,
+            body_bytes: body.as_ref().map_or(0, Body::heap_bytes),
+        };
+        Ok(Self {
+            lattice,
+            settings: config.settings,
+            blocks,
+            before,
+            after,
+            body,
+            stats,
+        })
+    }
+
+    /// The lattice.
+    #[must_use]
+    pub fn lattice(&self) -> &Lattice {
+        &self.lattice
+    }
+
+    /// This rank's local body (its home blocks' cells, their halo, the extreme cells), `None` when
+    /// it is home to no block with cells.
+    #[must_use]
+    pub fn local_body(&self) -> Option<&Body> {
+        self.body.as_ref()
+    }
+
+    /// What the setup cost this rank.
+    #[must_use]
+    pub fn stats(&self) -> SetupStats {
+        self.stats
+    }
+
+    /// Cells a point may read below and above its block, per axis (the halo's reach).
+    #[must_use]
+    pub fn reach(&self) -> ([u32; 3], [u32; 3]) {
+        (self.before, self.after)
+    }
+
+    /// The rank a point is searched on, or `None` when it is not finite or no active cell is near
+    /// enough to hold it. Pure index arithmetic on the ownership map.
+    #[must_use]
+    pub fn home_of(&self, x: DVec3) -> Option<u32> {
+        if !x.is_finite() {
+            return None;
+        }
+        let t = self.lattice.lattice_coords(x);
+        let cells = self.lattice.cells();
+        let ijk = [0, 1, 2].map(|a| {
+            let top = f64::from(cells[a] - 1);
+            t[a].floor().clamp(0.0, top) as u32
+        });
+        match self.blocks.home[self.blocks.index(self.blocks.of_cell(ijk))] {
+            NO_HOME => None,
+            home => Some(home),
+        }
+    }
+
+    /// A locator over this rank's local body (local work: the core's O(nodes) build).
+    pub fn locator(&self) -> Result<DistributedLocator<'_>, Error> {
+        let local = match &self.body {
+            Some(body) => Some(LatticeLocator::new(body, self.settings)?),
+            None => None,
+        };
+        Ok(DistributedLocator { body: self, local })
+    }
+}
+
+/// Queries over a [`DistributedBody`].
+#[derive(Clone, Debug)]
+pub struct DistributedLocator<'a> {
+    body: &'a DistributedBody,
+    local: Option<LatticeLocator<'a>>,
+}
+
+impl DistributedLocator<'_> {
+    /// The core locator over this rank's local body, if it has one.
+    #[must_use]
+    pub fn local(&self) -> Option<&LatticeLocator<'_>> {
+        self.local.as_ref()
+    }
+
+    /// Collective: every rank calls it with its own points (any number, none included). Each
+    /// point is searched on its home rank and its answer comes back here, in input order,
+    /// bitwise the serial locator's on the whole body. Runs the local search on the current rayon
+    /// pool.
+    pub fn locate_all<C: Communicator>(&self, comm: &C, points: &[DVec3]) -> Located {
+        let size = comm.size() as usize;
+        let mut stats = QueryStats {
+            points: points.len(),
+            ..QueryStats::default()
+        };
+        // Routing: each point's home, then the points grouped by home (a counting sort, stable),
+        // sent as their coordinates' bits.
+        let start = Instant::now();
+        let mut answers: Vec<Answer> = vec![Ok(None); points.len()];
+        let mut tried = vec![0u32; points.len()];
+        let homes: Vec<Option<u32>> = points.iter().map(|&x| self.body.home_of(x)).collect();
+        let mut per_rank = vec![0usize; size];
+        for h in homes.iter().flatten() {
+            per_rank[*h as usize] += 1;
+        }
+        let mut outgoing: Vec<Vec<u64>> = per_rank
+            .iter()
+            .map(|&n| Vec::with_capacity(3 * n))
+            .collect();
+        for (i, (x, home)) in points.iter().zip(&homes).enumerate() {
+            match home {
+                Some(h) => outgoing[*h as usize].extend(x.to_array().map(f64::to_bits)),
+                // The serial search refuses a non-finite point before any inversion.
+                None if !x.is_finite() => answers[i] = Err(PointError::NonFinite),
+                // No active cell near: the serial search inverts nothing and finds nothing.
+                None => {}
+            }
+        }
+        let (received, from) = exchange(comm, &outgoing, &mut stats.routing);
+        drop(outgoing);
+        let received: Vec<DVec3> = received
+            .chunks_exact(3)
+            .map(|w| {
+                DVec3::new(
+                    f64::from_bits(w[0]),
+                    f64::from_bits(w[1]),
+                    f64::from_bits(w[2]),
+                )
+            })
+            .collect();
+        stats.searched = received.len();
+        stats.routing_seconds = start.elapsed().as_secs_f64();
+
+        // Search: the core's batched search on the local body, and the inversions the points
+        // it does not find tried (as `cgcontact locate` counts them).
+        let start = Instant::now();
+        let mut found = Vec::new();
+        let mut found_tried = Vec::new();
+        if let Some(local) = &self.local {
+            local.locate_all_into(&received, &mut found);
+            found_tried = found
+                .iter()
+                .zip(&received)
+                .map(|(answer, &x)| match answer {
+                    Ok(Some(hit)) => hit.inversions,
+                    _ => local.locate_counted(x).1,
+                })
+                .collect();
+        } else {
+            // Only a rank home to some block receives points, and such a rank has a body.
+            debug_assert!(received.is_empty());
+        }
+        stats.search_seconds = start.elapsed().as_secs_f64();
+
+        // Return: the answers to the ranks that asked, in the order they came.
+        let start = Instant::now();
+        let mut back = Vec::with_capacity(size);
+        let mut at = 0;
+        for words in &from {
+            let n = words / 3;
+            let mut out = vec![0u64; ANSWER_WORDS * n];
+            for (k, chunk) in out.chunks_exact_mut(ANSWER_WORDS).enumerate() {
+                encode(&found[at + k], found_tried[at + k], chunk);
+            }
+            at += n;
+            back.push(out);
+        }
+        drop(found);
+        let (returned, _) = exchange(comm, &back, &mut stats.returned);
+        drop(back);
+        // The answers arrive grouped by home rank, each group in this rank's input order.
+        let mut cursor: Vec<usize> = Vec::with_capacity(size);
+        let mut offset = 0;
+        for &n in &per_rank {
+            cursor.push(offset);
+            offset += n;
+        }
+        for (i, home) in homes.iter().enumerate() {
+            if let Some(h) = home {
+                let k = cursor[*h as usize];
+                cursor[*h as usize] += 1;
+                let (answer, count) = decode(&returned[k * ANSWER_WORDS..(k + 1) * ANSWER_WORDS]);
+                answers[i] = answer;
+                tried[i] = count;
+            }
+        }
+        stats.return_seconds = start.elapsed().as_secs_f64();
+        Located {
+            answers,
+            tried,
+            stats,
+        }
+    }
+}
+
+/// Collective: the answers of every rank's points, concatenated in rank order, on `root`
+/// (`None` elsewhere). What a command writing one results file needs.
+pub fn gather_located<C: Communicator>(
+    comm: &C,
+    root: i32,
+    located: &Located,
+) -> Option<(Vec<Answer>, Vec<u32>)> {
+    use mpi::datatype::PartitionMut;
+    let mut words = vec![0u64; ANSWER_WORDS * located.answers.len()];
+    for ((answer, &tried), chunk) in located
+        .answers
+        .iter()
+        .zip(&located.tried)
+        .zip(words.chunks_exact_mut(ANSWER_WORDS))
+    {
+        encode(answer, tried, chunk);
+    }
+    let process = comm.process_at_rank(root);
+    let count = mpi::Count::try_from(words.len()).expect("under 2^31 words per rank");
+    if comm.rank() == root {
+        let mut counts = vec![0 as mpi::Count; comm.size() as usize];
+        process.gather_into_root(&count, &mut counts[..]);
+        let mut displs = Vec::with_capacity(counts.len());
+        let mut total = 0;
+        for &c in &counts {
+            displs.push(total);
+            total += c;
+        }
+        let mut all = vec![0u64; total as usize];
+        {
+            let mut into = PartitionMut::new(&mut all[..], &counts[..], &displs[..]);
+            process.gather_varcount_into_root(&words[..], &mut into);
+        }
+        let (answers, tried) = all.chunks_exact(ANSWER_WORDS).map(decode).unzip();
+        Some((answers, tried))
+    } else {
+        process.gather_into(&count);
+        process.gather_varcount_into(&words[..]);
+        None
+    }
+}
+
+/// Check one rank's cells: in the lattice, finite displacements, and the block size.
+fn check_cells(lattice: &Lattice, cells: &[OwnedCell], config: &Config) -> Result<(), Error> {
+    if config.block == 0 || config.block > 1 << 20 {
+        return Err(Error::BlockSize(config.block));
+    }
+    config.settings.validate()?;
+    for cell in cells {
+        if cell.cell.index() >= lattice.cell_count() {
+            return Err(Error::CellOutOfRange {
+                cell: cell.cell,
+                cells: lattice.cell_count(),
+            });
+        }
+        if let Some(corner) = cell.u.iter().position(|u| !u.is_finite()) {
+            return Err(Error::NonFiniteDisplacement {
+                cell: cell.cell,
+                corner,
+            });
+        }
+    }
+    Ok(())
+}
+
+/// Give each block without cells the home of the first block (in index order) within its points'
+/// reach that has cells, so that its points are searched where their cells are; a block with
+/// none near keeps no home (its points are answered "not found" without a search).
+fn adopt_empty_blocks(blocks: &mut Blocks, lattice: &Lattice, before: [u32; 3], after: [u32; 3]) {
+    let had = blocks.home.clone();
+    let size = blocks.size;
+    let cells = lattice.cells();
+    for bz in 0..blocks.counts[2] {
+        for by in 0..blocks.counts[1] {
+            for bx in 0..blocks.counts[0] {
+                let b = [bx, by, bz];
+                let index = blocks.index(b);
+                if had[index] != NO_HOME {
+                    continue;
+                }
+                // The cells its points may read, then the blocks holding them.
+                let low = [0, 1, 2].map(|a| (b[a] * size).saturating_sub(before[a]) / size);
+                let high = [0, 1, 2].map(|a| {
+                    let last = ((b[a] + 1) * size).min(cells[a]) - 1;
+                    (last + after[a]).min(cells[a] - 1) / size
+                });
+                'found: for z in low[2]..=high[2] {
+                    for y in low[1]..=high[1] {
+                        for x in low[0]..=high[0] {
+                            let home = had[blocks.index([x, y, z])];
+                            if home != NO_HOME {
+                                blocks.home[index] = home;
+                                break 'found;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Call `f` with every block whose points may read cell `ijk`: the blocks overlapping
+/// [ijk − after, ijk + before].
+fn for_blocks_reaching(
+    blocks: &Blocks,
+    lattice: &Lattice,
+    ijk: [u32; 3],
+    before: [u32; 3],
+    after: [u32; 3],
+    mut f: impl FnMut([u32; 3]),
+) {
+    let cells = lattice.cells();
+    let low = [0, 1, 2].map(|a| ijk[a].saturating_sub(after[a]) / blocks.size);
+    let high =
+        [0, 1, 2].map(|a| (ijk[a].saturating_add(before[a])).min(cells[a] - 1) / blocks.size);
+    for z in low[2]..=high[2] {
+        for y in low[1]..=high[1] {
+            for x in low[0]..=high[0] {
+                f([x, y, z]);
+            }
+        }
+    }
+}
+
+/// The body of the cells `received` (each must come once: a cell held by two ranks arrives twice)
+/// and the `extremes` (added unless received), checked for a node given two displacements.
+fn local_body(
+    lattice: &Lattice,
+    mut received: Vec<OwnedCell>,
+    extremes: impl IntoIterator<Item = OwnedCell>,
+) -> Result<Body, Error> {
+    received.sort_unstable_by_key(|c| c.cell);
+    if let Some(pair) = received.windows(2).find(|p| p[0].cell == p[1].cell) {
+        return Err(Error::DuplicateCell { cell: pair[0].cell });
+    }
+    let mut cells = received;
+    for extreme in extremes {
+        if cells
+            .binary_search_by_key(&extreme.cell, |c| c.cell)
+            .is_err()
+        {
+            cells.push(extreme);
+        }
+    }
+    cells.sort_unstable_by_key(|c| c.cell);
+    cells.dedup_by_key(|c| c.cell);
+    let mut nodes: Vec<(usize, DVec3)> = Vec::with_capacity(8 * cells.len());
+    for cell in &cells {
+        let ijk = lattice.cell_ijk(cell.cell).expect("checked in range");
+        nodes.extend(lattice.corner_nodes(ijk).into_iter().zip(cell.u));
+    }
+    nodes.sort_unstable_by_key(|&(node, _)| node);
+    let bits = |u: DVec3| u.to_array().map(f64::to_bits);
+    if let Some(pair) = nodes
+        .windows(2)
+        .find(|p| p[0].0 == p[1].0 && bits(p[0].1) != bits(p[1].1))
+    {
+        return Err(Error::InconsistentNode { node: pair[0].0 });
+    }
+    nodes.dedup_by_key(|&mut (node, _)| node);
+    let mut body = Body::from_cells(*lattice, cells.iter().map(|c| c.cell))?;
+    body.update_displacements(|node, _, u| {
+        let at = nodes
+            .binary_search_by_key(&node, |&(n, _)| n)
+            .expect("every node of a local cell has its displacement");
+        *u = nodes[at].1;
+    })?;
+    Ok(body)
+}
+
+fn write_cell(cell: &OwnedCell, out: &mut [u64]) {
+    out[0] = u64::from(cell.cell.0);
+    for (c, u) in cell.u.iter().enumerate() {
+        for a in 0..3 {
+            out[1 + 3 * c + a] = u[a].to_bits();
+        }
+    }
+}
+
+fn read_cell(words: &[u64]) -> OwnedCell {
+    let mut u = [DVec3::ZERO; 8];
+    for (c, u) in u.iter_mut().enumerate() {
+        *u = DVec3::new(
+            f64::from_bits(words[1 + 3 * c]),
+            f64::from_bits(words[2 + 3 * c]),
+            f64::from_bits(words[3 + 3 * c]),
+        );
+    }
+    OwnedCell {
+        cell: CellId(words[0] as u32),
+        u,
+    }
+}
+
+/// An answer and its tried count as 6 words: kind (0 none, 1 hit, 2 refused) and cell; ξ's bits;
+/// iterations and inversions (or tried); the residual's bits.
+fn encode(answer: &Answer, tried: u32, out: &mut [u64]) {
+    out.fill(0);
+    match answer {
+        Ok(Some(hit)) => {
+            out[0] = 1 << 32 | u64::from(hit.cell.0);
+            out[1] = hit.xi.x.to_bits();
+            out[2] = hit.xi.y.to_bits();
+            out[3] = hit.xi.z.to_bits();
+            out[4] = u64::from(hit.iterations) << 32 | u64::from(hit.inversions);
+            out[5] = hit.residual.to_bits();
+        }
+        Ok(None) => out[4] = u64::from(tried),
+        Err(_) => {
+            out[0] = 2 << 32;
+            out[4] = u64::from(tried);
+        }
+    }
+}
+
+fn decode(words: &[u64]) -> (Answer, u32) {
+    let low = |w: u64| (w & 0xffff_ffff) as u32;
+    match words[0] >> 32 {
+        1 => {
+            let hit = Hit {
+                cell: CellId(low(words[0])),
+                xi: DVec3::new(
+                    f64::from_bits(words[1]),
+                    f64::from_bits(words[2]),
+                    f64::from_bits(words[3]),
+                ),
+                iterations: (words[4] >> 32) as u32,
+                residual: f64::from_bits(words[5]),
+                inversions: low(words[4]),
+            };
+            (Ok(Some(hit)), hit.inversions)
+        }
+        2 => (Err(PointError::NonFinite), low(words[4])),
+        _ => (Ok(None), low(words[4])),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn answers_cross_the_wire_bitwise() {
+        let hit = Hit {
+            cell: CellId(77),
+            xi: DVec3::new(-1.0, 0.1 + 0.2, -0.0),
+            iterations: 3,
+            residual: 1.5e-17,
+            inversions: 2,
+        };
+        let mut words = [0u64; ANSWER_WORDS];
+        for (answer, tried) in [
+            (Ok(Some(hit)), 2),
+            (Ok(None), 5),
+            (Err(PointError::NonFinite), 0),
+        ] {
+            encode(&answer, tried, &mut words);
+            let (back, count) = decode(&words);
+            assert_eq!(count, tried);
+            match (back, answer) {
+                (Ok(Some(a)), Ok(Some(b))) => {
+                    assert_eq!(
+                        a.xi.to_array().map(f64::to_bits),
+                        b.xi.to_array().map(f64::to_bits)
+                    );
+                    assert_eq!(a, b);
+                }
+                (a, b) => assert_eq!(a, b),
+            }
+        }
+    }
+
+    #[test]
+    fn a_cell_record_keeps_every_bit() {
+        let cell = OwnedCell {
+            cell: CellId(12345),
+            u: [0, 1, 2, 3, 4, 5, 6, 7].map(|c| DVec3::new(c as f64 * 0.1, -0.0, 1e-300)),
+        };
+        let mut words = [0u64; CELL_WORDS];
+        write_cell(&cell, &mut words);
+        let back = read_cell(&words);
+        assert_eq!(back.cell, cell.cell);
+        for (a, b) in back.u.iter().zip(&cell.u) {
+            assert_eq!(
+                a.to_array().map(f64::to_bits),
+                b.to_array().map(f64::to_bits)
+            );
+        }
+    }
+}

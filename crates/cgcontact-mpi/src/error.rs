@@ -1,0 +1,53 @@
+//! What can go wrong in a collective call. Every rank returns an error when any rank found one, so
+//! that no rank goes on into a collective that the others left.
+
+use cgcontact::CellId;
+
+/// Why a collective setup failed.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum Error {
+    /// A cell index beyond the lattice's cells.
+    #[error("cell {cell} is outside the lattice's {cells} cells")]
+    CellOutOfRange {
+        /// The cell.
+        cell: CellId,
+        /// The lattice's cell count.
+        cells: usize,
+    },
+    /// A corner displacement is NaN or infinite.
+    #[error("cell {cell}: corner {corner} has a NaN or infinite displacement")]
+    NonFiniteDisplacement {
+        /// The cell.
+        cell: CellId,
+        /// The corner (VTK order).
+        corner: usize,
+    },
+    /// No rank holds any cell.
+    #[error("no rank holds any cell: the body is empty")]
+    EmptyBody,
+    /// The same cell was given by more than one rank (or twice by one).
+    #[error("cell {cell} is held twice (each active cell belongs to one rank)")]
+    DuplicateCell {
+        /// The cell.
+        cell: CellId,
+    },
+    /// Two cells sharing a node give it different displacements.
+    #[error("node {node} has two different displacements in the cells sharing it")]
+    InconsistentNode {
+        /// The lattice node index.
+        node: usize,
+    },
+    /// The block size is 0 or over 2^20.
+    #[error("block size {0}: it must be between 1 and 2^20 cells")]
+    BlockSize(u32),
+    /// The core library refused the settings or the local body.
+    #[error(transparent)]
+    Core(#[from] cgcontact::Error),
+    /// Another rank failed (its own error is reported there); this one stopped with it.
+    #[error("rank {rank} failed")]
+    OnAnotherRank {
+        /// The lowest rank that failed.
+        rank: i32,
+    },
+}

@@ -1,0 +1,139 @@
+//! The few collectives the distributed search needs, over plain `u64` words (an `f64` travels as
+//! its bits, so that every value arrives bitwise), and what each rank sent.
+
+use mpi::Count;
+use mpi::collective::SystemOperation;
+use mpi::datatype::{Partition, PartitionMut};
+use mpi::traits::*;
+
+/// What one rank sent in a phase: point-to-point payload to other ranks (its own share, kept in
+/// place, is not counted) and the collectives it joined.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Traffic {
+    /// Ranks other than this one that it sent a non-empty payload to.
+    pub messages: u64,
+    /// Payload bytes sent to other ranks.
+    pub bytes: u64,
+    /// Collective calls (all-reduce, all-to-all of counts, broadcast) this rank took part in.
+    pub collectives: u64,
+}
+
+impl Traffic {
+    /// The sum of two phases' traffic.
+    #[must_use]
+    pub fn plus(self, other: Self) -> Self {
+        Self {
+            messages: self.messages + other.messages,
+            bytes: self.bytes + other.bytes,
+            collectives: self.collectives + other.collectives,
+        }
+    }
+}
+
+/// `send` in place reduced over every rank with `op`.
+pub(crate) fn all_reduce<C: Communicator>(
+    comm: &C,
+    send: &[u64],
+    op: SystemOperation,
+    traffic: &mut Traffic,
+) -> Vec<u64> {
+    let mut out = vec![0u64; send.len()];
+    comm.all_reduce_into(send, &mut out[..], op);
+    traffic.collectives += 1;
+    out
+}
+
+/// Sends `outgoing[r]` to rank r, for every r, and returns what each rank sent here, concatenated in
+/// rank order, with the number of words from each rank. Two collectives: the counts (all-to-all),
+/// then the words (all-to-all-v).
+pub(crate) fn exchange<C: Communicator>(
+    comm: &C,
+    outgoing: &[Vec<u64>],
+    traffic: &mut Traffic,
+) -> (Vec<u64>, Vec<usize>) {
+    let me = comm.rank() as usize;
+    let send_counts: Vec<Count> = outgoing
+        .iter()
+        .map(|words| Count::try_from(words.len()).expect("under 2^31 words per rank pair"))
+        .collect();
+    let mut recv_counts: Vec<Count> = vec![0; outgoing.len()];
+    comm.all_to_all_into(&send_counts[..], &mut recv_counts[..]);
+    for (rank, words) in outgoing.iter().enumerate() {
+        if rank != me && !words.is_empty() {
+            traffic.messages += 1;
+            traffic.bytes += 8 * words.len() as u64;
+        }
+    }
+    traffic.collectives += 2;
+    let send: Vec<u64> = outgoing.concat();
+    let send_displs = displacements(&send_counts);
+    let recv_displs = displacements(&recv_counts);
+    let total: usize = recv_counts.iter().map(|&c| c as usize).sum();
+    let mut received = vec![0u64; total];
+    {
+        let partition = Partition::new(&send[..], &send_counts[..], &send_displs[..]);
+        let mut into = PartitionMut::new(&mut received[..], &recv_counts[..], &recv_displs[..]);
+        comm.all_to_all_varcount_into(&partition, &mut into);
+    }
+    let counts = recv_counts.iter().map(|&c| c as usize).collect();
+    (received, counts)
+}
+
+/// Each partition's offset: the running sum of the counts before it.
+fn displacements(counts: &[Count]) -> Vec<Count> {
+    counts
+        .iter()
+        .scan(0, |at, &c| {
+            let here = *at;
+            *at += c;
+            Some(here)
+        })
+        .collect()
+}
+
+/// An order-preserving key of an `f64` (IEEE total order), so that a max or min over ranks is an
+/// integer max or min and the extreme arrives bitwise.
+#[inline]
+pub(crate) fn order_key(value: f64) -> u64 {
+    let bits = value.to_bits();
+    if bits >> 63 == 1 {
+        !bits
+    } else {
+        bits | (1 << 63)
+    }
+}
+
+/// The inverse of [`order_key`].
+#[inline]
+pub(crate) fn from_order_key(key: u64) -> f64 {
+    if key >> 63 == 1 {
+        f64::from_bits(key & !(1 << 63))
+    } else {
+        f64::from_bits(!key)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn order_keys_sort_as_the_total_order_and_invert() {
+        let values = [
+            f64::NEG_INFINITY,
+            -3.5,
+            -1e-300,
+            -0.0,
+            0.0,
+            1e-300,
+            2.0,
+            f64::INFINITY,
+        ];
+        for pair in values.windows(2) {
+            assert!(order_key(pair[0]) < order_key(pair[1]), "{pair:?}");
+        }
+        for v in values {
+            assert_eq!(from_order_key(order_key(v)).to_bits(), v.to_bits());
+        }
+    }
+}
