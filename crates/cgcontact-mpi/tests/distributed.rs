@@ -1,0 +1,414 @@
+//! The distributed search against the serial one, under mpirun.
+//!
+//! Run by `cargo test`, this program is the driver: it starts itself under `mpirun --oversubscribe
+//! -np P` for P = 1, 2, 3, 4 and fails when any run fails. Started by mpirun (Open MPI sets
+//! `OMPI_COMM_WORLD_SIZE`), it is one rank: on every scene, partition and block size, each rank's
+//! answers must be bitwise those of the serial `LatticeLocator` on the whole body (cell, ξ,
+//! iterations, residual, inversions, and the inversions tried by points not found). A mismatch
+//! aborts every rank with a message naming the point.
+
+use std::process::Command;
+use std::time::{Duration, Instant};
+
+use cgcontact::glam::DVec3;
+use cgcontact::{Answer, Body, CellId, Lattice, LatticeLocator, Locator, PointError, Settings};
+use cgcontact_mpi::{Config, DistributedBody, Error, OwnedCell, Partition};
+use cgcontact_scenes::{SphereOnBlock, known_points};
+use mpi::topology::SimpleCommunicator;
+use mpi::traits::*;
+
+fn main() {
+    if std::env::var_os("OMPI_COMM_WORLD_SIZE").is_none() && std::env::var_os("PMI_SIZE").is_none()
+    {
+        drive();
+    } else {
+        rank();
+    }
+}
+
+/// Start this program under mpirun for P = 1..=4 (or the `CGCONTACT_MPI_RANKS` list).
+fn drive() {
+    let exe = std::env::current_exe().expect("the test's own path");
+    let ranks = std::env::var("CGCONTACT_MPI_RANKS").unwrap_or_else(|_| "1,2,3,4".to_owned());
+    for p in ranks.split(',') {
+        let mut command = Command::new("mpirun");
+        command.arg("--oversubscribe");
+        if is_root() {
+            command.arg("--allow-run-as-root");
+        }
+        command.args(["-np", p]).arg(&exe);
+        let start = Instant::now();
+        let mut child = command
+            .spawn()
+            .unwrap_or_else(|e| panic!("cannot start mpirun ({e}): is Open MPI installed?"));
+        let status = loop {
+            if let Some(status) = child.try_wait().expect("waiting on mpirun") {
+                break status;
+            }
+            if start.elapsed() > Duration::from_secs(600) {
+                let _ = child.kill();
+                panic!("mpirun -np {p} hung for 600 s");
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        };
+        assert!(status.success(), "mpirun -np {p} failed: {status}");
+        println!(
+            "mpirun -np {p}: every answer bitwise the serial one ({:.1} s)",
+            start.elapsed().as_secs_f64()
+        );
+    }
+}
+
+fn is_root() -> bool {
+    Command::new("id")
+        .arg("-u")
+        .output()
+        .is_ok_and(|out| String::from_utf8_lossy(&out.stdout).trim() == "0")
+}
+
+/// One test scene: a body and every query point (all ranks build the same).
+struct Case {
+    name: &'static str,
+    body: Body,
+    points: Vec<DVec3>,
+}
+
+fn rank() {
+    let universe = mpi::initialize().expect("MPI starts once");
+    let world = universe.world();
+    let size = world.size() as usize;
+    let mut checked = 0usize;
+    for case in cases() {
+        for partition in Partition::ALL {
+            for block in [8, 2] {
+                for placement in [Placement::Split, Placement::AllOnLast] {
+                    checked += check(&world, &case, partition, block, placement);
+                }
+            }
+        }
+    }
+    refusals_agree(&world);
+    let mut total = 0usize;
+    world.all_reduce_into(
+        &checked,
+        &mut total,
+        mpi::collective::SystemOperation::sum(),
+    );
+    if world.rank() == 0 {
+        println!("{size} ranks: {total} answers bitwise the serial ones");
+    }
+}
+
+/// Which rank asks about which points.
+#[derive(Clone, Copy, Debug)]
+enum Placement {
+    /// Contiguous runs of rows, as the command line reads them.
+    Split,
+    /// Every point on the last rank; the others have none.
+    AllOnLast,
+}
+
+/// The distributed answers of this rank's share of the case's points against the serial ones;
+/// returns how many were checked.
+fn check(
+    world: &SimpleCommunicator,
+    case: &Case,
+    partition: Partition,
+    block: u32,
+    placement: Placement,
+) -> usize {
+    let (rank, size) = (world.rank() as usize, world.size() as usize);
+    let lattice = *case.body.lattice();
+    let cells: Vec<CellId> = case.body.active_cells().collect();
+    let owners = partition.owners(&lattice, &cells, size);
+    let mine: Vec<OwnedCell> = cells
+        .iter()
+        .zip(&owners)
+        .filter(|&(_, &r)| r == rank)
+        .map(|(&cell, _)| OwnedCell {
+            cell,
+            u: case.body.cell_displacements(cell).expect("an active cell"),
+        })
+        .collect();
+    let config = Config {
+        block,
+        ..Config::default()
+    };
+    let what = format!(
+        "{} / {} / block {block} / {placement:?} on rank {rank} of {size}",
+        case.name,
+        partition.name()
+    );
+    let distributed = DistributedBody::new(world, lattice, &mine, config)
+        .unwrap_or_else(|e| fail(world, &format!("{what}: setup: {e}")));
+    let range = match placement {
+        Placement::Split => {
+            let n = case.points.len();
+            rank * n / size..(rank + 1) * n / size
+        }
+        Placement::AllOnLast if rank == size - 1 => 0..case.points.len(),
+        Placement::AllOnLast => 0..0,
+    };
+    let points = &case.points[range.clone()];
+    let locator = distributed
+        .locator()
+        .unwrap_or_else(|e| fail(world, &format!("{what}: locator: {e}")));
+    let located = locator.locate_all(world, points);
+
+    // The serial answers on the whole body: the oracle.
+    let serial = LatticeLocator::new(&case.body, Settings::default()).expect("default settings");
+    let expected = serial.locate_all(points);
+    for (i, (x, (got, want))) in points
+        .iter()
+        .zip(located.answers.iter().zip(&expected))
+        .enumerate()
+    {
+        let want_tried = match want {
+            Ok(Some(hit)) => hit.inversions,
+            _ => serial.locate_counted(*x).1,
+        };
+        if bits(got) != bits(want) || located.tried[i] != want_tried {
+            fail(
+                world,
+                &format!(
+                    "{what}: point {} at {x}: distributed {got:?} (tried {}), serial {want:?} (tried {want_tried})",
+                    range.start + i,
+                    located.tried[i]
+                ),
+            );
+        }
+    }
+    // Memory follows the cells: with slabs over several ranks no rank holds the whole body.
+    let stats = distributed.stats();
+    if partition == Partition::Slabs && size > 1 && block == 8 && case.name == "sphere-fine" {
+        let most = stats.local_cells;
+        if most >= cells.len() {
+            fail(
+                world,
+                &format!("{what}: the local body holds all {most} cells"),
+            );
+        }
+    }
+    points.len()
+}
+
+/// A bad cell on one rank, or a cell on two: every rank gets an error, none hangs.
+fn refusals_agree(world: &SimpleCommunicator) {
+    let (rank, size) = (world.rank(), world.size());
+    let lattice = Lattice::new(DVec3::ZERO, DVec3::ONE, [4, 3, 2]).expect("a lattice");
+    let good = |c: u32| OwnedCell {
+        cell: CellId(c),
+        u: [DVec3::ZERO; 8],
+    };
+    let last = size - 1;
+    // Out of range on the last rank.
+    let mut mine: Vec<OwnedCell> = (0..24)
+        .filter(|c| c % size as u32 == rank as u32)
+        .map(good)
+        .collect();
+    if rank == last {
+        mine.push(good(99));
+    }
+    match DistributedBody::new(world, lattice, &mine, Config::default()) {
+        Err(Error::CellOutOfRange { cell, .. }) if rank == last && cell == CellId(99) => {}
+        Err(Error::OnAnotherRank { rank: r }) if rank != last && r == last => {}
+        other => fail(
+            world,
+            &format!("out of range on rank {last}: rank {rank} got {other:?}"),
+        ),
+    }
+    // Cell 0 on every rank (a duplicate whenever there are two ranks).
+    let mut mine: Vec<OwnedCell> = (1..24)
+        .filter(|c| c % size as u32 == rank as u32)
+        .map(good)
+        .collect();
+    mine.push(good(0));
+    let result = DistributedBody::new(world, lattice, &mine, Config::default());
+    if (size > 1) != result.is_err() {
+        fail(
+            world,
+            &format!(
+                "cell 0 on {size} ranks: rank {rank} got {:?}",
+                result.map(|_| ())
+            ),
+        );
+    }
+    // No cell anywhere.
+    match DistributedBody::new(world, lattice, &[], Config::default()) {
+        Err(Error::EmptyBody) => {}
+        other => fail(
+            world,
+            &format!("no cells: rank {rank} got {:?}", other.map(|_| ())),
+        ),
+    }
+}
+
+fn fail(world: &SimpleCommunicator, message: &str) -> ! {
+    eprintln!("MISMATCH: {message}");
+    world.abort(1)
+}
+
+/// A hit's fields as bits, or the refusal.
+type Bits = (CellId, [u64; 3], u32, u64, u32);
+
+fn bits(answer: &Answer) -> Result<Option<Bits>, PointError> {
+    answer.map(|hit| {
+        hit.map(|h| {
+            let xi = h.xi.to_array().map(f64::to_bits);
+            (h.cell, xi, h.iterations, h.residual.to_bits(), h.inversions)
+        })
+    })
+}
+
+/// The scenes: the seed's case; a jittered, holed block with points on cell faces, edges and
+/// nodes (ξ = ±1, which lie on rank boundaries for every partition); a block with one node moved
+/// far (a search box of many cells, the core's block-range path); and a tiny block with fewer
+/// cells along its slab axis than ranks (empty ranks).
+fn cases() -> Vec<Case> {
+    let mut cases = Vec::new();
+    let fine = SphereOnBlock::fine()
+        .build("sphere-fine")
+        .expect("the seed's scene");
+    let mut points = fine.all_points();
+    points.extend([
+        DVec3::NAN,
+        DVec3::new(0.1, f64::INFINITY, 0.0),
+        DVec3::splat(1e6),
+        DVec3::splat(-3.0),
+    ]);
+    points.extend(boundary_points(&fine.body, 3000, 1));
+    cases.push(Case {
+        name: "sphere-fine",
+        body: fine.body,
+        points,
+    });
+
+    let jittered = SphereOnBlock {
+        jitter: 0.15,
+        sink_in_h: 1.5,
+        known_points: 2000,
+        ..SphereOnBlock::coarse()
+    }
+    .build("jittered")
+    .expect("a valid jittered scene");
+    let holed = holed(&jittered.body, 5);
+    let mut points: Vec<DVec3> = known_points(&holed, 2000, 7).iter().map(|k| k.x).collect();
+    points.extend(boundary_points(&holed, 4000, 2));
+    points.extend(jittered.contact_points.iter().take(2000));
+    cases.push(Case {
+        name: "jittered-holed",
+        body: holed,
+        points,
+    });
+
+    let lattice = Lattice::new(
+        DVec3::new(-2.0, 5.0, 1.0),
+        DVec3::new(0.3, 0.25, 0.4),
+        [10, 8, 6],
+    )
+    .expect("a lattice");
+    let mut spiked = Body::full(lattice);
+    let spike = lattice.node_index([4, 3, 3]);
+    let h = lattice.h();
+    spiked
+        .update_displacements(|node, x, u| {
+            *u = 0.05 * DVec3::new((x.y * 2.0).sin(), (x.z * 1.5).cos(), (x.x * 0.7).sin());
+            if node == spike {
+                *u += 5.0 * h;
+            }
+        })
+        .expect("finite");
+    let mut points: Vec<DVec3> = known_points(&spiked, 1500, 3).iter().map(|k| k.x).collect();
+    points.extend(boundary_points(&spiked, 1500, 4));
+    cases.push(Case {
+        name: "spiked",
+        body: spiked,
+        points,
+    });
+
+    // One node moved 2 h along x at one end of a long bar, and points beyond the other end: the
+    // serial search admits them (the lattice's box shifted by the displacement range reaches
+    // there) and inverts their predicted cell; a rank whose local body lacked that far node's
+    // range would refuse them untried.
+    let lattice = Lattice::new(DVec3::ZERO, DVec3::splat(0.5), [30, 4, 4]).expect("a lattice");
+    let mut bar = Body::full(lattice);
+    let far = lattice.node_index([1, 2, 2]);
+    bar.update_displacements(|node, x, u| {
+        *u = DVec3::new(0.01 * x.y, 0.02 * (x.x * 0.3).sin(), -0.01 * x.x);
+        if node == far {
+            u.x += 1.0;
+        }
+    })
+    .expect("finite");
+    let mut points: Vec<DVec3> = (0..400)
+        .map(|i| {
+            let f = f64::from(i);
+            DVec3::new(
+                15.0 + 0.002 * f,
+                0.1 + (f * 0.37) % 1.8,
+                0.1 + (f * 0.71) % 1.8,
+            )
+        })
+        .collect();
+    points.extend(known_points(&bar, 500, 8).iter().map(|k| k.x));
+    cases.push(Case {
+        name: "far-spike",
+        body: bar,
+        points,
+    });
+
+    let lattice = Lattice::new(DVec3::ZERO, DVec3::splat(0.5), [3, 2, 2]).expect("a lattice");
+    let mut tiny = Body::full(lattice);
+    tiny.update_displacements(|_, x, u| *u = DVec3::new(0.04 * x.y, -0.03 * x.x * x.z, 0.05 * x.x))
+        .expect("finite");
+    let mut points = boundary_points(&tiny, 500, 5);
+    points.extend(known_points(&tiny, 200, 6).iter().map(|k| k.x));
+    cases.push(Case {
+        name: "tiny",
+        body: tiny,
+        points,
+    });
+    cases
+}
+
+/// `body` without every `every`-th active cell.
+fn holed(body: &Body, every: usize) -> Body {
+    let lattice = *body.lattice();
+    let kept: Vec<CellId> = body
+        .active_cells()
+        .enumerate()
+        .filter(|(i, _)| i % every != 2)
+        .map(|(_, c)| c)
+        .collect();
+    let mut holed = Body::from_cells(lattice, kept).expect("cells left");
+    holed
+        .update_displacements(|node, _, u| {
+            *u = body.displacement(node).expect("a node of the body")
+        })
+        .expect("finite");
+    holed
+}
+
+/// `count` points of random cells at ξ whose components are −1, 0 or 1 (faces, edges, nodes and
+/// centres: shared between cells, often of two ranks), from `seed`.
+fn boundary_points(body: &Body, count: usize, seed: u64) -> Vec<DVec3> {
+    let cells: Vec<CellId> = body.active_cells().collect();
+    let mut state = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
+    let mut next = |n: usize| {
+        state = state
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1_442_695_040_888_963_407);
+        ((state >> 33) % n as u64) as usize
+    };
+    (0..count)
+        .map(|_| {
+            let cell = cells[next(cells.len())];
+            let xi = DVec3::new(
+                [-1.0, 0.0, 1.0][next(3)],
+                [-1.0, 0.0, 1.0][next(3)],
+                [-1.0, 0.0, 1.0][next(3)],
+            );
+            body.point_at(cell, xi).expect("an active cell")
+        })
+        .collect()
+}
