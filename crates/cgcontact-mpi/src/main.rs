@@ -1,1 +1,415 @@
-fn main() {}
+//! `cgcontact-mpi`: `cgcontact locate` over MPI ranks.
+//!
+//! Every rank parses the whole mesh file (true parallel reading of VTK is out of scope) and keeps
+//! only its partition's cells; it parses the points file and keeps a contiguous run of rows. The
+//! ranks locate every point as one process would, and rank 0 writes the results file through
+//! `cgcontact-io`'s writer, byte for byte the file `cgcontact locate` writes. Any failure on any
+//! rank stops every rank with exit code 2, the error printed once, by the rank that met it.
+#![forbid(unsafe_code)]
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::Instant;
+
+use anyhow::{Context, Result, anyhow, bail};
+use cgcontact::{CellId, Settings};
+use cgcontact_io::{DisplacementArray, MeshBody, read_body, read_points, write_results_counted};
+use cgcontact_mpi::{
+    Config, DistributedBody, Error, Located, OwnedCell, Partition, QueryStats, SetupStats,
+    gather_located,
+};
+use clap::{Args, Parser, Subcommand};
+use mpi::collective::SystemOperation;
+use mpi::topology::SimpleCommunicator;
+use mpi::traits::*;
+
+/// cgcontact's contact search over MPI ranks.
+#[derive(Parser, Debug)]
+#[command(name = "cgcontact-mpi", version)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    Locate(LocateArgs),
+}
+
+/// Locate the points of a CSV file in a VTK mesh, over the ranks of `mpirun`.
+#[derive(Args, Debug)]
+#[command(after_help = "Example:
+  mpirun -np 4 cgcontact-mpi locate --mesh block.vtu --points contact.csv --out results.csv --partition slabs
+
+The results file is the one `cgcontact locate` writes for the same mesh and points, byte for byte.
+Each rank reads the whole mesh and keeps its partition's cells (slabs across the longest lattice
+axis, Morton runs, or scattered), and keeps a contiguous run of the points' rows. Uniform meshes
+only (not adaptive ones). Exit code 2 on bad input, on every rank.")]
+struct LocateArgs {
+    /// The mesh (.vtk or .vtu).
+    #[arg(long, value_name = "FILE")]
+    mesh: PathBuf,
+    /// The points (CSV x,y,z).
+    #[arg(long, value_name = "FILE")]
+    points: PathBuf,
+    /// Where rank 0 writes the results CSV [default: none, only the summary].
+    #[arg(long, value_name = "FILE")]
+    out: Option<PathBuf>,
+    /// How the cells are split over the ranks: slabs, morton or random.
+    #[arg(long, default_value = "slabs")]
+    partition: Partition,
+    /// Name of the point-data displacement array [default: `displacement` if present, else undeformed].
+    #[arg(long, value_name = "NAME")]
+    displacement: Option<String>,
+    /// Threads of each rank's local search.
+    #[arg(long, default_value_t = 1)]
+    threads: usize,
+    /// Edge of the ownership map's blocks, in cells.
+    #[arg(long, default_value_t = 8)]
+    block: u32,
+    /// Query the points N more times after the first, and report the fastest run's phases.
+    #[arg(long, default_value_t = 0)]
+    repeat: usize,
+    /// Print one JSON object with the timings, messages and bytes of every rank.
+    #[arg(long)]
+    json: bool,
+    /// Print nothing but errors.
+    #[arg(long)]
+    quiet: bool,
+}
+
+fn main() -> ExitCode {
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => {
+            // Every rank parses the same arguments: rank 0 alone speaks.
+            let rank = std::env::var("OMPI_COMM_WORLD_RANK").unwrap_or_default();
+            if rank.is_empty() || rank == "0" {
+                let _ = e.print();
+            }
+            return if e.use_stderr() {
+                ExitCode::from(2)
+            } else {
+                ExitCode::SUCCESS
+            };
+        }
+    };
+    let Some(universe) = mpi::initialize() else {
+        eprintln!("cgcontact-mpi: MPI was already initialised");
+        return ExitCode::from(2);
+    };
+    let world = universe.world();
+    let Command::Locate(args) = &cli.command;
+    match locate(&world, args) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(Failure::Here(e)) => {
+            eprintln!("cgcontact-mpi: {e:#}");
+            ExitCode::from(2)
+        }
+        Err(Failure::Elsewhere) => ExitCode::from(2),
+    }
+}
+
+/// How a rank's run failed: its own error, printed by it, or another rank's.
+enum Failure {
+    Here(anyhow::Error),
+    Elsewhere,
+}
+
+/// All ranks agree on whether every rank's step succeeded: collective, so that no rank goes on
+/// into a collective the others left. The lowest failing rank alone keeps its error to print.
+fn agree<T>(world: &SimpleCommunicator, step: Result<T>) -> Result<T, Failure> {
+    let me = world.rank();
+    let failed = if step.is_err() { me } else { i32::MAX };
+    let mut first = i32::MAX;
+    world.all_reduce_into(&failed, &mut first, SystemOperation::min());
+    match (step, first) {
+        (Ok(value), i32::MAX) => Ok(value),
+        (Err(e), first) if first == me => Err(Failure::Here(e)),
+        _ => Err(Failure::Elsewhere),
+    }
+}
+
+/// What one rank reports to rank 0 (f64 each, in this order).
+const REPORT: [&str; 14] = [
+    "setup_seconds",
+    "setup_messages",
+    "setup_bytes",
+    "own_cells",
+    "local_cells",
+    "points",
+    "searched",
+    "routing_seconds",
+    "search_seconds",
+    "return_seconds",
+    "routing_messages",
+    "routing_bytes",
+    "return_messages",
+    "return_bytes",
+];
+
+fn report(setup: &SetupStats, query: &QueryStats) -> [f64; 14] {
+    [
+        setup.seconds,
+        setup.traffic.messages as f64,
+        setup.traffic.bytes as f64,
+        setup.own_cells as f64,
+        setup.local_cells as f64,
+        query.points as f64,
+        query.searched as f64,
+        query.routing_seconds,
+        query.search_seconds,
+        query.return_seconds,
+        query.routing.messages as f64,
+        query.routing.bytes as f64,
+        query.returned.messages as f64,
+        query.returned.bytes as f64,
+    ]
+}
+
+fn locate(world: &SimpleCommunicator, args: &LocateArgs) -> Result<(), Failure> {
+    let (rank, size) = (world.rank(), world.size() as usize);
+    let start = Instant::now();
+    // Every flag and the output checked before any file is read.
+    agree(world, check_args(args))?;
+    // The local search runs on rayon's global pool (a communicator cannot enter another pool's
+    // threads).
+    agree(
+        world,
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(args.threads)
+            .build_global()
+            .context("cannot start the search threads"),
+    )?;
+    let read_start = Instant::now();
+    let mesh = agree(
+        world,
+        read_body(
+            &args.mesh,
+            &DisplacementArray::from_option(args.displacement.as_deref()),
+        )
+        .map_err(anyhow::Error::from)
+        .and_then(|mesh| match mesh {
+            MeshBody::Uniform(mesh) => Ok(mesh),
+            MeshBody::Adaptive(_) => Err(anyhow!(
+                "{}: an adaptive mesh (cells of several sizes): cgcontact-mpi searches uniform meshes only",
+                args.mesh.display()
+            )),
+        }),
+    )?;
+    let points = agree(
+        world,
+        read_points(&args.points).map_err(anyhow::Error::from),
+    )?;
+    let read_seconds = read_start.elapsed().as_secs_f64();
+
+    // This rank's cells and points.
+    let lattice = *mesh.body.lattice();
+    let cells: Vec<CellId> = mesh.body.active_cells().collect();
+    let owners = args.partition.owners(&lattice, &cells, size);
+    let mine: Vec<OwnedCell> = cells
+        .iter()
+        .zip(&owners)
+        .filter(|&(_, &r)| r == rank as usize)
+        .map(|(&cell, _)| OwnedCell {
+            cell,
+            u: mesh
+                .body
+                .cell_displacements(cell)
+                .expect("an active cell of the body"),
+        })
+        .collect();
+    drop(owners);
+    let n = points.len();
+    let rows = rank as usize * n / size..(rank as usize + 1) * n / size;
+    let my_points = &points[rows];
+
+    let config = Config {
+        settings: Settings::default(),
+        block: args.block,
+    };
+    world.barrier();
+    let distributed = DistributedBody::new(world, lattice, &mine, config).map_err(|e| match e {
+        Error::OnAnotherRank { .. } => Failure::Elsewhere,
+        e => Failure::Here(anyhow!(e).context("setup")),
+    })?;
+    let locator = agree(world, distributed.locator().map_err(anyhow::Error::from))?;
+    let mut best: Option<(f64, Located)> = None;
+    for _ in 0..=args.repeat {
+        world.barrier();
+        let query_start = Instant::now();
+        let located = locator.locate_all(world, my_points);
+        let local = query_start.elapsed().as_secs_f64();
+        // The query's time is the slowest rank's.
+        let mut slowest = 0.0f64;
+        world.all_reduce_into(&local, &mut slowest, SystemOperation::max());
+        if best.as_ref().is_none_or(|(t, _)| slowest < *t) {
+            best = Some((slowest, located));
+        }
+    }
+    let (query_seconds, located) = best.expect("at least one query");
+
+    // Rank 0 gathers the answers and writes them; every rank learns whether it could.
+    let gathered = gather_located(world, 0, &located);
+    let written = match (&gathered, &args.out) {
+        (Some((answers, tried)), Some(out)) => {
+            write_results_counted(out, answers, tried, &mesh.cells)
+                .with_context(|| format!("{}: cannot write the results", out.display()))
+        }
+        _ => Ok(()),
+    };
+    agree(world, written)?;
+
+    // The report: every rank's figures on rank 0.
+    let mine_report = report(&distributed.stats(), &located.stats);
+    let mut all = vec![0.0f64; REPORT.len() * size];
+    world.all_gather_into(&mine_report[..], &mut all[..]);
+    if rank == 0 && !args.quiet {
+        let (answers, _) = gathered.as_ref().expect("rank 0 gathers");
+        let located_count = answers.iter().filter(|a| matches!(a, Ok(Some(_)))).count();
+        print_summary(
+            args,
+            &Summary {
+                ranks: size,
+                points: n,
+                located: located_count,
+                cells: cells.len(),
+                blocks: distributed.stats().blocks,
+                read_seconds,
+                query_seconds,
+                total_seconds: start.elapsed().as_secs_f64(),
+                per_rank: &all,
+            },
+        );
+    }
+    Ok(())
+}
+
+/// Refuse, before any file is read, what cannot work: a block size out of range, no threads, an
+/// output that is an input or in a missing folder.
+fn check_args(args: &LocateArgs) -> Result<()> {
+    if args.block == 0 || args.block > 1 << 20 {
+        bail!(
+            "--block {}: it must be between 1 and 1048576 cells",
+            args.block
+        );
+    }
+    if args.threads == 0 {
+        bail!("--threads 0: at least one thread searches");
+    }
+    if let Some(out) = &args.out {
+        for (flag, input) in [("--mesh", &args.mesh), ("--points", &args.points)] {
+            if same_file(out, input) {
+                bail!(
+                    "--out {} is the {flag} file {}: it would be overwritten",
+                    out.display(),
+                    input.display()
+                );
+            }
+        }
+        let folder = match out.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+            _ => PathBuf::from("."),
+        };
+        if !folder.is_dir() {
+            bail!(
+                "--out {}: the folder {} does not exist",
+                out.display(),
+                folder.display()
+            );
+        }
+        if out.is_dir() {
+            bail!("--out {}: a folder, not a file", out.display());
+        }
+    }
+    Ok(())
+}
+
+/// Whether two paths name one file (by canonical path; a missing output is no input).
+fn same_file(a: &Path, b: &Path) -> bool {
+    match (a.canonicalize(), b.canonicalize()) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => false,
+    }
+}
+
+struct Summary<'a> {
+    ranks: usize,
+    points: usize,
+    located: usize,
+    cells: usize,
+    blocks: usize,
+    read_seconds: f64,
+    query_seconds: f64,
+    total_seconds: f64,
+    per_rank: &'a [f64],
+}
+
+fn print_summary(args: &LocateArgs, s: &Summary<'_>) {
+    let rows: Vec<&[f64]> = s.per_rank.chunks_exact(REPORT.len()).collect();
+    if args.json {
+        let ranks: Vec<String> = rows
+            .iter()
+            .map(|row| {
+                let fields: Vec<String> = REPORT
+                    .iter()
+                    .zip(row.iter())
+                    .map(|(name, value)| format!("\"{name}\": {value}"))
+                    .collect();
+                format!("{{{}}}", fields.join(", "))
+            })
+            .collect();
+        println!(
+            "{{\"ranks\": {}, \"partition\": \"{}\", \"block\": {}, \"threads\": {}, \"points\": {}, \"located\": {}, \"cells\": {}, \"blocks\": {}, \"read_seconds\": {}, \"query_seconds\": {}, \"points_per_second\": {}, \"total_seconds\": {}, \"per_rank\": [{}]}}",
+            s.ranks,
+            args.partition.name(),
+            args.block,
+            args.threads,
+            s.points,
+            s.located,
+            s.cells,
+            s.blocks,
+            s.read_seconds,
+            s.query_seconds,
+            s.points as f64 / s.query_seconds.max(1e-12),
+            s.total_seconds,
+            ranks.join(", ")
+        );
+        return;
+    }
+    println!(
+        "{} ranks ({} partition), {} cells, {} points: {} located, {} not located",
+        s.ranks,
+        args.partition.name(),
+        s.cells,
+        s.points,
+        s.located,
+        s.points - s.located
+    );
+    println!(
+        "query {:.3} ms ({:.3e} points/s), slowest rank; files read in {:.3} s",
+        1e3 * s.query_seconds,
+        s.points as f64 / s.query_seconds.max(1e-12),
+        s.read_seconds
+    );
+    for (rank, row) in rows.iter().enumerate() {
+        println!(
+            "rank {rank}: setup {:.3} ms ({} cells own, {} local); points {} asked, {} searched; routing {:.3} ms, search {:.3} ms, return {:.3} ms; sent {} + {} messages, {} + {} bytes",
+            1e3 * row[0],
+            row[3],
+            row[4],
+            row[5],
+            row[6],
+            1e3 * row[7],
+            1e3 * row[8],
+            1e3 * row[9],
+            row[10],
+            row[12],
+            row[11],
+            row[13],
+        );
+    }
+    if let Some(out) = &args.out {
+        println!("wrote {}", out.display());
+    }
+}

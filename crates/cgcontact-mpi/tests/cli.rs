@@ -1,0 +1,236 @@
+//! `mpirun -np P cgcontact-mpi locate` against `cgcontact locate`: the same results file, byte for
+//! byte, for P = 1..4 and every partition, on scenes `cgcontact scene` writes, with points on the
+//! cells' faces, edges and nodes. `CGCONTACT_BIN` names the `cgcontact` binary; without it the test
+//! builds it from the main workspace (release, in a folder of this crate's target directory).
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use cgcontact::CellId;
+use cgcontact::glam::DVec3;
+use cgcontact_io::{DisplacementArray, MeshBody, read_body};
+
+fn cgcontact() -> PathBuf {
+    if let Some(bin) = std::env::var_os("CGCONTACT_BIN") {
+        return PathBuf::from(bin);
+    }
+    // .../target/<profile>/deps/cli-HASH: the target folder is three levels up.
+    let exe = std::env::current_exe().expect("the test's own path");
+    let target = exe
+        .ancestors()
+        .nth(3)
+        .expect("a target folder")
+        .join("main-cli");
+    let manifest = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../Cargo.toml");
+    let status = Command::new(env!("CARGO"))
+        .args([
+            "build",
+            "--release",
+            "--locked",
+            "-p",
+            "cgcontact-cli",
+            "--manifest-path",
+        ])
+        .arg(&manifest)
+        .env("CARGO_TARGET_DIR", &target)
+        .status()
+        .expect("cargo runs");
+    assert!(status.success(), "building cgcontact failed");
+    target.join("release/cgcontact")
+}
+
+fn mpirun(ranks: usize, args: &[&str]) -> Output {
+    let mut command = Command::new("mpirun");
+    command.arg("--oversubscribe");
+    let root = Command::new("id")
+        .arg("-u")
+        .output()
+        .is_ok_and(|out| String::from_utf8_lossy(&out.stdout).trim() == "0");
+    if root {
+        command.arg("--allow-run-as-root");
+    }
+    command
+        .args(["-np", &ranks.to_string()])
+        .arg(env!("CARGO_BIN_EXE_cgcontact-mpi"))
+        .args(args)
+        .output()
+        .expect("mpirun runs: is Open MPI installed?")
+}
+
+fn run(command: &mut Command) {
+    let out = command.output().expect("runs");
+    assert!(
+        out.status.success(),
+        "{command:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+/// Points at ξ ∈ {−1, 0, 1}³ of the mesh's cells (faces, edges and nodes shared between cells,
+/// so between ranks), then the scene's own points, as a CSV file.
+fn with_boundary_points(mesh: &Path, scene_points: &Path, out: &Path, count: usize) {
+    let MeshBody::Uniform(mesh) = read_body(mesh, &DisplacementArray::from_option(None)).unwrap()
+    else {
+        panic!("a uniform scene");
+    };
+    let cells: Vec<CellId> = mesh.body.active_cells().collect();
+    let mut text = String::from("x,y,z\n");
+    let mut state = 0x2545_F491_4F6C_DD1Du64;
+    let mut next = |n: usize| {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state % n as u64) as usize
+    };
+    for _ in 0..count {
+        let cell = cells[next(cells.len())];
+        let xi = DVec3::new(
+            [-1.0, 0.0, 1.0][next(3)],
+            [-1.0, 0.0, 1.0][next(3)],
+            [-1.0, 0.0, 1.0][next(3)],
+        );
+        let x = mesh.body.point_at(cell, xi).unwrap();
+        text.push_str(&format!("{},{},{}\n", x.x, x.y, x.z));
+    }
+    let scene = std::fs::read_to_string(scene_points).unwrap();
+    text.extend(scene.lines().skip(1).map(|line| format!("{line}\n")));
+    std::fs::write(out, text).unwrap();
+}
+
+#[test]
+fn results_files_are_byte_for_byte_those_of_cgcontact_locate() {
+    let bin = cgcontact();
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let scenes: [(&str, &[&str]); 3] = [
+        ("fine", &["sphere-fine"]),
+        (
+            "jitter",
+            &[
+                "sphere-coarse",
+                "--jitter",
+                "0.15",
+                "--sink",
+                "1.5",
+                "--format",
+                "vtk",
+            ],
+        ),
+        (
+            "block",
+            &[
+                "block",
+                "--cells",
+                "3,7,4",
+                "--known",
+                "3000",
+                "--format",
+                "vtk-binary",
+            ],
+        ),
+    ];
+    for (name, scene) in scenes {
+        let folder = d.join(name);
+        run(Command::new(&bin)
+            .arg("scene")
+            .args(scene)
+            .arg("--out")
+            .arg(&folder));
+        let mesh = ["mesh.vtu", "mesh.vtk"]
+            .map(|f| folder.join(f))
+            .into_iter()
+            .find(|p| p.exists())
+            .expect("the scene's mesh");
+        let points = folder.join("all.csv");
+        with_boundary_points(&mesh, &folder.join("points.csv"), &points, 3000);
+        let serial = folder.join("serial.csv");
+        run(Command::new(&bin)
+            .args(["locate", "--quiet", "--mesh"])
+            .arg(&mesh)
+            .arg("--points")
+            .arg(&points)
+            .arg("--out")
+            .arg(&serial));
+        let want = std::fs::read(&serial).unwrap();
+        for ranks in 1..=4 {
+            for partition in ["slabs", "morton", "random"] {
+                let out = folder.join(format!("mpi-{ranks}-{partition}.csv"));
+                let args = [
+                    "locate",
+                    "--quiet",
+                    "--partition",
+                    partition,
+                    "--mesh",
+                    mesh.to_str().unwrap(),
+                    "--points",
+                    points.to_str().unwrap(),
+                    "--out",
+                    out.to_str().unwrap(),
+                ];
+                let result = mpirun(ranks, &args);
+                assert!(
+                    result.status.success(),
+                    "{name}, {ranks} ranks, {partition}: {}",
+                    String::from_utf8_lossy(&result.stderr)
+                );
+                let got = std::fs::read(&out).unwrap();
+                assert!(
+                    got == want,
+                    "{name}, {ranks} ranks, {partition}: {} differs from {}",
+                    out.display(),
+                    serial.display()
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn bad_input_stops_every_rank_with_one_message() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let points = d.join("points.csv");
+    std::fs::write(&points, "x,y,z\n0,0,0\n").unwrap();
+    let missing = d.join("missing.vtu");
+    let out = d.join("results.csv");
+    let cases: [Vec<&str>; 3] = [
+        vec![
+            "locate",
+            "--mesh",
+            missing.to_str().unwrap(),
+            "--points",
+            points.to_str().unwrap(),
+        ],
+        vec![
+            "locate",
+            "--mesh",
+            missing.to_str().unwrap(),
+            "--points",
+            points.to_str().unwrap(),
+            "--out",
+            points.to_str().unwrap(),
+        ],
+        vec![
+            "locate",
+            "--mesh",
+            missing.to_str().unwrap(),
+            "--points",
+            points.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--block",
+            "0",
+        ],
+    ];
+    for args in cases {
+        let result = mpirun(3, &args);
+        let stderr = String::from_utf8_lossy(&result.stderr);
+        assert!(!result.status.success(), "{args:?} succeeded");
+        assert_eq!(
+            stderr.matches("cgcontact-mpi:").count(),
+            1,
+            "{args:?}: one message, from one rank: {stderr}"
+        );
+    }
+    assert!(!out.exists());
+}
