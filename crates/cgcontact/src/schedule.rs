@@ -8,10 +8,9 @@
 //! the answers back in input order. Each point's answer depends on that point alone, so the
 //! answers are bitwise the same whatever the schedule; only the order of the work changes.
 //!
-//! The sort's buffers (two indices and one answer per point) live in a pool inside the
-//! locator and are reused by later calls of the same size or smaller.
+//! The sort's buffers (one index per point and one histogram per thread) live in a pool inside
+//! the locator and are reused by later calls.
 
-use std::sync::atomic::{AtomicU32, Ordering::Relaxed};
 use std::sync::{Mutex, TryLockError};
 
 use glam::DVec3;
@@ -65,10 +64,12 @@ impl Schedule {
     }
 }
 
-/// At most this many blocks: the histograms stay small whatever the lattice.
-const MAX_BLOCKS: u64 = 1 << 20;
-/// Points per piece of the sort's passes (at least), and per piece of the answering pass.
-const SORT_PIECE: usize = 1 << 14;
+/// At most this many blocks: a histogram (one per thread) stays in the L2 cache whatever the
+/// lattice.
+const MAX_BLOCKS: u64 = 1 << 16;
+/// At least this many points per thread.
+const MIN_PIECE: usize = 1 << 14;
+/// Points answered at a time (gathered, answered, scattered).
 const CHUNK: usize = 256;
 
 /// The blocks of a lattice: a point's block is the block of the cell its undeformed position
@@ -84,7 +85,7 @@ pub(crate) struct Blocks {
 
 impl Blocks {
     /// The blocks of 2^`log2` cells of `lattice` refined `level` times (enlarged while there
-    /// are more than 2^20 blocks).
+    /// are more than 2^16 blocks).
     pub(crate) fn new(lattice: &Lattice, level: u8, mut log2: u8) -> Self {
         let cells = lattice.cells().map(|n| u64::from(n) << level.min(32));
         let count = |log2: u8| cells.map(|n| n.div_ceil(1u64 << log2.min(63)).max(1));
@@ -95,7 +96,7 @@ impl Blocks {
         Self {
             origin: lattice.origin(),
             inv: size.recip(),
-            // At most 2^20 blocks in all.
+            // At most 2^16 blocks in all.
             counts: count(log2).map(|n| n as u32),
         }
     }
@@ -123,60 +124,34 @@ pub struct Layout<'a> {
 }
 
 /// The sort's buffers, reused across calls.
-#[derive(Debug)]
-struct Workspace<T> {
-    /// Input index of each point in sorted order.
-    perm: Vec<AtomicU32>,
-    /// Sorted position of each input point.
-    rank: Vec<u32>,
-    /// Answers in sorted order.
-    sorted: Vec<T>,
+#[derive(Debug, Default)]
+struct Workspace {
+    /// Per piece, the input index (within the piece) of each point in sorted order.
+    perm: Vec<u32>,
     /// Per piece, the count (then the next position) of each block.
     counts: Vec<u32>,
 }
 
-impl<T> Default for Workspace<T> {
-    fn default() -> Self {
-        Self {
-            perm: Vec::new(),
-            rank: Vec::new(),
-            sorted: Vec::new(),
-            counts: Vec::new(),
-        }
-    }
-}
-
-impl<T> Workspace<T> {
+impl Workspace {
     fn heap_bytes(&self) -> usize {
-        self.perm.capacity() * size_of::<AtomicU32>()
-            + self.rank.capacity() * size_of::<u32>()
-            + self.sorted.capacity() * size_of::<T>()
-            + self.counts.capacity() * size_of::<u32>()
+        size_of_val(self.perm.as_slice()) + size_of_val(self.counts.as_slice())
     }
 }
 
 /// A locator's schedule and the sort's buffers. Cloning gives an empty pool.
-pub(crate) struct Scheduler<T> {
+#[derive(Debug)]
+pub(crate) struct Scheduler {
     schedule: Schedule,
-    pool: Mutex<Workspace<T>>,
+    pool: Mutex<Workspace>,
 }
 
-impl<T> Clone for Scheduler<T> {
+impl Clone for Scheduler {
     fn clone(&self) -> Self {
         Self::new(self.schedule)
     }
 }
 
-impl<T> std::fmt::Debug for Scheduler<T> {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("Scheduler")
-            .field("schedule", &self.schedule)
-            .field("pool_bytes", &self.heap_bytes())
-            .finish()
-    }
-}
-
-impl<T> Scheduler<T> {
+impl Scheduler {
     pub(crate) fn new(schedule: Schedule) -> Self {
         Self {
             schedule,
@@ -192,14 +167,13 @@ impl<T> Scheduler<T> {
             Err(TryLockError::WouldBlock) => 0,
         }
     }
-}
 
-impl<T: Copy + Send + Sync> Scheduler<T> {
     /// Answers `points` into `out` (same length) by `chunk`, which answers any run of points into
     /// a run of answers of the same length, on the current rayon pool: in input order in pieces
-    /// of 256, or sorted by the blocks of the body's `layout`, as the schedule decides. With `warm`, `chunk` also reads each answer's previous value (the warm
-    /// start's hint), which then travels with its point.
-    pub(crate) fn run(
+    /// of 256, or sorted by the blocks of the body's `layout`, as the schedule decides. With
+    /// `warm`, `chunk` also reads each answer's previous value (the warm start's hint), which
+    /// then travels with its point.
+    pub(crate) fn run<T: Copy + Send + Sync>(
         &self,
         layout: Layout<'_>,
         points: &[DVec3],
@@ -234,102 +208,59 @@ impl<T: Copy + Send + Sync> Scheduler<T> {
     }
 }
 
-/// The blocked schedule: a parallel counting sort of the points by block, the answers in sorted
-/// order, then back to input order.
+/// The blocked schedule: the points cut into one piece per thread; each piece sorted by block
+/// (a counting sort), then answered in that order, 256 at a time gathered into a buffer on the
+/// stack, their answers scattered back to their places. A piece owns its points' answers, so no
+/// answer is moved twice and no buffer grows with the answers.
 fn blocked<T: Copy + Send + Sync>(
     blocks: &Blocks,
     points: &[DVec3],
     out: &mut [T],
-    ws: &mut Workspace<T>,
+    ws: &mut Workspace,
     warm: bool,
     chunk: &(impl Fn(&[DVec3], &mut [T]) + Sync),
 ) {
     let n = points.len();
-    assert!(
-        u32::try_from(n).is_ok(),
-        "at most 2^32 - 1 points per batch"
-    );
     let keys = blocks.len();
-    let pieces = rayon::current_num_threads().clamp(1, n.div_ceil(SORT_PIECE));
+    let pieces = rayon::current_num_threads().clamp(1, n.div_ceil(MIN_PIECE));
     let piece = n.div_ceil(pieces);
-
-    // Counts per piece and block.
-    ws.counts.clear();
+    assert!(
+        u32::try_from(piece).is_ok(),
+        "at most 2^32 - 1 points per thread"
+    );
     ws.counts.resize(pieces * keys, 0);
+    ws.perm.resize(n, 0);
     ws.counts
         .par_chunks_mut(keys)
-        .zip(points.par_chunks(piece))
-        .for_each(|(counts, points)| {
+        .zip(ws.perm.par_chunks_mut(piece))
+        .zip(points.par_chunks(piece).zip(out.par_chunks_mut(piece)))
+        .for_each(|((counts, perm), (points, out))| {
+            counts.fill(0);
             for &x in points {
                 counts[blocks.key(x)] += 1;
             }
-        });
-    // Each (block, piece)'s first position: blocks in order, pieces in order within a block (so
-    // the sort is stable).
-    let mut next = 0u32;
-    for key in 0..keys {
-        for p in 0..pieces {
-            let slot = &mut ws.counts[p * keys + key];
-            let count = *slot;
-            *slot = next;
-            next += count;
-        }
-    }
-    // Every point's position. `perm`'s slots are written by whichever piece owns the point,
-    // each once (the positions are a permutation), hence the atomics: relaxed stores, the
-    // passes' joins order them before the reads.
-    ws.perm.truncate(n);
-    ws.perm.resize_with(n, || AtomicU32::new(0));
-    ws.rank.resize(n, 0);
-    let perm = &ws.perm;
-    ws.counts
-        .par_chunks_mut(keys)
-        .zip(points.par_chunks(piece))
-        .zip(ws.rank.par_chunks_mut(piece))
-        .enumerate()
-        .for_each(|(p, ((next, points), rank))| {
-            for (j, (&x, rank)) in points.iter().zip(rank).enumerate() {
-                let slot = &mut next[blocks.key(x)];
-                *rank = *slot;
-                perm[*slot as usize].store((p * piece + j) as u32, Relaxed);
+            let mut next = 0;
+            for slot in counts.iter_mut() {
+                (*slot, next) = (next, next + *slot);
+            }
+            for (j, &x) in points.iter().enumerate() {
+                let slot = &mut counts[blocks.key(x)];
+                perm[*slot as usize] = j as u32;
                 *slot += 1;
             }
-        });
-
-    // The answers in sorted order, gathered points in chunks of 256.
-    // Every slot is overwritten below (by the gather of the warm start or by `chunk`): a buffer
-    // of the right length is reused without a pass over it.
-    if ws.sorted.len() != n {
-        ws.sorted.clear();
-        ws.sorted.resize(n, out[0]);
-    }
-    if warm {
-        ws.sorted
-            .par_chunks_mut(SORT_PIECE)
-            .zip(perm.par_chunks(SORT_PIECE))
-            .for_each(|(sorted, perm)| {
-                for (s, i) in sorted.iter_mut().zip(perm) {
-                    *s = out[i.load(Relaxed) as usize];
-                }
-            });
-    }
-    ws.sorted
-        .par_chunks_mut(CHUNK)
-        .zip(perm.par_chunks(CHUNK))
-        .for_each(|(sorted, perm)| {
             let mut gathered = [DVec3::ZERO; CHUNK];
-            for (g, i) in gathered.iter_mut().zip(perm) {
-                *g = points[i.load(Relaxed) as usize];
-            }
-            chunk(&gathered[..perm.len()], sorted);
-        });
-    // Back to input order.
-    let sorted = &ws.sorted;
-    out.par_chunks_mut(SORT_PIECE)
-        .zip(ws.rank.par_chunks(SORT_PIECE))
-        .for_each(|(out, rank)| {
-            for (o, &r) in out.iter_mut().zip(rank) {
-                *o = sorted[r as usize];
+            let mut answers = [out[0]; CHUNK];
+            for perm in perm.chunks(CHUNK) {
+                for ((g, a), &i) in gathered.iter_mut().zip(&mut answers).zip(perm) {
+                    *g = points[i as usize];
+                    if warm {
+                        *a = out[i as usize];
+                    }
+                }
+                chunk(&gathered[..perm.len()], &mut answers[..perm.len()]);
+                for (a, &i) in answers.iter().zip(perm) {
+                    out[i as usize] = *a;
+                }
             }
         });
 }

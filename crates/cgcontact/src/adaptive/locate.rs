@@ -48,7 +48,7 @@ pub struct AdaptiveLocator<'a> {
     /// as the f32 lanes read them. Empty with f64.
     u_f32: Vec<Vec3A>,
     /// The batched queries' schedule and its sort's buffers.
-    scheduler: Scheduler<Answer>,
+    scheduler: Scheduler,
 }
 
 impl<'a> AdaptiveLocator<'a> {

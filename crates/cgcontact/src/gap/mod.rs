@@ -92,7 +92,7 @@ pub struct GapFinder<'l, L> {
     distance: f64,
     u_range: Range,
     /// The batched queries' schedule (the locator's) and its sort's buffers.
-    scheduler: Scheduler<GapAnswer>,
+    scheduler: Scheduler,
 }
 
 /// The best face so far.

@@ -176,7 +176,7 @@ pub struct LatticeLocator<'a> {
     /// Every cell of the lattice is active: the batched path skips the activity lookup.
     all_active: bool,
     /// The batched queries' schedule and its sort's buffers.
-    scheduler: Scheduler<Answer>,
+    scheduler: Scheduler,
 }
 
 impl<'a> LatticeLocator<'a> {
