@@ -8,6 +8,7 @@
 #               its run unless KEEP=1
 #   POINTS      known points per block (default 1000000); SEED (default 7); REPEATS (default 3)
 #   CARGO_TARGET_DIR  as usual (default target)
+#   EXPORT_BIN  an already built export_block to use instead of building it with cargo
 #   NX ...      blocks NX × 2NX × NX (default 20 40 80 128: 16,000 to 4,194,304 cells)
 #
 # For each size, one after the other (never two big jobs at once): export the scene, gslib setup
@@ -41,11 +42,15 @@ BENCH="$DATA_DIR/findpts_bench"
 # shellcheck disable=SC2086
 "$CC" $CFLAGS -I"$GSLIB_DIR/build/include/gslib" -I"$GSLIB_DIR/src" \
   "$ROOT/benches/gslib/findpts_bench.c" "$GSLIB_DIR/build/lib/libgs.a" -lm -o "$BENCH"
-(cd "$ROOT" && CARGO_TARGET_DIR="$TARGET" cargo build --release -q -p cgcontact-benches --example export_block)
-EXPORT="$TARGET/release/examples/export_block"
+if [ -n "${EXPORT_BIN:-}" ]; then
+  EXPORT=$EXPORT_BIN
+else
+  (cd "$ROOT" && CARGO_TARGET_DIR="$TARGET" cargo build --release -q -p cgcontact-benches --example export_block)
+  EXPORT="$TARGET/release/examples/export_block"
+fi
 
 echo "# $(date -u +%FT%TZ) $(uname -n) $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs), $(nproc) cores"
-echo "# cgcontact $(git -C "$ROOT" rev-parse --short HEAD)$(git -C "$ROOT" diff --quiet HEAD -- crates benches || echo ' (dirty tree)')"
+echo "# cgcontact tree $(git -C "$ROOT" rev-parse --short HEAD)$(git -C "$ROOT" diff --quiet HEAD -- crates benches || echo ' (dirty tree)'), export_block $EXPORT"
 if [ -d "$GSLIB_DIR/.git" ]; then echo "# gslib $(git -C "$GSLIB_DIR" rev-parse --short HEAD)"; fi
 echo "# points=$POINTS seed=$SEED repeats=$REPEATS cc='$CC $CFLAGS'"
 for nx in "${SIZES[@]}"; do
