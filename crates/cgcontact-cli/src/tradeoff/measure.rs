@@ -66,7 +66,7 @@ fn strided(len: usize, n: usize) -> Vec<usize> {
 /// Best wall time of `locate_all_into` on `pool`, after one untimed warm-up run (first touch of the
 /// answers' pages, caches, the pool's threads), repeated at least 3 and at most 5 times while the
 /// total stays under `budget`.
-fn best_time(
+pub(super) fn best_time(
     locator: &dyn Locator,
     points: &[DVec3],
     pool: &rayon::ThreadPool,

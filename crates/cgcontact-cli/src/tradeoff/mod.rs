@@ -20,6 +20,7 @@ mod grid;
 mod measure;
 mod plot;
 mod report;
+mod scale;
 mod scenes;
 
 use std::io::IsTerminal;
@@ -34,16 +35,18 @@ use grid::configs;
 use measure::measure;
 use plot::plot;
 use report::{kept_reading, report};
+use scale::{measure_scale, scale_plot, scale_section};
 use scenes::scenes;
 
 /// Measure the accuracy/speed trade of every strategy and setting on generated scenes.
 #[derive(Args, Debug)]
 #[command(after_help = "Example:
-  cgcontact tradeoff                 # the full report into docs/ (about 3 minutes on 2 cores)
+  cgcontact tradeoff                 # the full report into docs/ (about 4 minutes on 2 cores)
   cgcontact tradeoff --quick --out /tmp/report
 
-Writes DIR/tradeoff.md (the table, the machine, the command) and DIR/tradeoff.svg (throughput
-against ξ error on the fine-jitter scene, one mark per configuration). A block between the markers
+Writes DIR/tradeoff.md (the table, the machine, the command), DIR/tradeoff.svg (throughput
+against ξ error, one mark per configuration) and DIR/scale.svg (points/s against cells, 16,000 to
+4.2 M cells, random and lattice order). A block between the markers
 <!-- reading --> and <!-- /reading --> of an existing DIR/tradeoff.md is kept.")]
 pub struct TradeoffArgs {
     /// Folder for tradeoff.md and tradeoff.svg.
@@ -86,15 +89,17 @@ pub fn run(args: &TradeoffArgs) -> Result<()> {
             bar.inc(1);
         }
     }
+    let scale = measure_scale(args.quick, &one, |m| bar.set_message(m))?;
     bar.finish_and_clear();
 
+    scale_plot(&args.out.join("scale.svg"), &scale)?;
     let svg = args.out.join("tradeoff.svg");
     let plotted = plot(&svg, &rows)?;
     let md = args.out.join("tradeoff.md");
     let reading = std::fs::read_to_string(&md)
         .ok()
         .and_then(|text| kept_reading(&text));
-    let report = report(
+    let mut report = report(
         &rows,
         &scenes,
         threads,
@@ -103,11 +108,13 @@ pub fn run(args: &TradeoffArgs) -> Result<()> {
         plotted,
         reading,
     );
+    report.push_str(&scale_section(&scale));
     crate::output::write_text(&md, &report)?;
     crate::output::say!(
-        "{} configurations × {} scenes in {:.1} s; wrote {} and {}",
+        "{} configurations × {} scenes and {} sizes in {:.1} s; wrote {}, {} and scale.svg",
         configs.len(),
         scenes.len(),
+        scale.len(),
         started.elapsed().as_secs_f64(),
         md.display(),
         svg.display()

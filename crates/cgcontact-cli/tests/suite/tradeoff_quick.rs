@@ -104,6 +104,23 @@ fn quick_tradeoff_writes_a_row_per_configuration_and_lattice_f64_is_exact() {
         let max_xi: f64 = row[MAX_XI].parse().expect("a number");
         assert!(max_xi < 1e-12, "{scene}: max ξ error {max_xi}");
     }
+
+    // The scale section: a row per block size (two with --quick), every answer in its known cell,
+    // and its plot.
+    let scale: Vec<Vec<&str>> = section(&md, "## Scale")
+        .filter(|l| l.starts_with("| ") && !l.starts_with("| cells"))
+        .map(|l| l.trim_matches('|').split(" | ").map(str::trim).collect())
+        .collect();
+    assert_eq!(scale.len(), 2, "scale rows: {scale:?}");
+    for row in &scale {
+        assert_eq!(row.len(), 10, "scale row {row:?}");
+        assert_eq!(row[9], "0", "wrong cells in scale row {row:?}");
+    }
+    let svg = std::fs::read_to_string(dir.path().join("scale.svg")).expect("scale.svg");
+    assert!(
+        svg.starts_with("<svg") && svg.contains("<polyline"),
+        "not a line plot"
+    );
 }
 
 /// The lines of a section of the report: after its heading, up to the next `## ` heading.
