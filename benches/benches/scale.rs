@@ -2,8 +2,9 @@
 //! mm, indented as `indented_block` does) of 16,000, 128,000, 1,024,000 and 4,194,304 cells, with
 //! 1,000,000 points made from known (cell, ξ) in random order, then the same points sorted by cell
 //! (lattice order). Each is answered by `locate_all_into` (a reused buffer) under the input-order
-//! schedule and under the blocked one (`Schedule::Blocked`, 8³-cell blocks), in f64 and f32, on 1
-//! and 2 threads; for f64 on one thread also with blocks of 4³ and 16³ cells. Printed once per
+//! schedule and sorted by cell inside (`Schedule::Blocked { log2_cells: 0 }`, what
+//! `Schedule::Auto` does above its threshold), in f64 and f32, on 1 and 2 threads; for f64 on one
+//! thread also sorted by blocks of 8³ and 16³ cells. Printed once per
 //! size: the bytes of nodal data (what `Schedule::Auto` decides by), and the sort's buffers per
 //! point.
 //!
@@ -45,7 +46,7 @@ fn scale(c: &mut Criterion) {
                 LatticeLocator::new(&scene.body, Settings { schedule, ..base }).expect("valid")
             };
             let input = locator(Schedule::Input);
-            let blocked = locator(Schedule::Blocked { log2_cells: 3 });
+            let blocked = locator(Schedule::Blocked { log2_cells: 0 });
             let mut out = Vec::with_capacity(POINTS);
             blocked.locate_all_into(&random, &mut out);
             eprintln!(
@@ -66,7 +67,7 @@ fn scale(c: &mut Criterion) {
                     pool,
                 ));
                 runs.push((
-                    format!("random, blocked 8, {t} thr"),
+                    format!("random, sorted by cell, {t} thr"),
                     &blocked,
                     &random,
                     pool,
@@ -79,7 +80,7 @@ fn scale(c: &mut Criterion) {
                 ));
             }
             let others: Vec<(u8, LatticeLocator<'_>)> = if name == "f64" {
-                [2, 4]
+                [3, 4]
                     .map(|k| (k, locator(Schedule::Blocked { log2_cells: k })))
                     .into()
             } else {

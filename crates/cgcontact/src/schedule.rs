@@ -3,12 +3,12 @@
 //! On a body whose nodal data fits in the caches, any order is as fast as any other. On a large
 //! one (a 4.2 M-cell block holds 100 MB of displacements) points in random order miss the caches
 //! at every corner load, and the batched queries lose two thirds of their speed. So, above a
-//! measured size, they first group the points by the lattice block they fall in (a counting sort
-//! on a coarse block index: O(n), two passes, in parallel), answer them block by block, and put
+//! measured size, they first sort the points by the lattice cell (or block) they fall in (a radix
+//! sort: O(n), two passes up to 4 M cells, one piece per thread), answer them in that order, and put
 //! the answers back in input order. Each point's answer depends on that point alone, so the
 //! answers are bitwise the same whatever the schedule; only the order of the work changes.
 //!
-//! The sort's buffers (one index per point and one histogram per thread) live in a pool inside
+//! The sort's buffers (16 bytes per point and one histogram per thread) live in a pool inside
 //! the locator and are reused by later calls.
 
 use std::sync::{Mutex, TryLockError};
@@ -41,15 +41,17 @@ pub enum Schedule {
 
 impl Schedule {
     /// [`Schedule::Auto`] sorts above this many bytes of nodal data (displacements, and for an
-    /// adaptive body its corner tables and octrees): about where the sort starts to pay on the
-    /// machine of docs/benchmarks.md (between the 128,000-cell block, 3 MB, where it costs a
-    /// little, and the 1 M-cell block, 25 MB, where it doubles the speed).
+    /// adaptive body its corner tables and octrees): where the sort pays on the machine of
+    /// docs/benchmarks.md (it costs on the 128,000-cell block, 3 MB, and pays on the 1 M-cell
+    /// block, 25 MB).
     pub const AUTO_BYTES: usize = 8 << 20;
-    /// The block edge (log2, in cells) of [`Schedule::Auto`]: 8 × 8 × 8 cells, 17 KB of f64
-    /// displacements, measured best among 4, 8 and 16.
-    pub const AUTO_LOG2_CELLS: u8 = 3;
+    /// The block edge (log2, in cells) of [`Schedule::Auto`]: single cells, so the points come
+    /// in lattice order, whose corner loads the hardware prefetches row by row. Blocks of 4³,
+    /// 8³ and 16³ cells left the points in random order within a block and ran at less than
+    /// half the speed of lattice order on the 4.2 M-cell block (docs/benchmarks.md).
+    pub const AUTO_LOG2_CELLS: u8 = 0;
     /// Fewer points than this are answered in input order by [`Schedule::Auto`]: the sort's
-    /// fixed costs (a histogram of every block) would not pay.
+    /// fixed costs (a histogram per pass and thread) would not pay.
     pub const AUTO_MIN_POINTS: usize = 16_384;
 
     /// The block edge (log2, cells) to sort by for `points` points on a body of `bytes` of nodal
@@ -64,9 +66,11 @@ impl Schedule {
     }
 }
 
-/// At most this many blocks: a histogram (one per thread) stays in the L2 cache whatever the
-/// lattice.
-const MAX_BLOCKS: u64 = 1 << 16;
+/// At most this many blocks: block indices fit in 32 bits.
+const MAX_BLOCKS: u64 = 1 << 32;
+/// Bits of the block index sorted per pass of the radix sort: a histogram of 2^11 counts (8 KB)
+/// per thread, and 2^11 streams to scatter into.
+const RADIX_BITS: u32 = 11;
 /// At least this many points per thread.
 const MIN_PIECE: usize = 1 << 14;
 /// Points answered at a time (gathered, answered, scattered).
@@ -85,7 +89,7 @@ pub(crate) struct Blocks {
 
 impl Blocks {
     /// The blocks of 2^`log2` cells of `lattice` refined `level` times (enlarged while there
-    /// are more than 2^16 blocks).
+    /// are more than 2^32 blocks).
     pub(crate) fn new(lattice: &Lattice, level: u8, mut log2: u8) -> Self {
         let cells = lattice.cells().map(|n| u64::from(n) << level.min(32));
         let count = |log2: u8| cells.map(|n| n.div_ceil(1u64 << log2.min(63)).max(1));
@@ -96,7 +100,7 @@ impl Blocks {
         Self {
             origin: lattice.origin(),
             inv: size.recip(),
-            // At most 2^16 blocks in all.
+            // At most 2^32 blocks in all.
             counts: count(log2).map(|n| n as u32),
         }
     }
@@ -126,15 +130,16 @@ pub struct Layout<'a> {
 /// The sort's buffers, reused across calls.
 #[derive(Debug, Default)]
 struct Workspace {
-    /// Per piece, the input index (within the piece) of each point in sorted order.
-    perm: Vec<u32>,
-    /// Per piece, the count (then the next position) of each block.
+    /// Per piece, (block << 32 | input index within the piece) of each point, twice: the radix
+    /// sort's source and destination.
+    pairs: Vec<u64>,
+    /// Per piece, the count (then the next position) of each digit.
     counts: Vec<u32>,
 }
 
 impl Workspace {
     fn heap_bytes(&self) -> usize {
-        size_of_val(self.perm.as_slice()) + size_of_val(self.counts.as_slice())
+        size_of_val(self.pairs.as_slice()) + size_of_val(self.counts.as_slice())
     }
 }
 
@@ -209,9 +214,10 @@ impl Scheduler {
 }
 
 /// The blocked schedule: the points cut into one piece per thread; each piece sorted by block
-/// (a counting sort), then answered in that order, 256 at a time gathered into a buffer on the
-/// stack, their answers scattered back to their places. A piece owns its points' answers, so no
-/// answer is moved twice and no buffer grows with the answers.
+/// (a stable LSD radix sort of (block, index) pairs, 11 bits of the block index per pass: two
+/// passes up to 4 M blocks), then answered in that order, 256 at a time gathered into a buffer on
+/// the stack, their answers scattered back to their places. A piece owns its points' answers, so
+/// no answer is moved twice and no buffer grows with the answers.
 fn blocked<T: Copy + Send + Sync>(
     blocks: &Blocks,
     points: &[DVec3],
@@ -221,45 +227,61 @@ fn blocked<T: Copy + Send + Sync>(
     chunk: &(impl Fn(&[DVec3], &mut [T]) + Sync),
 ) {
     let n = points.len();
-    let keys = blocks.len();
+    let key_bits = u64::BITS - (blocks.len() as u64 - 1).leading_zeros();
+    let passes = key_bits.div_ceil(RADIX_BITS) as usize;
+    let digits = 1usize << RADIX_BITS;
     let pieces = rayon::current_num_threads().clamp(1, n.div_ceil(MIN_PIECE));
     let piece = n.div_ceil(pieces);
     assert!(
         u32::try_from(piece).is_ok(),
         "at most 2^32 - 1 points per thread"
     );
-    ws.counts.resize(pieces * keys, 0);
-    ws.perm.resize(n, 0);
+    ws.counts.resize(pieces * digits, 0);
+    ws.pairs.resize(2 * n, 0);
+    let (first, second) = ws.pairs.split_at_mut(n);
     ws.counts
-        .par_chunks_mut(keys)
-        .zip(ws.perm.par_chunks_mut(piece))
+        .par_chunks_mut(digits)
+        .zip(
+            first
+                .par_chunks_mut(piece)
+                .zip(second.par_chunks_mut(piece)),
+        )
         .zip(points.par_chunks(piece).zip(out.par_chunks_mut(piece)))
-        .for_each(|((counts, perm), (points, out))| {
-            counts.fill(0);
-            for &x in points {
-                counts[blocks.key(x)] += 1;
+        .for_each(|((counts, (mut from, mut to)), (points, out))| {
+            for (pair, (j, &x)) in from.iter_mut().zip(points.iter().enumerate()) {
+                *pair = (blocks.key(x) as u64) << 32 | j as u64;
             }
-            let mut next = 0;
-            for slot in counts.iter_mut() {
-                (*slot, next) = (next, next + *slot);
-            }
-            for (j, &x) in points.iter().enumerate() {
-                let slot = &mut counts[blocks.key(x)];
-                perm[*slot as usize] = j as u32;
-                *slot += 1;
+            for pass in 0..passes {
+                let shift = 32 + RADIX_BITS * pass as u32;
+                let digit = |pair: u64| (pair >> shift) as usize & (digits - 1);
+                counts.fill(0);
+                for &pair in from.iter() {
+                    counts[digit(pair)] += 1;
+                }
+                let mut next = 0;
+                for slot in counts.iter_mut() {
+                    (*slot, next) = (next, next + *slot);
+                }
+                for &pair in from.iter() {
+                    let slot = &mut counts[digit(pair)];
+                    to[*slot as usize] = pair;
+                    *slot += 1;
+                }
+                std::mem::swap(&mut from, &mut to);
             }
             let mut gathered = [DVec3::ZERO; CHUNK];
             let mut answers = [out[0]; CHUNK];
-            for perm in perm.chunks(CHUNK) {
-                for ((g, a), &i) in gathered.iter_mut().zip(&mut answers).zip(perm) {
-                    *g = points[i as usize];
+            for pairs in from.chunks(CHUNK) {
+                for ((g, a), &pair) in gathered.iter_mut().zip(&mut answers).zip(pairs) {
+                    let i = pair as u32 as usize;
+                    *g = points[i];
                     if warm {
-                        *a = out[i as usize];
+                        *a = out[i];
                     }
                 }
-                chunk(&gathered[..perm.len()], &mut answers[..perm.len()]);
-                for (a, &i) in answers.iter().zip(perm) {
-                    out[i as usize] = *a;
+                chunk(&gathered[..pairs.len()], &mut answers[..pairs.len()]);
+                for (a, &pair) in answers.iter().zip(pairs) {
+                    out[pair as u32 as usize] = *a;
                 }
             }
         });
@@ -378,7 +400,7 @@ mod tests {
         assert_eq!(blocks.key(x), 1 + 4);
         assert_eq!(blocks.key(DVec3::NAN), 0);
         assert_eq!(blocks.key(DVec3::splat(1e300)), blocks.len() - 1);
-        // A huge lattice gets larger blocks, at most 2^20 of them.
+        // A huge lattice gets larger blocks, at most 2^32 of them.
         let huge = Lattice::new(DVec3::ZERO, DVec3::ONE, [2000, 1000, 1000]).unwrap();
         let big = Blocks::new(&huge, 0, 0);
         assert!(big.len() as u64 <= MAX_BLOCKS && big.len() as u64 > MAX_BLOCKS / 8);
