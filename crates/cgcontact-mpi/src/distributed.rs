@@ -275,6 +275,7 @@ impl DistributedBody {
 
         // 4. Each cell to every home whose blocks' reach holds it.
         let mut outgoing = vec![Vec::new(); size];
+        let mut kept: Vec<OwnedCell> = Vec::new();
         let mut homes = Vec::with_capacity(8);
         for cell in cells {
             let ijk = lattice.cell_ijk(cell.cell).expect("checked in range");
@@ -286,6 +287,11 @@ impl DistributedBody {
                 }
             });
             for &home in &homes {
+                if home == rank as u32 {
+                    // This rank's own share stays here, unencoded.
+                    kept.push(*cell);
+                    continue;
+                }
                 let out: &mut Vec<u64> = &mut outgoing[home as usize];
                 let at = out.len();
                 out.resize(at + CELL_WORDS, 0);
@@ -298,8 +304,8 @@ impl DistributedBody {
         // 5. The local body: the cells received and the extreme cells, checked for a cell held
         //    twice and a node given two displacements, then agreed on.
         let home_blocks = blocks.home.iter().filter(|&&h| h == rank as u32).count();
-        let local_cells: Vec<OwnedCell> =
-            received.chunks_exact(CELL_WORDS).map(read_cell).collect();
+        let mut local_cells = kept;
+        local_cells.extend(received.chunks_exact(CELL_WORDS).map(read_cell));
         drop(received);
         let built = if local_cells.is_empty() {
             Ok(None)
@@ -414,26 +420,34 @@ impl DistributedLocator<'_> {
     /// pool.
     pub fn locate_all<C: Communicator>(&self, comm: &C, points: &[DVec3]) -> Located {
         let size = comm.size() as usize;
+        let me = comm.rank() as u32;
         let mut stats = QueryStats {
             points: points.len(),
             ..QueryStats::default()
         };
-        // Routing: each point's home, then the points grouped by home (a counting sort, stable),
-        // sent as their coordinates' bits.
+        // Routing: each point's home; the points of other homes grouped by home (a counting sort,
+        // stable) and sent as their coordinates' bits; this rank's own kept in place.
         let start = Instant::now();
         let mut answers: Vec<Answer> = vec![Ok(None); points.len()];
         let mut tried = vec![0u32; points.len()];
         let homes: Vec<Option<u32>> = points.iter().map(|&x| self.body.home_of(x)).collect();
         let mut per_rank = vec![0usize; size];
-        for h in homes.iter().flatten() {
-            per_rank[*h as usize] += 1;
+        for &h in homes.iter().flatten() {
+            per_rank[h as usize] += 1;
         }
+        let mut own_points: Vec<DVec3> = Vec::with_capacity(per_rank[me as usize]);
+        let mut own_index: Vec<usize> = Vec::with_capacity(per_rank[me as usize]);
+        per_rank[me as usize] = 0;
         let mut outgoing: Vec<Vec<u64>> = per_rank
             .iter()
             .map(|&n| Vec::with_capacity(3 * n))
             .collect();
         for (i, (x, home)) in points.iter().zip(&homes).enumerate() {
             match home {
+                Some(h) if *h == me => {
+                    own_points.push(*x);
+                    own_index.push(i);
+                }
                 Some(h) => outgoing[*h as usize].extend(x.to_array().map(f64::to_bits)),
                 // The serial search refuses a non-finite point before any inversion.
                 None if !x.is_finite() => answers[i] = Err(PointError::NonFinite),
@@ -453,32 +467,36 @@ impl DistributedLocator<'_> {
                 )
             })
             .collect();
-        stats.searched = received.len();
+        stats.searched = received.len() + own_points.len();
         stats.routing_seconds = start.elapsed().as_secs_f64();
 
         // Search: the core's batched search on the local body, and the inversions the points
         // it does not find tried (as `cgcontact locate` counts them).
         let start = Instant::now();
-        let mut found = Vec::new();
-        let mut found_tried = Vec::new();
+        let (mut found, mut found_tried) = (Vec::new(), Vec::new());
+        let (mut own_found, mut own_tried) = (Vec::new(), Vec::new());
         if let Some(local) = &self.local {
-            local.locate_all_into(&received, &mut found);
-            found_tried = found
-                .iter()
-                .zip(&received)
-                .map(|(answer, &x)| match answer {
+            let search = |points: &[DVec3], found: &mut Vec<Answer>, tried: &mut Vec<u32>| {
+                local.locate_all_into(points, found);
+                tried.extend(found.iter().zip(points).map(|(answer, &x)| match answer {
                     Ok(Some(hit)) => hit.inversions,
                     _ => local.locate_counted(x).1,
-                })
-                .collect();
+                }));
+            };
+            search(&own_points, &mut own_found, &mut own_tried);
+            search(&received, &mut found, &mut found_tried);
         } else {
             // Only a rank home to some block receives points, and such a rank has a body.
-            debug_assert!(received.is_empty());
+            debug_assert!(received.is_empty() && own_points.is_empty());
         }
         stats.search_seconds = start.elapsed().as_secs_f64();
 
         // Return: the answers to the ranks that asked, in the order they came.
         let start = Instant::now();
+        for ((answer, count), &i) in own_found.into_iter().zip(own_tried).zip(&own_index) {
+            answers[i] = answer;
+            tried[i] = count;
+        }
         let mut back = Vec::with_capacity(size);
         let mut at = 0;
         for words in &from {
@@ -501,12 +519,14 @@ impl DistributedLocator<'_> {
             offset += n;
         }
         for (i, home) in homes.iter().enumerate() {
-            if let Some(h) = home {
-                let k = cursor[*h as usize];
-                cursor[*h as usize] += 1;
-                let (answer, count) = decode(&returned[k * ANSWER_WORDS..(k + 1) * ANSWER_WORDS]);
-                answers[i] = answer;
-                tried[i] = count;
+            match home {
+                Some(h) if *h != me => {
+                    let k = cursor[*h as usize];
+                    cursor[*h as usize] += 1;
+                    let words = &returned[k * ANSWER_WORDS..(k + 1) * ANSWER_WORDS];
+                    (answers[i], tried[i]) = decode(words);
+                }
+                _ => {}
             }
         }
         stats.return_seconds = start.elapsed().as_secs_f64();
@@ -644,8 +664,98 @@ fn for_blocks_reaching(
 }
 
 /// The body of the cells `received` (each must come once: a cell held by two ranks arrives twice)
-/// and the `extremes` (added unless received), checked for a node given two displacements.
+/// and the `extremes` (added unless received), checked for a node given two displacements. Nodes
+/// are gathered in a dense table over the received cells' bounding box (a compact region; the
+/// extreme cells, anywhere, have their few nodes aside), so the cost is linear in the cells.
 fn local_body(
+    lattice: &Lattice,
+    received: Vec<OwnedCell>,
+    extremes: impl IntoIterator<Item = OwnedCell>,
+) -> Result<Body, Error> {
+    let ijk_of = |c: &OwnedCell| lattice.cell_ijk(c.cell).expect("checked in range");
+    let (mut low, mut high) = ([u32::MAX; 3], [0u32; 3]);
+    for cell in &received {
+        let ijk = ijk_of(cell);
+        for a in 0..3 {
+            low[a] = low[a].min(ijk[a]);
+            high[a] = high[a].max(ijk[a]);
+        }
+    }
+    // Nodes of the box: one more than its cells per axis.
+    let dims = [0, 1, 2].map(|a| (high[a] - low[a] + 2) as usize);
+    let table_nodes = dims[0] * dims[1] * dims[2];
+    if table_nodes > 64 * 8 * received.len().max(1) {
+        // Scattered cells (a random partition's halo over a huge lattice): sort instead.
+        return local_body_sorted(lattice, received, extremes);
+    }
+    let slot = |ijk: [u32; 3]| -> Option<usize> {
+        let d = [0, 1, 2].map(|a| ijk[a].checked_sub(low[a]).map(|v| v as usize));
+        match d {
+            [Some(x), Some(y), Some(z)] if x < dims[0] && y < dims[1] && z < dims[2] => {
+                Some(x + dims[0] * (y + dims[1] * z))
+            }
+            _ => None,
+        }
+    };
+    let mut table = vec![DVec3::NAN; table_nodes];
+    let mut seen = vec![false; table_nodes];
+    let bits = |u: DVec3| u.to_array().map(f64::to_bits);
+    for cell in &received {
+        let ijk = ijk_of(cell);
+        let at = slot(ijk).expect("in the box");
+        if std::mem::replace(&mut seen[at], true) {
+            return Err(Error::DuplicateCell { cell: cell.cell });
+        }
+        for (c, offset) in cgcontact::CORNER_OFFSETS.iter().enumerate() {
+            let node = slot([0, 1, 2].map(|a| ijk[a] + offset[a])).expect("in the box");
+            let u = cell.u[c];
+            if table[node].x.is_nan() {
+                table[node] = u;
+            } else if bits(table[node]) != bits(u) {
+                let ijk = [0, 1, 2].map(|a| ijk[a] + offset[a]);
+                return Err(Error::InconsistentNode {
+                    node: lattice.node_index(ijk),
+                });
+            }
+        }
+    }
+    let mut ids: Vec<CellId> = received.iter().map(|c| c.cell).collect();
+    drop(received);
+    let mut aside: Vec<(usize, DVec3)> = Vec::new();
+    for extreme in extremes {
+        let ijk = ijk_of(&extreme);
+        if slot(ijk).is_some_and(|at| seen[at]) {
+            continue;
+        }
+        ids.push(extreme.cell);
+        for (c, node) in lattice.corner_nodes(ijk).into_iter().enumerate() {
+            let node_ijk = lattice.node_ijk(node).expect("a node of the lattice");
+            match slot(node_ijk) {
+                Some(at) if table[at].x.is_nan() => table[at] = extreme.u[c],
+                Some(_) => {}
+                None => aside.push((node, extreme.u[c])),
+            }
+        }
+    }
+    aside.sort_unstable_by_key(|&(node, _)| node);
+    let mut body = Body::from_cells(*lattice, ids)?;
+    body.update_displacements(|node, _, u| {
+        let ijk = lattice.node_ijk(node).expect("a node of the lattice");
+        *u = match slot(ijk) {
+            Some(at) if !table[at].x.is_nan() => table[at],
+            _ => {
+                let at = aside
+                    .binary_search_by_key(&node, |&(n, _)| n)
+                    .expect("every node of a local cell has its displacement");
+                aside[at].1
+            }
+        };
+    })?;
+    Ok(body)
+}
+
+/// [`local_body`] by sorting, for cells too scattered for a table over their box.
+fn local_body_sorted(
     lattice: &Lattice,
     mut received: Vec<OwnedCell>,
     extremes: impl IntoIterator<Item = OwnedCell>,
