@@ -136,11 +136,16 @@ mod tests {
         assert!(message.contains(MAX_INPUT_BYTES_VAR), "{message}");
         #[cfg(target_os = "linux")]
         {
-            // A device reports no size: the limit applies to what is read.
+            // A device reports no size: the limit applies to what is read. Random bytes are
+            // refused by their start, or, when the start happens to pass (a leading '#', '<' or
+            // blank: a few draws in a hundred), by the limit.
             let message = read_within(Path::new("/dev/urandom"), Expect::Vtk, 1 << 20)
                 .unwrap_err()
                 .to_string();
-            assert!(message.contains("neither a legacy"), "{message}");
+            assert!(
+                message.contains("neither a legacy") || message.contains(MAX_INPUT_BYTES_VAR),
+                "{message}"
+            );
         }
     }
 
