@@ -1,17 +1,17 @@
 //! A fixed amount of single-threaded locating, for profilers (perf, callgrind).
 //!
-//! Run: `cargo run --release -p cgcontact-benches --example profile_locate [repeats] [f32] [each] [big|sphere] [sorted [window=N]|slabs] [stats]`
+//! Run: `cargo run --release -p cgcontact-benches --example profile_locate [repeats] [f32] [each] [big|huge|sphere] [sorted [window=N]|slabs] [input] [stats]`
 //! (`each`: one `locate` call per point instead of the batched `locate_all_into`; `sorted`: the
 //! points in lattice order instead of random order, to tell waiting on memory from computing;
 //! `window=N`: then shuffled within consecutive windows of N points, so that the lanes of a batch
 //! hold different cells while memory stays local; `slabs`: random order within slabs of 5 cell
-//! layers; `stats`: how many points needed more than one inversion, and Newton iterations per hit).
+//! layers; `input`: `Schedule::Input`, no sort inside the batched path; `stats`: how many points needed more than one inversion, and Newton iterations per hit).
 //! `CGCONTACT_SIMD=avx2` (or `portable`) caps the instruction set the batched path uses.
 
 use std::time::Instant;
 
 use cgcontact::glam::DVec3;
-use cgcontact::{LatticeLocator, Locator, Precision, Settings};
+use cgcontact::{LatticeLocator, Locator, Precision, Schedule, Settings};
 use cgcontact_scenes::{SphereOnBlock, indented_block};
 
 fn main() -> Result<(), cgcontact::Error> {
@@ -24,7 +24,8 @@ fn main() -> Result<(), cgcontact::Error> {
     } else {
         Precision::F64
     };
-    // `big`: the 128,000-cell block with 1 M points of the `precision` bench; `sphere`: the seed's
+    // `big`: the 128,000-cell block with 1 M points of the `precision` bench; `huge`: the
+    // 4.2 M-cell block of the `scale` bench with 1 M points; `sphere`: the seed's
     // 6,700 sphere contact points on its fine block (most of them outside the block).
     let args: Vec<String> = std::env::args().collect();
     let has = |flag: &str| args.iter().any(|a| a == flag);
@@ -32,7 +33,9 @@ fn main() -> Result<(), cgcontact::Error> {
         let scene = SphereOnBlock::fine().build("sphere")?;
         (scene.body, scene.contact_points)
     } else {
-        let scene = if has("big") {
+        let scene = if has("huge") {
+            indented_block([128, 256, 128], DVec3::splat(5.0 / 128.0), 1_000_000, 7)?
+        } else if has("big") {
             indented_block([40, 80, 40], DVec3::splat(0.125), 1_000_000, 7)?
         } else {
             indented_block([20, 40, 20], DVec3::splat(0.25), 100_000, 7)?
@@ -67,11 +70,14 @@ fn main() -> Result<(), cgcontact::Error> {
         let (o, h) = (body.lattice().origin(), body.lattice().h());
         points.sort_by_key(|x| ((x.z - o.z) / h.z / 5.0).floor() as i64);
     }
-    let settings = if precision == Precision::F32 {
+    let mut settings = if precision == Precision::F32 {
         Settings::f32()
     } else {
         Settings::default()
     };
+    if has("input") {
+        settings.schedule = Schedule::Input;
+    }
     let each = std::env::args().any(|a| a == "each");
     let locator = LatticeLocator::new(&body, settings)?;
     let one = rayon::ThreadPoolBuilder::new()
