@@ -13,7 +13,7 @@ use std::hint::black_box;
 use std::time::{Duration, Instant};
 
 use cgcontact::glam::DVec3;
-use cgcontact::{AdaptiveBody, AdaptiveLocator, LatticeLocator, Leaf, Locator, Settings};
+use cgcontact::{AdaptiveBody, AdaptiveLocator, LatticeLocator, Locator, Settings};
 use cgcontact_scenes::{adaptive_block, block_cells_for, indented_block};
 use criterion::{Criterion, SamplingMode, Throughput, criterion_group, criterion_main};
 
@@ -38,26 +38,20 @@ fn level_counts(body: &AdaptiveBody) -> Vec<usize> {
 /// Heap bytes per node, and where they go.
 fn report_memory(body: &AdaptiveBody) {
     let nodes = body.node_count();
-    let leaves = body.cell_count();
-    let total = body.heap_bytes();
-    let displacements = nodes * size_of::<DVec3>();
-    let keys = nodes * size_of::<u64>();
-    let leaf_table = leaves * size_of::<Leaf>();
-    let corner_table = leaves * size_of::<[u32; 8]>();
-    // The rest: the base cell index, the octrees under it and the hanging nodes' constraints.
-    let rest = total.saturating_sub(displacements + keys + leaf_table + corner_table);
     let per_node = |bytes: usize| bytes as f64 / nodes as f64;
+    let parts: Vec<String> = body
+        .heap_parts()
+        .iter()
+        .map(|&(part, bytes)| format!("{part} {:.1}", per_node(bytes)))
+        .collect();
     eprintln!(
-        "adaptive body: {leaves} leaves, {nodes} nodes ({} hanging), heap {total} bytes = {:.1} \
-         bytes per node: displacements {:.1}, node keys {:.1}, leaves {:.1}, corner tables {:.1}, \
-         octree + base index + constraints {:.1}",
+        "adaptive body: {} leaves, {nodes} nodes ({} hanging), heap {} bytes = {:.1} bytes per \
+         node: {}",
+        body.cell_count(),
         body.hanging_nodes().count(),
-        per_node(total),
-        per_node(displacements),
-        per_node(keys),
-        per_node(leaf_table),
-        per_node(corner_table),
-        per_node(rest),
+        body.heap_bytes(),
+        per_node(body.heap_bytes()),
+        parts.join(", "),
     );
 }
 
@@ -123,7 +117,12 @@ fn adaptive(c: &mut Criterion) {
     // Where the known points lie: per leaf level.
     let mut per_level = vec![0usize; usize::from(body.finest_level()) + 1];
     for k in &scene.known {
-        per_level[usize::from(body.leaves()[k.cell.index()].level)] += 1;
+        per_level[usize::from(
+            body.leaves()
+                .get(k.cell.index())
+                .expect("a leaf of the body")
+                .level,
+        )] += 1;
     }
     eprintln!("adaptive known points per leaf level: {per_level:?}");
 

@@ -67,7 +67,12 @@ impl<'a> BodyRef<'a> {
     pub fn level(&self, cell: CellId) -> u8 {
         match self {
             Self::Uniform(_) => 0,
-            Self::Adaptive(body) => body.leaves()[cell.index()].level,
+            Self::Adaptive(body) => {
+                body.leaves()
+                    .get(cell.index())
+                    .expect("a leaf of the body")
+                    .level
+            }
         }
     }
 
@@ -194,7 +199,7 @@ impl<'a> Cells<'a> {
                 (ijk, h, u)
             }
             BodyRef::Adaptive(body) => {
-                let leaf = body.leaves()[cell.index()];
+                let leaf = body.leaves().get(cell.index()).expect("a leaf of the body");
                 let u = body
                     .cell_displacements(cell)
                     .expect("candidate cells are leaves");
@@ -281,7 +286,7 @@ fn uniform_local(body: &Body, cell: CellId) -> (DVec3, DVec3, [DVec3; 8]) {
 /// [`Cells::local`] of a leaf of an adaptive body.
 #[inline]
 fn adaptive_local(body: &AdaptiveBody, cell: CellId) -> (DVec3, DVec3, [DVec3; 8]) {
-    let leaf = body.leaves()[cell.index()];
+    let leaf = body.leaves().get(cell.index()).expect("a leaf of the body");
     let u = body
         .cell_displacements(cell)
         .expect("candidate cells are leaves");

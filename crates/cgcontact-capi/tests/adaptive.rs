@@ -482,7 +482,9 @@ fn bad_adaptive_meshes_are_refused_naming_the_cell() {
     // Edges 0.75 h: no level's size.
     let odd = cube(&mut input, lattice.origin(), h * 0.75);
     let mut swapped = input.topology.clone();
-    let level2 = (0..e).find(|&c| body.leaves()[c].level == 2).unwrap();
+    let level2 = (0..e)
+        .find(|&c| body.leaves().get(c).expect("a leaf of the body").level == 2)
+        .unwrap();
     swapped.swap(8 * level2 + 1, 8 * level2 + 2);
     for (topology, what) in [
         (parent, format!("and {e} overlap")),

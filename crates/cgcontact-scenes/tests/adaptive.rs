@@ -97,7 +97,7 @@ fn levels_grow_toward_the_patch_without_balance() {
     let patch = knobs.patch_center().unwrap();
     assert_eq!(patch, DVec3::new(2.5, 5.0, 5.0));
     let lattice = *scene.body.lattice();
-    for &leaf in scene.body.leaves() {
+    for leaf in scene.body.leaves() {
         let d = distance_to_box(patch, leaf_box(&lattice, leaf));
         // A leaf above the finest level was not split: it lies 1 mm or farther from the patch.
         if leaf.level < 3 {
@@ -153,13 +153,17 @@ fn balancing_only_adds_refinement() {
     assert!(balanced.body.cell_count() > unbalanced.body.cell_count());
     // Every balanced leaf lies inside an unbalanced one (or is one): refinement, never coarsening.
     let lattice = *balanced.body.lattice();
-    for &leaf in balanced.body.leaves() {
+    for leaf in balanced.body.leaves() {
         let (low, high) = leaf_box(&lattice, leaf);
         let holder = unbalanced
             .body
             .leaf_at((low + high) * 0.5)
             .expect("the same block");
-        let coarse = unbalanced.body.leaves()[holder.index()];
+        let coarse = unbalanced
+            .body
+            .leaves()
+            .get(holder.index())
+            .expect("a leaf of the body");
         assert!(coarse.level <= leaf.level, "{leaf:?} in {coarse:?}");
     }
 }
@@ -231,7 +235,12 @@ fn leaves_drawn_per_leaf_or_by_volume() {
     knobs.draw = LeafDraw::ByVolume;
     let by_volume = knobs.build("by-volume").unwrap();
     let body = &per_leaf.body;
-    let level_of = |k: &cgcontact_scenes::KnownPoint| body.leaves()[k.cell.index()].level;
+    let level_of = |k: &cgcontact_scenes::KnownPoint| {
+        body.leaves()
+            .get(k.cell.index())
+            .expect("a leaf of the body")
+            .level
+    };
     let share = |points: &[cgcontact_scenes::KnownPoint]| {
         points.iter().filter(|k| level_of(k) == 2).count() as f64 / points.len() as f64
     };
@@ -278,14 +287,14 @@ fn shuffled_leaves_are_the_sorted_ones_in_another_order() {
     let mut knobs = coarse(3, 0.8, true);
     knobs.order = LeafOrder::Shuffled;
     let shuffled = knobs.build("shuffled").unwrap();
-    let ordered = sorted.body.leaves();
+    let ordered = sorted.body.leaves().to_vec();
     // Sorted: lowest corners on the finest lattice ascending, z then y then x.
     let corner = |leaf: &Leaf| {
         let q = leaf.ijk.map(|v| v << (3 - leaf.level));
         [q[2], q[1], q[0]]
     };
     assert!(ordered.windows(2).all(|w| corner(&w[0]) < corner(&w[1])));
-    assert_ne!(shuffled.body.leaves(), ordered);
+    assert_ne!(shuffled.body.leaves().to_vec(), ordered);
     let mut again = shuffled.body.leaves().to_vec();
     again.sort_unstable_by_key(corner);
     assert_eq!(again, ordered);

@@ -186,7 +186,12 @@ fn check_scene(spec: &AdaptiveSpec, settings: Settings, xi_tol: f64) -> (Tally, 
 
         // The exact filters may miss (where no owner is within the radius of its level), never
         // answer a cell the oracle does not.
-        let level = |cell: CellId| body.leaves()[cell.index()].level;
+        let level = |cell: CellId| {
+            body.leaves()
+                .get(cell.index())
+                .expect("a leaf of the body")
+                .level
+        };
         let corners = |cell: CellId| body.corners(cell).unwrap();
         let from_centroid = |cell: CellId| {
             let centre = corners(cell).iter().sum::<DVec3>() / 8.0;

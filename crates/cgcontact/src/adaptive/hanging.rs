@@ -16,18 +16,19 @@ use glam::DVec3;
 
 use crate::hex8;
 
-/// Each hanging node and the independent nodes and weights its displacement interpolates,
-/// ascending by node (compressed rows).
+/// Each hanging node and the leaf it hangs on (the coarsest leaf holding it without having it as
+/// a corner): the constraint is that leaf's interpolation there, recomputed when needed rather
+/// than stored (12 bytes per hanging node).
 #[derive(Clone, Debug, Default)]
 pub(super) struct Constraints {
     /// Hanging nodes, ascending.
     pub(super) nodes: Vec<u32>,
-    /// Row `r`'s parents are `parents[start[r]..start[r + 1]]`.
-    pub(super) start: Vec<u32>,
-    /// (independent node, weight), ascending by node within a row.
-    pub(super) parents: Vec<(u32, f64)>,
+    /// The leaf each row's node hangs on.
+    pub(super) leaf: Vec<u32>,
+    /// Rows by the level of their leaf, coarsest first, then by node: in this order a node's
+    /// leaf's corners are independent or filled already.
+    pub(super) order: Vec<u32>,
 }
-
 /// How far the displacements are from obeying the constraints.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ConstraintReport {
@@ -48,12 +49,11 @@ impl ConstraintReport {
     }
 }
 
-/// One hanging node before flattening: the level of the leaf it hangs on and that leaf's corners
-/// with their (non-zero) weights.
+/// One hanging node: the level and id of the leaf it hangs on.
 pub(super) struct Direct {
     pub(super) node: u32,
     pub(super) level: u8,
-    pub(super) parents: Vec<(u32, f64)>,
+    pub(super) leaf: u32,
 }
 
 /// The weights of the 8 corners of a leaf at local coordinates `xi` (exact for dyadic ξ), the
@@ -68,73 +68,32 @@ pub(super) fn corner_weights(corners: &[u32; 8], xi: DVec3) -> Vec<(u32, f64)> {
 }
 
 impl Constraints {
-    /// Flattens `direct` (one entry per hanging node, any order) to independent parents.
-    pub(super) fn flatten(node_count: usize, mut direct: Vec<Direct>) -> Self {
-        // Coarsest first: a parent that hangs hangs on a coarser leaf, so it is resolved already.
-        direct.sort_unstable_by_key(|d| (d.level, d.node));
-        let mut row_of: Vec<u32> = vec![u32::MAX; node_count];
-        let mut rows: Vec<Vec<(u32, f64)>> = Vec::with_capacity(direct.len());
-        for d in &direct {
-            let mut flat: Vec<(u32, f64)> = Vec::with_capacity(d.parents.len());
-            for &(parent, w) in &d.parents {
-                match row_of[parent as usize] {
-                    u32::MAX => flat.push((parent, w)),
-                    r => flat.extend(rows[r as usize].iter().map(|&(p, wp)| (p, w * wp))),
-                }
-            }
-            flat.sort_unstable_by_key(|&(p, _)| p);
-            let mut merged: Vec<(u32, f64)> = Vec::with_capacity(flat.len());
-            for (p, w) in flat {
-                match merged.last_mut() {
-                    Some((q, v)) if *q == p => *v += w,
-                    _ => merged.push((p, w)),
-                }
-            }
-            row_of[d.node as usize] = rows.len() as u32;
-            rows.push(merged);
+    /// The constraints of `direct` (one entry per hanging node, any order).
+    pub(super) fn new(mut direct: Vec<Direct>) -> Self {
+        direct.sort_unstable_by_key(|d| d.node);
+        let mut order: Vec<u32> = (0..direct.len() as u32).collect();
+        order.sort_unstable_by_key(|&r| (direct[r as usize].level, direct[r as usize].node));
+        Self {
+            nodes: direct.iter().map(|d| d.node).collect(),
+            leaf: direct.iter().map(|d| d.leaf).collect(),
+            order,
         }
-        let mut order: Vec<usize> = (0..direct.len()).collect();
-        order.sort_unstable_by_key(|&r| direct[r].node);
-        let mut out = Self {
-            nodes: Vec::with_capacity(order.len()),
-            start: Vec::with_capacity(order.len() + 1),
-            parents: Vec::new(),
-        };
-        out.start.push(0);
-        for r in order {
-            out.nodes.push(direct[r].node);
-            out.parents.extend_from_slice(&rows[r]);
-            out.start.push(out.parents.len() as u32);
-        }
-        out
     }
 
-    /// Row `r`: its node and its parents.
+    /// The row of `node`, if it hangs.
     #[inline]
-    pub(super) fn row(&self, r: usize) -> (u32, &[(u32, f64)]) {
-        let range = self.start[r] as usize..self.start[r + 1] as usize;
-        (self.nodes[r], &self.parents[range])
-    }
-
-    /// The constrained displacement of row `r`.
-    #[inline]
-    pub(super) fn interpolate(&self, r: usize, u: &[DVec3]) -> DVec3 {
-        self.row(r)
-            .1
-            .iter()
-            .fold(DVec3::ZERO, |sum, &(p, w)| sum + w * u[p as usize])
+    pub(super) fn row(&self, node: u32) -> Option<usize> {
+        self.nodes.binary_search(&node).ok()
     }
 
     /// Whether `node` hangs.
     #[inline]
     pub(super) fn contains(&self, node: u32) -> bool {
-        self.nodes.binary_search(&node).is_ok()
+        self.row(node).is_some()
     }
 
     /// Bytes on the heap.
     pub(super) fn heap_bytes(&self) -> usize {
-        self.nodes.capacity() * 4
-            + self.start.capacity() * 4
-            + self.parents.capacity() * size_of::<(u32, f64)>()
+        (self.nodes.capacity() + self.leaf.capacity() + self.order.capacity()) * size_of::<u32>()
     }
 }

@@ -97,7 +97,7 @@ impl<'a> AdaptiveLocator<'a> {
         Layout {
             lattice: self.body.lattice(),
             level: self.body.finest,
-            bytes: u + size_of_val(self.body.corners.as_slice()) + self.body.forest.heap_bytes(),
+            bytes: u + self.body.nodes.heap_bytes() + self.body.forest.heap_bytes(),
         }
     }
 
@@ -166,7 +166,7 @@ impl<'a> AdaptiveLocator<'a> {
     ) -> Option<Hit> {
         let body = self.body;
         if let Ok(Some(hint)) = previous
-            && let Some(&leaf) = body.leaves.get(hint.cell.index())
+            && let Some(leaf) = body.leaves.get(hint.cell.index())
         {
             let map = K::lattice_cell(
                 body.spacing(leaf.level),
@@ -415,8 +415,8 @@ impl AdaptiveLocator<'_> {
         }
         let mut corners = [[0u32; 8]; GROUP];
         for l in 0..xs.len() {
-            if let Some((id, _)) = at_x[l] {
-                corners[l] = body.corners[id as usize];
+            if let Some((_, leaf)) = at_x[l] {
+                corners[l] = body.leaf_nodes(leaf);
             }
         }
         let mut u = [[DVec3::ZERO; 8]; GROUP];
@@ -549,7 +549,7 @@ impl AdaptiveLocator<'_> {
             let corners_of = |leaves: &[(u32, Leaf); MAX_W]| {
                 let mut rows = [[0u32; 8]; MAX_W];
                 for l in 0..V::W {
-                    rows[l] = body.corners[leaves[l].0 as usize];
+                    rows[l] = body.leaf_nodes(leaves[l].1);
                 }
                 rows
             };
@@ -682,12 +682,12 @@ impl AdaptiveLocator<'_> {
             let Ok(Some(hint)) = &answers[l] else {
                 continue;
             };
-            let Some(&leaf) = body.leaves.get(hint.cell.index()) else {
+            let Some(leaf) = body.leaves.get(hint.cell.index()) else {
                 continue;
             };
             tol[l] = inside_tol;
             cell[l] = hint.cell;
-            rows[l] = body.corners[hint.cell.index()];
+            rows[l] = body.leaf_nodes(leaf);
             half[l] = body.spacing(leaf.level) * 0.5;
             x_local[l] = xs[l] - body.leaf_origin(leaf);
             xi0[l] = warm_start(hint.xi);

@@ -21,7 +21,9 @@
 
 mod forest;
 mod hanging;
+mod leaves;
 mod locate;
+mod nodes;
 
 use glam::DVec3;
 
@@ -30,8 +32,11 @@ use crate::hex8::{self, Kernel};
 use crate::lattice::{CORNER_OFFSETS, CellId, Lattice};
 use forest::{Forest, Overlap};
 use hanging::{Constraints, Direct, corner_weights};
+use leaves::LeafStore;
+use nodes::Nodes;
 
 pub use hanging::ConstraintReport;
+pub use leaves::Leaves;
 pub use locate::AdaptiveLocator;
 
 /// The deepest level: node keys pack each finest-level coordinate in 21 bits.
@@ -73,23 +78,12 @@ pub struct AdaptiveBody {
     lattice: Lattice,
     /// The deepest level of any leaf.
     finest: u8,
-    leaves: Vec<Leaf>,
-    /// Node of each corner of each leaf, VTK order.
-    corners: Vec<[u32; 8]>,
-    /// Each node's finest-level lattice coordinates, packed (x | y << 21 | z << 42), ascending.
-    keys: Vec<u64>,
+    leaves: LeafStore,
+    /// The node numbering: a leaf's corner nodes are computed from its position.
+    nodes: Nodes,
     u: Vec<DVec3>,
     forest: Forest,
     hanging: Constraints,
-}
-
-fn pack(q: [u32; 3]) -> u64 {
-    u64::from(q[0]) | (u64::from(q[1]) << KEY_BITS) | (u64::from(q[2]) << (2 * KEY_BITS))
-}
-
-fn unpack(key: u64) -> [u32; 3] {
-    let mask = (1u64 << KEY_BITS) - 1;
-    [0, 1, 2].map(|a| ((key >> (a as u32 * KEY_BITS)) & mask) as u32)
 }
 
 impl AdaptiveBody {
@@ -150,33 +144,21 @@ impl AdaptiveBody {
             }
         })?;
 
-        // Nodes: every corner's finest-level key, deduplicated by sorting.
-        let mut keyed: Vec<(u64, u32)> = Vec::with_capacity(8 * leaves.len());
-        for (id, leaf) in leaves.iter().enumerate() {
+        // Nodes: every corner's finest-level coordinates, numbered by their owner cells.
+        let mut positions: Vec<[u32; 3]> = Vec::with_capacity(8 * leaves.len());
+        for leaf in &leaves {
             let s = finest - leaf.level;
-            for (c, off) in CORNER_OFFSETS.iter().enumerate() {
-                let q = [0, 1, 2].map(|a| (leaf.ijk[a] + off[a]) << s);
-                keyed.push((pack(q), (8 * id + c) as u32));
+            for off in CORNER_OFFSETS {
+                positions.push([0, 1, 2].map(|a| (leaf.ijk[a] + off[a]) << s));
             }
         }
-        keyed.sort_unstable();
-        let mut keys: Vec<u64> = Vec::new();
-        let mut corners = vec![[0u32; 8]; leaves.len()];
-        for &(key, slot) in &keyed {
-            if keys.last() != Some(&key) {
-                keys.push(key);
-            }
-            corners[slot as usize / 8][slot as usize % 8] = keys.len() as u32 - 1;
-        }
-        drop(keyed);
-        keys.shrink_to_fit();
+        let nodes = Nodes::new(counts, finest, positions);
         let mut body = Self {
             lattice,
             finest,
-            u: vec![DVec3::ZERO; keys.len()],
-            leaves,
-            corners,
-            keys,
+            u: vec![DVec3::ZERO; nodes.len()],
+            leaves: LeafStore::new(leaves, counts, finest),
+            nodes,
             forest,
             hanging: Constraints::default(),
         };
@@ -189,8 +171,7 @@ impl AdaptiveBody {
         let finest = u32::from(self.finest);
         let limit = self.lattice.cells().map(|n| n << finest);
         let mut direct = Vec::new();
-        for (node, &key) in self.keys.iter().enumerate() {
-            let p = unpack(key);
+        for (node, p) in self.nodes.positions().enumerate() {
             // The coarsest leaf that holds p without having it as a corner, and p's ξ there.
             let mut binding: Option<(u8, u32, DVec3)> = None;
             for octant in 0..8u32 {
@@ -212,7 +193,7 @@ impl AdaptiveBody {
                 let Some(id) = self.forest.leaf_at_finest(q, self.finest) else {
                     continue;
                 };
-                let leaf = self.leaves[id as usize];
+                let leaf = self.leaves.at(id);
                 let s = finest - u32::from(leaf.level);
                 let size = 1u32 << s;
                 let rel = [0, 1, 2].map(|a| p[a] - (leaf.ijk[a] << s));
@@ -226,15 +207,15 @@ impl AdaptiveBody {
                     binding = Some((leaf.level, id, xi));
                 }
             }
-            if let Some((level, id, xi)) = binding {
+            if let Some((level, id, _)) = binding {
                 direct.push(Direct {
                     node: node as u32,
                     level,
-                    parents: corner_weights(&self.corners[id as usize], xi),
+                    leaf: id,
                 });
             }
         }
-        Constraints::flatten(self.keys.len(), direct)
+        Constraints::new(direct)
     }
 
     /// The base lattice.
@@ -251,8 +232,8 @@ impl AdaptiveBody {
 
     /// The leaves, in id order.
     #[must_use]
-    pub fn leaves(&self) -> &[Leaf] {
-        &self.leaves
+    pub fn leaves(&self) -> Leaves<'_> {
+        Leaves(&self.leaves)
     }
 
     /// Number of leaves.
@@ -264,7 +245,7 @@ impl AdaptiveBody {
     /// Number of nodes (hanging ones included).
     #[must_use]
     pub fn node_count(&self) -> usize {
-        self.keys.len()
+        self.nodes.len()
     }
 
     /// The spacing of level `level`'s lattice, h / 2^level (exact).
@@ -283,7 +264,11 @@ impl AdaptiveBody {
     /// The undeformed position of `node`, `None` when out of range.
     #[must_use]
     pub fn node_position(&self, node: usize) -> Option<DVec3> {
-        let q = unpack(*self.keys.get(node)?);
+        let q = self.nodes.position(
+            u32::try_from(node)
+                .ok()
+                .filter(|&n| (n as usize) < self.nodes.len())?,
+        );
         let h = self.spacing(self.finest);
         Some(self.lattice.origin() + h * DVec3::new(q[0] as f64, q[1] as f64, q[2] as f64))
     }
@@ -291,16 +276,16 @@ impl AdaptiveBody {
     /// The node at the finest-level lattice coordinates `q`, if the body has one there.
     #[must_use]
     pub fn node_at_finest(&self, q: [u32; 3]) -> Option<usize> {
-        if q.iter().any(|&v| v >= 1 << KEY_BITS) {
-            return None;
-        }
-        self.keys.binary_search(&pack(q)).ok()
+        self.nodes.at(q).map(|n| n as usize)
     }
 
     /// The nodes of `cell`'s 8 corners, VTK order.
     #[must_use]
     pub fn cell_nodes(&self, cell: CellId) -> Option<[usize; 8]> {
-        Some(self.corners.get(cell.index())?.map(|n| n as usize))
+        Some(
+            self.leaf_nodes(self.leaves.get(cell.index())?)
+                .map(|n| n as usize),
+        )
     }
 
     /// The leaf whose undeformed box holds `x` (on a boundary, the upper one), if any.
@@ -361,12 +346,14 @@ impl AdaptiveBody {
     ) -> Result<(), Error> {
         let mut u = self.u.clone();
         let mut row = 0;
-        for (node, u) in u.iter_mut().enumerate() {
+        let h = self.spacing(self.finest);
+        let origin = self.lattice.origin();
+        for ((node, u), q) in u.iter_mut().enumerate().zip(self.nodes.positions()) {
             if self.hanging.nodes.get(row) == Some(&(node as u32)) {
                 row += 1;
                 continue;
             }
-            let x = self.node_position(node).expect("node in range");
+            let x = origin + h * DVec3::new(q[0] as f64, q[1] as f64, q[2] as f64);
             f(node, x, u);
             if !u.is_finite() {
                 return Err(Error::NonFiniteDisplacement {
@@ -382,10 +369,29 @@ impl AdaptiveBody {
 
     /// Sets every hanging node's displacement to its constraint's value.
     pub fn fill_hanging(&mut self) {
-        for r in 0..self.hanging.nodes.len() {
-            let value = self.hanging.interpolate(r, &self.u);
-            self.u[self.hanging.nodes[r] as usize] = value;
+        for &r in &self.hanging.order {
+            let r = r as usize;
+            let node = self.hanging.nodes[r];
+            self.u[node as usize] = self.bound_value(node, self.hanging.leaf[r]);
         }
+    }
+
+    /// The corners of leaf `id` and their weights at `node`, a point of its closed box (the zero
+    /// weights dropped): what `node` interpolates when it hangs on that leaf.
+    fn binding(&self, node: u32, id: u32) -> Vec<(u32, f64)> {
+        let leaf = self.leaves.at(id);
+        let p = self.nodes.position(node);
+        let s = u32::from(self.finest - leaf.level);
+        let rel = [0, 1, 2].map(|a| f64::from(p[a] - (leaf.ijk[a] << s)));
+        let xi = DVec3::from_array(rel) * (2.0 / f64::from(1u32 << s)) - 1.0;
+        corner_weights(&self.leaf_nodes(leaf), xi)
+    }
+
+    /// The displacement leaf `id` interpolates at `node`.
+    fn bound_value(&self, node: u32, id: u32) -> DVec3 {
+        self.binding(node, id)
+            .iter()
+            .fold(DVec3::ZERO, |sum, &(p, w)| sum + w * self.u[p as usize])
     }
 
     /// How far the hanging nodes are from their constraints: the count farther than `tol`
@@ -399,7 +405,7 @@ impl AdaptiveBody {
         };
         for r in 0..self.hanging.nodes.len() {
             let node = self.hanging.nodes[r] as usize;
-            let off = (self.u[node] - self.hanging.interpolate(r, &self.u))
+            let off = (self.u[node] - self.bound_value(node as u32, self.hanging.leaf[r]))
                 .abs()
                 .max_element();
             if off > tol {
@@ -427,19 +433,28 @@ impl AdaptiveBody {
     /// be, `None` when the node is not hanging.
     #[must_use]
     pub fn constraint(&self, node: usize) -> Option<Vec<(usize, f64)>> {
-        let r = self
-            .hanging
-            .nodes
-            .binary_search(&u32::try_from(node).ok()?)
-            .ok()?;
-        Some(
-            self.hanging
-                .row(r)
-                .1
-                .iter()
-                .map(|&(p, w)| (p as usize, w))
-                .collect(),
-        )
+        let node = u32::try_from(node).ok()?;
+        let r = self.hanging.row(node)?;
+        // A parent that hangs hangs on a coarser leaf: the recursion ends within the levels.
+        let mut flat = Vec::new();
+        let mut stack = vec![(node, self.hanging.leaf[r], 1.0)];
+        while let Some((node, leaf, weight)) = stack.pop() {
+            for (p, w) in self.binding(node, leaf) {
+                match self.hanging.row(p) {
+                    Some(r) => stack.push((p, self.hanging.leaf[r], weight * w)),
+                    None => flat.push((p as usize, weight * w)),
+                }
+            }
+        }
+        flat.sort_unstable_by_key(|&(p, _)| p);
+        let mut merged: Vec<(usize, f64)> = Vec::with_capacity(flat.len());
+        for (p, w) in flat {
+            match merged.last_mut() {
+                Some((q, v)) if *q == p => *v += w,
+                _ => merged.push((p, w)),
+            }
+        }
+        Some(merged)
     }
 
     /// Largest displacement component per axis (absolute).
@@ -451,15 +466,15 @@ impl AdaptiveBody {
     /// The corner displacements of `cell`, VTK order.
     #[must_use]
     pub fn cell_displacements(&self, cell: CellId) -> Option<[DVec3; 8]> {
-        let corners = self.corners.get(cell.index())?;
-        Some(corners.map(|n| self.u[n as usize]))
+        let leaf = self.leaves.get(cell.index())?;
+        Some(self.leaf_nodes(leaf).map(|n| self.u[n as usize]))
     }
 
     /// The trilinear map of `cell` in its local frame and that frame's origin (the leaf's lowest
     /// undeformed corner), as [`crate::Body::cell_map`].
     #[must_use]
     pub fn cell_map(&self, cell: CellId) -> Option<(hex8::Hex8Map, DVec3)> {
-        let leaf = *self.leaves.get(cell.index())?;
+        let leaf = self.leaves.get(cell.index())?;
         let u = self.cell_displacements(cell)?;
         Some((
             hex8::Hex8Map::lattice_cell(self.spacing(leaf.level), &u),
@@ -477,7 +492,7 @@ impl AdaptiveBody {
     /// Deformed corner positions of `cell`, global coordinates, VTK order.
     #[must_use]
     pub fn corners(&self, cell: CellId) -> Option<[DVec3; 8]> {
-        let leaf = *self.leaves.get(cell.index())?;
+        let leaf = self.leaves.get(cell.index())?;
         let u = self.cell_displacements(cell)?;
         let (h, low) = (self.spacing(leaf.level), self.leaf_origin(leaf));
         Some(std::array::from_fn(|c| {
@@ -492,7 +507,7 @@ impl AdaptiveBody {
     pub fn inverted_cells(&self) -> Vec<(CellId, f64)> {
         (0..self.leaves.len() as u32)
             .filter_map(|id| {
-                let leaf = self.leaves[id as usize];
+                let leaf = self.leaves.at(id);
                 let h = self.spacing(leaf.level);
                 let u = self.leaf_displacements(id);
                 let local: [DVec3; 8] = std::array::from_fn(|c| {
@@ -519,12 +534,21 @@ impl AdaptiveBody {
     /// Bytes on the heap.
     #[must_use]
     pub fn heap_bytes(&self) -> usize {
-        self.leaves.capacity() * size_of::<Leaf>()
-            + self.corners.capacity() * size_of::<[u32; 8]>()
-            + self.keys.capacity() * size_of::<u64>()
-            + self.u.capacity() * size_of::<DVec3>()
-            + self.forest.heap_bytes()
-            + self.hanging.heap_bytes()
+        self.heap_parts().iter().map(|&(_, bytes)| bytes).sum()
+    }
+
+    /// Bytes on the heap, part by part: the displacements, the leaves, the node numbering (owner
+    /// cells and the listed nodes around level changes), the octrees with the base cell index,
+    /// and the hanging nodes' constraints.
+    #[must_use]
+    pub fn heap_parts(&self) -> [(&'static str, usize); 5] {
+        [
+            ("displacements", self.u.capacity() * size_of::<DVec3>()),
+            ("leaves", self.leaves.heap_bytes()),
+            ("node numbering", self.nodes.heap_bytes()),
+            ("octrees and base index", self.forest.heap_bytes()),
+            ("constraints", self.hanging.heap_bytes()),
+        ]
     }
 
     /// The leaf at base lattice coordinates `t` clamped into the lattice's box, with its id.
@@ -638,10 +662,16 @@ impl AdaptiveBody {
         None
     }
 
+    /// The corner nodes of `leaf` (a leaf of the body), VTK order.
+    #[inline(always)]
+    pub(crate) fn leaf_nodes(&self, leaf: Leaf) -> [u32; 8] {
+        self.nodes.corners(u32::from(leaf.level), leaf.ijk)
+    }
+
     /// The corner displacements of leaf `id` (unchecked id).
     #[inline(always)]
     pub(crate) fn leaf_displacements(&self, id: u32) -> [DVec3; 8] {
-        let corners = &self.corners[id as usize];
+        let corners = self.leaf_nodes(self.leaves.at(id));
         let mut u = [DVec3::ZERO; 8];
         for (c, u) in u.iter_mut().enumerate() {
             *u = self.u[corners[c] as usize];

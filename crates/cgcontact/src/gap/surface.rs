@@ -220,7 +220,7 @@ pub(crate) mod sealed {
         }
 
         fn cell(&self, id: u32) -> Option<Cell> {
-            let leaf = *self.body().leaves().get(id as usize)?;
+            let leaf = self.body().leaves().get(id as usize)?;
             Some(Cell {
                 id,
                 level: leaf.level,

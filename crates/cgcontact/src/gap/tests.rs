@@ -97,7 +97,7 @@ fn adaptive_faces(body: &AdaptiveBody) -> Vec<Quad> {
     let fine = body.spacing(body.finest_level());
     let upper = lattice.upper();
     let mut faces = Vec::new();
-    for (id, &leaf) in body.leaves().iter().enumerate() {
+    for (id, leaf) in body.leaves().iter().enumerate() {
         let cell = CellId(id as u32);
         let low = body.leaf_origin(leaf);
         let size = body.spacing(leaf.level);

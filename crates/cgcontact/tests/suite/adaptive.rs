@@ -262,7 +262,7 @@ fn leaves_meeting(body: &AdaptiveBody, p: [u32; 3]) -> Vec<u32> {
     let finest = body.finest_level();
     (0..body.cell_count() as u32)
         .filter(|&c| {
-            let leaf = body.leaves()[c as usize];
+            let leaf = body.leaves().get(c as usize).expect("a leaf of the body");
             let s = finest - leaf.level;
             (0..3).all(|a| {
                 let lo = leaf.ijk[a] << s;

@@ -173,7 +173,7 @@ pub fn points(body: &AdaptiveBody, n: usize, seed: u64) -> Vec<(DVec3, Kind)> {
     let mut faces = Vec::new();
     for (id, leaf) in body.leaves().iter().enumerate() {
         let h = body.spacing(leaf.level);
-        let centre = body.leaf_origin(*leaf) + 0.5 * h;
+        let centre = body.leaf_origin(leaf) + 0.5 * h;
         for axis in 0..3 {
             for side in [-1.0, 1.0] {
                 let mut beyond = centre;

@@ -1,0 +1,560 @@
+//! The nodes of an adaptive body, numbered so that a leaf's corner nodes are computed, not stored.
+//!
+//! Each node belongs to the base cell whose half-open box [b, b + 1)³ (base lattice units) holds
+//! it, its *owner*; nodes on the lattice's upper faces belong to cells one past the last, so the
+//! owners form a grid of n + 1 cells per axis. Nodes are numbered owner by owner in lattice order
+//! (z, then y, then x), and within an owner in (z, y, x) order of their finest-level coordinates.
+//!
+//! An owner whose nodes are exactly the points of the level-L lattice in its box is *full*: an
+//! unrefined cell owning its lowest corner alone (L = 0), or a cell refined uniformly L levels
+//! ((2^L)³ nodes). Its node at local coordinates q is its first node plus q's rank on that
+//! lattice: no table. The other owners (around level changes, where hanging nodes sit on their
+//! faces) list their nodes' local coordinates, searched by bisection. Memory: 8 bytes per owner
+//! cell that holds a node (dense) or per owner (sparse, plus the map), and 8 bytes per node of a
+//! listing owner.
+
+use crate::idmap::IdMap;
+use crate::lattice::CORNER_OFFSETS;
+
+/// Tag of an owner that lists its nodes; the other bits are the list's start in `local`.
+const LIST: u32 = 1 << 31;
+/// Tag of an owner whose nodes are some of the points of the level-L lattice in its box, L ≤ 2:
+/// one bit per point in a 64-bit mask, a node's number the count of the bits below its own. The
+/// low 5 bits are L, the next 25 the mask's index in `masks`.
+const MASK: u32 = 1 << 30;
+/// Masks at most (25 bits of index); beyond, owners list their nodes.
+const MAX_MASKS: usize = 1 << 25;
+
+/// An owner cell: its first node, and its shape (the level L of a full owner, or [`LIST`] with
+/// the start of its local coordinates).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+struct Owner {
+    first: u32,
+    shape: u32,
+}
+
+/// The owners, with one more entry at the end whose `first` is the node count (so that an
+/// owner's node count is the next entry's `first` minus its own).
+#[derive(Clone, Debug)]
+enum Owners {
+    /// One entry per cell of the owner grid, empty ones included.
+    Dense(Vec<Owner>),
+    /// Only the owners that hold a node, ascending by cell, and the map cell → entry.
+    Sparse {
+        map: IdMap,
+        cells: Vec<u32>,
+        owners: Vec<Owner>,
+    },
+}
+
+/// The node numbering of an adaptive body.
+#[derive(Clone, Debug)]
+pub(super) struct Nodes {
+    /// The finest level F: node coordinates are on its lattice.
+    finest: u32,
+    /// Owner cells per axis (base cells + 1).
+    grid: [u32; 3],
+    owners: Owners,
+    /// The local coordinates (packed, [`pack`]) of the nodes of listing owners, in node order.
+    local: Local,
+    /// The masks of masked owners ([`MASK`]).
+    masks: Vec<u64>,
+    count: usize,
+}
+
+/// Packed local coordinates: 4 bytes each while they fit (F ≤ 10), else 8.
+#[derive(Clone, Debug)]
+enum Local {
+    Narrow(Vec<u32>),
+    Wide(Vec<u64>),
+}
+
+impl Local {
+    #[cfg(test)]
+    fn is_empty(&self) -> bool {
+        match self {
+            Self::Narrow(v) => v.is_empty(),
+            Self::Wide(v) => v.is_empty(),
+        }
+    }
+
+    #[inline(always)]
+    fn get(&self, i: usize) -> u64 {
+        match self {
+            Self::Narrow(v) => u64::from(v[i]),
+            Self::Wide(v) => v[i],
+        }
+    }
+
+    /// The position of `key` in `range`, if there.
+    #[inline(always)]
+    fn find(&self, range: std::ops::Range<usize>, key: u64) -> Option<usize> {
+        match self {
+            Self::Narrow(v) => v[range].binary_search(&u32::try_from(key).ok()?).ok(),
+            Self::Wide(v) => v[range].binary_search(&key).ok(),
+        }
+    }
+
+    fn heap_bytes(&self) -> usize {
+        match self {
+            Self::Narrow(v) => v.capacity() * size_of::<u32>(),
+            Self::Wide(v) => v.capacity() * size_of::<u64>(),
+        }
+    }
+}
+
+/// Local coordinates (each below 2^F, F ≤ 20) packed so that (z, y, x) order is ascending order.
+#[inline(always)]
+fn pack(q: [u32; 3], f: u32) -> u64 {
+    u64::from(q[0]) | (u64::from(q[1]) << f) | (u64::from(q[2]) << (2 * f))
+}
+
+#[inline(always)]
+fn unpack(key: u64, f: u32) -> [u32; 3] {
+    let mask = (1u64 << f) - 1;
+    [0, 1, 2].map(|a| ((key >> (a as u32 * f)) & mask) as u32)
+}
+
+impl Nodes {
+    /// The numbering of the nodes at the finest-level `positions` (any order, repeats allowed) on
+    /// a base lattice of `cells` refined `finest` levels. Every coordinate is at most
+    /// `cells << finest`, and the owner grid has fewer than 2^32 cells (the lattice's nodes).
+    pub(super) fn new(cells: [u32; 3], finest: u8, positions: Vec<[u32; 3]>) -> Self {
+        let f = u32::from(finest);
+        let grid = cells.map(|n| n + 1);
+        let slot = |b: [u32; 3]| b[0] + grid[0] * (b[1] + grid[1] * b[2]);
+        let mut keyed: Vec<(u32, u64)> = positions
+            .into_iter()
+            .map(|p| {
+                let b = p.map(|v| v >> f);
+                (slot(b), pack([0, 1, 2].map(|a| p[a] - (b[a] << f)), f))
+            })
+            .collect();
+        keyed.sort_unstable();
+        keyed.dedup();
+        let count = keyed.len();
+        let mut found: Vec<(u32, Owner)> = Vec::new();
+        let mut local: Vec<u64> = Vec::new();
+        let mut masks: Vec<u64> = Vec::new();
+        let mut start = 0;
+        while start < count {
+            let cell = keyed[start].0;
+            let end = start + keyed[start..].partition_point(|&(c, _)| c == cell);
+            let run = &keyed[start..end];
+            // The coarsest lattice holding every node of the run.
+            let zeros = run
+                .iter()
+                .flat_map(|&(_, key)| unpack(key, f))
+                .filter(|&v| v != 0)
+                .map(u32::trailing_zeros)
+                .min()
+                .unwrap_or(f);
+            let level = f - zeros.min(f);
+            let shape = if run.len() == 1 << (3 * level) {
+                level
+            } else if level <= 2 && masks.len() < MAX_MASKS {
+                let s = f - level;
+                let mask = run.iter().fold(0u64, |mask, &(_, key)| {
+                    let q = unpack(key, f).map(|v| v >> s);
+                    mask | 1 << (q[0] | q[1] << level | q[2] << (2 * level))
+                });
+                masks.push(mask);
+                MASK | ((masks.len() as u32 - 1) << 5) | level
+            } else {
+                let shape = LIST | local.len() as u32;
+                local.extend(run.iter().map(|&(_, key)| key));
+                shape
+            };
+            found.push((
+                cell,
+                Owner {
+                    first: start as u32,
+                    shape,
+                },
+            ));
+            start = end;
+        }
+        let local = if 3 * f <= u32::BITS {
+            // 3F bits: each key fits.
+            Local::Narrow(local.into_iter().map(|k| k as u32).collect())
+        } else {
+            local.shrink_to_fit();
+            Local::Wide(local)
+        };
+        let slots = grid.iter().map(|&n| n as usize).product::<usize>();
+        let end = Owner {
+            first: count as u32,
+            shape: 0,
+        };
+        let owners = if slots <= 4 * found.len().max(1) {
+            let mut dense = vec![Owner::default(); slots + 1];
+            let mut next = 0;
+            for (s, owner) in dense.iter_mut().take(slots).enumerate() {
+                if found.get(next).is_some_and(|&(cell, _)| cell as usize == s) {
+                    *owner = found[next].1;
+                    next += 1;
+                } else {
+                    // An empty owner: no node; its `first` is where the next one's nodes start.
+                    owner.first = found.get(next).map_or(count as u32, |&(_, o)| o.first);
+                }
+            }
+            dense[slots] = end;
+            Owners::Dense(dense)
+        } else {
+            let map = IdMap::new(
+                found
+                    .iter()
+                    .enumerate()
+                    .map(|(r, &(cell, _))| (cell, r as u32)),
+            );
+            let cells = found.iter().map(|&(cell, _)| cell).collect();
+            let mut owners: Vec<Owner> = found.iter().map(|&(_, o)| o).collect();
+            owners.push(end);
+            Owners::Sparse { map, cells, owners }
+        };
+        masks.shrink_to_fit();
+        Self {
+            finest: f,
+            grid,
+            owners,
+            local,
+            masks,
+            count,
+        }
+    }
+
+    /// Number of nodes.
+    pub(super) fn len(&self) -> usize {
+        self.count
+    }
+
+    /// The node at finest-level coordinates `p`, if there is one.
+    #[inline(always)]
+    pub(super) fn at(&self, p: [u32; 3]) -> Option<u32> {
+        let f = self.finest;
+        let b = p.map(|v| v >> f);
+        self.in_owner(b, [0, 1, 2].map(|a| p[a] - (b[a] << f)), f)
+    }
+
+    /// The node of owner cell `b` at local coordinates `q` on level `l`'s lattice (each below
+    /// 2^l), if there is one.
+    #[inline(always)]
+    fn in_owner(&self, b: [u32; 3], q: [u32; 3], l: u32) -> Option<u32> {
+        if (0..3).any(|a| b[a] >= self.grid[a]) {
+            return None;
+        }
+        let cell = b[0] + self.grid[0] * (b[1] + self.grid[1] * b[2]);
+        let (owner, next) = match &self.owners {
+            Owners::Dense(owners) => (owners[cell as usize], owners[cell as usize + 1].first),
+            Owners::Sparse { map, owners, .. } => {
+                let r = map.get(cell)? as usize;
+                (owners[r], owners[r + 1].first)
+            }
+        };
+        if owner.shape & LIST == 0 {
+            let level = owner.shape & 31;
+            let off = if level >= l {
+                q.map(|v| v << (level - l))
+            } else {
+                let s = l - level;
+                if q.iter().any(|&v| v & ((1 << s) - 1) != 0) {
+                    return None;
+                }
+                q.map(|v| v >> s)
+            };
+            let bit = off[0] | (off[1] << level) | (off[2] << (2 * level));
+            if owner.shape & MASK != 0 {
+                let mask = self.masks[((owner.shape & !MASK) >> 5) as usize];
+                ((mask >> bit) & 1 == 1)
+                    .then(|| owner.first + (mask & ((1 << bit) - 1)).count_ones())
+            } else {
+                (next > owner.first).then(|| owner.first + bit)
+            }
+        } else {
+            let start = (owner.shape & !LIST) as usize;
+            let list = start..start + (next - owner.first) as usize;
+            let key = pack(q.map(|v| v << (self.finest - l)), self.finest);
+            Some(owner.first + self.local.find(list, key)? as u32)
+        }
+    }
+
+    /// The 8 corner nodes (VTK order) of the cell of level `l` at `ijk` (on that level's
+    /// lattice), 0 for a corner that is no node (never, for a leaf of the body).
+    #[inline(always)]
+    pub(super) fn corners(&self, l: u32, ijk: [u32; 3]) -> [u32; 8] {
+        let b = ijk.map(|v| v >> l);
+        let lo = [0, 1, 2].map(|a| ijk[a] - (b[a] << l));
+        // Most often the cell's owner is full at the cell's own level, and no corner is on its
+        // upper faces: the corners are its nodes at lo + the offsets.
+        if let Owners::Dense(owners) = &self.owners {
+            let interior = lo.iter().all(|&v| v + 1 < 1 << l);
+            let cell = b[0] + self.grid[0] * (b[1] + self.grid[1] * b[2]);
+            if let Some(owner) = owners.get(cell as usize)
+                && interior
+                && owner.shape == l
+                && owners[cell as usize + 1].first > owner.first
+            {
+                let (dy, dz) = (1 << l, 1 << (2 * l));
+                let n = owner.first + lo[0] + lo[1] * dy + lo[2] * dz;
+                return [
+                    n,
+                    n + 1,
+                    n + 1 + dy,
+                    n + dy,
+                    n + dz,
+                    n + 1 + dz,
+                    n + 1 + dy + dz,
+                    n + dy + dz,
+                ];
+            }
+        }
+        let mut nodes = [0; 8];
+        for (node, off) in nodes.iter_mut().zip(CORNER_OFFSETS) {
+            let c = [0, 1, 2].map(|a| lo[a] + off[a]);
+            // A corner on the cell's upper face belongs to the next owner, at local 0.
+            let e = c.map(|v| v >> l);
+            let owner = [0, 1, 2].map(|a| b[a] + e[a]);
+            let q = [0, 1, 2].map(|a| c[a] - (e[a] << l));
+            *node = match &self.owners {
+                // The owner full at the cell's level, most often: no check needed (b is a cell
+                // of the lattice, so b + e is in the owner grid).
+                Owners::Dense(owners) => {
+                    let cell = owner[0] + self.grid[0] * (owner[1] + self.grid[1] * owner[2]);
+                    match owners.get(cell as usize) {
+                        Some(o) if o.shape == l => o.first + (q[0] | q[1] << l | q[2] << (2 * l)),
+                        _ => self.in_owner(owner, q, l).unwrap_or(0),
+                    }
+                }
+                Owners::Sparse { .. } => self.in_owner(owner, q, l).unwrap_or(0),
+            };
+        }
+        nodes
+    }
+
+    /// The finest-level coordinates of `node` (in range).
+    pub(super) fn position(&self, node: u32) -> [u32; 3] {
+        let (cell, owner) = match &self.owners {
+            Owners::Dense(owners) => {
+                let r = owners.partition_point(|o| o.first <= node) - 1;
+                (r as u32, owners[r])
+            }
+            Owners::Sparse { cells, owners, .. } => {
+                let r = owners.partition_point(|o| o.first <= node) - 1;
+                (cells[r], owners[r])
+            }
+        };
+        self.local_position(cell, owner, node)
+    }
+
+    fn local_position(&self, cell: u32, owner: Owner, node: u32) -> [u32; 3] {
+        let f = self.finest;
+        let b = [
+            cell % self.grid[0],
+            (cell / self.grid[0]) % self.grid[1],
+            cell / (self.grid[0] * self.grid[1]),
+        ];
+        let i = node - owner.first;
+        let q = if owner.shape & LIST == 0 {
+            let level = owner.shape & 31;
+            // The point's rank on the level's lattice: i itself, or the i-th bit of the mask.
+            let i = if owner.shape & MASK != 0 {
+                let mut mask = self.masks[((owner.shape & !MASK) >> 5) as usize];
+                for _ in 0..i {
+                    mask &= mask - 1;
+                }
+                mask.trailing_zeros()
+            } else {
+                i
+            };
+            let m = (1 << level) - 1;
+            let off = [i & m, (i >> level) & m, i >> (2 * level)];
+            off.map(|v| v << (f - level))
+        } else {
+            unpack(self.local.get(((owner.shape & !LIST) + i) as usize), f)
+        };
+        [0, 1, 2].map(|a| (b[a] << f) + q[a])
+    }
+
+    /// Every node's finest-level coordinates, in node order.
+    pub(super) fn positions(&self) -> impl Iterator<Item = [u32; 3]> + '_ {
+        let owners: Box<dyn Iterator<Item = (u32, Owner, u32)> + '_> = match &self.owners {
+            Owners::Dense(owners) => Box::new(
+                owners
+                    .windows(2)
+                    .enumerate()
+                    .map(|(c, w)| (c as u32, w[0], w[1].first)),
+            ),
+            Owners::Sparse { cells, owners, .. } => Box::new(
+                owners
+                    .windows(2)
+                    .zip(cells)
+                    .map(|(w, &c)| (c, w[0], w[1].first)),
+            ),
+        };
+        owners.flat_map(move |(cell, owner, next)| {
+            (owner.first..next).map(move |node| self.local_position(cell, owner, node))
+        })
+    }
+
+    /// Bytes on the heap.
+    pub(super) fn heap_bytes(&self) -> usize {
+        self.local.heap_bytes()
+            + self.masks.capacity() * size_of::<u64>()
+            + match &self.owners {
+                Owners::Dense(owners) => owners.capacity() * size_of::<Owner>(),
+                Owners::Sparse { map, cells, owners } => {
+                    map.heap_bytes()
+                        + cells.capacity() * size_of::<u32>()
+                        + owners.capacity() * size_of::<Owner>()
+                }
+            }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Positions of a small scene: a 3 × 2 × 2 base lattice refined 2 levels; cell (0, 0, 0)
+    /// refined uniformly twice (full at level 2), cell (1, 0, 0) once, cell (2, 1, 1) not, and a
+    /// few finest nodes sprinkled on faces (hanging-like): every shape of owner.
+    fn scene() -> (Vec<[u32; 3]>, [u32; 3], u8) {
+        let cells = [3, 2, 2];
+        let mut p = Vec::new();
+        let corners = |origin: [u32; 3], size: u32, p: &mut Vec<[u32; 3]>| {
+            for c in 0..8u32 {
+                p.push([0, 1, 2].map(|a| origin[a] + size * ((c >> a) & 1)));
+            }
+        };
+        for k in 0..4 {
+            for j in 0..4 {
+                for i in 0..4 {
+                    corners([i, j, k], 1, &mut p);
+                }
+            }
+        }
+        for k in 0..2 {
+            for j in 0..2 {
+                for i in 0..2 {
+                    corners([4 + 2 * i, 2 * j, 2 * k], 2, &mut p);
+                }
+            }
+        }
+        corners([8, 4, 4], 4, &mut p);
+        p.push([9, 4, 6]);
+        p.push([8, 5, 5]);
+        (p, cells, 2)
+    }
+
+    #[test]
+    fn every_position_is_numbered_once_and_found_again() {
+        let (positions, cells, finest) = scene();
+        let mut distinct = positions.clone();
+        distinct.sort_unstable();
+        distinct.dedup();
+        let nodes = Nodes::new(cells, finest, positions.clone());
+        assert_eq!(nodes.len(), distinct.len());
+        let listed: Vec<[u32; 3]> = nodes.positions().collect();
+        assert_eq!(listed.len(), distinct.len());
+        for (node, &p) in listed.iter().enumerate() {
+            assert_eq!(nodes.at(p), Some(node as u32), "{p:?}");
+            assert_eq!(nodes.position(node as u32), p);
+        }
+        let mut sorted = listed.clone();
+        sorted.sort_unstable();
+        assert_eq!(sorted, distinct);
+        // Every finest-level point, inside the grid and beyond it: a node exactly where one is.
+        for z in 0..=9 {
+            for y in 0..=9 {
+                for x in 0..=13 {
+                    let p = [x, y, z];
+                    let node = distinct.binary_search(&p).is_ok();
+                    assert_eq!(nodes.at(p).is_some(), node, "{p:?}");
+                }
+            }
+        }
+        assert_eq!(nodes.at([u32::MAX; 3]), None);
+        // Every cell of every level whose corners are nodes: `corners` gives `at` of each.
+        let mut cells_checked = 0;
+        for l in 0..=u32::from(finest) {
+            let s = u32::from(finest) - l;
+            for k in 0..cells[2] << l {
+                for j in 0..cells[1] << l {
+                    for i in 0..cells[0] << l {
+                        let at: Vec<Option<u32>> = CORNER_OFFSETS
+                            .iter()
+                            .map(|o| nodes.at([(i + o[0]) << s, (j + o[1]) << s, (k + o[2]) << s]))
+                            .collect();
+                        if at.iter().all(Option::is_some) {
+                            let expected: Vec<u32> = at.into_iter().flatten().collect();
+                            assert_eq!(nodes.corners(l, [i, j, k]).to_vec(), expected);
+                            cells_checked += 1;
+                        }
+                    }
+                }
+            }
+        }
+        assert!(cells_checked > 64 + 8 + 1, "{cells_checked}");
+        // Full owners: cell (0, 0, 0) at level 2 owns its 64 nodes, first; masks exist.
+        assert_eq!(nodes.at([0, 0, 0]), Some(0));
+        assert_eq!(nodes.at([3, 3, 3]), Some(63));
+        assert!(!nodes.masks.is_empty() && nodes.local.is_empty());
+    }
+
+    #[test]
+    fn sparse_and_dense_owners_number_alike() {
+        // The same nodes on a lattice 40 times larger per axis: sparse owners.
+        let (positions, cells, finest) = scene();
+        let dense = Nodes::new(cells, finest, positions.clone());
+        let sparse = Nodes::new(cells.map(|n| n * 40), finest, positions.clone());
+        assert!(matches!(dense.owners, Owners::Dense(_)));
+        assert!(matches!(sparse.owners, Owners::Sparse { .. }));
+        // Owner cells are numbered differently (a wider grid) but in the same order.
+        let a: Vec<_> = dense.positions().collect();
+        let b: Vec<_> = sparse.positions().collect();
+        assert_eq!(a, b);
+        for (node, &p) in a.iter().enumerate() {
+            assert_eq!(sparse.at(p), Some(node as u32));
+            assert_eq!(sparse.position(node as u32), p);
+        }
+        // The same nodes 10 levels deeper, and one more on the finest lattice in cell (0, 0, 0):
+        // local coordinates of 3 × 12 bits, and that owner lists its nodes.
+        let mut deeper: Vec<[u32; 3]> = positions.iter().map(|p| p.map(|v| v << 10)).collect();
+        deeper.push([1, 0, 0]);
+        let deep = Nodes::new(cells, finest + 10, deeper.clone());
+        assert!(matches!(deep.local, Local::Wide(_)) && !deep.local.is_empty());
+        assert!(matches!(dense.local, Local::Narrow(_)));
+        deeper.sort_unstable();
+        deeper.dedup();
+        let listed: Vec<[u32; 3]> = deep.positions().collect();
+        assert_eq!(listed.len(), deeper.len());
+        for (node, &p) in listed.iter().enumerate() {
+            assert_eq!(deep.at(p), Some(node as u32));
+            assert_eq!(deep.position(node as u32), p);
+            assert!(deeper.binary_search(&p).is_ok());
+            assert_eq!(
+                deep.at([p[0], p[1] + 1, p[2]]).is_some(),
+                deeper.binary_search(&[p[0], p[1] + 1, p[2]]).is_ok()
+            );
+        }
+    }
+
+    #[test]
+    fn one_level_numbers_in_lattice_order() {
+        // Every base cell's 8 corners: one node per owner, in (z, y, x) order of the nodes.
+        let cells = [3, 2, 4];
+        let mut p = Vec::new();
+        for k in 0..=4 {
+            for j in 0..=2 {
+                for i in 0..=3 {
+                    p.push([i, j, k]);
+                }
+            }
+        }
+        let expected = p.clone();
+        p.reverse();
+        let nodes = Nodes::new(cells, 0, p);
+        assert_eq!(nodes.positions().collect::<Vec<_>>(), expected);
+        assert!(nodes.local.is_empty());
+    }
+}
