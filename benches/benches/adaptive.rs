@@ -2,7 +2,8 @@
 //! cells, h = 0.25) refined two levels within 1.5 of the top face's centre, 2:1 balanced: 51,840
 //! leaves, most of them at level 2, with 1,000,000 points made from known (leaf, ξ), drawn per leaf.
 //! Against it, a uniform indented block of about as many cells (`block_cells_for`, shape 1 : 2 : 1,
-//! the same physical size) with 1 M known points. Both on one thread, f64 and f32, answers written
+//! the same physical size) with 1 M known points. Both on one thread, f64 and f32 (the adaptive body
+//! with and without its corner table: `AdaptiveBody::set_corner_table`), answers written
 //! into a reused buffer. Also the adaptive locator's build (`AdaptiveLocator::new`), on this scene
 //! and on a body of over a million nodes, and, printed once: memory per node, where it goes, and
 //! Newton inversions per located point (`locate_counted`, failed inversions included).
@@ -106,6 +107,10 @@ fn adaptive(c: &mut Criterion) {
         uniform_h.x,
     );
     report_memory(body);
+    // The same body storing its corner table: the memory-for-speed trade.
+    let mut tabled = body.clone();
+    tabled.set_corner_table(true);
+    report_memory(&tabled);
     eprintln!(
         "uniform body: {} nodes, heap {} bytes = {:.1} bytes per node",
         uniform.body.node_count(),
@@ -132,6 +137,7 @@ fn adaptive(c: &mut Criterion) {
         .expect("pool");
     for (name, settings) in [("f64", Settings::default()), ("f32", Settings::f32())] {
         let adaptive = AdaptiveLocator::new(body, settings).expect("valid settings");
+        let with_table = AdaptiveLocator::new(&tabled, settings).expect("valid settings");
         let lattice = LatticeLocator::new(&uniform.body, settings).expect("valid settings");
         report_inversions(&format!("adaptive {name}"), &adaptive, &adaptive_points);
         report_inversions(&format!("uniform {name}"), &lattice, &uniform_points);
@@ -150,6 +156,17 @@ fn adaptive(c: &mut Criterion) {
                 black_box(&out);
             })
         });
+        group.bench_function(
+            format!("adaptive {leaves} leaves, corner table, 1 thread"),
+            |b| {
+                b.iter(|| {
+                    one.install(|| {
+                        with_table.locate_all_into(black_box(&adaptive_points), &mut out)
+                    });
+                    black_box(&out);
+                })
+            },
+        );
         group.bench_function(
             format!(
                 "uniform {} cells, 1 thread",

@@ -1,7 +1,8 @@
 //! A fixed single-threaded load on the `adaptive` bench's scene, for profilers (perf, callgrind).
 //!
-//! Run: `cargo run --release -p cgcontact-benches --example profile_adaptive [repeats] [f32] [uniform] [each] [points=N]`
-//! (`uniform`: the uniform block of about as many cells instead; `each`: one `locate` call per
+//! Run: `cargo run --release -p cgcontact-benches --example profile_adaptive [repeats] [f32] [uniform] [big] [table] [each] [points=N]`
+//! (`uniform`: the uniform block of about as many cells instead; `big`: the bench's 1.3 M-node
+//! block; `table`: the body stores its corner table; `each`: one `locate` call per
 //! point instead of `locate_all_into`; `points=N`: N known points instead of 1 M).
 
 use std::time::Instant;
@@ -24,8 +25,14 @@ fn main() -> Result<(), cgcontact::Error> {
     } else {
         Settings::default()
     };
-    let h = DVec3::splat(0.25);
-    let scene = adaptive_block([20, 40, 20], h, 2, 1.5, points, 7)?;
+    // `big`: the `adaptive` bench's build scene (1.3 M nodes): a third of the base spacing.
+    let (h, base) = if has("big") {
+        (DVec3::splat(0.25 / 3.0), [60, 120, 60])
+    } else {
+        (DVec3::splat(0.25), [20, 40, 20])
+    };
+    let mut scene = adaptive_block(base, h, 2, 1.5, points, 7)?;
+    scene.body.set_corner_table(has("table"));
     let run = |locator: &dyn Locator, xs: &[DVec3]| {
         let one = rayon::ThreadPoolBuilder::new()
             .num_threads(1)
@@ -55,7 +62,7 @@ fn main() -> Result<(), cgcontact::Error> {
     };
     if has("uniform") {
         let cells = block_cells_for(scene.body.cell_count(), DVec3::new(1.0, 2.0, 1.0));
-        let size = h * DVec3::new(20.0, 40.0, 20.0);
+        let size = h * DVec3::new(f64::from(base[0]), f64::from(base[1]), f64::from(base[2]));
         let uniform_h = size
             / DVec3::new(
                 f64::from(cells[0]),

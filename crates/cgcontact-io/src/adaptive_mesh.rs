@@ -41,6 +41,8 @@ pub struct AdaptiveMesh {
 }
 
 /// A mesh read from a file: a uniform lattice body or an adaptive one.
+// One value per file read, held for the whole run: boxing the larger variant would save nothing.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Debug)]
 pub enum MeshBody {
     /// Every cell one lattice cell.

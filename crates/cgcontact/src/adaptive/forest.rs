@@ -15,6 +15,10 @@ use crate::idmap::IdMap;
 pub(super) const EMPTY: u32 = u32::MAX;
 /// Tag of an entry that is a tree node (its index in `tree`); an entry without it is a leaf id.
 const NODE: u32 = 1 << 31;
+/// With [`NODE`], tag of an entry that is a brick: a base cell refined uniformly L levels, whose
+/// (2^L)³ leaf ids are stored densely (`bricks[start]` holds L, then the ids in (z, y, x) order),
+/// found in one load rather than L steps down a tree.
+const BRICK: u32 = 1 << 30;
 
 /// The base cell index: dense while the body fills at least 1/32 of the base lattice.
 #[derive(Clone, Debug)]
@@ -29,6 +33,8 @@ pub(super) struct Forest {
     base: Base,
     /// Children of each tree node, binary order (bit 0: +x, bit 1: +y, bit 2: +z).
     tree: Vec<[u32; 8]>,
+    /// The bricks: each its level L, then its (2^L)³ leaf ids.
+    bricks: Vec<u32>,
     /// Base cells per axis.
     cells: [u32; 3],
     /// The deepest leaf's level: every descent takes this many steps (a loop of fixed length,
@@ -43,6 +49,11 @@ impl Forest {
     /// The forest of `leaves` (ids are their positions); the leaves are in range (checked by the
     /// caller). Errors with the first pair of leaves that overlap.
     pub(super) fn new(cells: [u32; 3], leaves: &[Leaf]) -> Result<Self, (u32, Overlap)> {
+        Self::build(cells, leaves, true)
+    }
+
+    /// [`Forest::new`], with bricks or with trees alone.
+    fn build(cells: [u32; 3], leaves: &[Leaf], with_bricks: bool) -> Result<Self, (u32, Overlap)> {
         let mut base: HashMap<u32, u32> = HashMap::with_capacity(leaves.len().min(1 << 20));
         let mut tree: Vec<[u32; 8]> = Vec::new();
         for (id, leaf) in leaves.iter().enumerate() {
@@ -90,6 +101,32 @@ impl Forest {
                 }
             }
         }
+        // Base cells refined uniformly become bricks; the trees left are copied compactly.
+        let mut bricks = Vec::new();
+        let mut kept: Vec<[u32; 8]> = Vec::new();
+        for entry in base.values_mut() {
+            if *entry == EMPTY || *entry & NODE == 0 {
+                continue;
+            }
+            match Self::uniform_depth(&tree, *entry).filter(|_| with_bricks) {
+                Some(level) if bricks.len() + (1usize << (3 * level)) < (BRICK - 1) as usize => {
+                    let start = bricks.len();
+                    bricks.push(level);
+                    let side = 1u32 << level;
+                    bricks.resize(start + 1 + (1 << (3 * level)), EMPTY);
+                    Self::fill_brick(&tree, *entry, level, [0; 3], &mut |q, id| {
+                        bricks[start + 1 + (q[0] + side * (q[1] + side * q[2])) as usize] = id;
+                    });
+                    *entry = NODE | BRICK | start as u32;
+                }
+                _ => *entry = Self::copy_tree(&tree, *entry, &mut kept),
+            }
+        }
+        // The descent reads node 0 in every step, even where it does not descend.
+        if kept.is_empty() {
+            kept.push([EMPTY; 8]);
+        }
+        let tree = kept;
         let base_cells = cells.iter().map(|&n| n as usize).product::<usize>();
         let base = if base_cells <= 32 * base.len().max(1) {
             let mut dense = vec![EMPTY; base_cells];
@@ -100,14 +137,89 @@ impl Forest {
         } else {
             Base::Sparse(IdMap::new(base.into_iter()))
         };
-        tree.shrink_to_fit();
+        bricks.shrink_to_fit();
         let depth = leaves.iter().map(|l| l.level).max().unwrap_or(0);
         Ok(Self {
             base,
             tree,
+            bricks,
             cells,
             depth,
         })
+    }
+
+    /// The level L when every leaf under tree node `entry` is at depth L below it, all (2^L)³ of
+    /// them present.
+    fn uniform_depth(tree: &[[u32; 8]], entry: u32) -> Option<u32> {
+        if entry == EMPTY {
+            return None;
+        }
+        if entry & NODE == 0 {
+            return Some(0);
+        }
+        let children = &tree[(entry & !NODE) as usize];
+        let first = Self::uniform_depth(tree, children[0])?;
+        for &c in &children[1..] {
+            if Self::uniform_depth(tree, c)? != first {
+                return None;
+            }
+        }
+        Some(first + 1)
+    }
+
+    /// Calls `put(local ijk, id)` for every leaf under `entry`, a uniform subtree of `level` levels
+    /// whose lowest cell is at `at` (local indices at the leaves' level).
+    fn fill_brick(
+        tree: &[[u32; 8]],
+        entry: u32,
+        level: u32,
+        at: [u32; 3],
+        put: &mut impl FnMut([u32; 3], u32),
+    ) {
+        if level == 0 {
+            put(at, entry);
+            return;
+        }
+        let half = 1 << (level - 1);
+        for (child, &c) in tree[(entry & !NODE) as usize].iter().enumerate() {
+            let at = [0, 1, 2].map(|a| at[a] + half * ((child as u32 >> a) & 1));
+            Self::fill_brick(tree, c, level - 1, at, put);
+        }
+    }
+
+    /// Copies the subtree of `entry` into `kept`, returning its new entry.
+    fn copy_tree(tree: &[[u32; 8]], entry: u32, kept: &mut Vec<[u32; 8]>) -> u32 {
+        if entry == EMPTY || entry & NODE == 0 {
+            return entry;
+        }
+        let at = kept.len();
+        kept.push([EMPTY; 8]);
+        let children = tree[(entry & !NODE) as usize];
+        for (child, c) in children.into_iter().enumerate() {
+            let copied = Self::copy_tree(tree, c, kept);
+            kept[at][child] = copied;
+        }
+        NODE | at as u32
+    }
+
+    /// Whether `entry` is a brick.
+    #[inline(always)]
+    fn is_brick(entry: u32) -> bool {
+        entry & (NODE | BRICK) == NODE | BRICK && entry != EMPTY
+    }
+
+    /// The leaf of brick `entry` at local indices `q` on its level's lattice, and that level.
+    #[inline(always)]
+    fn brick_leaf(&self, entry: u32, q: [u32; 3]) -> u32 {
+        let start = (entry & !(NODE | BRICK)) as usize;
+        let level = self.bricks[start];
+        self.bricks[start + 1 + (q[0] | q[1] << level | q[2] << (2 * level)) as usize]
+    }
+
+    /// The level of brick `entry`.
+    #[inline(always)]
+    fn brick_level(&self, entry: u32) -> u32 {
+        self.bricks[(entry & !(NODE | BRICK)) as usize]
     }
 
     /// Some leaf under `entry` (a leaf id or a tree node), for an overlap message.
@@ -145,6 +257,29 @@ impl Forest {
             ijk[axis] = (t[axis].max(0.0) as u32).min(self.cells[axis] - 1);
         }
         let mut entry = self.base_entry(ijk);
+        if Self::is_brick(entry) {
+            // The same steps as the tree's below, on the indices alone, then one load.
+            let base = ijk;
+            let brick_level = self.brick_level(entry);
+            let mut scale = 1.0;
+            for _ in 0..brick_level {
+                let next_scale = scale * 2.0;
+                for axis in 0..3 {
+                    let upper = t[axis] * next_scale >= f64::from(2 * ijk[axis] + 1);
+                    ijk[axis] = 2 * ijk[axis] + u32::from(upper);
+                }
+                scale = next_scale;
+            }
+            let q = [0, 1, 2].map(|a| ijk[a] - (base[a] << brick_level));
+            let id = self.brick_leaf(entry, q);
+            return Some((
+                id,
+                Leaf {
+                    level: brick_level as u8,
+                    ijk,
+                },
+            ));
+        }
         let mut scale = 1.0;
         let mut level = 0;
         // Branch-free steps: a point in a coarse leaf keeps its entry (selects, not jumps), so the
@@ -181,7 +316,13 @@ impl Forest {
     /// meets the level-m cell holding `q`.
     pub(super) fn probe(&self, q: [u32; 3], finest: u8) -> (u32, u8) {
         let f = u32::from(finest);
-        let mut entry = self.base_entry(q.map(|v| v >> f));
+        let b = q.map(|v| v >> f);
+        let mut entry = self.base_entry(b);
+        if Self::is_brick(entry) {
+            let level = self.brick_level(entry);
+            let local = [0, 1, 2].map(|a| (q[a] >> (f - level)) - (b[a] << level));
+            return (self.brick_leaf(entry, local), level as u8);
+        }
         let mut depth = 0;
         while entry & NODE != 0 && entry != EMPTY {
             depth += 1;
@@ -227,8 +368,20 @@ impl Forest {
                             visit(entry, Leaf { level, ijk });
                             continue;
                         }
+                        // A brick is walked as the tree it replaces: the same order.
+                        let brick = Self::is_brick(entry);
+                        if brick && u32::from(level) == self.brick_level(entry) {
+                            let l = u32::from(level);
+                            let q = [0, 1, 2].map(|a| ijk[a] - ([i, j, k][a] << l));
+                            visit(self.brick_leaf(entry, q), Leaf { level, ijk });
+                            continue;
+                        }
                         let size = 0.5f64.powi(i32::from(level) + 1);
-                        let children = &self.tree[(entry & !NODE) as usize];
+                        let children = if brick {
+                            &[entry; 8]
+                        } else {
+                            &self.tree[(entry & !NODE) as usize]
+                        };
                         // Pushed high to low so that they pop in binary order.
                         for child in (0..8u32).rev() {
                             let c = children[child as usize];
@@ -253,9 +406,84 @@ impl Forest {
     /// Bytes on the heap.
     pub(super) fn heap_bytes(&self) -> usize {
         self.tree.capacity() * size_of::<[u32; 8]>()
+            + self.bricks.capacity() * size_of::<u32>()
             + match &self.base {
                 Base::Dense(dense) => dense.capacity() * size_of::<u32>(),
                 Base::Sparse(map) => map.heap_bytes(),
             }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Leaves of a 3 × 2 × 2 base lattice: a brick of level 2, a brick of level 1, a base cell
+    /// refined unevenly (a tree), unrefined cells and a hole.
+    fn leaves() -> Vec<Leaf> {
+        let mut leaves = Vec::new();
+        let refine = |leaf: Leaf, levels: u8, leaves: &mut Vec<Leaf>| {
+            let mut cells = vec![leaf];
+            for _ in 0..levels {
+                cells = cells.iter().flat_map(|c| c.children()).collect();
+            }
+            leaves.extend(cells);
+        };
+        refine(Leaf::new(0, [0, 0, 0]), 2, &mut leaves);
+        refine(Leaf::new(0, [1, 0, 0]), 1, &mut leaves);
+        // Base cell (2, 0, 0): one octant refined once more.
+        let children = Leaf::new(0, [2, 0, 0]).children();
+        refine(children[0], 1, &mut leaves);
+        leaves.extend(&children[1..]);
+        for ijk in [
+            [0, 1, 0],
+            [1, 1, 0],
+            [2, 1, 0],
+            [0, 0, 1],
+            [1, 0, 1],
+            [2, 1, 1],
+        ] {
+            leaves.push(Leaf::new(0, ijk));
+        }
+        // Base cells (2, 0, 1), (0, 1, 1) and (1, 1, 1) are holes.
+        leaves
+    }
+
+    #[test]
+    fn bricks_answer_as_the_trees_they_replace() {
+        let cells = [3, 2, 2];
+        let leaves = leaves();
+        let bricked = Forest::build(cells, &leaves, true).unwrap_or_else(|_| panic!("valid"));
+        let trees = Forest::build(cells, &leaves, false).unwrap_or_else(|_| panic!("valid"));
+        // Two bricks: 1 + 64 and 1 + 8 entries.
+        assert_eq!(bricked.bricks.len(), 65 + 9);
+        assert!(trees.bricks.is_empty() && bricked.tree.len() < trees.tree.len());
+        // Points on a grid of eighths of the finest cells, on faces and beyond the lattice.
+        let steps = |n: u32| (-2..=(n * 32 + 2) as i32).map(|v| f64::from(v) / 32.0);
+        for z in steps(2) {
+            for y in steps(2) {
+                for x in steps(3) {
+                    let t = DVec3::new(x, y, z);
+                    assert_eq!(bricked.leaf_at(t), trees.leaf_at(t), "{t}");
+                }
+            }
+        }
+        for q in (0..12u32 * 4 * 4).map(|i| [i % 12, (i / 12) % 8, i / 96]) {
+            assert_eq!(bricked.probe(q, 2), trees.probe(q, 2), "{q:?}");
+        }
+        // Boxes: the same leaves in the same order.
+        for (low, high) in [
+            (DVec3::splat(-1.0), DVec3::splat(5.0)),
+            (DVec3::new(0.3, 0.1, 0.2), DVec3::new(0.6, 0.5, 0.9)),
+            (DVec3::new(0.75, 0.25, 0.5), DVec3::new(0.75, 0.25, 0.5)),
+            (DVec3::new(0.9, 0.0, 0.0), DVec3::new(2.2, 0.4, 1.0)),
+        ] {
+            let mut a = Vec::new();
+            let mut b = Vec::new();
+            bricked.for_each_in_box(low, high, |id, leaf| a.push((id, leaf)));
+            trees.for_each_in_box(low, high, |id, leaf| b.push((id, leaf)));
+            assert!(!a.is_empty());
+            assert_eq!(a, b, "{low} {high}");
+        }
     }
 }

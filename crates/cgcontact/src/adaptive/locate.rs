@@ -97,7 +97,10 @@ impl<'a> AdaptiveLocator<'a> {
         Layout {
             lattice: self.body.lattice(),
             level: self.body.finest,
-            bytes: u + self.body.nodes.heap_bytes() + self.body.forest.heap_bytes(),
+            bytes: u
+                + self.body.nodes.heap_bytes()
+                + size_of_val(self.body.corner_table.as_slice())
+                + self.body.forest.heap_bytes(),
         }
     }
 
@@ -415,8 +418,8 @@ impl AdaptiveLocator<'_> {
         }
         let mut corners = [[0u32; 8]; GROUP];
         for l in 0..xs.len() {
-            if let Some((_, leaf)) = at_x[l] {
-                corners[l] = body.leaf_nodes(leaf);
+            if let Some((id, leaf)) = at_x[l] {
+                corners[l] = body.leaf_nodes(id, leaf);
             }
         }
         let mut u = [[DVec3::ZERO; 8]; GROUP];
@@ -549,7 +552,7 @@ impl AdaptiveLocator<'_> {
             let corners_of = |leaves: &[(u32, Leaf); MAX_W]| {
                 let mut rows = [[0u32; 8]; MAX_W];
                 for l in 0..V::W {
-                    rows[l] = body.leaf_nodes(leaves[l].1);
+                    rows[l] = body.leaf_nodes(leaves[l].0, leaves[l].1);
                 }
                 rows
             };
@@ -687,7 +690,7 @@ impl AdaptiveLocator<'_> {
             };
             tol[l] = inside_tol;
             cell[l] = hint.cell;
-            rows[l] = body.leaf_nodes(leaf);
+            rows[l] = body.leaf_nodes(hint.cell.index() as u32, leaf);
             half[l] = body.spacing(leaf.level) * 0.5;
             x_local[l] = xs[l] - body.leaf_origin(leaf);
             xi0[l] = warm_start(hint.xi);

@@ -4,20 +4,23 @@
 //! A cell of level l has edges h/2^l and its lowest corner at o + (i, j, k)·h/2^l: a [`Leaf`]. The
 //! body lists its leaves (they tile it without overlap; regions no leaf covers are outside, as
 //! inactive cells of a uniform body are). Nodes are shared by the leaves that meet there and are
-//! numbered in ascending finest-level lattice order (z, then y, then x), the order of a uniform
-//! body's nodes when there is one level.
+//! numbered by owner cell (`nodes.rs`): the base cell whose half-open box holds them, owners in
+//! lattice order (z, then y, then x), and within an owner by finest-level position in the same
+//! order. With one level that is the uniform body's node order.
 //!
 //! | file | what |
 //! |---|---|
 //! | `mod.rs` | [`AdaptiveBody`]: leaves, nodes, displacements, the constraint API |
-//! | `forest.rs` | the base cell index and the octrees under it: point → leaf, box → leaves |
-//! | `hanging.rs` | hanging nodes and their constraints, flattened to independent nodes |
+//! | `leaves.rs` | the leaves, packed in 8 bytes each |
+//! | `nodes.rs` | the node numbering: a leaf's corner nodes computed from its position |
+//! | `forest.rs` | the base cell index, bricks and octrees under it: point → leaf, box → leaves |
+//! | `hanging.rs` | hanging nodes and the leaves they hang on |
 //! | `locate.rs` | [`AdaptiveLocator`]: predicted leaf first, then every leaf that can hold the point |
 //!
-//! Memory grows with the leaves and their nodes (per node: its displacement and its finest-level
-//! key, 32 bytes; per leaf: its level and indices and its 8 corner nodes, 48 bytes; the octree,
-//! about 5 bytes per leaf): a body refined 6 levels in one corner allocates nothing of the
-//! finest level's lattice.
+//! Memory grows with the leaves and their nodes (per node: its displacement, 24 bytes, and about 3
+//! of numbering; per leaf: 8 bytes, and about 4 of brick or octree; 12 per hanging node; 32 more
+//! per leaf with [`AdaptiveBody::set_corner_table`]): a body refined 6 levels in one corner
+//! allocates nothing of the finest level's lattice.
 
 mod forest;
 mod hanging;
@@ -81,6 +84,8 @@ pub struct AdaptiveBody {
     leaves: LeafStore,
     /// The node numbering: a leaf's corner nodes are computed from its position.
     nodes: Nodes,
+    /// Each leaf's corner nodes, when stored ([`AdaptiveBody::set_corner_table`]); else empty.
+    corner_table: Vec<[u32; 8]>,
     u: Vec<DVec3>,
     forest: Forest,
     hanging: Constraints,
@@ -159,6 +164,7 @@ impl AdaptiveBody {
             u: vec![DVec3::ZERO; nodes.len()],
             leaves: LeafStore::new(leaves, counts, finest),
             nodes,
+            corner_table: Vec::new(),
             forest,
             hanging: Constraints::default(),
         };
@@ -283,7 +289,7 @@ impl AdaptiveBody {
     #[must_use]
     pub fn cell_nodes(&self, cell: CellId) -> Option<[usize; 8]> {
         Some(
-            self.leaf_nodes(self.leaves.get(cell.index())?)
+            self.leaf_nodes(cell.index() as u32, self.leaves.get(cell.index())?)
                 .map(|n| n as usize),
         )
     }
@@ -384,7 +390,7 @@ impl AdaptiveBody {
         let s = u32::from(self.finest - leaf.level);
         let rel = [0, 1, 2].map(|a| f64::from(p[a] - (leaf.ijk[a] << s)));
         let xi = DVec3::from_array(rel) * (2.0 / f64::from(1u32 << s)) - 1.0;
-        corner_weights(&self.leaf_nodes(leaf), xi)
+        corner_weights(&self.leaf_nodes(id, leaf), xi)
     }
 
     /// The displacement leaf `id` interpolates at `node`.
@@ -467,7 +473,10 @@ impl AdaptiveBody {
     #[must_use]
     pub fn cell_displacements(&self, cell: CellId) -> Option<[DVec3; 8]> {
         let leaf = self.leaves.get(cell.index())?;
-        Some(self.leaf_nodes(leaf).map(|n| self.u[n as usize]))
+        Some(
+            self.leaf_nodes(cell.index() as u32, leaf)
+                .map(|n| self.u[n as usize]),
+        )
     }
 
     /// The trilinear map of `cell` in its local frame and that frame's origin (the leaf's lowest
@@ -539,15 +548,19 @@ impl AdaptiveBody {
 
     /// Bytes on the heap, part by part: the displacements, the leaves, the node numbering (owner
     /// cells and the listed nodes around level changes), the octrees with the base cell index,
-    /// and the hanging nodes' constraints.
+    /// the hanging nodes' constraints, and the corner table when stored.
     #[must_use]
-    pub fn heap_parts(&self) -> [(&'static str, usize); 5] {
+    pub fn heap_parts(&self) -> [(&'static str, usize); 6] {
         [
             ("displacements", self.u.capacity() * size_of::<DVec3>()),
             ("leaves", self.leaves.heap_bytes()),
             ("node numbering", self.nodes.heap_bytes()),
             ("octrees and base index", self.forest.heap_bytes()),
             ("constraints", self.hanging.heap_bytes()),
+            (
+                "corner table",
+                self.corner_table.capacity() * size_of::<[u32; 8]>(),
+            ),
         ]
     }
 
@@ -664,14 +677,40 @@ impl AdaptiveBody {
 
     /// The corner nodes of `leaf` (a leaf of the body), VTK order.
     #[inline(always)]
-    pub(crate) fn leaf_nodes(&self, leaf: Leaf) -> [u32; 8] {
-        self.nodes.corners(u32::from(leaf.level), leaf.ijk)
+    pub(crate) fn leaf_nodes(&self, id: u32, leaf: Leaf) -> [u32; 8] {
+        match self.corner_table.get(id as usize) {
+            Some(&corners) => corners,
+            None => self.nodes.corners(u32::from(leaf.level), leaf.ijk),
+        }
+    }
+
+    /// Stores (`true`) or drops (`false`) each leaf's 8 corner nodes: 32 bytes per leaf that the
+    /// locators then read instead of computing the corners from the node numbering. The batched
+    /// locate runs about 1.3× faster with it on the benchmarks' adaptive block, for about 28 more
+    /// bytes per node (docs/benchmarks.md). Off when a body is made.
+    pub fn set_corner_table(&mut self, on: bool) {
+        self.corner_table = if on {
+            (0..self.leaves.len() as u32)
+                .map(|id| {
+                    let leaf = self.leaves.at(id);
+                    self.nodes.corners(u32::from(leaf.level), leaf.ijk)
+                })
+                .collect()
+        } else {
+            Vec::new()
+        };
+    }
+
+    /// Whether the body stores its leaves' corner nodes ([`AdaptiveBody::set_corner_table`]).
+    #[must_use]
+    pub fn has_corner_table(&self) -> bool {
+        !self.corner_table.is_empty()
     }
 
     /// The corner displacements of leaf `id` (unchecked id).
     #[inline(always)]
     pub(crate) fn leaf_displacements(&self, id: u32) -> [DVec3; 8] {
-        let corners = self.leaf_nodes(self.leaves.at(id));
+        let corners = self.leaf_nodes(id, self.leaves.at(id));
         let mut u = [DVec3::ZERO; 8];
         for (c, u) in u.iter_mut().enumerate() {
             *u = self.u[corners[c] as usize];

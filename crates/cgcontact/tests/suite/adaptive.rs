@@ -585,3 +585,55 @@ fn six_levels_in_one_corner_allocate_with_the_leaves() {
     let x = body.point_at(cell, DVec3::splat(0.25)).unwrap();
     assert_eq!(locator.locate(x).unwrap().unwrap().cell, cell);
 }
+
+/// The corner table changes where the locators read a leaf's corners, not what they answer: the
+/// same nodes per leaf, and bitwise the same answers, batched and one by one, on random
+/// refinements (balanced or not, with holes) and points anywhere, each leaf's corners checked
+/// against the node at its corner's position.
+#[test]
+fn the_corner_table_changes_no_answer() {
+    for seed in 0..6 {
+        let body = scene(seed % 2 == 0, if seed % 3 == 0 { 0.2 } else { 0.0 }, seed);
+        let mut tabled = body.clone();
+        let before = tabled.heap_bytes();
+        tabled.set_corner_table(true);
+        assert!(tabled.has_corner_table() && !body.has_corner_table());
+        assert_eq!(tabled.heap_bytes(), before + 32 * body.cell_count());
+        let finest = body.finest_level();
+        for (id, leaf) in body.leaves().iter().enumerate() {
+            let nodes = body.cell_nodes(CellId(id as u32)).unwrap();
+            assert_eq!(tabled.cell_nodes(CellId(id as u32)), Some(nodes));
+            let s = finest - leaf.level;
+            // VTK order: bit 0 of (c + c / 2) is +x, bit 1 of c is +y, bit 2 is +z.
+            for (c, &node) in nodes.iter().enumerate() {
+                let off = [
+                    ((c ^ (c >> 1)) & 1) as u32,
+                    ((c >> 1) & 1) as u32,
+                    (c >> 2) as u32,
+                ];
+                let q = [0, 1, 2].map(|a| (leaf.ijk[a] + off[a]) << s);
+                assert_eq!(
+                    body.node_at_finest(q),
+                    Some(node),
+                    "seed {seed}, leaf {id}, {c}"
+                );
+            }
+        }
+        let mut rng = Rng(seed + 300);
+        let (low, high) = (DVec3::new(-4.0, 0.8, 0.0), DVec3::new(-1.5, 2.2, 1.2));
+        let points: Vec<DVec3> = (0..3000)
+            .map(|_| rng.vec(0.0, 1.0) * (high - low) + low)
+            .collect();
+        for settings in [Settings::default(), Settings::f32()] {
+            let plain = AdaptiveLocator::new(&body, settings).unwrap();
+            let table = AdaptiveLocator::new(&tabled, settings).unwrap();
+            let a = plain.locate_all(&points);
+            let b = table.locate_all(&points);
+            assert!(a.iter().filter(|r| matches!(r, Ok(Some(_)))).count() > 100);
+            for ((x, a), b) in points.iter().zip(&a).zip(&b) {
+                assert_eq!(format!("{a:?}"), format!("{b:?}"), "seed {seed} at {x}");
+                assert_eq!(format!("{:?}", plain.locate(*x)), format!("{a:?}"));
+            }
+        }
+    }
+}
