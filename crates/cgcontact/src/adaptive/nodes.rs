@@ -33,6 +33,12 @@ struct Owner {
     shape: u32,
 }
 
+/// An owner without nodes: an empty list.
+const EMPTY_OWNER: Owner = Owner {
+    first: 0,
+    shape: LIST,
+};
+
 /// The owners, with one more entry at the end whose `first` is the node count (so that an
 /// owner's node count is the next entry's `first` minus its own).
 #[derive(Clone, Debug)]
@@ -194,8 +200,12 @@ impl Nodes {
                     *owner = found[next].1;
                     next += 1;
                 } else {
-                    // An empty owner: no node; its `first` is where the next one's nodes start.
-                    owner.first = found.get(next).map_or(count as u32, |&(_, o)| o.first);
+                    // An empty owner: no node (an empty list, never full); its `first` is where
+                    // the next one's nodes start.
+                    *owner = Owner {
+                        first: found.get(next).map_or(count as u32, |&(_, o)| o.first),
+                        ..EMPTY_OWNER
+                    };
                 }
             }
             dense[slots] = end;
@@ -284,28 +294,28 @@ impl Nodes {
     pub(super) fn corners(&self, l: u32, ijk: [u32; 3]) -> [u32; 8] {
         let b = ijk.map(|v| v >> l);
         let lo = [0, 1, 2].map(|a| ijk[a] - (b[a] << l));
-        // Most often the cell's owner is full at the cell's own level, and no corner is on its
-        // upper faces: the corners are its nodes at lo + the offsets.
+        // Most often every corner's owner is full at the cell's level: the cell's own base cell,
+        // or across its upper faces the next one (where the corner is at local 0). Then each
+        // corner is its owner's first node plus its rank, computed for all 8 without a branch
+        // (8 independent loads of owner records, most of them the same), and checked once.
         if let Owners::Dense(owners) = &self.owners {
-            let interior = lo.iter().all(|&v| v + 1 < 1 << l);
+            let side = 1 << l;
+            let up = lo.map(|v| u32::from(v + 1 == side));
             let cell = b[0] + self.grid[0] * (b[1] + self.grid[1] * b[2]);
-            if let Some(owner) = owners.get(cell as usize)
-                && interior
-                && owner.shape == l
-                && owners[cell as usize + 1].first > owner.first
-            {
-                let (dy, dz) = (1 << l, 1 << (2 * l));
-                let n = owner.first + lo[0] + lo[1] * dy + lo[2] * dz;
-                return [
-                    n,
-                    n + 1,
-                    n + 1 + dy,
-                    n + dy,
-                    n + dz,
-                    n + 1 + dz,
-                    n + 1 + dy + dz,
-                    n + dy + dz,
-                ];
+            let stride = [1, self.grid[0], self.grid[0] * self.grid[1]];
+            let mut nodes = [0u32; 8];
+            let mut full = true;
+            for (node, off) in nodes.iter_mut().zip(CORNER_OFFSETS) {
+                let e = [0, 1, 2].map(|a| off[a] & up[a]);
+                let q = [0, 1, 2].map(|a| lo[a] + off[a] - (e[a] << l));
+                let at = cell + e[0] * stride[0] + e[1] * stride[1] + e[2] * stride[2];
+                // b is a base cell and e at most 1 per axis: `at` is in the owner grid.
+                let owner = owners.get(at as usize).copied().unwrap_or(EMPTY_OWNER);
+                full &= owner.shape == l;
+                *node = owner.first + (q[0] | q[1] << l | q[2] << (2 * l));
+            }
+            if full {
+                return nodes;
             }
         }
         let mut nodes = [0; 8];
@@ -315,18 +325,7 @@ impl Nodes {
             let e = c.map(|v| v >> l);
             let owner = [0, 1, 2].map(|a| b[a] + e[a]);
             let q = [0, 1, 2].map(|a| c[a] - (e[a] << l));
-            *node = match &self.owners {
-                // The owner full at the cell's level, most often: no check needed (b is a cell
-                // of the lattice, so b + e is in the owner grid).
-                Owners::Dense(owners) => {
-                    let cell = owner[0] + self.grid[0] * (owner[1] + self.grid[1] * owner[2]);
-                    match owners.get(cell as usize) {
-                        Some(o) if o.shape == l => o.first + (q[0] | q[1] << l | q[2] << (2 * l)),
-                        _ => self.in_owner(owner, q, l).unwrap_or(0),
-                    }
-                }
-                Owners::Sparse { .. } => self.in_owner(owner, q, l).unwrap_or(0),
-            };
+            *node = self.in_owner(owner, q, l).unwrap_or(0);
         }
         nodes
     }
