@@ -42,9 +42,9 @@ pub use hanging::ConstraintReport;
 pub use leaves::Leaves;
 pub use locate::AdaptiveLocator;
 
-/// The deepest level: node keys pack each finest-level coordinate in 21 bits.
+/// The deepest level of a leaf.
 pub const MAX_LEVEL: u8 = 20;
-/// Bits per axis of a node key.
+/// Bits per axis of a finest-level coordinate: at most 2^21 - 1 finest cells per axis.
 const KEY_BITS: u32 = 21;
 
 /// A leaf cell: its refinement level and its indices on that level's lattice (spacing h/2^level).
@@ -178,8 +178,8 @@ impl AdaptiveBody {
         let limit = self.lattice.cells().map(|n| n << finest);
         let mut direct = Vec::new();
         for (node, p) in self.nodes.positions().enumerate() {
-            // The coarsest leaf that holds p without having it as a corner, and p's ξ there.
-            let mut binding: Option<(u8, u32, DVec3)> = None;
+            // The coarsest leaf that holds p without having it as a corner (lowest id on a tie).
+            let mut binding: Option<(u8, u32)> = None;
             for octant in 0..8u32 {
                 let mut q = [0u32; 3];
                 let mut inside = true;
@@ -206,14 +206,11 @@ impl AdaptiveBody {
                 if rel.iter().all(|&r| r == 0 || r == size) {
                     continue;
                 }
-                if binding.is_none_or(|(level, best, _)| (leaf.level, id) < (level, best)) {
-                    let xi = DVec3::new(f64::from(rel[0]), f64::from(rel[1]), f64::from(rel[2]))
-                        * (2.0 / f64::from(size))
-                        - 1.0;
-                    binding = Some((leaf.level, id, xi));
+                if binding.is_none_or(|best| (leaf.level, id) < best) {
+                    binding = Some((leaf.level, id));
                 }
             }
-            if let Some((level, id, _)) = binding {
+            if let Some((level, id)) = binding {
                 direct.push(Direct {
                     node: node as u32,
                     level,
