@@ -41,9 +41,9 @@ pub enum Schedule {
 
 impl Schedule {
     /// [`Schedule::Auto`] sorts above this many bytes of nodal data (displacements, and for an
-    /// adaptive body its corner tables and octrees): where the sort pays on the machine of
-    /// docs/benchmarks.md (it costs on the 128,000-cell block, 3 MB, and pays on the 1 M-cell
-    /// block, 25 MB).
+    /// adaptive body its node numbering, corner table, bricks and octrees): where the sort pays on
+    /// the machine of docs/benchmarks.md (it costs on the 128,000-cell block, 3 MB, and pays on
+    /// the 1 M-cell block, 25 MB).
     pub const AUTO_BYTES: usize = 8 << 20;
     /// The block edge (log2, in cells) of [`Schedule::Auto`]: single cells, so the points come
     /// in lattice order, whose corner loads the hardware prefetches row by row. Blocks of 4³,

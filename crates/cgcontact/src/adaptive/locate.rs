@@ -87,8 +87,8 @@ impl<'a> AdaptiveLocator<'a> {
     }
 
     /// The body as the schedule sees it: its base lattice and finest level, and the bytes of
-    /// nodal data the batched path reads (displacements, corner tables, octrees: what decides
-    /// [`crate::Schedule::Auto`]).
+    /// nodal data the batched path reads (displacements, node numbering, the corner table if
+    /// stored, bricks and octrees: what decides [`crate::Schedule::Auto`]).
     pub(crate) fn layout(&self) -> Layout<'_> {
         let u = match self.settings.precision {
             Precision::F64 => size_of_val(self.body.u.as_slice()),
