@@ -6,11 +6,13 @@
 //! one), or the deformed mesh would gap or overlap. When several leaves hold it so, the coarsest
 //! one binds (the finer ones' corners on that face are themselves constrained by it).
 //!
-//! Constraints are flattened to independent nodes: a coarse leaf's corner can hang on a still
-//! coarser leaf, but only on one of a strictly lower level (a leaf's corners lie on the lattice
-//! of its level, and a leaf of that level or finer holding such a point has it as a corner), so
-//! the chains are at most as long as the levels, and resolving them coarsest first needs one pass.
-//! Every weight is a dyadic rational, exact in f64.
+//! Each hanging node keeps only the leaf it hangs on; its constraint is that leaf's interpolation
+//! of the current displacements. A coarse leaf's corner can hang on a still coarser leaf, but only
+//! on one of a strictly lower level (a leaf's corners lie on the lattice of its level, and a leaf
+//! of that level or finer holding such a point has it as a corner), so the chains are at most as
+//! long as the levels: filling the nodes coarsest leaf first needs one pass, and
+//! `AdaptiveBody::constraint` flattens a chain to independent nodes on request. Every weight is a
+//! dyadic rational, exact in f64.
 
 use glam::DVec3;
 
@@ -29,6 +31,7 @@ pub(super) struct Constraints {
     /// leaf's corners are independent or filled already.
     pub(super) order: Vec<u32>,
 }
+
 /// How far the displacements are from obeying the constraints.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ConstraintReport {

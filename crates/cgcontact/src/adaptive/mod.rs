@@ -379,22 +379,33 @@ impl AdaptiveBody {
         }
     }
 
-    /// The corners of leaf `id` and their weights at `node`, a point of its closed box (the zero
-    /// weights dropped): what `node` interpolates when it hangs on that leaf.
-    fn binding(&self, node: u32, id: u32) -> Vec<(u32, f64)> {
+    /// The corner nodes of leaf `id` and `node`'s local coordinates there (`node` a point of the
+    /// leaf's closed box; exact, dyadic).
+    fn binding_frame(&self, node: u32, id: u32) -> ([u32; 8], DVec3) {
         let leaf = self.leaves.at(id);
         let p = self.nodes.position(node);
         let s = u32::from(self.finest - leaf.level);
         let rel = [0, 1, 2].map(|a| f64::from(p[a] - (leaf.ijk[a] << s)));
         let xi = DVec3::from_array(rel) * (2.0 / f64::from(1u32 << s)) - 1.0;
-        corner_weights(&self.leaf_nodes(id, leaf), xi)
+        (self.leaf_nodes(id, leaf), xi)
     }
 
-    /// The displacement leaf `id` interpolates at `node`.
+    /// The corners of leaf `id` and their weights at `node` (the zero weights dropped): what
+    /// `node` interpolates when it hangs on that leaf.
+    fn binding(&self, node: u32, id: u32) -> Vec<(u32, f64)> {
+        let (corners, xi) = self.binding_frame(node, id);
+        corner_weights(&corners, xi)
+    }
+
+    /// The displacement leaf `id` interpolates at `node`: the sum of [`AdaptiveBody::binding`]'s
+    /// terms in its order, without a list (it runs for every hanging node at every update).
     fn bound_value(&self, node: u32, id: u32) -> DVec3 {
-        self.binding(node, id)
-            .iter()
-            .fold(DVec3::ZERO, |sum, &(p, w)| sum + w * self.u[p as usize])
+        let (corners, xi) = self.binding_frame(node, id);
+        hex8::shape(xi)
+            .into_iter()
+            .zip(corners)
+            .filter(|&(w, _)| w != 0.0)
+            .fold(DVec3::ZERO, |sum, (w, p)| sum + w * self.u[p as usize])
     }
 
     /// How far the hanging nodes are from their constraints: the count farther than `tol`
@@ -470,10 +481,7 @@ impl AdaptiveBody {
     #[must_use]
     pub fn cell_displacements(&self, cell: CellId) -> Option<[DVec3; 8]> {
         let leaf = self.leaves.get(cell.index())?;
-        Some(
-            self.leaf_nodes(cell.index() as u32, leaf)
-                .map(|n| self.u[n as usize]),
-        )
+        Some(self.displacements_of(cell.index() as u32, leaf))
     }
 
     /// The trilinear map of `cell` in its local frame and that frame's origin (the leaf's lowest
@@ -481,7 +489,7 @@ impl AdaptiveBody {
     #[must_use]
     pub fn cell_map(&self, cell: CellId) -> Option<(hex8::Hex8Map, DVec3)> {
         let leaf = self.leaves.get(cell.index())?;
-        let u = self.cell_displacements(cell)?;
+        let u = self.displacements_of(cell.index() as u32, leaf);
         Some((
             hex8::Hex8Map::lattice_cell(self.spacing(leaf.level), &u),
             self.leaf_origin(leaf),
@@ -499,7 +507,7 @@ impl AdaptiveBody {
     #[must_use]
     pub fn corners(&self, cell: CellId) -> Option<[DVec3; 8]> {
         let leaf = self.leaves.get(cell.index())?;
-        let u = self.cell_displacements(cell)?;
+        let u = self.displacements_of(cell.index() as u32, leaf);
         let (h, low) = (self.spacing(leaf.level), self.leaf_origin(leaf));
         Some(std::array::from_fn(|c| {
             let [a, b, d] = CORNER_OFFSETS[c];
@@ -515,7 +523,7 @@ impl AdaptiveBody {
             .filter_map(|id| {
                 let leaf = self.leaves.at(id);
                 let h = self.spacing(leaf.level);
-                let u = self.leaf_displacements(id);
+                let u = self.displacements_of(id, leaf);
                 let local: [DVec3; 8] = std::array::from_fn(|c| {
                     let [a, b, d] = CORNER_OFFSETS[c];
                     DVec3::new(a as f64, b as f64, d as f64) * h + u[c]
@@ -709,11 +717,12 @@ impl AdaptiveBody {
     /// The corner displacements of leaf `id` (unchecked id).
     #[inline(always)]
     pub(crate) fn leaf_displacements(&self, id: u32) -> [DVec3; 8] {
-        let corners = self.leaf_nodes(id, self.leaves.at(id));
-        let mut u = [DVec3::ZERO; 8];
-        for (c, u) in u.iter_mut().enumerate() {
-            *u = self.u[corners[c] as usize];
-        }
-        u
+        self.displacements_of(id, self.leaves.at(id))
+    }
+
+    /// The corner displacements of leaf `id`, which is `leaf`.
+    #[inline(always)]
+    fn displacements_of(&self, id: u32, leaf: Leaf) -> [DVec3; 8] {
+        self.leaf_nodes(id, leaf).map(|n| self.u[n as usize])
     }
 }

@@ -9,9 +9,10 @@
 //! unrefined cell owning its lowest corner alone (L = 0), or a cell refined uniformly L levels
 //! ((2^L)³ nodes). Its node at local coordinates q is its first node plus q's rank on that
 //! lattice: no table. The other owners (around level changes, where hanging nodes sit on their
-//! faces) list their nodes' local coordinates, searched by bisection. Memory: 8 bytes per owner
-//! cell that holds a node (dense) or per owner (sparse, plus the map), and 8 bytes per node of a
-//! listing owner.
+//! faces) keep a 64-bit mask of the points they hold when those lie on a lattice at most 2 levels
+//! down (a node's number is then the count of the bits below its own), or else list their nodes'
+//! local coordinates, searched by bisection. Memory: 8 bytes per cell of the owner grid (dense) or
+//! per owner (sparse, plus the map), 8 per masked owner, and 4 or 8 per node of a listing owner.
 
 use crate::idmap::IdMap;
 use crate::lattice::CORNER_OFFSETS;
@@ -25,8 +26,8 @@ const MASK: u32 = 1 << 30;
 /// Masks at most (25 bits of index); beyond, owners list their nodes.
 const MAX_MASKS: usize = 1 << 25;
 
-/// An owner cell: its first node, and its shape (the level L of a full owner, or [`LIST`] with
-/// the start of its local coordinates).
+/// An owner cell: its first node, and its shape (the level L of a full owner, [`MASK`] with its
+/// mask's index and level, or [`LIST`] with the start of its local coordinates).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 struct Owner {
     first: u32,
@@ -278,7 +279,8 @@ impl Nodes {
                 ((mask >> bit) & 1 == 1)
                     .then(|| owner.first + (mask & ((1 << bit) - 1)).count_ones())
             } else {
-                (next > owner.first).then(|| owner.first + bit)
+                // A full owner is never empty (empty owners are empty lists).
+                Some(owner.first + bit)
             }
         } else {
             let start = (owner.shape & !LIST) as usize;
