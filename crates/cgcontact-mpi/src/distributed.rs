@@ -122,6 +122,25 @@ pub struct Located {
     pub tried: Vec<u32>,
     /// What it cost this rank.
     pub stats: QueryStats,
+    /// Buffers of the routing and the return, kept for the next query.
+    scratch: Scratch,
+}
+
+/// The query's buffers, reused from one [`DistributedLocator::locate_all_into`] to the next.
+#[derive(Clone, Debug, Default)]
+struct Scratch {
+    /// Each point's home rank, or [`NO_HOME`].
+    homes: Vec<u32>,
+    /// Words to send: the points of other homes, then the answers going back.
+    send: Vec<u64>,
+    /// This rank's own points, gathered when others leave, and their input positions.
+    own_points: Vec<DVec3>,
+    own_index: Vec<u32>,
+    /// Words received: the points to search here, then the answers coming back.
+    received: Vec<u64>,
+    /// The local search's answers and tried counts.
+    found: Vec<Answer>,
+    found_tried: Vec<u32>,
 }
 
 /// The ownership map: blocks of the lattice and the home rank of each.
@@ -298,8 +317,12 @@ impl DistributedBody {
                 write_cell(cell, &mut out[at..]);
             }
         }
-        let (received, _) = exchange(comm, &outgoing, &mut traffic);
+        let counts: Vec<usize> = outgoing.iter().map(Vec::len).collect();
+        let send = outgoing.concat();
         drop(outgoing);
+        let mut received = Vec::new();
+        exchange(comm, &send, &counts, &mut received, &mut traffic);
+        drop(send);
 
         // 5. The local body: the cells received and the extreme cells, checked for a cell held
         //    twice and a node given two displacements, then agreed on.
@@ -375,8 +398,17 @@ impl DistributedBody {
     /// enough to hold it. Pure index arithmetic on the ownership map.
     #[must_use]
     pub fn home_of(&self, x: DVec3) -> Option<u32> {
+        match self.home_index(x) {
+            NO_HOME => None,
+            home => Some(home),
+        }
+    }
+
+    /// [`DistributedBody::home_of`] with [`NO_HOME`] for `None`: the routing's per-point step.
+    #[inline]
+    fn home_index(&self, x: DVec3) -> u32 {
         if !x.is_finite() {
-            return None;
+            return NO_HOME;
         }
         let t = self.lattice.lattice_coords(x);
         let cells = self.lattice.cells();
@@ -384,10 +416,7 @@ impl DistributedBody {
             let top = f64::from(cells[a] - 1);
             t[a].floor().clamp(0.0, top) as u32
         });
-        match self.blocks.home[self.blocks.index(self.blocks.of_cell(ijk))] {
-            NO_HOME => None,
-            home => Some(home),
-        }
+        self.blocks.home[self.blocks.index(self.blocks.of_cell(ijk))]
     }
 
     /// A locator over this rank's local body (local work: the core's O(nodes) build).
@@ -419,45 +448,83 @@ impl DistributedLocator<'_> {
     /// bitwise the serial locator's on the whole body. Runs the local search on the current rayon
     /// pool.
     pub fn locate_all<C: Communicator>(&self, comm: &C, points: &[DVec3]) -> Located {
+        let mut located = Located::default();
+        self.locate_all_into(comm, points, &mut located);
+        located
+    }
+
+    /// [`DistributedLocator::locate_all`] into `out`, whose buffers (answers, counts and the
+    /// scratch of routing and return) are reused: a solver loop calling it again allocates
+    /// little once the sizes settle.
+    ///
+    /// When none of this rank's points has another home (one rank, or a solver asking about
+    /// points in its own part), they are searched where they lie, with no copy.
+    pub fn locate_all_into<C: Communicator>(&self, comm: &C, points: &[DVec3], out: &mut Located) {
         let size = comm.size() as usize;
         let me = comm.rank() as u32;
-        let mut stats = QueryStats {
+        let Located {
+            answers,
+            tried,
+            stats,
+            scratch,
+        } = out;
+        *stats = QueryStats {
             points: points.len(),
             ..QueryStats::default()
         };
+        let Scratch {
+            homes,
+            send,
+            own_points,
+            own_index,
+            received,
+            found,
+            found_tried,
+        } = scratch;
+
         // Routing: each point's home; the points of other homes grouped by home (a counting sort,
-        // stable) and sent as their coordinates' bits; this rank's own kept in place.
+        // stable, straight into one send buffer) and sent as their coordinates' bits.
         let start = Instant::now();
-        let mut answers: Vec<Answer> = vec![Ok(None); points.len()];
-        let mut tried = vec![0u32; points.len()];
-        let homes: Vec<Option<u32>> = points.iter().map(|&x| self.body.home_of(x)).collect();
+        homes.clear();
+        homes.extend(points.iter().map(|&x| self.body.home_index(x)));
         let mut per_rank = vec![0usize; size];
-        for &h in homes.iter().flatten() {
-            per_rank[h as usize] += 1;
-        }
-        let mut own_points: Vec<DVec3> = Vec::with_capacity(per_rank[me as usize]);
-        let mut own_index: Vec<usize> = Vec::with_capacity(per_rank[me as usize]);
-        per_rank[me as usize] = 0;
-        let mut outgoing: Vec<Vec<u64>> = per_rank
-            .iter()
-            .map(|&n| Vec::with_capacity(3 * n))
-            .collect();
-        for (i, (x, home)) in points.iter().zip(&homes).enumerate() {
-            match home {
-                Some(h) if *h == me => {
-                    own_points.push(*x);
-                    own_index.push(i);
-                }
-                Some(h) => outgoing[*h as usize].extend(x.to_array().map(f64::to_bits)),
-                // The serial search refuses a non-finite point before any inversion.
-                None if !x.is_finite() => answers[i] = Err(PointError::NonFinite),
-                // No active cell near: the serial search inverts nothing and finds nothing.
-                None => {}
+        for &h in homes.iter() {
+            if h != NO_HOME {
+                per_rank[h as usize] += 1;
             }
         }
-        let (received, from) = exchange(comm, &outgoing, &mut stats.routing);
-        drop(outgoing);
-        let received: Vec<DVec3> = received
+        let own = std::mem::take(&mut per_rank[me as usize]);
+        let leaving: usize = per_rank.iter().sum();
+        // When no point leaves, this rank's points are searched in place; else its own are
+        // gathered.
+        let in_place = leaving == 0;
+        own_points.clear();
+        own_index.clear();
+        let mut next = Vec::with_capacity(size);
+        let mut at = 0;
+        for &n in &per_rank {
+            next.push(at);
+            at += 3 * n;
+        }
+        send.clear();
+        send.resize(3 * leaving, 0);
+        if !in_place {
+            own_points.reserve(own);
+            own_index.reserve(own);
+            for (i, (x, &home)) in points.iter().zip(homes.iter()).enumerate() {
+                if home == me {
+                    own_points.push(*x);
+                    own_index.push(i as u32);
+                } else if home != NO_HOME {
+                    let at = &mut next[home as usize];
+                    send[*at..*at + 3].copy_from_slice(&x.to_array().map(f64::to_bits));
+                    *at += 3;
+                }
+            }
+        }
+        let send_counts: Vec<usize> = per_rank.iter().map(|&n| 3 * n).collect();
+        let from = exchange(comm, send, &send_counts, received, &mut stats.routing);
+        let incoming: Vec<DVec3> = received
             .chunks_exact(3)
             .map(|w| {
                 DVec3::new(
@@ -467,75 +534,99 @@ impl DistributedLocator<'_> {
                 )
             })
             .collect();
-        stats.searched = received.len() + own_points.len();
+        stats.searched = incoming.len() + own;
         stats.routing_seconds = start.elapsed().as_secs_f64();
 
         // Search: the core's batched search on the local body, and the inversions the points
         // it does not find tried (as `cgcontact locate` counts them).
         let start = Instant::now();
-        let (mut found, mut found_tried) = (Vec::new(), Vec::new());
-        let (mut own_found, mut own_tried) = (Vec::new(), Vec::new());
-        if let Some(local) = &self.local {
-            let search = |points: &[DVec3], found: &mut Vec<Answer>, tried: &mut Vec<u32>| {
-                local.locate_all_into(points, found);
-                tried.extend(found.iter().zip(points).map(|(answer, &x)| match answer {
-                    Ok(Some(hit)) => hit.inversions,
-                    _ => local.locate_counted(x).1,
-                }));
-            };
-            search(&own_points, &mut own_found, &mut own_tried);
-            search(&received, &mut found, &mut found_tried);
-        } else {
-            // Only a rank home to some block receives points, and such a rank has a body.
-            debug_assert!(received.is_empty() && own_points.is_empty());
+        let search = |local: &LatticeLocator<'_>,
+                      points: &[DVec3],
+                      found: &mut Vec<Answer>,
+                      tried: &mut Vec<u32>| {
+            local.locate_all_into(points, found);
+            tried.clear();
+            tried.extend(found.iter().zip(points).map(|(answer, &x)| match answer {
+                Ok(Some(hit)) => hit.inversions,
+                _ => local.locate_counted(x).1,
+            }));
+        };
+        match &self.local {
+            // Every point here is this rank's own or has no home. A point with no home has no
+            // active cell within its search's reach, so the local search answers it as the
+            // serial one does: refused if not finite, else not found after no inversion.
+            Some(local) if in_place => search(local, points, answers, tried),
+            Some(local) => {
+                search(local, own_points, found, found_tried);
+                reset(answers, tried, points);
+                for ((answer, &count), &i) in
+                    found.iter().zip(found_tried.iter()).zip(own_index.iter())
+                {
+                    answers[i as usize] = *answer;
+                    tried[i as usize] = count;
+                }
+            }
+            // Only a rank home to some block is asked about points, and such a rank has a body:
+            // every point here has no home.
+            None => reset(answers, tried, points),
         }
+        if let Some(local) = &self.local {
+            search(local, &incoming, found, found_tried);
+        } else {
+            debug_assert!(incoming.is_empty());
+            found.clear();
+            found_tried.clear();
+        }
+        drop(incoming);
         stats.search_seconds = start.elapsed().as_secs_f64();
 
         // Return: the answers to the ranks that asked, in the order they came.
         let start = Instant::now();
-        for ((answer, count), &i) in own_found.into_iter().zip(own_tried).zip(&own_index) {
-            answers[i] = answer;
-            tried[i] = count;
+        send.clear();
+        send.resize(ANSWER_WORDS * found.len(), 0);
+        for ((answer, &count), chunk) in found
+            .iter()
+            .zip(found_tried.iter())
+            .zip(send.chunks_exact_mut(ANSWER_WORDS))
+        {
+            encode(answer, count, chunk);
         }
-        let mut back = Vec::with_capacity(size);
-        let mut at = 0;
-        for words in &from {
-            let n = words / 3;
-            let mut out = vec![0u64; ANSWER_WORDS * n];
-            for (k, chunk) in out.chunks_exact_mut(ANSWER_WORDS).enumerate() {
-                encode(&found[at + k], found_tried[at + k], chunk);
+        let back_counts: Vec<usize> = from.iter().map(|&words| words / 3 * ANSWER_WORDS).collect();
+        exchange(comm, send, &back_counts, received, &mut stats.returned);
+        if !in_place {
+            // The answers arrive grouped by home rank, each group in this rank's input order.
+            let mut cursor = next;
+            let mut offset = 0;
+            for (cursor, &n) in cursor.iter_mut().zip(&per_rank) {
+                *cursor = offset;
+                offset += n;
             }
-            at += n;
-            back.push(out);
-        }
-        drop(found);
-        let (returned, _) = exchange(comm, &back, &mut stats.returned);
-        drop(back);
-        // The answers arrive grouped by home rank, each group in this rank's input order.
-        let mut cursor: Vec<usize> = Vec::with_capacity(size);
-        let mut offset = 0;
-        for &n in &per_rank {
-            cursor.push(offset);
-            offset += n;
-        }
-        for (i, home) in homes.iter().enumerate() {
-            match home {
-                Some(h) if *h != me => {
-                    let k = cursor[*h as usize];
-                    cursor[*h as usize] += 1;
-                    let words = &returned[k * ANSWER_WORDS..(k + 1) * ANSWER_WORDS];
+            for (i, &home) in homes.iter().enumerate() {
+                if home != me && home != NO_HOME {
+                    let k = cursor[home as usize];
+                    cursor[home as usize] += 1;
+                    let words = &received[k * ANSWER_WORDS..(k + 1) * ANSWER_WORDS];
                     (answers[i], tried[i]) = decode(words);
                 }
-                _ => {}
             }
         }
         stats.return_seconds = start.elapsed().as_secs_f64();
-        Located {
-            answers,
-            tried,
-            stats,
-        }
     }
+}
+
+/// Answers and tried counts for `points` before any search: what the serial search gives a point
+/// no active cell is near (refused if not finite, else not found after no inversion).
+fn reset(answers: &mut Vec<Answer>, tried: &mut Vec<u32>, points: &[DVec3]) {
+    answers.clear();
+    answers.extend(points.iter().map(|x| {
+        if x.is_finite() {
+            Ok(None)
+        } else {
+            Err(PointError::NonFinite)
+        }
+    }));
+    tried.clear();
+    tried.resize(points.len(), 0);
 }
 
 /// Collective: the answers of every rank's points, concatenated in rank order, on `root`

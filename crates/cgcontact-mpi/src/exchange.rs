@@ -43,40 +43,43 @@ pub(crate) fn all_reduce<C: Communicator>(
     out
 }
 
-/// Sends `outgoing[r]` to rank r, for every r, and returns what each rank sent here, concatenated in
-/// rank order, with the number of words from each rank. Two collectives: the counts (all-to-all),
-/// then the words (all-to-all-v).
+/// Sends `send`'s words to the ranks, `counts[r]` of them to rank r in rank order, and writes what
+/// each rank sent here into `received` (resized), concatenated in rank order; returns the number
+/// of words from each rank. Two collectives: the counts (all-to-all), then the words
+/// (all-to-all-v).
 pub(crate) fn exchange<C: Communicator>(
     comm: &C,
-    outgoing: &[Vec<u64>],
+    send: &[u64],
+    counts: &[usize],
+    received: &mut Vec<u64>,
     traffic: &mut Traffic,
-) -> (Vec<u64>, Vec<usize>) {
+) -> Vec<usize> {
     let me = comm.rank() as usize;
-    let send_counts: Vec<Count> = outgoing
+    debug_assert_eq!(counts.iter().sum::<usize>(), send.len());
+    let send_counts: Vec<Count> = counts
         .iter()
-        .map(|words| Count::try_from(words.len()).expect("under 2^31 words per rank pair"))
+        .map(|&n| Count::try_from(n).expect("under 2^31 words per rank pair"))
         .collect();
-    let mut recv_counts: Vec<Count> = vec![0; outgoing.len()];
+    let mut recv_counts: Vec<Count> = vec![0; counts.len()];
     comm.all_to_all_into(&send_counts[..], &mut recv_counts[..]);
-    for (rank, words) in outgoing.iter().enumerate() {
-        if rank != me && !words.is_empty() {
+    for (rank, &n) in counts.iter().enumerate() {
+        if rank != me && n > 0 {
             traffic.messages += 1;
-            traffic.bytes += 8 * words.len() as u64;
+            traffic.bytes += 8 * n as u64;
         }
     }
     traffic.collectives += 2;
-    let send: Vec<u64> = outgoing.concat();
     let send_displs = displacements(&send_counts);
     let recv_displs = displacements(&recv_counts);
     let total: usize = recv_counts.iter().map(|&c| c as usize).sum();
-    let mut received = vec![0u64; total];
+    // Every word is overwritten by the exchange: only a length change writes.
+    received.resize(total, 0);
     {
-        let partition = Partition::new(&send[..], &send_counts[..], &send_displs[..]);
+        let partition = Partition::new(send, &send_counts[..], &send_displs[..]);
         let mut into = PartitionMut::new(&mut received[..], &recv_counts[..], &recv_displs[..]);
         comm.all_to_all_varcount_into(&partition, &mut into);
     }
-    let counts = recv_counts.iter().map(|&c| c as usize).collect();
-    (received, counts)
+    recv_counts.iter().map(|&c| c as usize).collect()
 }
 
 /// Each partition's offset: the running sum of the counts before it.

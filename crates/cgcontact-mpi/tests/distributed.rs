@@ -12,7 +12,7 @@ use std::time::{Duration, Instant};
 
 use cgcontact::glam::DVec3;
 use cgcontact::{Answer, Body, CellId, Lattice, LatticeLocator, Locator, PointError, Settings};
-use cgcontact_mpi::{Config, DistributedBody, Error, OwnedCell, Partition};
+use cgcontact_mpi::{Config, DistributedBody, Error, Located, OwnedCell, Partition};
 use cgcontact_scenes::{SphereOnBlock, known_points};
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
@@ -81,7 +81,7 @@ fn rank() {
     for case in cases() {
         for partition in Partition::ALL {
             for block in [8, 2] {
-                for placement in [Placement::Split, Placement::AllOnLast] {
+                for placement in [Placement::Split, Placement::AllOnLast, Placement::Own] {
                     checked += check(&world, &case, partition, block, placement);
                 }
             }
@@ -106,6 +106,9 @@ enum Placement {
     Split,
     /// Every point on the last rank; the others have none.
     AllOnLast,
+    /// Each rank asks about the points whose home it is, and rank 0 also about those with no
+    /// home: no point leaves its rank, so each searches its own in place.
+    Own,
 }
 
 /// The distributed answers of this rank's share of the case's points against the serial ones;
@@ -141,19 +144,37 @@ fn check(
     );
     let distributed = DistributedBody::new(world, lattice, &mine, config)
         .unwrap_or_else(|e| fail(world, &format!("{what}: setup: {e}")));
+    let all = 0..case.points.len();
     let range = match placement {
         Placement::Split => {
             let n = case.points.len();
             rank * n / size..(rank + 1) * n / size
         }
-        Placement::AllOnLast if rank == size - 1 => 0..case.points.len(),
-        Placement::AllOnLast => 0..0,
+        Placement::AllOnLast | Placement::Own if rank == size - 1 => all,
+        Placement::AllOnLast | Placement::Own => 0..0,
     };
-    let points = &case.points[range.clone()];
+    let points: Vec<DVec3> = match placement {
+        Placement::Own => case
+            .points
+            .iter()
+            .copied()
+            .filter(|&x| match distributed.home_of(x) {
+                Some(home) => home as usize == rank,
+                None => rank == 0,
+            })
+            .collect(),
+        _ => case.points[range].to_vec(),
+    };
+    let points = &points[..];
     let locator = distributed
         .locator()
         .unwrap_or_else(|e| fail(world, &format!("{what}: locator: {e}")));
-    let located = locator.locate_all(world, points);
+    // A query's buffers reused by the next: first the points in reverse (another routing), then
+    // the points themselves into the same `Located`.
+    let mut located = Located::default();
+    let reversed: Vec<DVec3> = points.iter().rev().copied().collect();
+    locator.locate_all_into(world, &reversed, &mut located);
+    locator.locate_all_into(world, points, &mut located);
 
     // The serial answers on the whole body: the oracle.
     let serial = LatticeLocator::new(&case.body, Settings::default()).expect("default settings");
@@ -171,8 +192,7 @@ fn check(
             fail(
                 world,
                 &format!(
-                    "{what}: point {} at {x}: distributed {got:?} (tried {}), serial {want:?} (tried {want_tried})",
-                    range.start + i,
+                    "{what}: this rank's point {i} at {x}: distributed {got:?} (tried {}), serial {want:?} (tried {want_tried})",
                     located.tried[i]
                 ),
             );
