@@ -152,16 +152,37 @@ struct Blocks {
     counts: [u32; 3],
     /// The home rank of each block (x fastest), or [`NO_HOME`].
     home: Vec<u32>,
+    /// Per axis, each lattice cell coordinate's share of its block's index: the block index of
+    /// cell ijk is the sum of the three, with no division per cell.
+    stride: [Vec<u32>; 3],
 }
 
 impl Blocks {
+    /// The map of a lattice of `cells` per axis cut into blocks of `size`³ cells, no block with a
+    /// home yet.
+    fn new(cells: [u32; 3], size: u32) -> Self {
+        let counts = cells.map(|n| n.div_ceil(size));
+        let count = counts.iter().map(|&n| n as usize).product();
+        let step = [1, counts[0], counts[0] * counts[1]];
+        Self {
+            size,
+            counts,
+            home: vec![NO_HOME; count],
+            stride: [0, 1, 2].map(|a| (0..cells[a]).map(|i| i / size * step[a]).collect()),
+        }
+    }
+
+    /// The index of the block holding cell `ijk` (in the lattice).
+    #[inline]
+    fn of_cell_index(&self, ijk: [u32; 3]) -> usize {
+        (self.stride[0][ijk[0] as usize]
+            + self.stride[1][ijk[1] as usize]
+            + self.stride[2][ijk[2] as usize]) as usize
+    }
+
     fn index(&self, b: [u32; 3]) -> usize {
         let [nx, ny, _] = self.counts.map(|n| n as usize);
         b[0] as usize + nx * (b[1] as usize + ny * b[2] as usize)
-    }
-
-    fn of_cell(&self, ijk: [u32; 3]) -> [u32; 3] {
-        ijk.map(|i| i / self.size)
     }
 }
 
@@ -194,20 +215,16 @@ impl DistributedBody {
         let mut traffic = Traffic::default();
         let rank = comm.rank();
         let size = comm.size() as usize;
-        // 1. Check this rank's cells; agree on failure, on a non-empty body and on the global range
-        //    of each displacement component, all in one reduction (a minimum is the maximum of
+        // 1. Check this rank's cells (one pass, which also finds each cell's lattice coordinates
+        //    and the extremes of each displacement component); agree on failure, on a non-empty
+        //    body and on the global extremes, all in one reduction (a minimum is the maximum of
         //    the complement of its order key).
-        let local = check_cells(&lattice, cells, &config);
-        let (mut low, mut high) = ([u64::MAX; 3], [0u64; 3]);
-        for cell in cells {
-            for u in cell.u {
-                for a in 0..3 {
-                    low[a] = low[a].min(order_key(u[a]));
-                    high[a] = high[a].max(order_key(u[a]));
-                }
-            }
-        }
-        let failed = if local.is_err() {
+        let scan = scan_cells(&lattice, cells, &config);
+        let (low, high) = match &scan {
+            Ok(scan) => (scan.low.map(|(key, _)| key), scan.high.map(|(key, _)| key)),
+            Err(_) => ([u64::MAX; 3], [0; 3]),
+        };
+        let failed = if scan.is_err() {
             u64::MAX - rank as u64
         } else {
             0
@@ -217,7 +234,7 @@ impl DistributedBody {
         words.extend(low.map(|k| !k));
         let agreed = all_reduce(comm, &words, SystemOperation::max(), &mut traffic);
         if agreed[0] != 0 {
-            local?;
+            scan?;
             return Err(Error::OnAnotherRank {
                 rank: (u64::MAX - agreed[0]) as i32,
             });
@@ -225,6 +242,7 @@ impl DistributedBody {
         if agreed[1] == 0 {
             return Err(Error::EmptyBody);
         }
+        let scan = scan.expect("agreed: no rank failed");
         let high_key: [u64; 3] = [agreed[2], agreed[3], agreed[4]];
         let low_key: [u64; 3] = [!agreed[5], !agreed[6], !agreed[7]];
         let u_high = DVec3::from_array(high_key.map(from_order_key));
@@ -233,15 +251,15 @@ impl DistributedBody {
         // 2. The cells holding the six extremes, sent to every rank: the lowest rank holding each
         //    names it, then one reduction carries them (only that rank's words are non-zero).
         let extremes: Vec<(usize, usize)> = (0..3)
-            .flat_map(|a| [(a, high_key[a]), (a, !low_key[a])])
-            .enumerate()
-            .filter_map(|(slot, (a, key))| {
-                let want = if slot % 2 == 0 { key } else { !key };
-                cells
-                    .iter()
-                    .position(|c| c.u.iter().any(|u| order_key(u[a]) == want))
-                    .map(|at| (slot, at))
+            .filter(|_| !cells.is_empty())
+            .flat_map(|a| {
+                [
+                    (high_key[a] == high[a]).then_some(scan.high[a].1),
+                    (low_key[a] == low[a]).then_some(scan.low[a].1),
+                ]
             })
+            .enumerate()
+            .filter_map(|(slot, at)| at.map(|at| (slot, at)))
             .collect();
         let mut holders = vec![u64::MAX; 6];
         for &(slot, _) in &extremes {
@@ -255,21 +273,23 @@ impl DistributedBody {
             }
         }
         let extreme_words = all_reduce(comm, &extreme_words, SystemOperation::max(), &mut traffic);
+        let extremes: Vec<OwnedCell> = extreme_words
+            .chunks_exact(CELL_WORDS)
+            .map(read_cell)
+            .collect();
 
         // 3. The ownership map: one reduction over the blocks of (count of cells, rank) packed so
         //    that the maximum is the rank holding most, the lowest on a tie.
-        let block = config.block;
-        let counts = lattice.cells().map(|n| n.div_ceil(block));
-        let block_count: usize = counts.iter().map(|&n| n as usize).product();
-        let mut blocks = Blocks {
-            size: block,
-            counts,
-            home: vec![NO_HOME; block_count],
-        };
+        let mut blocks = Blocks::new(lattice.cells(), config.block);
+        let block_count = blocks.home.len();
+        let block_of: Vec<u32> = scan
+            .ijk
+            .iter()
+            .map(|&ijk| blocks.of_cell_index(ijk) as u32)
+            .collect();
         let mut held = vec![0u64; block_count];
-        for cell in cells {
-            let ijk = lattice.cell_ijk(cell.cell).expect("checked in range");
-            held[blocks.index(blocks.of_cell(ijk))] += 1;
+        for &b in &block_of {
+            held[b as usize] += 1;
         }
         for words in &mut held {
             if *words > 0 {
@@ -282,6 +302,7 @@ impl DistributedBody {
                 *home = u32::MAX - (words & 0xffff_ffff) as u32;
             }
         }
+        drop(held);
         let h = lattice.h();
         let reach = |u: DVec3| -> [u32; 3] {
             let cells = (u.max(DVec3::ZERO) / h).ceil() + MARGIN;
@@ -292,23 +313,29 @@ impl DistributedBody {
         let after = reach(-u_low);
         adopt_empty_blocks(&mut blocks, &lattice, before, after);
 
-        // 4. Each cell to every home whose blocks' reach holds it.
+        // 4. Each cell to every home whose blocks' reach holds it: the one home of its block's
+        //    whole neighbourhood, mostly, or else those of the blocks its own reach meets.
+        let sole = sole_homes(&blocks, &lattice, before, after);
         let mut outgoing = vec![Vec::new(); size];
-        let mut kept: Vec<OwnedCell> = Vec::new();
+        let mut kept: Vec<u32> = Vec::new();
         let mut homes = Vec::with_capacity(8);
-        for cell in cells {
-            let ijk = lattice.cell_ijk(cell.cell).expect("checked in range");
+        for (at, (cell, &ijk)) in cells.iter().zip(&scan.ijk).enumerate() {
             homes.clear();
-            for_blocks_reaching(&blocks, &lattice, ijk, before, after, |b| {
-                let home = blocks.home[blocks.index(b)];
-                if home != NO_HOME && !homes.contains(&home) {
-                    homes.push(home);
-                }
-            });
+            match sole[block_of[at] as usize] {
+                SEVERAL => for_blocks_reaching(&blocks, &lattice, ijk, before, after, |b| {
+                    let home = blocks.home[blocks.index(b)];
+                    if home != NO_HOME && !homes.contains(&home) {
+                        homes.push(home);
+                    }
+                }),
+                // Not met: the cell's own block has a cell, so a home.
+                NO_HOME => {}
+                home => homes.push(home),
+            }
             for &home in &homes {
                 if home == rank as u32 {
                     // This rank's own share stays here, unencoded.
-                    kept.push(*cell);
+                    kept.push(at as u32);
                     continue;
                 }
                 let out: &mut Vec<u64> = &mut outgoing[home as usize];
@@ -317,6 +344,7 @@ impl DistributedBody {
                 write_cell(cell, &mut out[at..]);
             }
         }
+        drop(block_of);
         let counts: Vec<usize> = outgoing.iter().map(Vec::len).collect();
         let send = outgoing.concat();
         drop(outgoing);
@@ -324,18 +352,22 @@ impl DistributedBody {
         exchange(comm, &send, &counts, &mut received, &mut traffic);
         drop(send);
 
-        // 5. The local body: the cells received and the extreme cells, checked for a cell held
-        //    twice and a node given two displacements, then agreed on.
+        // 5. The local body: the cells kept and received and the extreme cells, checked for a
+        //    cell held twice and a node given two displacements, then agreed on.
         let home_blocks = blocks.home.iter().filter(|&&h| h == rank as u32).count();
-        let mut local_cells = kept;
-        local_cells.extend(received.chunks_exact(CELL_WORDS).map(read_cell));
-        drop(received);
-        let built = if local_cells.is_empty() {
+        let local_cells = kept
+            .iter()
+            .map(|&at| (cells[at as usize], scan.ijk[at as usize]))
+            .chain(received.chunks_exact(CELL_WORDS).map(|words| {
+                let cell = read_cell(words);
+                (cell, lattice.cell_ijk(cell.cell).unwrap_or([u32::MAX; 3]))
+            }));
+        let built = if kept.is_empty() && received.is_empty() {
             Ok(None)
         } else {
-            let extremes = extreme_words.chunks_exact(CELL_WORDS).map(read_cell);
-            local_body(&lattice, local_cells, extremes).map(Some)
+            local_body(&lattice, local_cells, &extremes).map(Some)
         };
+        drop(received);
         let failed = if built.is_err() {
             u64::MAX - rank as u64
         } else {
@@ -416,7 +448,7 @@ impl DistributedBody {
             let top = f64::from(cells[a] - 1);
             t[a].floor().clamp(0.0, top) as u32
         });
-        self.blocks.home[self.blocks.index(self.blocks.of_cell(ijk))]
+        self.blocks.home[self.blocks.of_cell_index(ijk)]
     }
 
     /// A locator over this rank's local body (local work: the core's O(nodes) build).
@@ -671,27 +703,76 @@ pub fn gather_located<C: Communicator>(
     }
 }
 
-/// Check one rank's cells: in the lattice, finite displacements, and the block size.
-fn check_cells(lattice: &Lattice, cells: &[OwnedCell], config: &Config) -> Result<(), Error> {
+/// One rank's cells, checked: each one's lattice coordinates, and the order keys of the lowest and
+/// highest value of each displacement component with the index of a cell holding it.
+#[derive(Debug)]
+struct Scan {
+    ijk: Vec<[u32; 3]>,
+    low: [(u64, usize); 3],
+    high: [(u64, usize); 3],
+}
+
+/// Check one rank's cells (in the lattice, finite displacements) and the block size, in one pass
+/// that also gathers what [`Scan`] holds.
+fn scan_cells(lattice: &Lattice, cells: &[OwnedCell], config: &Config) -> Result<Scan, Error> {
     if config.block == 0 || config.block > 1 << 20 {
         return Err(Error::BlockSize(config.block));
     }
     config.settings.validate()?;
-    for cell in cells {
-        if cell.cell.index() >= lattice.cell_count() {
+    let mut scan = Scan {
+        ijk: Vec::with_capacity(cells.len()),
+        low: [(u64::MAX, 0); 3],
+        high: [(0, 0); 3],
+    };
+    for (at, cell) in cells.iter().enumerate() {
+        let Some(ijk) = lattice.cell_ijk(cell.cell) else {
             return Err(Error::CellOutOfRange {
                 cell: cell.cell,
                 cells: lattice.cell_count(),
             });
-        }
-        if let Some(corner) = cell.u.iter().position(|u| !u.is_finite()) {
+        };
+        scan.ijk.push(ijk);
+        // A finite sum means finite terms; an infinite or NaN one is looked into (finite values
+        // may overflow it).
+        let sum = cell.u.iter().fold(DVec3::ZERO, |s, &u| s + u);
+        if !sum.is_finite()
+            && let Some(corner) = cell.u.iter().position(|u| !u.is_finite())
+        {
             return Err(Error::NonFiniteDisplacement {
                 cell: cell.cell,
                 corner,
             });
         }
+        let (mut low, mut high) = (cell.u[0], cell.u[0]);
+        for &u in &cell.u[1..] {
+            low = low.min(u);
+            high = high.max(u);
+        }
+        for a in 0..3 {
+            // The order keys rank -0 below +0, which a floating-point minimum does not.
+            let zero = |v: f64, sign: bool| {
+                if v == 0.0
+                    && cell
+                        .u
+                        .iter()
+                        .any(|u| u[a] == 0.0 && u[a].is_sign_negative() == sign)
+                {
+                    if sign { -0.0 } else { 0.0 }
+                } else {
+                    v
+                }
+            };
+            let key = order_key(zero(low[a], true));
+            if key < scan.low[a].0 {
+                scan.low[a] = (key, at);
+            }
+            let key = order_key(zero(high[a], false));
+            if key > scan.high[a].0 {
+                scan.high[a] = (key, at);
+            }
+        }
     }
-    Ok(())
+    Ok(scan)
 }
 
 /// Give each block without cells the home of the first block (in index order) within its points'
@@ -731,6 +812,50 @@ fn adopt_empty_blocks(blocks: &mut Blocks, lattice: &Lattice, before: [u32; 3], 
     }
 }
 
+/// In [`sole_homes`]: the points reading this block's cells have several homes.
+const SEVERAL: u32 = u32::MAX - 1;
+
+/// For each block, the one home of every block whose points may read a cell of it ([`NO_HOME`]
+/// when none, [`SEVERAL`] when they differ): the cells of most blocks go to that home alone, with
+/// no look at their own reach.
+fn sole_homes(blocks: &Blocks, lattice: &Lattice, before: [u32; 3], after: [u32; 3]) -> Vec<u32> {
+    let size = blocks.size;
+    let cells = lattice.cells();
+    let mut sole = vec![NO_HOME; blocks.home.len()];
+    for bz in 0..blocks.counts[2] {
+        for by in 0..blocks.counts[1] {
+            for bx in 0..blocks.counts[0] {
+                let b = [bx, by, bz];
+                // The blocks reaching any of its cells: those of its first cell's reach to its
+                // last one's (`for_blocks_reaching`'s bounds).
+                let low = [0, 1, 2].map(|a| (b[a] * size).saturating_sub(after[a]) / size);
+                let high = [0, 1, 2].map(|a| {
+                    let last = ((b[a] + 1) * size).min(cells[a]) - 1;
+                    last.saturating_add(before[a]).min(cells[a] - 1) / size
+                });
+                let mut one = NO_HOME;
+                'blocks: for z in low[2]..=high[2] {
+                    for y in low[1]..=high[1] {
+                        for x in low[0]..=high[0] {
+                            match blocks.home[blocks.index([x, y, z])] {
+                                NO_HOME => {}
+                                home if one == NO_HOME => one = home,
+                                home if home == one => {}
+                                _ => {
+                                    one = SEVERAL;
+                                    break 'blocks;
+                                }
+                            }
+                        }
+                    }
+                }
+                sole[blocks.index(b)] = one;
+            }
+        }
+    }
+    sole
+}
+
 /// Call `f` with every block whose points may read cell `ijk`: the blocks overlapping
 /// [ijk − after, ijk + before].
 fn for_blocks_reaching(
@@ -754,19 +879,19 @@ fn for_blocks_reaching(
     }
 }
 
-/// The body of the cells `received` (each must come once: a cell held by two ranks arrives twice)
-/// and the `extremes` (added unless received), checked for a node given two displacements. Nodes
-/// are gathered in a dense table over the received cells' bounding box (a compact region; the
-/// extreme cells, anywhere, have their few nodes aside), so the cost is linear in the cells.
+/// The body of the `cells` kept and received, each with its lattice coordinates (each must come
+/// once: a cell held by two ranks arrives twice), and the `extremes` (added unless there), checked
+/// for a node given two displacements. Nodes are gathered in a dense table over the cells'
+/// bounding box (a compact region; the extreme cells, anywhere, have their few nodes aside), so
+/// the cost is linear in the cells, and read out in ascending lattice order: the body's own.
 fn local_body(
     lattice: &Lattice,
-    received: Vec<OwnedCell>,
-    extremes: impl IntoIterator<Item = OwnedCell>,
+    cells: impl Iterator<Item = (OwnedCell, [u32; 3])> + Clone,
+    extremes: &[OwnedCell],
 ) -> Result<Body, Error> {
-    let ijk_of = |c: &OwnedCell| lattice.cell_ijk(c.cell).expect("checked in range");
-    let (mut low, mut high) = ([u32::MAX; 3], [0u32; 3]);
-    for cell in &received {
-        let ijk = ijk_of(cell);
+    let (mut low, mut high, mut count) = ([u32::MAX; 3], [0u32; 3], 0usize);
+    for (_, ijk) in cells.clone() {
+        count += 1;
         for a in 0..3 {
             low[a] = low[a].min(ijk[a]);
             high[a] = high[a].max(ijk[a]);
@@ -775,9 +900,9 @@ fn local_body(
     // Nodes of the box: one more than its cells per axis.
     let dims = [0, 1, 2].map(|a| (high[a] - low[a] + 2) as usize);
     let table_nodes = dims[0] * dims[1] * dims[2];
-    if table_nodes > 64 * 8 * received.len().max(1) {
+    if table_nodes > 64 * 8 * count.max(1) {
         // Scattered cells (a random partition's halo over a huge lattice): sort instead.
-        return local_body_sorted(lattice, received, extremes);
+        return local_body_sorted(lattice, cells.map(|(cell, _)| cell).collect(), extremes);
     }
     let slot = |ijk: [u32; 3]| -> Option<usize> {
         let d = [0, 1, 2].map(|a| ijk[a].checked_sub(low[a]).map(|v| v as usize));
@@ -788,34 +913,36 @@ fn local_body(
             _ => None,
         }
     };
+    // Each corner's table entry from the cell's lowest one (VTK order).
+    let corner = cgcontact::CORNER_OFFSETS
+        .map(|o| o[0] as usize + dims[0] * (o[1] as usize + dims[1] * o[2] as usize));
     let mut table = vec![DVec3::NAN; table_nodes];
     let mut seen = vec![false; table_nodes];
     let bits = |u: DVec3| u.to_array().map(f64::to_bits);
-    for cell in &received {
-        let ijk = ijk_of(cell);
+    let mut ids: Vec<CellId> = Vec::with_capacity(count + extremes.len());
+    for (cell, ijk) in cells {
         let at = slot(ijk).expect("in the box");
         if std::mem::replace(&mut seen[at], true) {
             return Err(Error::DuplicateCell { cell: cell.cell });
         }
-        for (c, offset) in cgcontact::CORNER_OFFSETS.iter().enumerate() {
-            let node = slot([0, 1, 2].map(|a| ijk[a] + offset[a])).expect("in the box");
+        ids.push(cell.cell);
+        for (c, &offset) in corner.iter().enumerate() {
+            let node = &mut table[at + offset];
             let u = cell.u[c];
-            if table[node].x.is_nan() {
-                table[node] = u;
-            } else if bits(table[node]) != bits(u) {
-                let ijk = [0, 1, 2].map(|a| ijk[a] + offset[a]);
+            if node.x.is_nan() {
+                *node = u;
+            } else if bits(*node) != bits(u) {
+                let ijk = [0, 1, 2].map(|a| ijk[a] + cgcontact::CORNER_OFFSETS[c][a]);
                 return Err(Error::InconsistentNode {
                     node: lattice.node_index(ijk),
                 });
             }
         }
     }
-    let mut ids: Vec<CellId> = received.iter().map(|c| c.cell).collect();
-    drop(received);
     let mut aside: Vec<(usize, DVec3)> = Vec::new();
     for extreme in extremes {
-        let ijk = ijk_of(&extreme);
-        if slot(ijk).is_some_and(|at| seen[at]) {
+        let ijk = lattice.cell_ijk(extreme.cell).expect("checked in range");
+        if slot(ijk).is_some_and(|at| seen[at]) || ids[count..].contains(&extreme.cell) {
             continue;
         }
         ids.push(extreme.cell);
@@ -828,20 +955,39 @@ fn local_body(
             }
         }
     }
+    drop(seen);
     aside.sort_unstable_by_key(|&(node, _)| node);
+    aside.dedup_by_key(|&mut (node, _)| node);
     let mut body = Body::from_cells(*lattice, ids)?;
-    body.update_displacements(|node, _, u| {
-        let ijk = lattice.node_ijk(node).expect("a node of the lattice");
-        *u = match slot(ijk) {
-            Some(at) if !table[at].x.is_nan() => table[at],
-            _ => {
-                let at = aside
-                    .binary_search_by_key(&node, |&(n, _)| n)
-                    .expect("every node of a local cell has its displacement");
-                aside[at].1
+    // The displacements in ascending lattice node order: the box's, row by row (the lattice's own
+    // order within the box), merged with those aside.
+    let mut u = Vec::with_capacity(body.node_count());
+    let mut aside = aside.into_iter().peekable();
+    let [nx, ny, _] = lattice.cells().map(|n| n as usize + 1);
+    let mut row = table.chunks_exact(dims[0]);
+    for z in 0..dims[2] {
+        for y in 0..dims[1] {
+            let first = lattice.node_index([low[0], low[1] + y as u32, low[2] + z as u32]);
+            debug_assert_eq!(
+                first,
+                low[0] as usize + nx * (low[1] as usize + y + ny * (low[2] as usize + z))
+            );
+            for (x, value) in row.next().expect("a row per (y, z)").iter().enumerate() {
+                if value.x.is_nan() {
+                    continue;
+                }
+                while let Some(&(node, v)) = aside.peek()
+                    && node < first + x
+                {
+                    u.push(v);
+                    aside.next();
+                }
+                u.push(*value);
             }
-        };
-    })?;
+        }
+    }
+    u.extend(aside.map(|(_, v)| v));
+    body.set_displacements(&u)?;
     Ok(body)
 }
 
@@ -849,7 +995,7 @@ fn local_body(
 fn local_body_sorted(
     lattice: &Lattice,
     mut received: Vec<OwnedCell>,
-    extremes: impl IntoIterator<Item = OwnedCell>,
+    extremes: &[OwnedCell],
 ) -> Result<Body, Error> {
     received.sort_unstable_by_key(|c| c.cell);
     if let Some(pair) = received.windows(2).find(|p| p[0].cell == p[1].cell) {
@@ -861,7 +1007,7 @@ fn local_body_sorted(
             .binary_search_by_key(&extreme.cell, |c| c.cell)
             .is_err()
         {
-            cells.push(extreme);
+            cells.push(*extreme);
         }
     }
     cells.sort_unstable_by_key(|c| c.cell);
@@ -990,6 +1136,72 @@ mod tests {
                 (a, b) => assert_eq!(a, b),
             }
         }
+    }
+
+    #[test]
+    fn block_strides_match_the_division() {
+        for size in [1, 2, 3, 8] {
+            let cells = [7, 5, 9];
+            let blocks = Blocks::new(cells, size);
+            for k in 0..cells[2] {
+                for j in 0..cells[1] {
+                    for i in 0..cells[0] {
+                        let b = [i / size, j / size, k / size];
+                        assert_eq!(blocks.of_cell_index([i, j, k]), blocks.index(b));
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn the_scan_finds_the_extremes_and_refuses_what_is_not_finite() {
+        let lattice = Lattice::new(DVec3::ZERO, DVec3::ONE, [4, 3, 2]).expect("a lattice");
+        let cell = |c: u32, u: [DVec3; 8]| OwnedCell { cell: CellId(c), u };
+        let mut a = [DVec3::ZERO; 8];
+        a[3] = DVec3::new(-0.0, 2.0, 1e308);
+        a[5] = DVec3::new(0.0, -1.0, 1e308);
+        let mut b = [DVec3::new(0.0, 0.5, -0.0); 8];
+        b[6].x = -3.0;
+        let cells = [cell(5, a), cell(17, b)];
+        let scan = scan_cells(&lattice, &cells, &Config::default())
+            .expect("finite: 1e308 + 1e308 overflows only the sum");
+        assert_eq!(scan.ijk, vec![[1, 1, 0], [1, 1, 1]]);
+        assert_eq!(scan.low[0], (order_key(-3.0), 1));
+        assert_eq!(scan.high[0], (order_key(0.0), 0));
+        assert_eq!(scan.low[1], (order_key(-1.0), 0));
+        assert_eq!(scan.high[1], (order_key(2.0), 0));
+        // -0 ranks below +0: the least z is b's -0, not a's +0.
+        assert_eq!(scan.low[2], (order_key(-0.0), 1));
+        assert_eq!(scan.high[2], (order_key(1e308), 0));
+        // Zeros of both signs in one cell: the least is -0, the greatest +0, whatever their places.
+        let mixed: [DVec3; 8] = std::array::from_fn(|c| {
+            DVec3::new(
+                if c == 4 { -0.0 } else { 0.0 },
+                if c == 2 { 0.0 } else { -0.0 },
+                0.0,
+            )
+        });
+        let scan = scan_cells(&lattice, &[cell(0, mixed)], &Config::default()).expect("finite");
+        for a in 0..2 {
+            assert_eq!(scan.low[a].0, order_key(-0.0), "axis {a}");
+            assert_eq!(scan.high[a].0, order_key(0.0), "axis {a}");
+        }
+        assert_eq!(scan.low[2].0, order_key(0.0));
+        for (corner, bad) in [(2, f64::NAN), (7, f64::INFINITY)] {
+            let mut u = a;
+            u[corner].y = bad;
+            match scan_cells(&lattice, &[cell(1, u)], &Config::default()) {
+                Err(Error::NonFiniteDisplacement { cell, corner: c }) => {
+                    assert_eq!((cell, c), (CellId(1), corner));
+                }
+                other => panic!("{other:?}"),
+            }
+        }
+        assert!(matches!(
+            scan_cells(&lattice, &[cell(24, a)], &Config::default()),
+            Err(Error::CellOutOfRange { .. })
+        ));
     }
 
     #[test]
