@@ -133,9 +133,8 @@ struct Scratch {
     homes: Vec<u32>,
     /// Words to send: the points of other homes, then the answers going back.
     send: Vec<u64>,
-    /// This rank's own points, gathered when others leave, and their input positions.
-    own_points: Vec<DVec3>,
-    own_index: Vec<u32>,
+    /// The points searched here: this rank's own, gathered when some leave, then those received.
+    batch: Vec<DVec3>,
     /// Words received: the points to search here, then the answers coming back.
     received: Vec<u64>,
     /// The local search's answers and tried counts.
@@ -191,6 +190,8 @@ impl Blocks {
 #[derive(Clone, Debug)]
 pub struct DistributedBody {
     lattice: Lattice,
+    /// The last cell's lattice coordinates per axis (cells − 1).
+    top: DVec3,
     settings: Settings,
     blocks: Blocks,
     /// Cells per axis that a point of a block may read below and above the block.
@@ -392,6 +393,7 @@ impl DistributedBody {
         };
         Ok(Self {
             lattice,
+            top: DVec3::from_array(lattice.cells().map(|n| f64::from(n - 1))),
             settings: config.settings,
             blocks,
             before,
@@ -443,11 +445,14 @@ impl DistributedBody {
             return NO_HOME;
         }
         let t = self.lattice.lattice_coords(x);
-        let cells = self.lattice.cells();
-        let ijk = [0, 1, 2].map(|a| {
-            let top = f64::from(cells[a] - 1);
-            t[a].floor().clamp(0.0, top) as u32
-        });
+        let top = self.top;
+        // Clamped first, then truncated: the floor of a value in [0, top], with no call to
+        // `floor` (x86-64's baseline has no rounding instruction).
+        let ijk = [
+            t.x.clamp(0.0, top.x) as u32,
+            t.y.clamp(0.0, top.y) as u32,
+            t.z.clamp(0.0, top.z) as u32,
+        ];
         self.blocks.home[self.blocks.of_cell_index(ijk)]
     }
 
@@ -507,8 +512,7 @@ impl DistributedLocator<'_> {
         let Scratch {
             homes,
             send,
-            own_points,
-            own_index,
+            batch,
             received,
             found,
             found_tried,
@@ -530,8 +534,7 @@ impl DistributedLocator<'_> {
         // When no point leaves, this rank's points are searched in place; else its own are
         // gathered.
         let in_place = leaving == 0;
-        own_points.clear();
-        own_index.clear();
+        batch.clear();
         let mut next = Vec::with_capacity(size);
         let mut at = 0;
         for &n in &per_rank {
@@ -541,12 +544,10 @@ impl DistributedLocator<'_> {
         send.clear();
         send.resize(3 * leaving, 0);
         if !in_place {
-            own_points.reserve(own);
-            own_index.reserve(own);
-            for (i, (x, &home)) in points.iter().zip(homes.iter()).enumerate() {
+            batch.reserve(own);
+            for (x, &home) in points.iter().zip(homes.iter()) {
                 if home == me {
-                    own_points.push(*x);
-                    own_index.push(i as u32);
+                    batch.push(*x);
                 } else if home != NO_HOME {
                     let at = &mut next[home as usize];
                     send[*at..*at + 3].copy_from_slice(&x.to_array().map(f64::to_bits));
@@ -556,17 +557,16 @@ impl DistributedLocator<'_> {
         }
         let send_counts: Vec<usize> = per_rank.iter().map(|&n| 3 * n).collect();
         let from = exchange(comm, send, &send_counts, received, &mut stats.routing);
-        let incoming: Vec<DVec3> = received
-            .chunks_exact(3)
-            .map(|w| {
-                DVec3::new(
-                    f64::from_bits(w[0]),
-                    f64::from_bits(w[1]),
-                    f64::from_bits(w[2]),
-                )
-            })
-            .collect();
-        stats.searched = incoming.len() + own;
+        // One batch to search here: this rank's own points (when gathered), then those received.
+        let own_gathered = batch.len();
+        batch.extend(received.chunks_exact(3).map(|w| {
+            DVec3::new(
+                f64::from_bits(w[0]),
+                f64::from_bits(w[1]),
+                f64::from_bits(w[2]),
+            )
+        }));
+        stats.searched = own + batch.len() - own_gathered;
         stats.routing_seconds = start.elapsed().as_secs_f64();
 
         // Search: the core's batched search on the local body, and the inversions the points
@@ -583,42 +583,33 @@ impl DistributedLocator<'_> {
                 _ => local.locate_counted(x).1,
             }));
         };
-        match &self.local {
-            // Every point here is this rank's own or has no home. A point with no home has no
-            // active cell within its search's reach, so the local search answers it as the
-            // serial one does: refused if not finite, else not found after no inversion.
-            Some(local) if in_place => search(local, points, answers, tried),
-            Some(local) => {
-                search(local, own_points, found, found_tried);
-                reset(answers, tried, points);
-                for ((answer, &count), &i) in
-                    found.iter().zip(found_tried.iter()).zip(own_index.iter())
-                {
-                    answers[i as usize] = *answer;
-                    tried[i as usize] = count;
-                }
+        if let Some(local) = &self.local {
+            if in_place {
+                // Every point here is this rank's own or has no home. A point with no home has
+                // no active cell within its search's reach, so the local search answers it as
+                // the serial one does: refused if not finite, else not found after no inversion.
+                search(local, points, answers, tried);
             }
+            search(local, batch, found, found_tried);
+        } else {
             // Only a rank home to some block is asked about points, and such a rank has a body:
             // every point here has no home.
-            None => reset(answers, tried, points),
-        }
-        if let Some(local) = &self.local {
-            search(local, &incoming, found, found_tried);
-        } else {
-            debug_assert!(incoming.is_empty());
+            debug_assert!(batch.is_empty());
             found.clear();
             found_tried.clear();
+            if in_place {
+                reset(answers, tried, points);
+            }
         }
-        drop(incoming);
         stats.search_seconds = start.elapsed().as_secs_f64();
 
         // Return: the answers to the ranks that asked, in the order they came.
         let start = Instant::now();
         send.clear();
-        send.resize(ANSWER_WORDS * found.len(), 0);
-        for ((answer, &count), chunk) in found
+        send.resize(ANSWER_WORDS * (found.len() - own_gathered), 0);
+        for ((answer, &count), chunk) in found[own_gathered..]
             .iter()
-            .zip(found_tried.iter())
+            .zip(&found_tried[own_gathered..])
             .zip(send.chunks_exact_mut(ANSWER_WORDS))
         {
             encode(answer, count, chunk);
@@ -626,37 +617,51 @@ impl DistributedLocator<'_> {
         let back_counts: Vec<usize> = from.iter().map(|&words| words / 3 * ANSWER_WORDS).collect();
         exchange(comm, send, &back_counts, received, &mut stats.returned);
         if !in_place {
-            // The answers arrive grouped by home rank, each group in this rank's input order.
+            // Every answer in input order, in one pass: this rank's own from the batch's head
+            // (gathered in input order), the others as they arrive, grouped by home rank and
+            // each group in input order.
             let mut cursor = next;
             let mut offset = 0;
             for (cursor, &n) in cursor.iter_mut().zip(&per_rank) {
                 *cursor = offset;
                 offset += n;
             }
-            for (i, &home) in homes.iter().enumerate() {
-                if home != me && home != NO_HOME {
+            let mut own_at = 0;
+            answers.clear();
+            tried.clear();
+            for (&home, x) in homes.iter().zip(points) {
+                let (answer, count) = if home == me {
+                    own_at += 1;
+                    (found[own_at - 1], found_tried[own_at - 1])
+                } else if home != NO_HOME {
                     let k = cursor[home as usize];
                     cursor[home as usize] += 1;
-                    let words = &received[k * ANSWER_WORDS..(k + 1) * ANSWER_WORDS];
-                    (answers[i], tried[i]) = decode(words);
-                }
+                    decode(&received[k * ANSWER_WORDS..(k + 1) * ANSWER_WORDS])
+                } else {
+                    (no_home(*x), 0)
+                };
+                answers.push(answer);
+                tried.push(count);
             }
         }
         stats.return_seconds = start.elapsed().as_secs_f64();
     }
 }
 
-/// Answers and tried counts for `points` before any search: what the serial search gives a point
-/// no active cell is near (refused if not finite, else not found after no inversion).
+/// The serial answer of a point no active cell is near: refused if not finite, else not found
+/// (after no inversion).
+fn no_home(x: DVec3) -> Answer {
+    if x.is_finite() {
+        Ok(None)
+    } else {
+        Err(PointError::NonFinite)
+    }
+}
+
+/// [`no_home`]'s answers and counts for every point.
 fn reset(answers: &mut Vec<Answer>, tried: &mut Vec<u32>, points: &[DVec3]) {
     answers.clear();
-    answers.extend(points.iter().map(|x| {
-        if x.is_finite() {
-            Ok(None)
-        } else {
-            Err(PointError::NonFinite)
-        }
-    }));
+    answers.extend(points.iter().map(|&x| no_home(x)));
     tried.clear();
     tried.resize(points.len(), 0);
 }
