@@ -11,7 +11,7 @@
 use std::time::Instant;
 
 use cgcontact::glam::DVec3;
-use cgcontact::{LatticeLocator, Locator, Precision, Schedule, Settings};
+use cgcontact::{Body, CellId, LatticeLocator, Locator, Precision, Schedule, Settings};
 use cgcontact_scenes::{SphereOnBlock, indented_block};
 
 fn main() -> Result<(), cgcontact::Error> {
@@ -41,6 +41,25 @@ fn main() -> Result<(), cgcontact::Error> {
             indented_block([20, 40, 20], DVec3::splat(0.25), 100_000, 7)?
         };
         (scene.body, scene.known.iter().map(|k| k.x).collect())
+    };
+    let (body, points) = if has("partial") {
+        // The cells of the lower y half and 4 layers beyond (a rank's local body under MPI with
+        // two slabs), and the points of the lower half only: the partial body's slot table and
+        // activity mask against the full body's dense layout, on the same points.
+        let lattice = *body.lattice();
+        let half = lattice.cells()[1] / 2;
+        let keep = |c: CellId| lattice.cell_ijk(c).is_some_and(|ijk| ijk[1] < half + 4);
+        let mut part = Body::from_cells(lattice, body.active_cells().filter(|&c| keep(c)))?;
+        part.update_displacements(|node, _, u| *u = body.displacement(node).unwrap_or_default())?;
+        let y = lattice.origin().y + f64::from(half) * lattice.h().y;
+        let points: Vec<DVec3> = points.into_iter().filter(|x| x.y < y).collect();
+        if has("full") {
+            (body, points)
+        } else {
+            (part, points)
+        }
+    } else {
+        (body, points)
     };
     let mut points = points;
     if has("sorted") {

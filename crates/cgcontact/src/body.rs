@@ -351,6 +351,46 @@ impl Body {
         Ok(())
     }
 
+    /// On a body with a slot table, the box of lattice nodes holding all its nodes (lowest node,
+    /// nodes per axis) and every displacement there, x fastest, zero at nodes without one; `None`
+    /// on other bodies or when the box holds more than `most` nodes. One pass over the table.
+    pub(crate) fn boxed_displacements(
+        &self,
+        most: usize,
+    ) -> Option<([u32; 3], [u32; 3], Vec<DVec3>)> {
+        if self.table.is_empty() {
+            return None;
+        }
+        let [nx, ny, nz] = self.lattice.nodes().map(|n| n as usize);
+        let (mut low, mut high) = ([usize::MAX; 3], [0usize; 3]);
+        for (row, slots) in self.table.chunks_exact(nx).enumerate() {
+            let Some(first) = slots.iter().position(|&s| s != NO_SLOT) else {
+                continue;
+            };
+            let last = slots.iter().rposition(|&s| s != NO_SLOT).unwrap_or(first);
+            let (y, z) = (row % ny, row / ny);
+            low = [low[0].min(first), low[1].min(y), low[2].min(z)];
+            high = [high[0].max(last), high[1].max(y), high[2].max(z)];
+        }
+        debug_assert!(high[2] < nz);
+        let dims = [0, 1, 2].map(|a| high[a] + 1 - low[a]);
+        if dims.iter().product::<usize>() > most {
+            return None;
+        }
+        let mut u = Vec::with_capacity(dims.iter().product());
+        for z in low[2]..=high[2] {
+            for y in low[1]..=high[1] {
+                let row = nx * (y + ny * z);
+                u.extend(
+                    self.table[row + low[0]..=row + high[0]]
+                        .iter()
+                        .map(|&s| self.u.get(s as usize).copied().unwrap_or(DVec3::ZERO)),
+                );
+            }
+        }
+        Some((low.map(|v| v as u32), dims.map(|v| v as u32), u))
+    }
+
     /// Heap bytes held by the body (mask, node slots, displacements): what "memory per node" measures.
     #[must_use]
     pub fn heap_bytes(&self) -> usize {

@@ -4,7 +4,7 @@
 
 use glam::{DVec3, Vec3A};
 
-use super::{Answer, Hit, LatticeLocator, Locator};
+use super::{Answer, Boxed, Hit, LatticeLocator, Locator};
 use crate::PointError;
 use crate::hex8::lanes::Maps;
 use crate::lanes::{Lanes, MAX_W, Real, V3, Wide};
@@ -15,6 +15,8 @@ use crate::settings::{CandidateOrder, Precision};
 pub(super) trait Nodes: Copy + 'static {
     const ZERO: Self;
     fn of<'l>(locator: &'l LatticeLocator<'_>) -> &'l [Self];
+    /// The locator's copy over the box of the body's nodes, and its data, if it keeps one.
+    fn boxed<'l>(locator: &'l LatticeLocator<'_>) -> Option<(&'l Boxed, &'l [Self])>;
 }
 
 impl Nodes for DVec3 {
@@ -23,6 +25,10 @@ impl Nodes for DVec3 {
     fn of<'l>(locator: &'l LatticeLocator<'_>) -> &'l [Self] {
         locator.body.displacements()
     }
+    #[inline(always)]
+    fn boxed<'l>(locator: &'l LatticeLocator<'_>) -> Option<(&'l Boxed, &'l [Self])> {
+        locator.boxed.as_ref().map(|b| (b, &b.u[..]))
+    }
 }
 
 impl Nodes for Vec3A {
@@ -30,6 +36,10 @@ impl Nodes for Vec3A {
     #[inline(always)]
     fn of<'l>(locator: &'l LatticeLocator<'_>) -> &'l [Self] {
         &locator.u_f32
+    }
+    #[inline(always)]
+    fn boxed<'l>(_: &'l LatticeLocator<'_>) -> Option<(&'l Boxed, &'l [Self])> {
+        None
     }
 }
 
@@ -165,9 +175,32 @@ impl LatticeLocator<'_> {
     where
         V::Node: Nodes,
     {
+        let zero = V::Node::ZERO;
+        if let Some((boxed, data)) = V::Node::boxed(self) {
+            // The cells are in the lattice (clamped): those in the box read it, one load a
+            // corner, the same values as through the slot table.
+            let splat = V3::<V::Wide>::splat;
+            let at = *cell - splat(boxed.low);
+            let last = splat(boxed.last);
+            let outside = at.x.lt(V::Wide::splat(0.0)) | at.y.lt(V::Wide::splat(0.0));
+            let outside = outside | at.z.lt(V::Wide::splat(0.0)) | at.x.gt(last.x);
+            let outside = V::Wide::bits(outside | at.y.gt(last.y) | at.z.gt(last.z));
+            let base = Self::lane_indices(&at, boxed.dims);
+            if outside == 0 {
+                return Maps::from_nodes(|l, c| &data[base[l] + boxed.corner[c]]);
+            }
+            let global = Self::lane_indices(cell, self.body.lattice().nodes());
+            let nodes = V::Node::of(self);
+            return Maps::from_nodes(|l, c| {
+                if outside & (1 << l) == 0 {
+                    &data[base[l] + boxed.corner[c]]
+                } else {
+                    self.body.corner_entry(nodes, global[l], c, &zero)
+                }
+            });
+        }
         let base = Self::lane_indices(cell, self.body.lattice().nodes());
         let nodes = V::Node::of(self);
-        let zero = V::Node::ZERO;
         Maps::from_nodes(|l, c| self.body.corner_entry(nodes, base[l], c, &zero))
     }
 
