@@ -86,22 +86,25 @@ impl LatticeLocator<'_> {
     /// overlaps the current Newton inversions. The two halves meet in two `Front`s used in turn,
     /// written in place (moving one, about 1 KB, cost a copy and a store-forwarding stall).
     #[inline(always)]
-    pub(super) fn locate_chunk_with<V: Lanes>(&self, points: &[DVec3], out: &mut [Answer])
-    where
+    pub(super) fn locate_chunk_with<V: Lanes, const BOXED: bool>(
+        &self,
+        points: &[DVec3],
+        out: &mut [Answer],
+    ) where
         V::Node: Nodes,
     {
         let w = V::W;
         let batches = points.len() / w;
         let mut fronts = [Front::<V>::new(), Front::<V>::new()];
         if batches > 0 {
-            self.front(&points[..w], &mut fronts[0]);
+            self.front::<V, BOXED>(&points[..w], &mut fronts[0]);
         }
         for b in 0..batches {
             if b + 1 < batches {
-                self.front(&points[(b + 1) * w..(b + 2) * w], &mut fronts[(b + 1) % 2]);
+                self.front::<V, BOXED>(&points[(b + 1) * w..(b + 2) * w], &mut fronts[(b + 1) % 2]);
             }
             let (points, out) = (&points[b * w..(b + 1) * w], &mut out[b * w..(b + 1) * w]);
-            self.back(points, &fronts[b % 2], out);
+            self.back::<V, BOXED>(points, &fronts[b % 2], out);
         }
         for (&x, o) in points.iter().zip(out.iter_mut()).skip(batches * w) {
             *o = self.locate(x);
@@ -111,7 +114,7 @@ impl LatticeLocator<'_> {
     /// `search` up to the cell holding each of W points (`points` has W entries), one lane each, and
     /// that cell's displacement map: the same f64 operations in f64 lanes (`V::Wide`).
     #[inline(always)]
-    fn front<V: Lanes>(&self, points: &[DVec3], front: &mut Front<V>)
+    fn front<V: Lanes, const BOXED: bool>(&self, points: &[DVec3], front: &mut Front<V>)
     where
         V::Node: Nodes,
     {
@@ -133,7 +136,7 @@ impl LatticeLocator<'_> {
         let t_x = (x - splat(lattice.origin())).mul_each(self.inv_h);
         let cell_x = self.clamped_cells::<V::Wide>(t_x);
         if take != 0 {
-            front.maps = self.maps_of::<V>(&cell_x);
+            front.maps = self.maps_of::<V, BOXED>(&cell_x);
         }
         *front = Front {
             x,
@@ -171,50 +174,63 @@ impl LatticeLocator<'_> {
 
     /// The displacement maps of each lane's cell (zero where a corner has none).
     #[inline(always)]
-    fn maps_of<V: Lanes>(&self, cell: &V3<V::Wide>) -> Maps<V>
+    fn maps_of<V: Lanes, const BOXED: bool>(&self, cell: &V3<V::Wide>) -> Maps<V>
     where
         V::Node: Nodes,
     {
         let zero = V::Node::ZERO;
-        if let Some((boxed, data)) = V::Node::boxed(self) {
-            // The cells are in the lattice (clamped): those in the box read it, one load a
-            // corner, the same values as through the slot table.
-            let splat = V3::<V::Wide>::splat;
-            let at = *cell - splat(boxed.low);
-            let last = splat(boxed.last);
-            let outside = at.x.lt(V::Wide::splat(0.0)) | at.y.lt(V::Wide::splat(0.0));
-            let outside = outside | at.z.lt(V::Wide::splat(0.0)) | at.x.gt(last.x);
-            let outside = V::Wide::bits(outside | at.y.gt(last.y) | at.z.gt(last.z));
-            let base = Self::lane_indices(&at, boxed.dims);
-            if outside == 0 {
-                return Maps::from_nodes(|l, c| &data[base[l] + boxed.corner[c]]);
-            }
-            let global = Self::lane_indices(cell, self.body.lattice().nodes());
-            let nodes = V::Node::of(self);
-            return Maps::from_nodes(|l, c| {
-                if outside & (1 << l) == 0 {
-                    &data[base[l] + boxed.corner[c]]
-                } else {
-                    self.body.corner_entry(nodes, global[l], c, &zero)
-                }
-            });
+        // Chosen per chunk (`BOXED`), not per batch: a test here cost the full block 8 %.
+        if BOXED && let Some((boxed, data)) = V::Node::boxed(self) {
+            return self.maps_boxed::<V>(cell, boxed, data);
         }
         let base = Self::lane_indices(cell, self.body.lattice().nodes());
         let nodes = V::Node::of(self);
         Maps::from_nodes(|l, c| self.body.corner_entry(nodes, base[l], c, &zero))
     }
 
+    /// [`Self::maps_of`] with the locator's copy over the box of the body's nodes: the cells are in
+    /// the lattice (clamped), those in the box read it, one load a corner, the same values as
+    /// through the slot table; the others take the table.
+    #[inline(always)]
+    fn maps_boxed<V: Lanes>(&self, cell: &V3<V::Wide>, boxed: &Boxed, data: &[V::Node]) -> Maps<V>
+    where
+        V::Node: Nodes,
+    {
+        let splat = V3::<V::Wide>::splat;
+        let at = *cell - splat(boxed.low);
+        let (last, zero) = (splat(boxed.last), V::Wide::splat(0.0));
+        let outside = at.x.lt(zero) | at.y.lt(zero) | at.z.lt(zero) | at.x.gt(last.x);
+        let outside = V::Wide::bits(outside | at.y.gt(last.y) | at.z.gt(last.z));
+        let base = Self::lane_indices(&at, boxed.dims);
+        if outside == 0 {
+            return Maps::from_nodes(|l, c| &data[base[l] + boxed.corner[c]]);
+        }
+        let global = Self::lane_indices(cell, self.body.lattice().nodes());
+        let (nodes, zero) = (V::Node::of(self), V::Node::ZERO);
+        Maps::from_nodes(|l, c| {
+            if outside & (1 << l) == 0 {
+                &data[base[l] + boxed.corner[c]]
+            } else {
+                self.body.corner_entry(nodes, global[l], c, &zero)
+            }
+        })
+    }
+
     /// The rest of the common path for W points: the predicted cell and one Newton inversion there.
     /// A point refused by `admit` gets `admit`'s answer; one leaving the common path, the scalar
     /// search's.
     #[inline(always)]
-    fn back<V: Lanes>(&self, points: &[DVec3], front: &Front<V>, out: &mut [Answer])
-    where
+    fn back<V: Lanes, const BOXED: bool>(
+        &self,
+        points: &[DVec3],
+        front: &Front<V>,
+        out: &mut [Answer],
+    ) where
         V::Node: Nodes,
     {
         let (finite, take) = (front.finite, front.take);
         let found = if take != 0 {
-            self.invert_lanes(front, out)
+            self.invert_lanes::<V, BOXED>(front, out)
         } else {
             0
         };
@@ -236,7 +252,7 @@ impl LatticeLocator<'_> {
     /// The predicted cells and one Newton inversion there, for the lanes `front` takes: writes the
     /// answer of every lane it finds and returns their bits.
     #[inline(always)]
-    fn invert_lanes<V: Lanes>(&self, front: &Front<V>, out: &mut [Answer]) -> u32
+    fn invert_lanes<V: Lanes, const BOXED: bool>(&self, front: &Front<V>, out: &mut [Answer]) -> u32
     where
         V::Node: Nodes,
     {
@@ -272,7 +288,7 @@ impl LatticeLocator<'_> {
         let moved = first.x.lt(cell_x.x) | first.x.gt(cell_x.x) | first.y.lt(cell_x.y);
         let moved = moved | first.y.gt(cell_x.y) | first.z.lt(cell_x.z) | first.z.gt(cell_x.z);
         if V::Wide::bits(moved) & take != 0 {
-            maps = self.maps_of(&first);
+            maps = self.maps_of::<V, BOXED>(&first);
         }
         maps.add_lattice(lattice.h());
         let x_local = x - (splat(lattice.origin()) + first.mul_each(lattice.h()));
@@ -309,14 +325,23 @@ impl LatticeLocator<'_> {
         match Isa::get() {
             // SAFETY: `Isa::get` answers `Avx512` only where AVX2, AVX-512F and AVX-512VL were
             // detected on this CPU, `Avx2` only where AVX2 was: the entry points' requirements.
+            // The box copy exists only with f64.
+            #[allow(unsafe_code)]
+            Isa::Avx512 if self.boxed.is_some() => {
+                return unsafe { self.locate_chunk_avx512_boxed(points, out) };
+            }
             #[allow(unsafe_code)]
             Isa::Avx512 => return unsafe { self.locate_chunk_avx512(points, out) },
+            #[allow(unsafe_code)]
+            Isa::Avx2 if self.boxed.is_some() => {
+                return unsafe { self.locate_chunk_avx2_boxed(points, out) };
+            }
             #[allow(unsafe_code)]
             Isa::Avx2 => return unsafe { self.locate_chunk_avx2(points, out) },
             Isa::Portable => {}
         }
         match self.settings.precision {
-            Precision::F32 => self.locate_chunk_with::<glam::Vec4>(points, out),
+            Precision::F32 => self.locate_chunk_with::<glam::Vec4, false>(points, out),
             Precision::F64 => {
                 for (o, &x) in out.iter_mut().zip(points) {
                     *o = self.locate(x);

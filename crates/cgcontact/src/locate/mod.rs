@@ -680,7 +680,7 @@ mod tests {
     #[test]
     fn portable_lanes_answer_bitwise_as_the_scalar_search() {
         check_lanes(false, |locator, points, out| {
-            locator.locate_chunk_with::<glam::Vec4>(points, out)
+            locator.locate_chunk_with::<glam::Vec4, false>(points, out)
         });
     }
 
@@ -694,6 +694,19 @@ mod tests {
             std::is_x86_feature_detected!("avx2"),
             "built where AVX2 was detected, run where it is not"
         );
+        // The entry the dispatch takes (the box copy's where the locator has one), then the
+        // slot table's on every body.
+        check_lanes(true, |locator, points, out| {
+            // SAFETY: AVX2 was detected just above.
+            #[allow(unsafe_code)]
+            unsafe {
+                if locator.boxed.is_some() {
+                    locator.locate_chunk_avx2_boxed(points, out)
+                } else {
+                    locator.locate_chunk_avx2(points, out)
+                }
+            }
+        });
         check_lanes(true, |locator, points, out| {
             // SAFETY: AVX2 was detected just above.
             #[allow(unsafe_code)]
@@ -716,6 +729,19 @@ mod tests {
             has!("avx2") && has!("avx512f") && has!("avx512vl"),
             "built where AVX-512VL was detected, run where it is not"
         );
+        // The entry the dispatch takes (the box copy's where the locator has one), then the
+        // slot table's on every body.
+        check_lanes(true, |locator, points, out| {
+            // SAFETY: AVX2, AVX-512F and AVX-512VL were detected just above.
+            #[allow(unsafe_code)]
+            unsafe {
+                if locator.boxed.is_some() {
+                    locator.locate_chunk_avx512_boxed(points, out)
+                } else {
+                    locator.locate_chunk_avx512(points, out)
+                }
+            }
+        });
         check_lanes(true, |locator, points, out| {
             // SAFETY: AVX2, AVX-512F and AVX-512VL were detected just above.
             #[allow(unsafe_code)]
