@@ -356,19 +356,26 @@ impl DistributedBody {
         // 5. The local body: the cells kept and received and the extreme cells, checked for a
         //    cell held twice and a node given two displacements, then agreed on.
         let home_blocks = blocks.home.iter().filter(|&&h| h == rank as u32).count();
+        let halo: Vec<(OwnedCell, [u32; 3])> = received
+            .chunks_exact(CELL_WORDS)
+            .map(|words| {
+                let cell = read_cell(words);
+                // Every rank checked its cells: in range.
+                (cell, lattice.cell_ijk(cell.cell).unwrap_or([u32::MAX; 3]))
+            })
+            .collect();
+        drop(received);
+        // By reference: a cell record is 200 bytes, read twice.
         let local_cells = kept
             .iter()
-            .map(|&at| (cells[at as usize], scan.ijk[at as usize]))
-            .chain(received.chunks_exact(CELL_WORDS).map(|words| {
-                let cell = read_cell(words);
-                (cell, lattice.cell_ijk(cell.cell).unwrap_or([u32::MAX; 3]))
-            }));
-        let built = if kept.is_empty() && received.is_empty() {
+            .map(|&at| (&cells[at as usize], scan.ijk[at as usize]))
+            .chain(halo.iter().map(|(cell, ijk)| (cell, *ijk)));
+        let built = if kept.is_empty() && halo.is_empty() {
             Ok(None)
         } else {
             local_body(&lattice, local_cells, &extremes).map(Some)
         };
-        drop(received);
+        drop(halo);
         let failed = if built.is_err() {
             u64::MAX - rank as u64
         } else {
@@ -889,9 +896,9 @@ fn for_blocks_reaching(
 /// for a node given two displacements. Nodes are gathered in a dense table over the cells'
 /// bounding box (a compact region; the extreme cells, anywhere, have their few nodes aside), so
 /// the cost is linear in the cells, and read out in ascending lattice order: the body's own.
-fn local_body(
+fn local_body<'c>(
     lattice: &Lattice,
-    cells: impl Iterator<Item = (OwnedCell, [u32; 3])> + Clone,
+    cells: impl Iterator<Item = (&'c OwnedCell, [u32; 3])> + Clone,
     extremes: &[OwnedCell],
 ) -> Result<Body, Error> {
     let (mut low, mut high, mut count) = ([u32::MAX; 3], [0u32; 3], 0usize);
@@ -907,7 +914,7 @@ fn local_body(
     let table_nodes = dims[0] * dims[1] * dims[2];
     if table_nodes > 64 * 8 * count.max(1) {
         // Scattered cells (a random partition's halo over a huge lattice): sort instead.
-        return local_body_sorted(lattice, cells.map(|(cell, _)| cell).collect(), extremes);
+        return local_body_sorted(lattice, cells.map(|(cell, _)| *cell).collect(), extremes);
     }
     let slot = |ijk: [u32; 3]| -> Option<usize> {
         let d = [0, 1, 2].map(|a| ijk[a].checked_sub(low[a]).map(|v| v as usize));
