@@ -930,25 +930,38 @@ fn local_body<'c>(
         .map(|o| o[0] as usize + dims[0] * (o[1] as usize + dims[1] * o[2] as usize));
     let mut table = vec![DVec3::NAN; table_nodes];
     let mut seen = vec![false; table_nodes];
-    let bits = |u: DVec3| u.to_array().map(f64::to_bits);
     let mut ids: Vec<CellId> = Vec::with_capacity(count + extremes.len());
-    for (cell, ijk) in cells {
+    // Two passes without a branch per corner: every corner written (the last writer wins), then
+    // every corner compared with what stayed, bit for bit: a node given two displacements differs
+    // there for one of its cells.
+    for (cell, ijk) in cells.clone() {
         let at = slot(ijk).expect("in the box");
         if std::mem::replace(&mut seen[at], true) {
             return Err(Error::DuplicateCell { cell: cell.cell });
         }
         ids.push(cell.cell);
-        for (c, &offset) in corner.iter().enumerate() {
-            let node = &mut table[at + offset];
-            let u = cell.u[c];
-            if node.x.is_nan() {
-                *node = u;
-            } else if bits(*node) != bits(u) {
-                let ijk = [0, 1, 2].map(|a| ijk[a] + cgcontact::CORNER_OFFSETS[c][a]);
-                return Err(Error::InconsistentNode {
-                    node: lattice.node_index(ijk),
-                });
-            }
+        for (&offset, &u) in corner.iter().zip(&cell.u) {
+            table[at + offset] = u;
+        }
+    }
+    for (cell, ijk) in cells {
+        let at = slot(ijk).expect("in the box");
+        let differ = |(&offset, &u): (&usize, &DVec3)| {
+            let kept = table[at + offset];
+            (kept.x.to_bits() ^ u.x.to_bits())
+                | (kept.y.to_bits() ^ u.y.to_bits())
+                | (kept.z.to_bits() ^ u.z.to_bits())
+        };
+        if corner.iter().zip(&cell.u).map(differ).fold(0, |a, b| a | b) != 0 {
+            let c = corner
+                .iter()
+                .zip(&cell.u)
+                .position(|pair| differ(pair) != 0)
+                .expect("one corner differs");
+            let ijk = [0, 1, 2].map(|a| ijk[a] + cgcontact::CORNER_OFFSETS[c][a]);
+            return Err(Error::InconsistentNode {
+                node: lattice.node_index(ijk),
+            });
         }
     }
     let mut aside: Vec<(usize, DVec3)> = Vec::new();
@@ -1214,6 +1227,65 @@ mod tests {
             scan_cells(&lattice, &[cell(24, a)], &Config::default()),
             Err(Error::CellOutOfRange { .. })
         ));
+    }
+
+    /// The local body of some cells and far extreme cells holds every node's displacement, in
+    /// the body's order; a node given two displacements and a cell given twice are refused.
+    #[test]
+    fn the_local_body_gathers_every_node_and_refuses_conflicts() {
+        let lattice = Lattice::new(DVec3::new(-3.0, 1.0, 0.5), DVec3::splat(0.5), [9, 8, 7])
+            .expect("a lattice");
+        // A field over the lattice's nodes: each node's own value.
+        let field =
+            |node: usize| DVec3::new(node as f64, -(node as f64) * 0.5, 1.0 / (1.0 + node as f64));
+        let owned = |ijk: [u32; 3]| OwnedCell {
+            cell: lattice.cell_id(ijk),
+            u: lattice.corner_nodes(ijk).map(field),
+        };
+        // A block of cells in the middle (in scrambled order), and extremes: two beyond the
+        // block's box in z, one beside it (its nodes fall between the box's in lattice order),
+        // one inside it.
+        let mut cells: Vec<([u32; 3], OwnedCell)> = Vec::new();
+        for k in 2..5 {
+            for j in 3..6 {
+                for i in 1..4 {
+                    cells.push(([i, j, k], owned([i, j, k])));
+                }
+            }
+        }
+        cells.reverse();
+        cells.swap(3, 17);
+        let extremes = [
+            owned([8, 0, 6]),
+            owned([0, 7, 0]),
+            owned([6, 0, 3]),
+            owned([2, 4, 3]),
+        ];
+        let local = |cells: &[([u32; 3], OwnedCell)]| {
+            local_body(&lattice, cells.iter().map(|(ijk, c)| (c, *ijk)), &extremes)
+        };
+        let body = local(&cells).expect("consistent cells");
+        assert_eq!(body.active_count(), cells.len() + 3);
+        let nodes: Vec<usize> = body.nodes().collect();
+        for (node, u) in nodes.iter().zip(body.displacements()) {
+            assert_eq!(*u, field(*node), "node {node}");
+        }
+        assert_eq!(nodes.len(), 4 * 4 * 4 + 3 * 8);
+        // A node given two displacements.
+        let mut bad = cells.clone();
+        bad[5].1.u[6].y += 1e-9;
+        let node = lattice.corner_nodes(bad[5].0)[6];
+        match local(&bad) {
+            Err(Error::InconsistentNode { node: n }) => assert_eq!(n, node),
+            other => panic!("{other:?}"),
+        }
+        // A cell given twice.
+        let mut twice = cells.clone();
+        twice.push(cells[7]);
+        match local(&twice) {
+            Err(Error::DuplicateCell { cell }) => assert_eq!(cell, cells[7].1.cell),
+            other => panic!("{other:?}"),
+        }
     }
 
     #[test]
