@@ -7,7 +7,7 @@
 //! | piece | what it is |
 //! |---|---|
 //! | [`DistributedBody`] | the collective setup: the displacement range, the ownership map of lattice blocks, each rank's local body (its home blocks' cells and their halo) |
-//! | [`DistributedLocator`] | collective queries: points routed to their block's home, searched there by the core's `LatticeLocator`, answers back in input order |
+//! | [`DistributedLocator`] | collective queries: points routed to their block's home, searched there by the core's `LatticeLocator`, answers back in input order (`locate_all_into` reuses one [`Located`]'s buffers across a solver's iterations) |
 //! | [`Partition`] | slabs, Morton runs or scattered cells: the splits the command line and the tests use |
 //! | [`gather_located`] | every rank's answers on one rank, for one results file |
 //!
