@@ -147,6 +147,8 @@ struct Scratch {
 struct Blocks {
     /// Edge of a block, in cells.
     size: u32,
+    /// The lattice's cells per axis.
+    cells: [u32; 3],
     /// Blocks per axis.
     counts: [u32; 3],
     /// The home rank of each block (x fastest), or [`NO_HOME`].
@@ -165,10 +167,41 @@ impl Blocks {
         let step = [1, counts[0], counts[0] * counts[1]];
         Self {
             size,
+            cells,
             counts,
             home: vec![NO_HOME; count],
             stride: [0, 1, 2].map(|a| (0..cells[a]).map(|i| i / size * step[a]).collect()),
         }
+    }
+
+    /// Every block's coordinates, in index order (x fastest).
+    fn all(&self) -> impl Iterator<Item = [u32; 3]> + '_ {
+        let [nx, ny, nz] = self.counts;
+        (0..nz).flat_map(move |z| (0..ny).flat_map(move |y| (0..nx).map(move |x| [x, y, z])))
+    }
+
+    /// The first and last cell of block `b`, per axis.
+    fn cells_of(&self, b: [u32; 3]) -> ([u32; 3], [u32; 3]) {
+        let first = b.map(|i| i * self.size);
+        let last = [0, 1, 2].map(|a| ((b[a] + 1) * self.size).min(self.cells[a]) - 1);
+        (first, last)
+    }
+
+    /// The indices of the blocks holding the cells `first − below ..= last + above` per axis,
+    /// clamped into the lattice.
+    fn around(
+        &self,
+        (first, last): ([u32; 3], [u32; 3]),
+        below: [u32; 3],
+        above: [u32; 3],
+    ) -> impl Iterator<Item = usize> + '_ {
+        let low = [0, 1, 2].map(|a| first[a].saturating_sub(below[a]) / self.size);
+        let high =
+            [0, 1, 2].map(|a| last[a].saturating_add(above[a]).min(self.cells[a] - 1) / self.size);
+        (low[2]..=high[2]).flat_map(move |z| {
+            (low[1]..=high[1])
+                .flat_map(move |y| (low[0]..=high[0]).map(move |x| self.index([x, y, z])))
+        })
     }
 
     /// The index of the block holding cell `ijk` (in the lattice).
@@ -190,8 +223,6 @@ impl Blocks {
 #[derive(Clone, Debug)]
 pub struct DistributedBody {
     lattice: Lattice,
-    /// The last cell's lattice coordinates per axis (cells − 1).
-    top: DVec3,
     settings: Settings,
     blocks: Blocks,
     /// Cells per axis that a point of a block may read below and above the block.
@@ -312,23 +343,26 @@ impl DistributedBody {
         // A point at x reads cells near x − u: below x by up to max(u, 0), above by -min(u, 0).
         let before = reach(u_high);
         let after = reach(-u_low);
-        adopt_empty_blocks(&mut blocks, &lattice, before, after);
+        adopt_empty_blocks(&mut blocks, before, after);
 
         // 4. Each cell to every home whose blocks' reach holds it: the one home of its block's
         //    whole neighbourhood, mostly, or else those of the blocks its own reach meets.
-        let sole = sole_homes(&blocks, &lattice, before, after);
+        let sole = sole_homes(&blocks, before, after);
         let mut outgoing = vec![Vec::new(); size];
         let mut kept: Vec<u32> = Vec::new();
         let mut homes = Vec::with_capacity(8);
         for (at, (cell, &ijk)) in cells.iter().zip(&scan.ijk).enumerate() {
             homes.clear();
             match sole[block_of[at] as usize] {
-                SEVERAL => for_blocks_reaching(&blocks, &lattice, ijk, before, after, |b| {
-                    let home = blocks.home[blocks.index(b)];
-                    if home != NO_HOME && !homes.contains(&home) {
-                        homes.push(home);
+                // The homes of the blocks whose points may read this cell.
+                SEVERAL => {
+                    for at in blocks.around((ijk, ijk), after, before) {
+                        let home = blocks.home[at];
+                        if home != NO_HOME && !homes.contains(&home) {
+                            homes.push(home);
+                        }
                     }
-                }),
+                }
                 // Not met: the cell's own block has a cell, so a home.
                 NO_HOME => {}
                 home => homes.push(home),
@@ -400,7 +434,6 @@ impl DistributedBody {
         };
         Ok(Self {
             lattice,
-            top: DVec3::from_array(lattice.cells().map(|n| f64::from(n - 1))),
             settings: config.settings,
             blocks,
             before,
@@ -451,15 +484,7 @@ impl DistributedBody {
         if !x.is_finite() {
             return NO_HOME;
         }
-        let t = self.lattice.lattice_coords(x);
-        let top = self.top;
-        // Clamped first, then truncated: the floor of a value in [0, top], with no call to
-        // `floor` (x86-64's baseline has no rounding instruction).
-        let ijk = [
-            t.x.clamp(0.0, top.x) as u32,
-            t.y.clamp(0.0, top.y) as u32,
-            t.z.clamp(0.0, top.z) as u32,
-        ];
+        let ijk = self.lattice.clamped_cell(self.lattice.lattice_coords(x));
         self.blocks.home[self.blocks.of_cell_index(ijk)]
     }
 
@@ -605,7 +630,10 @@ impl DistributedLocator<'_> {
             found.clear();
             found_tried.clear();
             if in_place {
-                reset(answers, tried, points);
+                answers.clear();
+                answers.extend(points.iter().map(|&x| no_home(x)));
+                tried.clear();
+                tried.resize(points.len(), 0);
             }
         }
         stats.search_seconds = start.elapsed().as_secs_f64();
@@ -663,14 +691,6 @@ fn no_home(x: DVec3) -> Answer {
     } else {
         Err(PointError::NonFinite)
     }
-}
-
-/// [`no_home`]'s answers and counts for every point.
-fn reset(answers: &mut Vec<Answer>, tried: &mut Vec<u32>, points: &[DVec3]) {
-    answers.clear();
-    answers.extend(points.iter().map(|&x| no_home(x)));
-    tried.clear();
-    tried.resize(points.len(), 0);
 }
 
 /// Collective: the answers of every rank's points, concatenated in rank order, on `root`
@@ -790,38 +810,21 @@ fn scan_cells(lattice: &Lattice, cells: &[OwnedCell], config: &Config) -> Result
 /// Give each block without cells the home of the first block (in index order) within its points'
 /// reach that has cells, so that its points are searched where their cells are; a block with
 /// none near keeps no home (its points are answered "not found" without a search).
-fn adopt_empty_blocks(blocks: &mut Blocks, lattice: &Lattice, before: [u32; 3], after: [u32; 3]) {
-    let had = blocks.home.clone();
-    let size = blocks.size;
-    let cells = lattice.cells();
-    for bz in 0..blocks.counts[2] {
-        for by in 0..blocks.counts[1] {
-            for bx in 0..blocks.counts[0] {
-                let b = [bx, by, bz];
-                let index = blocks.index(b);
-                if had[index] != NO_HOME {
-                    continue;
-                }
-                // The cells its points may read, then the blocks holding them.
-                let low = [0, 1, 2].map(|a| (b[a] * size).saturating_sub(before[a]) / size);
-                let high = [0, 1, 2].map(|a| {
-                    let last = ((b[a] + 1) * size).min(cells[a]) - 1;
-                    (last + after[a]).min(cells[a] - 1) / size
-                });
-                'found: for z in low[2]..=high[2] {
-                    for y in low[1]..=high[1] {
-                        for x in low[0]..=high[0] {
-                            let home = had[blocks.index([x, y, z])];
-                            if home != NO_HOME {
-                                blocks.home[index] = home;
-                                break 'found;
-                            }
-                        }
-                    }
-                }
-            }
-        }
-    }
+fn adopt_empty_blocks(blocks: &mut Blocks, before: [u32; 3], after: [u32; 3]) {
+    // A point of block b reads the cells below it by up to `before` and above it by `after`.
+    let adopted = blocks
+        .all()
+        .zip(&blocks.home)
+        .map(|(b, &home)| match home {
+            NO_HOME => blocks
+                .around(blocks.cells_of(b), before, after)
+                .map(|at| blocks.home[at])
+                .find(|&home| home != NO_HOME)
+                .unwrap_or(NO_HOME),
+            home => home,
+        })
+        .collect();
+    blocks.home = adopted;
 }
 
 /// In [`sole_homes`]: the points reading this block's cells have several homes.
@@ -830,65 +833,22 @@ const SEVERAL: u32 = u32::MAX - 1;
 /// For each block, the one home of every block whose points may read a cell of it ([`NO_HOME`]
 /// when none, [`SEVERAL`] when they differ): the cells of most blocks go to that home alone, with
 /// no look at their own reach.
-fn sole_homes(blocks: &Blocks, lattice: &Lattice, before: [u32; 3], after: [u32; 3]) -> Vec<u32> {
-    let size = blocks.size;
-    let cells = lattice.cells();
-    let mut sole = vec![NO_HOME; blocks.home.len()];
-    for bz in 0..blocks.counts[2] {
-        for by in 0..blocks.counts[1] {
-            for bx in 0..blocks.counts[0] {
-                let b = [bx, by, bz];
-                // The blocks reaching any of its cells: those of its first cell's reach to its
-                // last one's (`for_blocks_reaching`'s bounds).
-                let low = [0, 1, 2].map(|a| (b[a] * size).saturating_sub(after[a]) / size);
-                let high = [0, 1, 2].map(|a| {
-                    let last = ((b[a] + 1) * size).min(cells[a]) - 1;
-                    last.saturating_add(before[a]).min(cells[a] - 1) / size
-                });
-                let mut one = NO_HOME;
-                'blocks: for z in low[2]..=high[2] {
-                    for y in low[1]..=high[1] {
-                        for x in low[0]..=high[0] {
-                            match blocks.home[blocks.index([x, y, z])] {
-                                NO_HOME => {}
-                                home if one == NO_HOME => one = home,
-                                home if home == one => {}
-                                _ => {
-                                    one = SEVERAL;
-                                    break 'blocks;
-                                }
-                            }
-                        }
-                    }
-                }
-                sole[blocks.index(b)] = one;
+fn sole_homes(blocks: &Blocks, before: [u32; 3], after: [u32; 3]) -> Vec<u32> {
+    blocks
+        .all()
+        .map(|b| {
+            // The blocks whose points may read a cell of b: its cells' reach, mirrored.
+            let mut homes = blocks
+                .around(blocks.cells_of(b), after, before)
+                .map(|at| blocks.home[at])
+                .filter(|&home| home != NO_HOME);
+            match homes.next() {
+                None => NO_HOME,
+                Some(one) if homes.all(|home| home == one) => one,
+                Some(_) => SEVERAL,
             }
-        }
-    }
-    sole
-}
-
-/// Call `f` with every block whose points may read cell `ijk`: the blocks overlapping
-/// [ijk − after, ijk + before].
-fn for_blocks_reaching(
-    blocks: &Blocks,
-    lattice: &Lattice,
-    ijk: [u32; 3],
-    before: [u32; 3],
-    after: [u32; 3],
-    mut f: impl FnMut([u32; 3]),
-) {
-    let cells = lattice.cells();
-    let low = [0, 1, 2].map(|a| ijk[a].saturating_sub(after[a]) / blocks.size);
-    let high =
-        [0, 1, 2].map(|a| (ijk[a].saturating_add(before[a])).min(cells[a] - 1) / blocks.size);
-    for z in low[2]..=high[2] {
-        for y in low[1]..=high[1] {
-            for x in low[0]..=high[0] {
-                f([x, y, z]);
-            }
-        }
-    }
+        })
+        .collect()
 }
 
 /// The body of the `cells` kept and received, each with its lattice coordinates (each must come

@@ -220,10 +220,11 @@ impl Lattice {
         Some(ijk)
     }
 
-    /// The cell nearest to continuous lattice coordinates `t` (clamped into the lattice), for finite `t`.
+    /// The cell nearest to continuous lattice coordinates `t` ([`Lattice::lattice_coords`]),
+    /// clamped into the lattice, for finite `t`: the cell holding `t` when one does.
     #[inline]
     #[must_use]
-    pub(crate) fn clamped_cell(&self, t: DVec3) -> [u32; 3] {
+    pub fn clamped_cell(&self, t: DVec3) -> [u32; 3] {
         let mut ijk = [0u32; 3];
         for axis in 0..3 {
             // Truncation is floor for t ≥ 0; `max` maps negatives and NaN to 0 and `as` saturates.
