@@ -32,7 +32,10 @@ use mpi::collective::SystemOperation;
 use mpi::traits::*;
 
 use crate::error::Error;
-use crate::exchange::{Traffic, all_reduce, exchange, from_order_key, order_key};
+use crate::exchange::{
+    Traffic, all_reduce, counts_of, exchange, exchange_counts, exchange_words, from_order_key,
+    order_key,
+};
 
 /// No rank is home to this block: no active cell is near enough to hold a point there.
 const NO_HOME: u32 = u32::MAX;
@@ -129,17 +132,21 @@ pub struct Located {
 /// The query's buffers, reused from one [`DistributedLocator::locate_all_into`] to the next.
 #[derive(Clone, Debug, Default)]
 struct Scratch {
-    /// Each point's home rank, or [`NO_HOME`].
+    /// Each point's bucket: its home rank, or the rank count for a point with no home.
     homes: Vec<u32>,
-    /// Words to send: the points of other homes, then the answers going back.
+    /// Each point's place in the answers (when some point leaves): the local search's batch
+    /// (own points, then those received), then those coming back, then points with no home.
+    slots: Vec<u32>,
+    /// The points, grouped: those leaving (by home rank), this rank's own (when some leave),
+    /// each group in input order, then those received (by sending rank). The last two are the
+    /// local search's batch.
+    work: Vec<DVec3>,
+    /// The answers going back, as words.
     send: Vec<u64>,
-    /// The points searched here: this rank's own, gathered when some leave, then those received.
-    batch: Vec<DVec3>,
-    /// Words received: the points to search here, then the answers coming back.
-    received: Vec<u64>,
-    /// The local search's answers and tried counts.
+    /// The answers coming back, as words.
+    back: Vec<u64>,
+    /// The local search's answers: this rank's own points (when some leave), then those received.
     found: Vec<Answer>,
-    found_tried: Vec<u32>,
 }
 
 /// The ownership map: blocks of the lattice and the home rank of each.
@@ -530,7 +537,7 @@ impl DistributedLocator<'_> {
     /// points in its own part), they are searched where they lie, with no copy.
     pub fn locate_all_into<C: Communicator>(&self, comm: &C, points: &[DVec3], out: &mut Located) {
         let size = comm.size() as usize;
-        let me = comm.rank() as u32;
+        let me = comm.rank() as usize;
         let Located {
             answers,
             tried,
@@ -543,92 +550,109 @@ impl DistributedLocator<'_> {
         };
         let Scratch {
             homes,
+            slots,
+            work,
             send,
-            batch,
-            received,
+            back,
             found,
-            found_tried,
         } = scratch;
+        let local = self.local.as_ref();
 
-        // Routing: each point's home; the points of other homes grouped by home (a counting sort,
-        // stable, straight into one send buffer) and sent as their coordinates' bits.
+        // Routing: each point's bucket (its home, or `size` for no home), counted; the counts
+        // exchanged; the points grouped by bucket in one branch-free pass (a stable counting
+        // sort) that notes where each one's answer will be; the groups sent as f64 words
+        // straight from, and received straight into, the batch the local search reads.
         let start = Instant::now();
         homes.clear();
-        homes.extend(points.iter().map(|&x| self.body.home_index(x)));
-        let mut per_rank = vec![0usize; size];
-        for &h in homes.iter() {
-            if h != NO_HOME {
-                per_rank[h as usize] += 1;
-            }
+        homes.extend(
+            points
+                .iter()
+                .map(|&x| (self.body.home_index(x) as usize).min(size) as u32),
+        );
+        let mut per = vec![0usize; size + 1];
+        for &bucket in homes.iter() {
+            per[bucket as usize] += 1;
         }
-        let own = std::mem::take(&mut per_rank[me as usize]);
-        let leaving: usize = per_rank.iter().sum();
-        // When no point leaves, this rank's points are searched in place; else its own are
-        // gathered.
+        let (own, none) = (per[me], per[size]);
+        let leaving = points.len() - own - none;
+        let sent: Vec<usize> = (0..size)
+            .map(|r| if r == me { 0 } else { per[r] })
+            .collect();
+        let send_counts = counts_of(&sent.iter().map(|&n| 3 * n).collect::<Vec<_>>());
+        let recv_counts = exchange_counts(comm, &send_counts, &mut stats.routing);
+        let from: Vec<usize> = recv_counts.iter().map(|&c| c as usize / 3).collect();
+        let recv: usize = from.iter().sum();
+        // When no point leaves, this rank's points are searched where they lie.
         let in_place = leaving == 0;
-        batch.clear();
-        let mut next = Vec::with_capacity(size);
-        let mut at = 0;
-        for &n in &per_rank {
-            next.push(at);
-            at += 3 * n;
-        }
-        send.clear();
-        send.resize(3 * leaving, 0);
+        let own_here = if in_place { 0 } else { own };
+        assert!(
+            u32::try_from(points.len() + recv).is_ok(),
+            "under 2^32 points per rank, asked and received"
+        );
+        // Every place is overwritten below: only a length change writes.
+        work.resize(leaving + own_here + recv, DVec3::ZERO);
         if !in_place {
-            batch.reserve(own);
-            for (x, &home) in points.iter().zip(homes.iter()) {
-                if home == me {
-                    batch.push(*x);
-                } else if home != NO_HOME {
-                    let at = &mut next[home as usize];
-                    send[*at..*at + 3].copy_from_slice(&x.to_array().map(f64::to_bits));
-                    *at += 3;
-                }
+            // Each bucket's next place in `work` (points with no home are not searched) and in
+            // the answers.
+            let (mut place, mut slot) = (vec![0usize; size + 1], vec![0usize; size + 1]);
+            let mut at = 0;
+            for r in (0..size).filter(|&r| r != me) {
+                (place[r], slot[r]) = (at, own + recv + at);
+                at += per[r];
             }
+            (place[me], slot[me]) = (leaving, 0);
+            // A place past the points, written and never read.
+            work.push(DVec3::ZERO);
+            (place[size], slot[size]) = (work.len() - 1, own + recv + leaving);
+            slots.clear();
+            slots.extend(points.iter().zip(homes.iter()).map(|(&x, &bucket)| {
+                let b = bucket as usize;
+                work[place[b]] = x;
+                // Points with no home all write the one place past the points.
+                place[b] += usize::from(b != size);
+                slot[b] += 1;
+                (slot[b] - 1) as u32
+            }));
+            work.pop();
         }
-        let send_counts: Vec<usize> = per_rank.iter().map(|&n| 3 * n).collect();
-        let from = exchange(comm, send, &send_counts, received, &mut stats.routing);
-        // One batch to search here: this rank's own points (when gathered), then those received.
-        let own_gathered = batch.len();
-        batch.extend(received.chunks_exact(3).map(|w| {
-            DVec3::new(
-                f64::from_bits(w[0]),
-                f64::from_bits(w[1]),
-                f64::from_bits(w[2]),
-            )
-        }));
-        stats.searched = own + batch.len() - own_gathered;
+        {
+            let (grouped, received) = work.split_at_mut(leaving + own_here);
+            exchange_words(
+                comm,
+                bytemuck::cast_slice::<DVec3, f64>(&grouped[..leaving]),
+                &send_counts,
+                bytemuck::cast_slice_mut::<DVec3, f64>(received),
+                &recv_counts,
+                &mut stats.routing,
+            );
+        }
+        stats.searched = own + recv;
         stats.routing_seconds = start.elapsed().as_secs_f64();
 
-        // Search: the core's batched search on the local body, and the inversions the points
-        // it does not find tried (as `cgcontact locate` counts them).
+        // Search: the core's batched search on the local body, over this rank's own points (in
+        // place, or grouped) and those received, in one batch.
         let start = Instant::now();
-        let search = |local: &LatticeLocator<'_>,
-                      points: &[DVec3],
-                      found: &mut Vec<Answer>,
-                      tried: &mut Vec<u32>| {
-            local.locate_all_into(points, found);
-            tried.clear();
-            tried.extend(found.iter().zip(points).map(|(answer, &x)| match answer {
-                Ok(Some(hit)) => hit.inversions,
-                _ => local.locate_counted(x).1,
-            }));
-        };
-        if let Some(local) = &self.local {
+        let batch = &work[leaving..];
+        if let Some(local) = local {
             if in_place {
                 // Every point here is this rank's own or has no home. A point with no home has
                 // no active cell within its search's reach, so the local search answers it as
                 // the serial one does: refused if not finite, else not found after no inversion.
-                search(local, points, answers, tried);
+                local.locate_all_into(points, answers);
+                tried.clear();
+                tried.extend(
+                    answers
+                        .iter()
+                        .zip(points)
+                        .map(|(answer, &x)| tried_count(local, answer, || x)),
+                );
             }
-            search(local, batch, found, found_tried);
+            local.locate_all_into(batch, found);
         } else {
             // Only a rank home to some block is asked about points, and such a rank has a body:
             // every point here has no home.
             debug_assert!(batch.is_empty());
             found.clear();
-            found_tried.clear();
             if in_place {
                 answers.clear();
                 answers.extend(points.iter().map(|&x| no_home(x)));
@@ -638,48 +662,72 @@ impl DistributedLocator<'_> {
         }
         stats.search_seconds = start.elapsed().as_secs_f64();
 
-        // Return: the answers to the ranks that asked, in the order they came.
+        // Return: the answers to the ranks that asked, in the order they came. Each rank knows
+        // how many answers it sends and gets back, so no counts are exchanged.
         let start = Instant::now();
         send.clear();
-        send.resize(ANSWER_WORDS * (found.len() - own_gathered), 0);
-        for ((answer, &count), chunk) in found[own_gathered..]
-            .iter()
-            .zip(&found_tried[own_gathered..])
-            .zip(send.chunks_exact_mut(ANSWER_WORDS))
-        {
-            encode(answer, count, chunk);
+        send.reserve(ANSWER_WORDS * recv);
+        for (k, answer) in found.iter().enumerate().skip(own_here) {
+            // A received point was searched here, on a rank with a body. Its coordinates are
+            // read only when it was not found.
+            let count = local.map_or(0, |local| tried_count(local, answer, || batch[k]));
+            send.extend_from_slice(&encode(answer, count));
         }
-        let back_counts: Vec<usize> = from.iter().map(|&words| words / 3 * ANSWER_WORDS).collect();
-        exchange(comm, send, &back_counts, received, &mut stats.returned);
+        let words =
+            |n: &[usize]| counts_of(&n.iter().map(|&n| ANSWER_WORDS * n).collect::<Vec<_>>());
+        back.resize(ANSWER_WORDS * leaving, 0);
+        exchange_words(
+            comm,
+            send,
+            &words(&from),
+            back,
+            &words(&sent),
+            &mut stats.returned,
+        );
         if !in_place {
-            // Every answer in input order, in one pass: this rank's own from the batch's head
-            // (gathered in input order), the others as they arrive, grouped by home rank and
-            // each group in input order.
-            let mut cursor = next;
-            let mut offset = 0;
-            for (cursor, &n) in cursor.iter_mut().zip(&per_rank) {
-                *cursor = offset;
-                offset += n;
+            // Every answer in input order, in one pass over the points' places: the local
+            // search's, or decoded from what came back, or that of a point with no home.
+            let local_answers = own + recv;
+            // Every answer is overwritten: only a length change writes.
+            if answers.len() != points.len() {
+                answers.clear();
+                answers.resize(points.len(), Ok(None));
             }
-            let mut own_at = 0;
-            answers.clear();
-            tried.clear();
-            for (&home, x) in homes.iter().zip(points) {
-                let (answer, count) = if home == me {
-                    own_at += 1;
-                    (found[own_at - 1], found_tried[own_at - 1])
-                } else if home != NO_HOME {
-                    let k = cursor[home as usize];
-                    cursor[home as usize] += 1;
-                    decode(&received[k * ANSWER_WORDS..(k + 1) * ANSWER_WORDS])
+            tried.resize(points.len(), 0);
+            for (i, ((&slot, answer), count)) in slots
+                .iter()
+                .zip(answers.iter_mut())
+                .zip(tried.iter_mut())
+                .enumerate()
+            {
+                // The point's coordinates are read only for the few answers that need them.
+                let x = || points[i];
+                let slot = slot as usize;
+                // Each branch writes in place: an (answer, count) pair built and then moved cost
+                // a store-forwarding stall per point.
+                if slot < local_answers {
+                    *answer = found[slot];
+                    // Searched here: the rank has a body.
+                    *count = local.map_or(0, |local| tried_count(local, answer, x));
+                } else if slot < local_answers + leaving {
+                    let k = slot - local_answers;
+                    (*answer, *count) = decode(&back[k * ANSWER_WORDS..(k + 1) * ANSWER_WORDS]);
                 } else {
-                    (no_home(*x), 0)
-                };
-                answers.push(answer);
-                tried.push(count);
+                    (*answer, *count) = (no_home(x()), 0);
+                }
             }
         }
         stats.return_seconds = start.elapsed().as_secs_f64();
+    }
+}
+
+/// The inversions the serial search tried for `x`, whose answer is `answer`: what `cgcontact
+/// locate` writes (a hit's count, else the count of a search that found nothing).
+#[inline]
+fn tried_count(local: &LatticeLocator<'_>, answer: &Answer, x: impl Fn() -> DVec3) -> u32 {
+    match answer {
+        Ok(Some(hit)) => hit.inversions,
+        _ => local.locate_counted(x()).1,
     }
 }
 
@@ -701,14 +749,9 @@ pub fn gather_located<C: Communicator>(
     located: &Located,
 ) -> Option<(Vec<Answer>, Vec<u32>)> {
     use mpi::datatype::PartitionMut;
-    let mut words = vec![0u64; ANSWER_WORDS * located.answers.len()];
-    for ((answer, &tried), chunk) in located
-        .answers
-        .iter()
-        .zip(&located.tried)
-        .zip(words.chunks_exact_mut(ANSWER_WORDS))
-    {
-        encode(answer, tried, chunk);
+    let mut words = Vec::with_capacity(ANSWER_WORDS * located.answers.len());
+    for (answer, &tried) in located.answers.iter().zip(&located.tried) {
+        words.extend_from_slice(&encode(answer, tried));
     }
     let process = comm.process_at_rank(root);
     let count = mpi::Count::try_from(words.len()).expect("under 2^31 words per rank");
@@ -1047,8 +1090,8 @@ fn read_cell(words: &[u64]) -> OwnedCell {
 
 /// An answer and its tried count as 6 words: kind (0 none, 1 hit, 2 refused) and cell; ξ's bits;
 /// iterations and inversions (or tried); the residual's bits.
-fn encode(answer: &Answer, tried: u32, out: &mut [u64]) {
-    out.fill(0);
+fn encode(answer: &Answer, tried: u32) -> [u64; ANSWER_WORDS] {
+    let mut out = [0; ANSWER_WORDS];
     match answer {
         Ok(Some(hit)) => {
             out[0] = 1 << 32 | u64::from(hit.cell.0);
@@ -1064,6 +1107,7 @@ fn encode(answer: &Answer, tried: u32, out: &mut [u64]) {
             out[4] = u64::from(tried);
         }
     }
+    out
 }
 
 fn decode(words: &[u64]) -> (Answer, u32) {
@@ -1101,14 +1145,12 @@ mod tests {
             residual: 1.5e-17,
             inversions: 2,
         };
-        let mut words = [0u64; ANSWER_WORDS];
         for (answer, tried) in [
             (Ok(Some(hit)), 2),
             (Ok(None), 5),
             (Err(PointError::NonFinite), 0),
         ] {
-            encode(&answer, tried, &mut words);
-            let (back, count) = decode(&words);
+            let (back, count) = decode(&encode(&answer, tried));
             assert_eq!(count, tried);
             match (back, answer) {
                 (Ok(Some(a)), Ok(Some(b))) => {

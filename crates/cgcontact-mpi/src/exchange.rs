@@ -54,32 +54,61 @@ pub(crate) fn exchange<C: Communicator>(
     received: &mut Vec<u64>,
     traffic: &mut Traffic,
 ) -> Vec<usize> {
-    let me = comm.rank() as usize;
     debug_assert_eq!(counts.iter().sum::<usize>(), send.len());
-    let send_counts: Vec<Count> = counts
-        .iter()
-        .map(|&n| Count::try_from(n).expect("under 2^31 words per rank pair"))
-        .collect();
-    let mut recv_counts: Vec<Count> = vec![0; counts.len()];
-    comm.all_to_all_into(&send_counts[..], &mut recv_counts[..]);
-    for (rank, &n) in counts.iter().enumerate() {
-        if rank != me && n > 0 {
-            traffic.messages += 1;
-            traffic.bytes += 8 * n as u64;
-        }
-    }
-    traffic.collectives += 2;
-    let send_displs = displacements(&send_counts);
-    let recv_displs = displacements(&recv_counts);
+    let send_counts = counts_of(counts);
+    let recv_counts = exchange_counts(comm, &send_counts, traffic);
     let total: usize = recv_counts.iter().map(|&c| c as usize).sum();
     // Every word is overwritten by the exchange: only a length change writes.
     received.resize(total, 0);
-    {
-        let partition = Partition::new(send, &send_counts[..], &send_displs[..]);
-        let mut into = PartitionMut::new(&mut received[..], &recv_counts[..], &recv_displs[..]);
-        comm.all_to_all_varcount_into(&partition, &mut into);
-    }
+    exchange_words(comm, send, &send_counts, received, &recv_counts, traffic);
     recv_counts.iter().map(|&c| c as usize).collect()
+}
+
+/// `counts` as MPI counts.
+pub(crate) fn counts_of(counts: &[usize]) -> Vec<Count> {
+    counts
+        .iter()
+        .map(|&n| Count::try_from(n).expect("under 2^31 words per rank pair"))
+        .collect()
+}
+
+/// Collective: how many words each rank will send here, from what each rank will send to each
+/// (an all-to-all of counts).
+pub(crate) fn exchange_counts<C: Communicator>(
+    comm: &C,
+    send_counts: &[Count],
+    traffic: &mut Traffic,
+) -> Vec<Count> {
+    let mut recv_counts: Vec<Count> = vec![0; send_counts.len()];
+    comm.all_to_all_into(send_counts, &mut recv_counts[..]);
+    traffic.collectives += 1;
+    recv_counts
+}
+
+/// Collective: sends `send`, `send_counts[r]` words to rank r in rank order, and receives
+/// `recv_counts[r]` words from rank r into `received` (exactly their sum), in rank order (an
+/// all-to-all-v).
+pub(crate) fn exchange_words<C: Communicator, T: Equivalence>(
+    comm: &C,
+    send: &[T],
+    send_counts: &[Count],
+    received: &mut [T],
+    recv_counts: &[Count],
+    traffic: &mut Traffic,
+) {
+    let me = comm.rank() as usize;
+    for (rank, &n) in send_counts.iter().enumerate() {
+        if rank != me && n > 0 {
+            traffic.messages += 1;
+            traffic.bytes += (size_of::<T>() * n as usize) as u64;
+        }
+    }
+    traffic.collectives += 1;
+    let send_displs = displacements(send_counts);
+    let recv_displs = displacements(recv_counts);
+    let partition = Partition::new(send, send_counts, &send_displs[..]);
+    let mut into = PartitionMut::new(received, recv_counts, &recv_displs[..]);
+    comm.all_to_all_varcount_into(&partition, &mut into);
 }
 
 /// Each partition's offset: the running sum of the counts before it.
