@@ -47,6 +47,10 @@ const MARGIN: f64 = 3.0;
 /// Words per cell record: the cell id, then 8 corners × 3 displacement components (f64 bits).
 const CELL_WORDS: usize = 25;
 
+/// A rank whose leaving points are at most one in this many of its points searches all of them
+/// where they lie (see [`DistributedLocator::locate_all_into`]).
+const IN_PLACE_SHARE: usize = 32;
+
 /// Words per answer on the way back (see [`encode`]).
 const ANSWER_WORDS: usize = 6;
 
@@ -134,8 +138,9 @@ pub struct Located {
 struct Scratch {
     /// Each point's bucket: its home rank, or the rank count for a point with no home.
     homes: Vec<u32>,
-    /// Each point's place in the answers (when some point leaves): the local search's batch
+    /// When the points are grouped, each point's place in the answers: the local search's batch
     /// (own points, then those received), then those coming back, then points with no home.
+    /// When they are searched in place, the input index of each leaving point.
     slots: Vec<u32>,
     /// The points, grouped: those leaving (by home rank), this rank's own (when some leave),
     /// each group in input order, then those received (by sending rank). The last two are the
@@ -533,8 +538,10 @@ impl DistributedLocator<'_> {
     /// scratch of routing and return) are reused: a solver loop calling it again allocates
     /// little once the sizes settle.
     ///
-    /// When none of this rank's points has another home (one rank, or a solver asking about
-    /// points in its own part), they are searched where they lie, with no copy.
+    /// When at most one in 32 of this rank's points has another home (always on one rank, and
+    /// for a solver asking about points in its own part), all of them are searched where they
+    /// lie, with no copy, and the answers of the few that left are replaced by those that come
+    /// back. Otherwise the points are grouped by home first.
     pub fn locate_all_into<C: Communicator>(&self, comm: &C, points: &[DVec3], out: &mut Located) {
         let size = comm.size() as usize;
         let me = comm.rank() as usize;
@@ -582,8 +589,11 @@ impl DistributedLocator<'_> {
         let recv_counts = exchange_counts(comm, &send_counts, &mut stats.routing);
         let from: Vec<usize> = recv_counts.iter().map(|&c| c as usize / 3).collect();
         let recv: usize = from.iter().sum();
-        // When no point leaves, this rank's points are searched where they lie.
-        let in_place = leaving == 0;
+        // When few points leave (none, on one rank or for a solver asking about its own part),
+        // all of this rank's points are searched where they lie, and the answers of those that
+        // left are then replaced by those that come back: the local search answers any point,
+        // and a leaving point's local answer costs less than grouping every point.
+        let in_place = leaving * IN_PLACE_SHARE <= points.len();
         let own_here = if in_place { 0 } else { own };
         assert!(
             u32::try_from(points.len() + recv).is_ok(),
@@ -591,7 +601,25 @@ impl DistributedLocator<'_> {
         );
         // Every place is overwritten below: only a length change writes.
         work.resize(leaving + own_here + recv, DVec3::ZERO);
-        if !in_place {
+        if in_place && leaving > 0 {
+            // Only the leaving points, grouped by home rank, each remembering its input index.
+            let mut place = vec![0usize; size];
+            let mut at = 0;
+            for r in (0..size).filter(|&r| r != me) {
+                place[r] = at;
+                at += per[r];
+            }
+            slots.clear();
+            slots.resize(leaving, 0);
+            for (i, (&x, &bucket)) in points.iter().zip(homes.iter()).enumerate() {
+                let b = bucket as usize;
+                if b != me && b != size {
+                    work[place[b]] = x;
+                    slots[place[b]] = i as u32;
+                    place[b] += 1;
+                }
+            }
+        } else if !in_place {
             // Each bucket's next place in `work` (points with no home are not searched) and in
             // the answers.
             let (mut place, mut slot) = (vec![0usize; size + 1], vec![0usize; size + 1]);
@@ -635,22 +663,32 @@ impl DistributedLocator<'_> {
         let batch = &work[leaving..];
         if let Some(local) = local {
             if in_place {
-                // Every point here is this rank's own or has no home. A point with no home has
-                // no active cell within its search's reach, so the local search answers it as
-                // the serial one does: refused if not finite, else not found after no inversion.
+                // A point with no home has no active cell within its search's reach, so the
+                // local search answers it as the serial one does: refused if not finite, else
+                // not found after no inversion. The answers of leaving points are replaced.
                 local.locate_all_into(points, answers);
                 tried.clear();
                 tried.extend(
                     answers
                         .iter()
                         .zip(points)
-                        .map(|(answer, &x)| tried_count(local, answer, || x)),
+                        .enumerate()
+                        .map(|(i, (answer, &x))| {
+                            match answer {
+                                Ok(Some(hit)) => hit.inversions,
+                                // A point with no home tried none; a leaving point's count is replaced
+                                // (a second search of a point this body does not hold would cost more
+                                // than the first).
+                                _ if homes[i] as usize != me => 0,
+                                _ => local.locate_counted(x).1,
+                            }
+                        }),
                 );
             }
             local.locate_all_into(batch, found);
         } else {
             // Only a rank home to some block is asked about points, and such a rank has a body:
-            // every point here has no home.
+            // every point here has no home or leaves.
             debug_assert!(batch.is_empty());
             found.clear();
             if in_place {
@@ -684,7 +722,12 @@ impl DistributedLocator<'_> {
             &words(&sent),
             &mut stats.returned,
         );
-        if !in_place {
+        if in_place {
+            // The leaving points' answers, from what came back.
+            for (&i, words) in slots.iter().zip(back.chunks_exact(ANSWER_WORDS)) {
+                (answers[i as usize], tried[i as usize]) = decode(words);
+            }
+        } else {
             // Every answer in input order, in one pass over the points' places: the local
             // search's, or decoded from what came back, or that of a point with no home.
             let local_answers = own + recv;
