@@ -51,6 +51,10 @@ const CELL_WORDS: usize = 25;
 /// where they lie (see [`DistributedLocator::locate_all_into`]).
 const IN_PLACE_SHARE: usize = 32;
 
+/// Points searched at a time before their answers are encoded or merged: 4,096 answers (229 KB)
+/// stay in the L2 cache until they are read.
+const PIECE: usize = 4096;
+
 /// Words per answer on the way back (see [`encode`]).
 const ANSWER_WORDS: usize = 6;
 
@@ -150,7 +154,7 @@ struct Scratch {
     send: Vec<u64>,
     /// The answers coming back, as words.
     back: Vec<u64>,
-    /// The local search's answers: this rank's own points (when some leave), then those received.
+    /// The local search's answers to the piece of points just searched (at most [`PIECE`]).
     found: Vec<Answer>,
 }
 
@@ -657,59 +661,28 @@ impl DistributedLocator<'_> {
         stats.searched = own + recv;
         stats.routing_seconds = start.elapsed().as_secs_f64();
 
-        // Search: the core's batched search on the local body, over this rank's own points (in
-        // place, or grouped) and those received, in one batch.
+        // Search and return. First the points received, a piece at a time, each piece's answers
+        // encoded for the way back while they are in cache; the answers go back (each rank
+        // knows how many it sends and gets back, so no counts are exchanged); then this rank's
+        // own points, searched in place or, when grouped, a piece at a time, each piece's
+        // answers merged into input order with those that came back while they are in cache.
         let start = Instant::now();
-        let batch = &work[leaving..];
-        if let Some(local) = local {
-            if in_place {
-                // A point with no home has no active cell within its search's reach, so the
-                // local search answers it as the serial one does: refused if not finite, else
-                // not found after no inversion. The answers of leaving points are replaced.
-                local.locate_all_into(points, answers);
-                tried.clear();
-                tried.extend(
-                    answers
-                        .iter()
-                        .zip(points)
-                        .enumerate()
-                        .map(|(i, (answer, &x))| {
-                            match answer {
-                                Ok(Some(hit)) => hit.inversions,
-                                // A point with no home tried none; a leaving point's count is replaced
-                                // (a second search of a point this body does not hold would cost more
-                                // than the first).
-                                _ if homes[i] as usize != me => 0,
-                                _ => local.locate_counted(x).1,
-                            }
-                        }),
-                );
-            }
-            local.locate_all_into(batch, found);
-        } else {
-            // Only a rank home to some block is asked about points, and such a rank has a body:
-            // every point here has no home or leaves.
-            debug_assert!(batch.is_empty());
-            found.clear();
-            if in_place {
-                answers.clear();
-                answers.extend(points.iter().map(|&x| no_home(x)));
-                tried.clear();
-                tried.resize(points.len(), 0);
-            }
-        }
-        stats.search_seconds = start.elapsed().as_secs_f64();
-
-        // Return: the answers to the ranks that asked, in the order they came. Each rank knows
-        // how many answers it sends and gets back, so no counts are exchanged.
-        let start = Instant::now();
+        let mut search = std::time::Duration::ZERO;
+        let received = &work[leaving + own_here..];
         send.clear();
         send.reserve(ANSWER_WORDS * recv);
-        for (k, answer) in found.iter().enumerate().skip(own_here) {
-            // A received point was searched here, on a rank with a body. Its coordinates are
-            // read only when it was not found.
-            let count = local.map_or(0, |local| tried_count(local, answer, || batch[k]));
-            send.extend_from_slice(&encode(answer, count));
+        if let Some(local) = local {
+            for piece in received.chunks(PIECE) {
+                let searching = Instant::now();
+                local.locate_all_into(piece, found);
+                search += searching.elapsed();
+                for (answer, &x) in found.iter().zip(piece) {
+                    send.extend_from_slice(&encode(answer, tried_count(local, answer, || x)));
+                }
+            }
+        } else {
+            // Only a rank home to some block is asked about points, and such a rank has a body.
+            debug_assert!(received.is_empty());
         }
         let words =
             |n: &[usize]| counts_of(&n.iter().map(|&n| ANSWER_WORDS * n).collect::<Vec<_>>());
@@ -722,45 +695,86 @@ impl DistributedLocator<'_> {
             &words(&sent),
             &mut stats.returned,
         );
+        let searching = Instant::now();
         if in_place {
+            match local {
+                // A point with no home has no active cell within its search's reach, so the
+                // local search answers it as the serial one does: refused if not finite, else
+                // not found after no inversion. The answers of leaving points are replaced.
+                Some(local) => {
+                    local.locate_all_into(points, answers);
+                    tried.clear();
+                    tried.extend(answers.iter().zip(points).enumerate().map(
+                        |(i, (answer, &x))| match answer {
+                            Ok(Some(hit)) => hit.inversions,
+                            // A point with no home tried none; a leaving point's count is
+                            // replaced (a second search of a point this body does not hold
+                            // would cost more than the first).
+                            _ if homes[i] as usize != me => 0,
+                            _ => local.locate_counted(x).1,
+                        },
+                    ));
+                }
+                // Every point here has no home or leaves.
+                None => {
+                    answers.clear();
+                    answers.extend(points.iter().map(|&x| no_home(x)));
+                    tried.clear();
+                    tried.resize(points.len(), 0);
+                }
+            }
+            search += searching.elapsed();
             // The leaving points' answers, from what came back.
             for (&i, words) in slots.iter().zip(back.chunks_exact(ANSWER_WORDS)) {
                 (answers[i as usize], tried[i as usize]) = decode(words);
             }
         } else {
-            // Every answer in input order, in one pass over the points' places: the local
-            // search's, or decoded from what came back, or that of a point with no home.
-            let local_answers = own + recv;
             // Every answer is overwritten: only a length change writes.
             if answers.len() != points.len() {
                 answers.clear();
                 answers.resize(points.len(), Ok(None));
             }
             tried.resize(points.len(), 0);
-            for (i, ((&slot, answer), count)) in slots
-                .iter()
-                .zip(answers.iter_mut())
-                .zip(tried.iter_mut())
-                .enumerate()
-            {
-                // The point's coordinates are read only for the few answers that need them.
-                let x = || points[i];
-                let slot = slot as usize;
-                // Each branch writes in place: an (answer, count) pair built and then moved cost
-                // a store-forwarding stall per point.
-                if slot < local_answers {
-                    *answer = found[slot];
-                    // Searched here: the rank has a body.
-                    *count = local.map_or(0, |local| tried_count(local, answer, x));
-                } else if slot < local_answers + leaving {
-                    let k = slot - local_answers;
-                    (*answer, *count) = decode(&back[k * ANSWER_WORDS..(k + 1) * ANSWER_WORDS]);
-                } else {
-                    (*answer, *count) = (no_home(x()), 0);
+            // The answers in input order, each from its slot: this rank's own from the piece
+            // just searched, the others decoded from what came back, or a point with no home's.
+            let returned = own + recv;
+            let mut next = 0;
+            let mut merge = |found: &[Answer], first: usize, end: usize| {
+                while let Some(&slot) = slots.get(next) {
+                    let (i, slot) = (next, slot as usize);
+                    // Each branch writes in place: an (answer, count) pair built and then moved
+                    // cost a store-forwarding stall per point.
+                    if slot < own {
+                        if slot >= end {
+                            break;
+                        }
+                        answers[i] = found[slot - first];
+                        // Searched here: the rank has a body.
+                        tried[i] =
+                            local.map_or(0, |local| tried_count(local, &answers[i], || points[i]));
+                    } else if slot < returned + leaving {
+                        let k = slot - returned;
+                        (answers[i], tried[i]) =
+                            decode(&back[k * ANSWER_WORDS..(k + 1) * ANSWER_WORDS]);
+                    } else {
+                        (answers[i], tried[i]) = (no_home(points[i]), 0);
+                    }
+                    next += 1;
+                }
+            };
+            let mine = &work[leaving..leaving + own];
+            if let Some(local) = local {
+                for (p, piece) in mine.chunks(PIECE).enumerate() {
+                    let searching = Instant::now();
+                    local.locate_all_into(piece, found);
+                    search += searching.elapsed();
+                    merge(found, p * PIECE, p * PIECE + piece.len());
                 }
             }
+            merge(&[], own, own);
         }
-        stats.return_seconds = start.elapsed().as_secs_f64();
+        stats.search_seconds = search.as_secs_f64();
+        stats.return_seconds = start.elapsed().as_secs_f64() - stats.search_seconds;
     }
 }
 
