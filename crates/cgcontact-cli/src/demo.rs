@@ -139,5 +139,6 @@ fn write_rows(
         Ok(Some(hit)) => std::slice::from_ref(hit),
         _ => &[],
     });
-    write_owner_rows(path, one, tried, |c| cells.input_cell(c), Some(gaps))
+    write_owner_rows(path, one, tried, |c| cells.input_cell(c), Some(gaps))?;
+    Ok(())
 }

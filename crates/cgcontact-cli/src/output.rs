@@ -5,7 +5,6 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Result, bail};
-use cgcontact::{CellId, GapAnswer, Hit};
 
 /// Write `text` to `path`, whole or not at all.
 pub fn write_text(path: &Path, text: &str) -> Result<()> {
@@ -13,106 +12,7 @@ pub fn write_text(path: &Path, text: &str) -> Result<()> {
     Ok(())
 }
 
-/// Write the results of `locate --all-owners`: the header and columns of the usual results file
-/// (`cgcontact_io::write_results_counted`), but one row per owner of each point, the point's
-/// index repeated, cells ascending in the input mesh's numbering (`input_cell` maps the locator's
-/// cell ids to it), each row with that owner's ξ, iterations, residual and the inversions the
-/// search had tried when it found it. A point with no owner (outside, or refused) keeps its one
-/// row as the usual file writes it: `point,-1,NaN,NaN,NaN,0,NaN,tried`. One hit per point gives
-/// the usual file. With `gaps` (`locate --gap`), every row of point p ends with p's
-/// [`GAP_HEADER`] columns, empty where its surface is farther than the search distance.
-pub fn write_owner_rows<'a>(
-    path: &Path,
-    owners: impl Iterator<Item = &'a [Hit]>,
-    tried: &[u32],
-    input_cell: impl Fn(CellId) -> Option<usize>,
-    gaps: Option<&[GapAnswer]>,
-) -> Result<()> {
-    cgcontact_io::write_file(path, |out| {
-        write!(out, "{}", cgcontact_io::RESULTS_HEADER.join(","))?;
-        if gaps.is_some() {
-            write!(out, ",{}", GAP_HEADER.join(","))?;
-        }
-        writeln!(out)?;
-        // The gap columns of point p: empty where the surface is farther than D.
-        // The gap columns of each point, in one buffer rewritten for each.
-        let mut gap = String::new();
-        // Reused for every point: at most a few owners each, sorted by their input cell.
-        let mut rows: Vec<(i64, &Hit)> = Vec::new();
-        for (point, hits) in owners.enumerate() {
-            if let Some(gaps) = gaps {
-                gap_columns(&mut gap, gaps.get(point), &input_cell);
-            }
-            if hits.is_empty() {
-                let inversions = tried.get(point).copied().unwrap_or(0);
-                writeln!(out, "{point},-1,NaN,NaN,NaN,0,NaN,{inversions}{gap}")?;
-                continue;
-            }
-            rows.clear();
-            rows.extend(
-                hits.iter()
-                    .map(|hit| (input_cell(hit.cell).map_or(-1, |c| c as i64), hit)),
-            );
-            // The locator sorts by its own ids (lattice cells); the file names input cells.
-            rows.sort_by_key(|&(cell, _)| cell);
-            for (cell, hit) in &rows {
-                writeln!(
-                    out,
-                    "{point},{cell},{},{},{},{},{},{}{gap}",
-                    hit.xi.x, hit.xi.y, hit.xi.z, hit.iterations, hit.residual, hit.inversions
-                )?;
-            }
-        }
-        Ok(())
-    })?;
-    Ok(())
-}
-
-/// Writes into `buf` (cleared first) the gap columns of a point of answer `gap`, each preceded by
-/// its comma: empty where the surface is farther than the search distance or the point was
-/// refused; `face_cell` in the input numbering (`input_cell`).
-fn gap_columns(
-    buf: &mut String,
-    gap: Option<&GapAnswer>,
-    input_cell: &impl Fn(CellId) -> Option<usize>,
-) {
-    use std::fmt::Write as _;
-    buf.clear();
-    match gap {
-        Some(Ok(Some(c))) => {
-            let face_cell = input_cell(c.face.cell).map_or(-1, |i| i as i64);
-            write!(
-                buf,
-                ",{},{},{},{},{},{},{},{face_cell},{}",
-                c.gap,
-                c.point.x,
-                c.point.y,
-                c.point.z,
-                c.normal.x,
-                c.normal.y,
-                c.normal.z,
-                c.face.local
-            )
-            .expect("writing to a String cannot fail");
-        }
-        _ => {
-            buf.extend(std::iter::repeat_n(',', GAP_HEADER.len()));
-        }
-    }
-}
-
-/// The columns `locate --gap` appends to each results row.
-pub const GAP_HEADER: [&str; 9] = [
-    "gap",
-    "cx",
-    "cy",
-    "cz",
-    "nx",
-    "ny",
-    "nz",
-    "face_cell",
-    "face",
-];
+pub use cgcontact_io::write_owner_rows;
 
 /// Standard output could not be written. A closed pipe (`cgcontact ... | head -c 1`) is a normal end
 /// of the program; anything else (a full disk) is an error.

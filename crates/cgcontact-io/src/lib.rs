@@ -59,8 +59,8 @@ mod vtk_write;
 pub use adaptive_mesh::{AdaptiveMesh, MeshBody};
 pub use atomic::write_file;
 pub use csv_io::{
-    RESULTS_HEADER, ResultRow, parse_points, parse_results, read_points, read_results,
-    write_points, write_results, write_results_counted, write_results_to,
+    GAP_HEADER, RESULTS_HEADER, ResultRow, parse_points, parse_results, read_points, read_results,
+    write_owner_rows, write_points, write_results, write_results_counted, write_results_to,
 };
 pub use error::{ErrorKind, IoError};
 pub use input::{DEFAULT_MAX_INPUT_BYTES, MAX_INPUT_BYTES_VAR, max_input_bytes};
