@@ -24,9 +24,11 @@
 
 use std::time::Instant;
 
+use cgcontact::glam::DVec2;
 use cgcontact::glam::DVec3;
 use cgcontact::{
-    Answer, Body, CellId, Hit, Lattice, LatticeLocator, Locator, PointError, Settings,
+    Answer, Body, CellId, Contact, Face, GapAnswer, GapFinder, Hit, Lattice, LatticeLocator,
+    Locator, PointError, Settings,
 };
 use mpi::collective::SystemOperation;
 use mpi::traits::*;
@@ -58,6 +60,9 @@ const PIECE: usize = 4096;
 /// Words per answer on the way back (see [`encode`]).
 const ANSWER_WORDS: usize = 6;
 
+/// Words per gap answer on the way back (see [`encode_gap`]).
+const GAP_WORDS: usize = 10;
+
 /// One active cell a rank holds: its lattice cell id and its corners' displacements (VTK order).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct OwnedCell {
@@ -74,6 +79,10 @@ pub struct Config {
     pub settings: Settings,
     /// Edge of the ownership map's blocks, in cells (default 8: 512 cells a block).
     pub block: u32,
+    /// The largest search distance of [`DistributedLocator::gap_all_into`]: each home's halo
+    /// widens by it, so that it holds every face within that distance of its points (default 0:
+    /// the halo of point location only).
+    pub gap_distance: f64,
 }
 
 impl Default for Config {
@@ -81,6 +90,7 @@ impl Default for Config {
         Self {
             settings: Settings::default(),
             block: 8,
+            gap_distance: 0.0,
         }
     }
 }
@@ -135,6 +145,18 @@ pub struct Located {
     pub stats: QueryStats,
     /// Buffers of the routing and the return, kept for the next query.
     scratch: Scratch,
+}
+
+/// The contact quantities of a distributed gap query, in the input order of this rank's points.
+#[derive(Clone, Debug, Default)]
+pub struct Gaps {
+    /// One answer per point, bitwise the serial `GapFinder::gap_all_into`'s on the whole body.
+    pub answers: Vec<GapAnswer>,
+    /// What it cost this rank.
+    pub stats: QueryStats,
+    /// Buffers of the routing and the return, kept for the next query.
+    scratch: Scratch,
+    found: Vec<GapAnswer>,
 }
 
 /// The query's buffers, reused from one [`DistributedLocator::locate_all_into`] to the next.
@@ -240,6 +262,8 @@ impl Blocks {
 pub struct DistributedBody {
     lattice: Lattice,
     settings: Settings,
+    /// `Config::gap_distance`.
+    gap_distance: f64,
     blocks: Blocks,
     /// Cells per axis that a point of a block may read below and above the block.
     before: [u32; 3],
@@ -353,10 +377,12 @@ impl DistributedBody {
         drop(held);
         let h = lattice.h();
         let reach = |u: DVec3| -> [u32; 3] {
-            let cells = (u.max(DVec3::ZERO) / h).ceil() + MARGIN;
+            let cells = ((u.max(DVec3::ZERO) + config.gap_distance) / h).ceil() + MARGIN;
             [0, 1, 2].map(|a| cells[a].min(f64::from(lattice.cells()[a])) as u32)
         };
-        // A point at x reads cells near x − u: below x by up to max(u, 0), above by -min(u, 0).
+        // A point at x reads cells near x − u: below x by up to max(u, 0), above by -min(u, 0);
+        // its gap search, the faces of cells up to the gap distance D farther (`cgcontact`'s
+        // `gap/mod.rs`), whose neighbours' presence the margin covers.
         let before = reach(u_high);
         let after = reach(-u_low);
         adopt_empty_blocks(&mut blocks, before, after);
@@ -451,6 +477,7 @@ impl DistributedBody {
         Ok(Self {
             lattice,
             settings: config.settings,
+            gap_distance: config.gap_distance,
             blocks,
             before,
             after,
@@ -547,8 +574,6 @@ impl DistributedLocator<'_> {
     /// lie, with no copy, and the answers of the few that left are replaced by those that come
     /// back. Otherwise the points are grouped by home first.
     pub fn locate_all_into<C: Communicator>(&self, comm: &C, points: &[DVec3], out: &mut Located) {
-        let size = comm.size() as usize;
-        let me = comm.rank() as usize;
         let Located {
             answers,
             tried,
@@ -569,11 +594,247 @@ impl DistributedLocator<'_> {
         } = scratch;
         let local = self.local.as_ref();
 
-        // Routing: each point's bucket (its home, or `size` for no home), counted; the counts
-        // exchanged; the points grouped by bucket in one branch-free pass (a stable counting
-        // sort) that notes where each one's answer will be; the groups sent as f64 words
-        // straight from, and received straight into, the batch the local search reads.
+        let route = self.route(comm, points, homes, slots, work, stats);
+        let Route {
+            own,
+            leaving,
+            recv,
+            in_place,
+            own_here,
+            ..
+        } = route;
+        let me = comm.rank() as usize;
+
+        // Search and return. First the points received, a piece at a time, each piece's answers
+        // encoded for the way back while they are in cache; the answers go back (each rank
+        // knows how many it sends and gets back, so no counts are exchanged); then this rank's
+        // own points, searched in place or, when grouped, a piece at a time, each piece's
+        // answers merged into input order with those that came back while they are in cache.
         let start = Instant::now();
+        let mut search = std::time::Duration::ZERO;
+        let received = &work[leaving + own_here..];
+        send.clear();
+        send.reserve(ANSWER_WORDS * recv);
+        if let Some(local) = local {
+            for piece in received.chunks(PIECE) {
+                let searching = Instant::now();
+                local.locate_all_into(piece, found);
+                search += searching.elapsed();
+                for (answer, &x) in found.iter().zip(piece) {
+                    send.extend_from_slice(&encode(answer, tried_count(local, answer, || x)));
+                }
+            }
+        } else {
+            // Only a rank home to some block is asked about points, and such a rank has a body.
+            debug_assert!(received.is_empty());
+        }
+        route.send_back(comm, send, back, ANSWER_WORDS, &mut stats.returned);
+        let searching = Instant::now();
+        if in_place {
+            match local {
+                // A point with no home has no active cell within its search's reach, so the
+                // local search answers it as the serial one does: refused if not finite, else
+                // not found after no inversion. The answers of leaving points are replaced.
+                Some(local) => {
+                    local.locate_all_into(points, answers);
+                    tried.clear();
+                    tried.extend(answers.iter().zip(points).enumerate().map(
+                        |(i, (answer, &x))| match answer {
+                            Ok(Some(hit)) => hit.inversions,
+                            // A point with no home tried none; a leaving point's count is
+                            // replaced (a second search of a point this body does not hold
+                            // would cost more than the first).
+                            _ if homes[i] as usize != me => 0,
+                            _ => local.locate_counted(x).1,
+                        },
+                    ));
+                }
+                // Every point here has no home or leaves.
+                None => {
+                    answers.clear();
+                    answers.extend(points.iter().map(|&x| no_home(x)));
+                    tried.clear();
+                    tried.resize(points.len(), 0);
+                }
+            }
+            search += searching.elapsed();
+            // The leaving points' answers, from what came back.
+            for (&i, words) in slots.iter().zip(back.chunks_exact(ANSWER_WORDS)) {
+                (answers[i as usize], tried[i as usize]) = decode(words);
+            }
+        } else {
+            // Every answer is overwritten: only a length change writes.
+            if answers.len() != points.len() {
+                answers.clear();
+                answers.resize(points.len(), Ok(None));
+            }
+            tried.resize(points.len(), 0);
+            // The answers in input order, each from its slot: this rank's own from the piece
+            // just searched, the others decoded from what came back, or a point with no home's.
+            let returned = own + recv;
+            let mut next = 0;
+            let mut merge = |found: &[Answer], first: usize, end: usize| {
+                while let Some(&slot) = slots.get(next) {
+                    let (i, slot) = (next, slot as usize);
+                    // Each branch writes in place: an (answer, count) pair built and then moved
+                    // cost a store-forwarding stall per point.
+                    if slot < own {
+                        if slot >= end {
+                            break;
+                        }
+                        answers[i] = found[slot - first];
+                        // Searched here: the rank has a body.
+                        tried[i] =
+                            local.map_or(0, |local| tried_count(local, &answers[i], || points[i]));
+                    } else if slot < returned + leaving {
+                        let k = slot - returned;
+                        (answers[i], tried[i]) =
+                            decode(&back[k * ANSWER_WORDS..(k + 1) * ANSWER_WORDS]);
+                    } else {
+                        (answers[i], tried[i]) = (no_home(points[i]), 0);
+                    }
+                    next += 1;
+                }
+            };
+            let mine = &work[leaving..leaving + own];
+            if let Some(local) = local {
+                for (p, piece) in mine.chunks(PIECE).enumerate() {
+                    let searching = Instant::now();
+                    local.locate_all_into(piece, found);
+                    search += searching.elapsed();
+                    merge(found, p * PIECE, p * PIECE + piece.len());
+                }
+            }
+            merge(&[], own, own);
+        }
+        stats.search_seconds = search.as_secs_f64();
+        stats.return_seconds = start.elapsed().as_secs_f64() - stats.search_seconds;
+    }
+
+    /// Collective: the signed gap, closest point and normal of each of this rank's points within
+    /// `distance` (the same on every rank, at most the body's `Config::gap_distance`), each
+    /// searched on its home by the core's [`GapFinder`], answers in input order, bitwise the
+    /// serial `GapFinder::gap_all_into`'s on the whole body. The points travel as for
+    /// [`DistributedLocator::locate_all_into`], whose buffers `out` keeps likewise.
+    pub fn gap_all_into<C: Communicator>(
+        &self,
+        comm: &C,
+        points: &[DVec3],
+        distance: f64,
+        out: &mut Gaps,
+    ) -> Result<(), Error> {
+        if !(distance.is_finite() && distance >= 0.0) {
+            return Err(Error::GapDistance(distance));
+        }
+        if distance > self.body.gap_distance {
+            return Err(Error::GapBeyondSetup {
+                asked: distance,
+                set_up: self.body.gap_distance,
+            });
+        }
+        let finder = match &self.local {
+            Some(local) => Some(GapFinder::new(local, distance)?),
+            None => None,
+        };
+        let Gaps {
+            answers,
+            stats,
+            scratch,
+            found,
+        } = out;
+        *stats = QueryStats {
+            points: points.len(),
+            ..QueryStats::default()
+        };
+        let Scratch {
+            homes,
+            slots,
+            work,
+            send,
+            back,
+            ..
+        } = scratch;
+        let route = self.route(comm, points, homes, slots, work, stats);
+        let Route {
+            own,
+            leaving,
+            recv,
+            in_place,
+            own_here,
+            ..
+        } = route;
+
+        // The points received first, their answers sent back; then this rank's own.
+        let start = Instant::now();
+        let mut search = std::time::Duration::ZERO;
+        send.clear();
+        found.clear();
+        if let Some(finder) = &finder {
+            let searching = Instant::now();
+            finder.gap_all_into(&work[leaving + own_here..], found);
+            search += searching.elapsed();
+        }
+        for answer in found.iter() {
+            send.extend_from_slice(&encode_gap(answer));
+        }
+        route.send_back(comm, send, back, GAP_WORDS, &mut stats.returned);
+        let searching = Instant::now();
+        if in_place {
+            match &finder {
+                Some(finder) => finder.gap_all_into(points, answers),
+                // Every point here has no home or leaves.
+                None => {
+                    answers.clear();
+                    answers.extend(points.iter().map(|&x| no_home(x)));
+                }
+            }
+            search += searching.elapsed();
+            // The leaving points' answers, from what came back.
+            for (&i, words) in slots.iter().zip(back.chunks_exact(GAP_WORDS)) {
+                answers[i as usize] = decode_gap(words);
+            }
+        } else {
+            found.clear();
+            if let Some(finder) = &finder {
+                finder.gap_all_into(&work[leaving..leaving + own], found);
+            }
+            search += searching.elapsed();
+            let returned = own + recv;
+            answers.clear();
+            answers.extend(slots.iter().enumerate().map(|(i, &slot)| {
+                let slot = slot as usize;
+                if slot < own {
+                    found[slot]
+                } else if slot < returned + leaving {
+                    let k = slot - returned;
+                    decode_gap(&back[k * GAP_WORDS..(k + 1) * GAP_WORDS])
+                } else {
+                    no_home(points[i])
+                }
+            }));
+        }
+        stats.search_seconds = search.as_secs_f64();
+        stats.return_seconds = start.elapsed().as_secs_f64() - stats.search_seconds;
+        Ok(())
+    }
+
+    /// Routing: each point's bucket (its home, or `size` for no home), counted; the counts
+    /// exchanged; the points grouped by bucket in one branch-free pass (a stable counting sort)
+    /// that notes where each one's answer will be; the groups sent as f64 words straight from,
+    /// and received straight into, `work`, whose tail is the batch the local search reads. Fills
+    /// the routing half of `stats`.
+    fn route<C: Communicator>(
+        &self,
+        comm: &C,
+        points: &[DVec3],
+        homes: &mut Vec<u32>,
+        slots: &mut Vec<u32>,
+        work: &mut Vec<DVec3>,
+        stats: &mut QueryStats,
+    ) -> Route {
+        let start = Instant::now();
+        let size = comm.size() as usize;
+        let me = comm.rank() as usize;
         homes.clear();
         homes.extend(
             points
@@ -660,121 +921,58 @@ impl DistributedLocator<'_> {
         }
         stats.searched = own + recv;
         stats.routing_seconds = start.elapsed().as_secs_f64();
-
-        // Search and return. First the points received, a piece at a time, each piece's answers
-        // encoded for the way back while they are in cache; the answers go back (each rank
-        // knows how many it sends and gets back, so no counts are exchanged); then this rank's
-        // own points, searched in place or, when grouped, a piece at a time, each piece's
-        // answers merged into input order with those that came back while they are in cache.
-        let start = Instant::now();
-        let mut search = std::time::Duration::ZERO;
-        let received = &work[leaving + own_here..];
-        send.clear();
-        send.reserve(ANSWER_WORDS * recv);
-        if let Some(local) = local {
-            for piece in received.chunks(PIECE) {
-                let searching = Instant::now();
-                local.locate_all_into(piece, found);
-                search += searching.elapsed();
-                for (answer, &x) in found.iter().zip(piece) {
-                    send.extend_from_slice(&encode(answer, tried_count(local, answer, || x)));
-                }
-            }
-        } else {
-            // Only a rank home to some block is asked about points, and such a rank has a body.
-            debug_assert!(received.is_empty());
+        Route {
+            own,
+            leaving,
+            recv,
+            in_place,
+            own_here,
+            sent,
+            from,
         }
-        let words =
-            |n: &[usize]| counts_of(&n.iter().map(|&n| ANSWER_WORDS * n).collect::<Vec<_>>());
-        back.resize(ANSWER_WORDS * leaving, 0);
+    }
+}
+
+/// What routing found and did, for the search and the return.
+struct Route {
+    /// This rank's points whose home it is, those leaving and those received.
+    own: usize,
+    leaving: usize,
+    recv: usize,
+    /// All of this rank's points are searched where they lie (at most one in
+    /// [`IN_PLACE_SHARE`] leaves); else they are grouped, own ones in `work`.
+    in_place: bool,
+    /// The own points in `work`: `own` when grouped, else 0.
+    own_here: usize,
+    /// Points sent to each rank, and received from each.
+    sent: Vec<usize>,
+    from: Vec<usize>,
+}
+
+impl Route {
+    /// Collective: the answers of the points received (`send`, `words` words each, in the order
+    /// received) back to the ranks that sent them; those of this rank's leaving points into
+    /// `back`, in the order they left. Each rank knows how many answers it sends and gets back,
+    /// so no counts are exchanged.
+    fn send_back<C: Communicator>(
+        &self,
+        comm: &C,
+        send: &[u64],
+        back: &mut Vec<u64>,
+        words: usize,
+        traffic: &mut Traffic,
+    ) {
+        let counts = |n: &[usize]| counts_of(&n.iter().map(|&n| words * n).collect::<Vec<_>>());
+        // Every word is overwritten by the exchange: only a length change writes.
+        back.resize(words * self.leaving, 0);
         exchange_words(
             comm,
             send,
-            &words(&from),
+            &counts(&self.from),
             back,
-            &words(&sent),
-            &mut stats.returned,
+            &counts(&self.sent),
+            traffic,
         );
-        let searching = Instant::now();
-        if in_place {
-            match local {
-                // A point with no home has no active cell within its search's reach, so the
-                // local search answers it as the serial one does: refused if not finite, else
-                // not found after no inversion. The answers of leaving points are replaced.
-                Some(local) => {
-                    local.locate_all_into(points, answers);
-                    tried.clear();
-                    tried.extend(answers.iter().zip(points).enumerate().map(
-                        |(i, (answer, &x))| match answer {
-                            Ok(Some(hit)) => hit.inversions,
-                            // A point with no home tried none; a leaving point's count is
-                            // replaced (a second search of a point this body does not hold
-                            // would cost more than the first).
-                            _ if homes[i] as usize != me => 0,
-                            _ => local.locate_counted(x).1,
-                        },
-                    ));
-                }
-                // Every point here has no home or leaves.
-                None => {
-                    answers.clear();
-                    answers.extend(points.iter().map(|&x| no_home(x)));
-                    tried.clear();
-                    tried.resize(points.len(), 0);
-                }
-            }
-            search += searching.elapsed();
-            // The leaving points' answers, from what came back.
-            for (&i, words) in slots.iter().zip(back.chunks_exact(ANSWER_WORDS)) {
-                (answers[i as usize], tried[i as usize]) = decode(words);
-            }
-        } else {
-            // Every answer is overwritten: only a length change writes.
-            if answers.len() != points.len() {
-                answers.clear();
-                answers.resize(points.len(), Ok(None));
-            }
-            tried.resize(points.len(), 0);
-            // The answers in input order, each from its slot: this rank's own from the piece
-            // just searched, the others decoded from what came back, or a point with no home's.
-            let returned = own + recv;
-            let mut next = 0;
-            let mut merge = |found: &[Answer], first: usize, end: usize| {
-                while let Some(&slot) = slots.get(next) {
-                    let (i, slot) = (next, slot as usize);
-                    // Each branch writes in place: an (answer, count) pair built and then moved
-                    // cost a store-forwarding stall per point.
-                    if slot < own {
-                        if slot >= end {
-                            break;
-                        }
-                        answers[i] = found[slot - first];
-                        // Searched here: the rank has a body.
-                        tried[i] =
-                            local.map_or(0, |local| tried_count(local, &answers[i], || points[i]));
-                    } else if slot < returned + leaving {
-                        let k = slot - returned;
-                        (answers[i], tried[i]) =
-                            decode(&back[k * ANSWER_WORDS..(k + 1) * ANSWER_WORDS]);
-                    } else {
-                        (answers[i], tried[i]) = (no_home(points[i]), 0);
-                    }
-                    next += 1;
-                }
-            };
-            let mine = &work[leaving..leaving + own];
-            if let Some(local) = local {
-                for (p, piece) in mine.chunks(PIECE).enumerate() {
-                    let searching = Instant::now();
-                    local.locate_all_into(piece, found);
-                    search += searching.elapsed();
-                    merge(found, p * PIECE, p * PIECE + piece.len());
-                }
-            }
-            merge(&[], own, own);
-        }
-        stats.search_seconds = search.as_secs_f64();
-        stats.return_seconds = start.elapsed().as_secs_f64() - stats.search_seconds;
     }
 }
 
@@ -790,7 +988,7 @@ fn tried_count(local: &LatticeLocator<'_>, answer: &Answer, x: impl Fn() -> DVec
 
 /// The serial answer of a point no active cell is near: refused if not finite, else not found
 /// (after no inversion).
-fn no_home(x: DVec3) -> Answer {
+fn no_home<T>(x: DVec3) -> Result<Option<T>, PointError> {
     if x.is_finite() {
         Ok(None)
     } else {
@@ -805,11 +1003,27 @@ pub fn gather_located<C: Communicator>(
     root: i32,
     located: &Located,
 ) -> Option<(Vec<Answer>, Vec<u32>)> {
-    use mpi::datatype::PartitionMut;
     let mut words = Vec::with_capacity(ANSWER_WORDS * located.answers.len());
     for (answer, &tried) in located.answers.iter().zip(&located.tried) {
         words.extend_from_slice(&encode(answer, tried));
     }
+    gather_words(comm, root, &words).map(|all| all.chunks_exact(ANSWER_WORDS).map(decode).unzip())
+}
+
+/// Collective: the gap answers of every rank's points, concatenated in rank order, on `root`
+/// (`None` elsewhere).
+pub fn gather_gaps<C: Communicator>(comm: &C, root: i32, gaps: &Gaps) -> Option<Vec<GapAnswer>> {
+    let mut words = Vec::with_capacity(GAP_WORDS * gaps.answers.len());
+    for answer in &gaps.answers {
+        words.extend_from_slice(&encode_gap(answer));
+    }
+    gather_words(comm, root, &words)
+        .map(|all| all.chunks_exact(GAP_WORDS).map(decode_gap).collect())
+}
+
+/// Collective: every rank's `words`, concatenated in rank order, on `root` (`None` elsewhere).
+fn gather_words<C: Communicator>(comm: &C, root: i32, words: &[u64]) -> Option<Vec<u64>> {
+    use mpi::datatype::PartitionMut;
     let process = comm.process_at_rank(root);
     let count = mpi::Count::try_from(words.len()).expect("under 2^31 words per rank");
     if comm.rank() == root {
@@ -824,13 +1038,12 @@ pub fn gather_located<C: Communicator>(
         let mut all = vec![0u64; total as usize];
         {
             let mut into = PartitionMut::new(&mut all[..], &counts[..], &displs[..]);
-            process.gather_varcount_into_root(&words[..], &mut into);
+            process.gather_varcount_into_root(words, &mut into);
         }
-        let (answers, tried) = all.chunks_exact(ANSWER_WORDS).map(decode).unzip();
-        Some((answers, tried))
+        Some(all)
     } else {
         process.gather_into(&count);
-        process.gather_varcount_into(&words[..]);
+        process.gather_varcount_into(words);
         None
     }
 }
@@ -849,6 +1062,9 @@ struct Scan {
 fn scan_cells(lattice: &Lattice, cells: &[OwnedCell], config: &Config) -> Result<Scan, Error> {
     if config.block == 0 || config.block > 1 << 20 {
         return Err(Error::BlockSize(config.block));
+    }
+    if !(config.gap_distance.is_finite() && config.gap_distance >= 0.0) {
+        return Err(Error::GapDistance(config.gap_distance));
     }
     config.settings.validate()?;
     let mut scan = Scan {
@@ -1189,6 +1405,49 @@ fn decode(words: &[u64]) -> (Answer, u32) {
     }
 }
 
+/// A gap answer as 10 words: kind (0 none, 1 contact, 2 refused), whether the closest point is
+/// inside its face, the local face and the cell; the gap, closest point, normal and (s, t) bits.
+fn encode_gap(answer: &GapAnswer) -> [u64; GAP_WORDS] {
+    let mut out = [0; GAP_WORDS];
+    match answer {
+        Ok(Some(c)) => {
+            out[0] = 1 << 40
+                | u64::from(c.interior) << 39
+                | u64::from(c.face.local) << 32
+                | u64::from(c.face.cell.0);
+            out[1] = c.gap.to_bits();
+            for a in 0..3 {
+                out[2 + a] = c.point[a].to_bits();
+                out[5 + a] = c.normal[a].to_bits();
+            }
+            out[8] = c.st.x.to_bits();
+            out[9] = c.st.y.to_bits();
+        }
+        Ok(None) => {}
+        Err(_) => out[0] = 2 << 40,
+    }
+    out
+}
+
+fn decode_gap(words: &[u64]) -> GapAnswer {
+    let v = |a: usize| f64::from_bits(words[a]);
+    match words[0] >> 40 {
+        1 => Ok(Some(Contact {
+            gap: v(1),
+            point: DVec3::new(v(2), v(3), v(4)),
+            normal: DVec3::new(v(5), v(6), v(7)),
+            face: Face {
+                cell: CellId((words[0] & 0xffff_ffff) as u32),
+                local: (words[0] >> 32 & 0x7f) as u8,
+            },
+            st: DVec2::new(v(8), v(9)),
+            interior: words[0] >> 39 & 1 == 1,
+        })),
+        2 => Err(PointError::NonFinite),
+        _ => Ok(None),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -1219,6 +1478,47 @@ mod tests {
                 }
                 (a, b) => assert_eq!(a, b),
             }
+        }
+    }
+
+    #[test]
+    fn gap_answers_cross_the_wire_bitwise() {
+        let contact = Contact {
+            gap: -0.0,
+            point: DVec3::new(1e300, -3.25, 0.1 + 0.2),
+            normal: DVec3::new(0.0, -1.0, f64::MIN_POSITIVE),
+            face: Face {
+                cell: CellId(u32::MAX - 1),
+                local: 5,
+            },
+            st: DVec2::new(-1.0, 0.7),
+            interior: true,
+        };
+        let other = Contact {
+            interior: false,
+            face: Face {
+                cell: CellId(0),
+                local: 0,
+            },
+            ..contact
+        };
+        let bits = |a: &GapAnswer| {
+            a.map(|c| {
+                c.map(|c| {
+                    let mut w = vec![c.gap.to_bits(), c.st.x.to_bits(), c.st.y.to_bits()];
+                    w.extend(c.point.to_array().map(f64::to_bits));
+                    w.extend(c.normal.to_array().map(f64::to_bits));
+                    (w, c.face, c.interior)
+                })
+            })
+        };
+        for answer in [
+            Ok(Some(contact)),
+            Ok(Some(other)),
+            Ok(None),
+            Err(PointError::NonFinite),
+        ] {
+            assert_eq!(bits(&decode_gap(&encode_gap(&answer))), bits(&answer));
         }
     }
 

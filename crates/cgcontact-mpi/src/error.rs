@@ -41,6 +41,17 @@ pub enum Error {
     /// The block size is 0 or over 2^20.
     #[error("block size {0}: it must be between 1 and 2^20 cells")]
     BlockSize(u32),
+    /// The gap search distance is negative, NaN or infinite.
+    #[error("gap distance {0}: it must be finite and at least 0")]
+    GapDistance(f64),
+    /// A gap query on a body set up for a shorter gap distance.
+    #[error("gap distance {asked} is beyond the {set_up} the body was set up for")]
+    GapBeyondSetup {
+        /// The distance asked.
+        asked: f64,
+        /// `Config::gap_distance` at setup.
+        set_up: f64,
+    },
     /// The core library refused the settings or the local body.
     #[error(transparent)]
     Core(#[from] cgcontact::Error),

@@ -7,9 +7,9 @@
 //! | piece | what it is |
 //! |---|---|
 //! | [`DistributedBody`] | the collective setup: the displacement range, the ownership map of lattice blocks, each rank's local body (its home blocks' cells and their halo) |
-//! | [`DistributedLocator`] | collective queries: points routed to their block's home, searched there by the core's `LatticeLocator`, answers back in input order (`locate_all_into` reuses one [`Located`]'s buffers across a solver's iterations) |
+//! | [`DistributedLocator`] | collective queries: points routed to their block's home, searched there by the core's `LatticeLocator` (or its `GapFinder`: `gap_all_into`, into [`Gaps`]), answers back in input order (`locate_all_into` reuses one [`Located`]'s buffers across a solver's iterations) |
 //! | [`Partition`] | slabs, Morton runs or scattered cells: the splits the command line and the tests use |
-//! | [`gather_located`] | every rank's answers on one rank, for one results file |
+//! | [`gather_located`], [`gather_gaps`] | every rank's answers on one rank, for one results file |
 //!
 //! ```no_run
 //! use cgcontact::glam::DVec3;
@@ -46,8 +46,8 @@ mod exchange;
 mod partition;
 
 pub use distributed::{
-    Config, DistributedBody, DistributedLocator, Located, OwnedCell, QueryStats, SetupStats,
-    gather_located,
+    Config, DistributedBody, DistributedLocator, Gaps, Located, OwnedCell, QueryStats, SetupStats,
+    gather_gaps, gather_located,
 };
 pub use error::Error;
 pub use exchange::Traffic;

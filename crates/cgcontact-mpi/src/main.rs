@@ -13,10 +13,12 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, anyhow, bail};
 use cgcontact::{CellId, Settings};
-use cgcontact_io::{DisplacementArray, MeshBody, read_body, read_points, write_results_counted};
+use cgcontact_io::{
+    DisplacementArray, MeshBody, read_body, read_points, write_owner_rows, write_results_counted,
+};
 use cgcontact_mpi::{
-    Config, DistributedBody, Error, Located, OwnedCell, Partition, QueryStats, SetupStats,
-    gather_located,
+    Config, DistributedBody, Error, Gaps, Located, OwnedCell, Partition, QueryStats, SetupStats,
+    gather_gaps, gather_located,
 };
 use clap::{Args, Parser, Subcommand};
 use mpi::collective::SystemOperation;
@@ -67,6 +69,10 @@ struct LocateArgs {
     /// Edge of the ownership map's blocks, in cells.
     #[arg(long, default_value_t = 8)]
     block: u32,
+    /// Also measure each point's signed gap to the mesh's deformed boundary surface within D, as
+    /// `cgcontact locate --gap D` does: the same columns appended to every row, byte for byte.
+    #[arg(long, value_name = "D")]
+    gap: Option<f64>,
     /// Query the points N more times after the first, and report the fastest run's phases.
     #[arg(long, default_value_t = 0)]
     repeat: usize,
@@ -227,6 +233,7 @@ fn locate(world: &SimpleCommunicator, args: &LocateArgs) -> Result<(), Failure> 
     let config = Config {
         settings: Settings::default(),
         block: args.block,
+        gap_distance: args.gap.unwrap_or(0.0),
     };
     world.barrier();
     let distributed = DistributedBody::new(world, lattice, &mine, config).map_err(|e| match e {
@@ -252,11 +259,39 @@ fn locate(world: &SimpleCommunicator, args: &LocateArgs) -> Result<(), Failure> 
     }
     let (query_seconds, stats) = best.expect("at least one query");
     located.stats = stats;
+    // The gaps, once, timed on the slowest rank.
+    let gaps = match args.gap {
+        Some(d) => {
+            world.barrier();
+            let gap_start = Instant::now();
+            let mut gaps = Gaps::default();
+            agree(
+                world,
+                locator
+                    .gap_all_into(world, my_points, d, &mut gaps)
+                    .map_err(anyhow::Error::from),
+            )?;
+            let local = gap_start.elapsed().as_secs_f64();
+            let mut slowest = 0.0f64;
+            world.all_reduce_into(&local, &mut slowest, SystemOperation::max());
+            Some((gather_gaps(world, 0, &gaps), slowest))
+        }
+        None => None,
+    };
 
     // Rank 0 gathers the answers and writes them; every rank learns whether it could.
     let gathered = gather_located(world, 0, &located);
-    let written = match (&gathered, &args.out) {
-        (Some((answers, tried)), Some(out)) => {
+    let written = match (&gathered, &args.out, &gaps) {
+        // One row per point, with its gap columns (as `cgcontact locate --gap` writes them).
+        (Some((answers, tried)), Some(out), Some((Some(gaps), _))) => {
+            let one = answers.iter().map(|a| match a {
+                Ok(Some(hit)) => std::slice::from_ref(hit),
+                _ => &[],
+            });
+            write_owner_rows(out, one, tried, |c| mesh.cells.input_cell(c), Some(gaps))
+                .with_context(|| format!("{}: cannot write the results", out.display()))
+        }
+        (Some((answers, tried)), Some(out), _) => {
             write_results_counted(out, answers, tried, &mesh.cells)
                 .with_context(|| format!("{}: cannot write the results", out.display()))
         }
@@ -281,6 +316,7 @@ fn locate(world: &SimpleCommunicator, args: &LocateArgs) -> Result<(), Failure> 
                 blocks: distributed.stats().blocks,
                 read_seconds,
                 query_seconds,
+                gap_seconds: gaps.as_ref().map(|(_, seconds)| *seconds),
                 total_seconds: start.elapsed().as_secs_f64(),
                 per_rank: &all,
             },
@@ -300,6 +336,11 @@ fn check_args(args: &LocateArgs) -> Result<()> {
     }
     if args.threads == 0 {
         bail!("--threads 0: at least one thread searches");
+    }
+    if let Some(d) = args.gap
+        && !(d.is_finite() && d >= 0.0)
+    {
+        bail!("--gap {d}: the search distance must be a finite number at least 0");
     }
     if let Some(out) = &args.out {
         for (flag, input) in [("--mesh", &args.mesh), ("--points", &args.points)] {
@@ -345,6 +386,8 @@ struct Summary<'a> {
     blocks: usize,
     read_seconds: f64,
     query_seconds: f64,
+    /// The gap query's time on the slowest rank, with `--gap`.
+    gap_seconds: Option<f64>,
     total_seconds: f64,
     per_rank: &'a [f64],
 }
@@ -364,7 +407,7 @@ fn print_summary(args: &LocateArgs, s: &Summary<'_>) {
             })
             .collect();
         println!(
-            "{{\"ranks\": {}, \"partition\": \"{}\", \"block\": {}, \"threads\": {}, \"points\": {}, \"located\": {}, \"cells\": {}, \"blocks\": {}, \"read_seconds\": {}, \"query_seconds\": {}, \"points_per_second\": {}, \"total_seconds\": {}, \"per_rank\": [{}]}}",
+            "{{\"ranks\": {}, \"partition\": \"{}\", \"block\": {}, \"threads\": {}, \"points\": {}, \"located\": {}, \"cells\": {}, \"blocks\": {}, \"read_seconds\": {}, \"query_seconds\": {}, \"points_per_second\": {}, \"gap_seconds\": {}, \"total_seconds\": {}, \"per_rank\": [{}]}}",
             s.ranks,
             args.partition.name(),
             args.block,
@@ -376,6 +419,8 @@ fn print_summary(args: &LocateArgs, s: &Summary<'_>) {
             s.read_seconds,
             s.query_seconds,
             s.points as f64 / s.query_seconds.max(1e-12),
+            s.gap_seconds
+                .map_or_else(|| "null".to_owned(), |t| t.to_string()),
             s.total_seconds,
             ranks.join(", ")
         );
@@ -396,6 +441,9 @@ fn print_summary(args: &LocateArgs, s: &Summary<'_>) {
         s.points as f64 / s.query_seconds.max(1e-12),
         s.read_seconds
     );
+    if let Some(t) = s.gap_seconds {
+        println!("gap query {:.3} ms, slowest rank", 1e3 * t);
+    }
     for (rank, row) in rows.iter().enumerate() {
         println!(
             "rank {rank}: setup {:.3} ms ({} cells own, {} local); points {} asked, {} searched; routing {:.3} ms, search {:.3} ms, return {:.3} ms; sent {} + {} messages, {} + {} bytes",

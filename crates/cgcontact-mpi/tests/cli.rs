@@ -152,35 +152,53 @@ fn results_files_are_byte_for_byte_those_of_cgcontact_locate() {
             .arg("--out")
             .arg(&serial));
         let want = std::fs::read(&serial).unwrap();
-        for ranks in 1..=4 {
-            for partition in ["slabs", "morton", "random"] {
-                let out = folder.join(format!("mpi-{ranks}-{partition}.csv"));
-                let args = [
-                    "locate",
-                    "--quiet",
-                    "--partition",
-                    partition,
-                    "--mesh",
-                    mesh.to_str().unwrap(),
-                    "--points",
-                    points.to_str().unwrap(),
-                    "--out",
-                    out.to_str().unwrap(),
-                ];
-                let result = mpirun(ranks, &args);
-                assert!(
-                    result.status.success(),
-                    "{name}, {ranks} ranks, {partition}: {}",
-                    String::from_utf8_lossy(&result.stderr)
-                );
-                let got = std::fs::read(&out).unwrap();
-                assert!(
-                    got == want,
-                    "{name}, {ranks} ranks, {partition}: {} differs from {}",
-                    out.display(),
-                    serial.display()
-                );
-            }
+        // With gaps (within about two cells of these scenes): the same columns as `cgcontact
+        // locate --gap`.
+        let gap = "0.6";
+        let serial_gaps = folder.join("serial-gaps.csv");
+        run(Command::new(&bin)
+            .args(["locate", "--quiet", "--gap", gap, "--mesh"])
+            .arg(&mesh)
+            .arg("--points")
+            .arg(&points)
+            .arg("--out")
+            .arg(&serial_gaps));
+        let want_gaps = std::fs::read(&serial_gaps).unwrap();
+        let runs = (1..=4)
+            .flat_map(|ranks| ["slabs", "morton", "random"].map(|p| (ranks, p, false)))
+            .chain([(1, "slabs", true), (3, "slabs", true), (2, "random", true)]);
+        for (ranks, partition, gaps) in runs {
+            let out = folder.join(format!("mpi-{ranks}-{partition}-{gaps}.csv"));
+            let mut args = vec![
+                "locate",
+                "--quiet",
+                "--partition",
+                partition,
+                "--mesh",
+                mesh.to_str().unwrap(),
+                "--points",
+                points.to_str().unwrap(),
+                "--out",
+                out.to_str().unwrap(),
+            ];
+            let want = if gaps {
+                args.extend(["--gap", gap]);
+                &want_gaps
+            } else {
+                &want
+            };
+            let result = mpirun(ranks, &args);
+            assert!(
+                result.status.success(),
+                "{name}, {ranks} ranks, {partition}: {}",
+                String::from_utf8_lossy(&result.stderr)
+            );
+            let got = std::fs::read(&out).unwrap();
+            assert!(
+                &got == want,
+                "{name}, {ranks} ranks, {partition}, gaps {gaps}: {} differs from the serial file",
+                out.display(),
+            );
         }
     }
 }

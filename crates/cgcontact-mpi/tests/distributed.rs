@@ -11,8 +11,11 @@ use std::process::Command;
 use std::time::{Duration, Instant};
 
 use cgcontact::glam::DVec3;
-use cgcontact::{Answer, Body, CellId, Lattice, LatticeLocator, Locator, PointError, Settings};
-use cgcontact_mpi::{Config, DistributedBody, Error, Located, OwnedCell, Partition};
+use cgcontact::{
+    Answer, Body, CellId, GapAnswer, GapFinder, Lattice, LatticeLocator, Locator, PointError,
+    Settings,
+};
+use cgcontact_mpi::{Config, DistributedBody, Error, Gaps, Located, OwnedCell, Partition};
 use cgcontact_scenes::{SphereOnBlock, known_points};
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
@@ -94,6 +97,14 @@ fn rank() {
             }
         }
     }
+    let mut gaps = 0usize;
+    for case in cases() {
+        for partition in Partition::ALL {
+            for placement in [Placement::Split, Placement::MostlyOwn] {
+                gaps += check_gaps(&world, &case, partition, placement);
+            }
+        }
+    }
     refusals_agree(&world);
     let mut total = 0usize;
     world.all_reduce_into(
@@ -110,10 +121,16 @@ fn rank() {
     if size > 1 && patched_total == 0 {
         fail(&world, "no query searched in place with points leaving");
     }
+    let mut gaps_total = 0usize;
+    world.all_reduce_into(
+        &gaps,
+        &mut gaps_total,
+        mpi::collective::SystemOperation::sum(),
+    );
     if world.rank() == 0 {
         println!(
             "{size} ranks: {total} answers bitwise the serial ones ({patched_total} in-place \
-             queries with points leaving)"
+             queries with points leaving), and {gaps_total} gap answers"
         );
     }
 }
@@ -146,16 +163,7 @@ fn check(
     let (rank, size) = (world.rank() as usize, world.size() as usize);
     let lattice = *case.body.lattice();
     let cells: Vec<CellId> = case.body.active_cells().collect();
-    let owners = partition.owners(&lattice, &cells, size);
-    let mine: Vec<OwnedCell> = cells
-        .iter()
-        .zip(&owners)
-        .filter(|&(_, &r)| r == rank)
-        .map(|(&cell, _)| OwnedCell {
-            cell,
-            u: case.body.cell_displacements(cell).expect("an active cell"),
-        })
-        .collect();
+    let mine = cells_of(case, partition, rank, size);
     let config = Config {
         block,
         ..Config::default()
@@ -167,32 +175,7 @@ fn check(
     );
     let distributed = DistributedBody::new(world, lattice, &mine, config)
         .unwrap_or_else(|e| fail(world, &format!("{what}: setup: {e}")));
-    let all = 0..case.points.len();
-    let range = match placement {
-        Placement::Split => {
-            let n = case.points.len();
-            rank * n / size..(rank + 1) * n / size
-        }
-        Placement::AllOnLast if rank == size - 1 => all,
-        Placement::AllOnLast => 0..0,
-        Placement::Own | Placement::MostlyOwn => all,
-    };
-    let points: Vec<DVec3> = match placement {
-        Placement::Own | Placement::MostlyOwn => case
-            .points
-            .iter()
-            .copied()
-            .enumerate()
-            .filter(|&(i, x)| match distributed.home_of(x) {
-                Some(home) => {
-                    home as usize == rank || (placement == Placement::MostlyOwn && i % 200 == 0)
-                }
-                None => rank == 0,
-            })
-            .map(|(_, x)| x)
-            .collect(),
-        _ => case.points[range].to_vec(),
-    };
+    let points = share(&case.points, &distributed, placement, rank, size);
     let points = &points[..];
     // A rank whose points leave, but few enough (at most one in 32) for the in-place search
     // with patched answers.
@@ -245,6 +228,150 @@ fn check(
         }
     }
     (points.len(), patched)
+}
+
+/// Gap queries within four cells of the case's widest spacing, on a body set up for that distance,
+/// against the serial `GapFinder` on the whole body, bit for bit: the case's points and the same
+/// moved by about half a cell (many outside the body, within the distance of its surface).
+/// Returns how many were checked.
+fn check_gaps(
+    world: &SimpleCommunicator,
+    case: &Case,
+    partition: Partition,
+    placement: Placement,
+) -> usize {
+    let (rank, size) = (world.rank() as usize, world.size() as usize);
+    let lattice = *case.body.lattice();
+    let h = lattice.h();
+    let distance = 4.0 * h.max_element();
+    let what = format!(
+        "{} / {} / gaps / {placement:?} on rank {rank} of {size}",
+        case.name,
+        partition.name()
+    );
+    let config = Config {
+        gap_distance: distance,
+        ..Config::default()
+    };
+    let mine = cells_of(case, partition, rank, size);
+    let distributed = DistributedBody::new(world, lattice, &mine, config)
+        .unwrap_or_else(|e| fail(world, &format!("{what}: setup: {e}")));
+    let moved: Vec<DVec3> = case
+        .points
+        .iter()
+        .flat_map(|&x| [x, x + h * DVec3::new(0.6, -0.45, 0.55)])
+        .collect();
+    let points = share(&moved, &distributed, placement, rank, size);
+    let locator = distributed
+        .locator()
+        .unwrap_or_else(|e| fail(world, &format!("{what}: locator: {e}")));
+    // Buffers reused: first the points reversed, then the points.
+    let mut gaps = Gaps::default();
+    let reversed: Vec<DVec3> = points.iter().rev().copied().collect();
+    for query in [&reversed, &points] {
+        locator
+            .gap_all_into(world, query, distance, &mut gaps)
+            .unwrap_or_else(|e| fail(world, &format!("{what}: {e}")));
+    }
+    let serial = LatticeLocator::new(&case.body, Settings::default()).expect("default settings");
+    let finder = GapFinder::new(&serial, distance).expect("a valid distance");
+    let mut expected = Vec::new();
+    finder.gap_all_into(&points, &mut expected);
+    let mut contacts = 0;
+    for (i, (x, (got, want))) in points
+        .iter()
+        .zip(gaps.answers.iter().zip(&expected))
+        .enumerate()
+    {
+        if gap_bits(got) != gap_bits(want) {
+            fail(
+                world,
+                &format!(
+                    "{what}: this rank's point {i} at {x}: distributed {got:?}, serial {want:?}"
+                ),
+            );
+        }
+        contacts += usize::from(matches!(want, Ok(Some(c)) if c.gap > 0.0));
+    }
+    // Points outside within the distance are part of what is checked.
+    let mut outside = 0usize;
+    world.all_reduce_into(
+        &contacts,
+        &mut outside,
+        mpi::collective::SystemOperation::sum(),
+    );
+    if outside == 0 {
+        fail(
+            world,
+            &format!("{what}: no point outside the body within the distance"),
+        );
+    }
+    points.len()
+}
+
+/// A gap answer's fields as bits.
+type GapBits = (Vec<u64>, u32, u8, bool);
+
+fn gap_bits(answer: &GapAnswer) -> Result<Option<GapBits>, PointError> {
+    answer.map(|c| {
+        c.map(|c| {
+            let mut words = vec![c.gap.to_bits(), c.st.x.to_bits(), c.st.y.to_bits()];
+            words.extend(c.point.to_array().map(f64::to_bits));
+            words.extend(c.normal.to_array().map(f64::to_bits));
+            (words, c.face.cell.0, c.face.local, c.interior)
+        })
+    })
+}
+
+/// The cells `partition` gives `rank` of `size`, with their displacements.
+fn cells_of(case: &Case, partition: Partition, rank: usize, size: usize) -> Vec<OwnedCell> {
+    let lattice = *case.body.lattice();
+    let cells: Vec<CellId> = case.body.active_cells().collect();
+    let owners = partition.owners(&lattice, &cells, size);
+    cells
+        .iter()
+        .zip(&owners)
+        .filter(|&(_, &r)| r == rank)
+        .map(|(&cell, _)| OwnedCell {
+            cell,
+            u: case.body.cell_displacements(cell).expect("an active cell"),
+        })
+        .collect()
+}
+
+/// The points `rank` of `size` asks about under `placement`.
+fn share(
+    all_points: &[DVec3],
+    distributed: &DistributedBody,
+    placement: Placement,
+    rank: usize,
+    size: usize,
+) -> Vec<DVec3> {
+    let all = 0..all_points.len();
+    let range = match placement {
+        Placement::Split => {
+            let n = all_points.len();
+            rank * n / size..(rank + 1) * n / size
+        }
+        Placement::AllOnLast if rank == size - 1 => all,
+        Placement::AllOnLast => 0..0,
+        Placement::Own | Placement::MostlyOwn => all,
+    };
+    match placement {
+        Placement::Own | Placement::MostlyOwn => all_points
+            .iter()
+            .copied()
+            .enumerate()
+            .filter(|&(i, x)| match distributed.home_of(x) {
+                Some(home) => {
+                    home as usize == rank || (placement == Placement::MostlyOwn && i % 200 == 0)
+                }
+                None => rank == 0,
+            })
+            .map(|(_, x)| x)
+            .collect(),
+        _ => all_points[range].to_vec(),
+    }
 }
 
 /// A bad cell on one rank, or a cell on two: every rank gets an error, none hangs.
