@@ -580,21 +580,16 @@ impl DistributedLocator<'_> {
             stats,
             scratch,
         } = out;
-        *stats = QueryStats {
-            points: points.len(),
-            ..QueryStats::default()
-        };
+        let route = self.route(comm, points, scratch, stats);
         let Scratch {
-            homes,
             slots,
             work,
             send,
             back,
             found,
+            homes,
         } = scratch;
         let local = self.local.as_ref();
-
-        let route = self.route(comm, points, homes, slots, work, stats);
         let Route {
             own,
             leaving,
@@ -742,27 +737,15 @@ impl DistributedLocator<'_> {
             scratch,
             found,
         } = out;
-        *stats = QueryStats {
-            points: points.len(),
-            ..QueryStats::default()
-        };
+        let route = self.route(comm, points, scratch, stats);
+        let (own, leaving, recv) = (route.own, route.leaving, route.recv);
         let Scratch {
-            homes,
             slots,
             work,
             send,
             back,
             ..
         } = scratch;
-        let route = self.route(comm, points, homes, slots, work, stats);
-        let Route {
-            own,
-            leaving,
-            recv,
-            in_place,
-            own_here,
-            ..
-        } = route;
 
         // The points received first, their answers sent back; then this rank's own.
         let start = Instant::now();
@@ -771,7 +754,7 @@ impl DistributedLocator<'_> {
         found.clear();
         if let Some(finder) = &finder {
             let searching = Instant::now();
-            finder.gap_all_into(&work[leaving + own_here..], found);
+            finder.gap_all_into(&work[leaving + route.own_here..], found);
             search += searching.elapsed();
         }
         for answer in found.iter() {
@@ -779,7 +762,7 @@ impl DistributedLocator<'_> {
         }
         route.send_back(comm, send, back, GAP_WORDS, &mut stats.returned);
         let searching = Instant::now();
-        if in_place {
+        if route.in_place {
             match &finder {
                 Some(finder) => finder.gap_all_into(points, answers),
                 // Every point here has no home or leaves.
@@ -821,18 +804,23 @@ impl DistributedLocator<'_> {
     /// Routing: each point's bucket (its home, or `size` for no home), counted; the counts
     /// exchanged; the points grouped by bucket in one branch-free pass (a stable counting sort)
     /// that notes where each one's answer will be; the groups sent as f64 words straight from,
-    /// and received straight into, `work`, whose tail is the batch the local search reads. Fills
-    /// the routing half of `stats`.
+    /// and received straight into, `work`, whose tail is the batch the local search reads. Starts
+    /// `stats` afresh and fills its routing half.
     fn route<C: Communicator>(
         &self,
         comm: &C,
         points: &[DVec3],
-        homes: &mut Vec<u32>,
-        slots: &mut Vec<u32>,
-        work: &mut Vec<DVec3>,
+        scratch: &mut Scratch,
         stats: &mut QueryStats,
     ) -> Route {
         let start = Instant::now();
+        *stats = QueryStats {
+            points: points.len(),
+            ..QueryStats::default()
+        };
+        let Scratch {
+            homes, slots, work, ..
+        } = scratch;
         let size = comm.size() as usize;
         let me = comm.rank() as usize;
         homes.clear();
