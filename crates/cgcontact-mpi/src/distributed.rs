@@ -123,7 +123,7 @@ pub struct QueryStats {
     pub searched: usize,
     /// Routing: each point's home, the points sorted by it and sent.
     pub routing_seconds: f64,
-    /// The local search of the points received.
+    /// The local search: this rank's own points and those received.
     pub search_seconds: f64,
     /// The answers encoded, sent back and put in input order.
     pub return_seconds: f64,
