@@ -4,7 +4,8 @@
 //! -np P` for P = 1, 2, 3, 4 and fails when any run fails. Started by mpirun (Open MPI sets
 //! `OMPI_COMM_WORLD_SIZE`), it is one rank: on every scene, partition and block size, each rank's
 //! answers must be bitwise those of the serial `LatticeLocator` on the whole body (cell, ξ,
-//! iterations, residual, inversions, and the inversions tried by points not found). A mismatch
+//! iterations, residual, inversions, and the inversions tried by points not found), and its gap
+//! answers those of the serial `GapFinder` (gap, closest point, normal, face, (s, t)). A mismatch
 //! aborts every rank with a message naming the point.
 
 use std::process::Command;
