@@ -46,6 +46,29 @@ enum Cells {
     Sparse { cells: Vec<u32>, set: IdMap },
 }
 
+/// A body's active cells, decoded once ([`Body::active_set`]).
+#[derive(Clone, Copy)]
+pub(crate) struct ActiveSet<'a> {
+    /// The mask's words and its length in bits, when the body keeps a mask.
+    words: Option<(&'a [usize], usize)>,
+    body: &'a Body,
+}
+
+impl ActiveSet<'_> {
+    /// [`Body::is_active`].
+    #[inline]
+    pub(crate) fn contains(&self, cell: CellId) -> bool {
+        match self.words {
+            Some((words, len)) => {
+                let i = cell.index();
+                let word = words.get(i / usize::BITS as usize).copied().unwrap_or(0);
+                i < len && (word >> (i % usize::BITS as usize)) & 1 == 1
+            }
+            None => self.body.is_active(cell),
+        }
+    }
+}
+
 /// A body meshed on a cartesian lattice and deformed by nodal displacements.
 #[derive(Clone, Debug)]
 pub struct Body {
@@ -220,6 +243,19 @@ impl Body {
                 i < mask.len() && (word >> (i % usize::BITS as usize)) & 1 == 1
             }
             Cells::Sparse { .. } => self.is_active_sparse(cell),
+        }
+    }
+
+    /// The active cells, for loops that test many: [`Body::is_active`] decodes the bit mask at
+    /// every call, this once.
+    #[inline]
+    pub(crate) fn active_set(&self) -> ActiveSet<'_> {
+        ActiveSet {
+            words: match &self.cells {
+                Cells::Mask(mask) => Some((mask.as_raw_slice(), mask.len())),
+                Cells::Sparse { .. } => None,
+            },
+            body: self,
         }
     }
 

