@@ -595,9 +595,9 @@ impl DistributedLocator<'_> {
             leaving,
             recv,
             in_place,
-            own_here,
             ..
         } = route;
+        let own_here = route.own_here();
         let me = comm.rank() as usize;
 
         // Search and return. First the points received, a piece at a time, each piece's answers
@@ -754,7 +754,7 @@ impl DistributedLocator<'_> {
         found.clear();
         if let Some(finder) = &finder {
             let searching = Instant::now();
-            finder.gap_all_into(&work[leaving + route.own_here..], found);
+            finder.gap_all_into(&work[leaving + route.own_here()..], found);
             search += searching.elapsed();
         }
         for answer in found.iter() {
@@ -847,6 +847,7 @@ impl DistributedLocator<'_> {
         // left are then replaced by those that come back: the local search answers any point,
         // and a leaving point's local answer costs less than grouping every point.
         let in_place = leaving * IN_PLACE_SHARE <= points.len();
+        // The own points in `work` (`Route::own_here`).
         let own_here = if in_place { 0 } else { own };
         assert!(
             u32::try_from(points.len() + recv).is_ok(),
@@ -914,7 +915,6 @@ impl DistributedLocator<'_> {
             leaving,
             recv,
             in_place,
-            own_here,
             sent,
             from,
         }
@@ -930,14 +930,17 @@ struct Route {
     /// All of this rank's points are searched where they lie (at most one in
     /// [`IN_PLACE_SHARE`] leaves); else they are grouped, own ones in `work`.
     in_place: bool,
-    /// The own points in `work`: `own` when grouped, else 0.
-    own_here: usize,
     /// Points sent to each rank, and received from each.
     sent: Vec<usize>,
     from: Vec<usize>,
 }
 
 impl Route {
+    /// The own points in `work`: all of them when grouped, none when searched in place.
+    fn own_here(&self) -> usize {
+        if self.in_place { 0 } else { self.own }
+    }
+
     /// Collective: the answers of the points received (`send`, `words` words each, in the order
     /// received) back to the ranks that sent them; those of this rank's leaving points into
     /// `back`, in the order they left. Each rank knows how many answers it sends and gets back,
