@@ -318,25 +318,57 @@ impl<'a> AdaptiveLocator<'a> {
         let w = reach::widening(body.lattice().h(), range.high - range.low, tau);
         let low = t_x - (range.high + w) * self.inv_h;
         let high = t_x - (range.low - w) * self.inv_h;
-        // Only the leaves whose own deformed corners can reach x: usually none to a few.
-        let mut candidates: SmallVec<[(f64, u32, Leaf); 16]> = SmallVec::new();
-        body.forest.for_each_in_box(low, high, |id, leaf| {
-            if Some(id) == first {
-                return;
-            }
+        let reaches = |id: u32, leaf: Leaf| {
             let u = body.leaf_displacements(id);
-            if !reach::cell_reaches(
+            reach::cell_reaches(
                 x - body.leaf_origin(leaf),
                 body.spacing(leaf.level),
                 &u,
                 tau,
-            ) {
-                return;
-            }
-            let size = 0.5f64.powi(i32::from(leaf.level));
+            )
+            .then_some(u)
+        };
+        // The leaf's box (base lattice units) and the distance from the guess to it: the
+        // candidates' order.
+        let bounds = |leaf: Leaf| {
+            let size = level_size(leaf.level);
             let [i, j, k] = leaf.ijk;
             let lo = DVec3::new(f64::from(i), f64::from(j), f64::from(k)) * size;
-            let gap = (lo - t_guess).max(t_guess - (lo + size)).max(DVec3::ZERO);
+            (lo, lo + size)
+        };
+        // The leaf holding the refined guess in its interior is the first candidate of the order
+        // below when it is one (it meets the box, its corners reach x, it is not `first`): no
+        // other leaf is at distance 0. It is tried before the others are gathered, and holds x
+        // most often; the answer is the same (the same leaves in the same order).
+        let mut tried = first;
+        if let Some((id, leaf)) = body.forest.leaf_at(t_guess)
+            && Some(id) != first
+        {
+            let (lo, hi) = bounds(leaf);
+            if t_guess.cmpgt(lo).all()
+                && t_guess.cmplt(hi).all()
+                && lo.cmple(high).all()
+                && hi.cmpge(low).all()
+                && let Some(u) = reaches(id, leaf)
+            {
+                let hit = self.visit::<K>(x, id, leaf, &u, t_guess, options, collect, inversions);
+                if hit.is_some() {
+                    return hit;
+                }
+                tried = Some(id);
+            }
+        }
+        // Only the leaves whose own deformed corners can reach x: usually none to a few.
+        let mut candidates: SmallVec<[(f64, u32, Leaf); 16]> = SmallVec::new();
+        body.forest.for_each_in_box(low, high, |id, leaf| {
+            if Some(id) == first || Some(id) == tried {
+                return;
+            }
+            if reaches(id, leaf).is_none() {
+                return;
+            }
+            let (lo, hi) = bounds(leaf);
+            let gap = (lo - t_guess).max(t_guess - hi).max(DVec3::ZERO);
             candidates.push((gap.max_element(), id, leaf));
         });
         candidates.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
@@ -349,6 +381,12 @@ impl<'a> AdaptiveLocator<'a> {
         }
         None
     }
+}
+
+/// The edge of a level-`level` cell in base lattice units, 2^−level (exact).
+#[inline(always)]
+pub(super) fn level_size(level: u8) -> f64 {
+    f64::from_bits((1023 - u64::from(level)) << 52)
 }
 
 /// Points per group of the grouped path: enough independent memory chains to overlap their misses
@@ -548,15 +586,13 @@ impl AdaptiveLocator<'_> {
             }
         }
         let mut found = 0;
+        // The leaf at the guess, per lane (below).
+        let mut first = at;
         if take != 0 {
-            let corners_of = |leaves: &[(u32, Leaf); MAX_W]| {
-                let mut rows = [[0u32; 8]; MAX_W];
-                for l in 0..V::W {
-                    rows[l] = body.leaf_nodes(leaves[l].0, leaves[l].1);
-                }
-                rows
-            };
-            let rows = corners_of(&at);
+            let mut rows = [[0u32; 8]; MAX_W];
+            for l in 0..V::W {
+                rows[l] = body.leaf_nodes(at[l].0, at[l].1);
+            }
             let mut maps = Maps::<V>::from_nodes(|l, c| &nodes[rows[l][c] as usize]);
             // The guess x − ũ, ũ interpolated at x in x's leaf (`guess`), in lanes.
             let xi = lanes3::<V::Wide>(|l| {
@@ -565,8 +601,8 @@ impl AdaptiveLocator<'_> {
             });
             let t_x_lanes = lanes3::<V::Wide>(|l| t_x[l]);
             let t_guess = t_x_lanes - maps.map(V3::narrow(xi)).widen().mul_each(self.inv_h);
-            // The leaf at the guess, per lane; its map is x's leaf's unless some lane moved.
-            let mut first = at;
+            // The leaf at the guess, per lane; its map is x's leaf's unless the lane moved, and
+            // only the lanes that moved get their corners anew.
             let mut moved = false;
             for l in 0..V::W {
                 if take & (1 << l) == 0 {
@@ -574,14 +610,16 @@ impl AdaptiveLocator<'_> {
                 }
                 match body.forest.leaf_at(t_guess.lane(l)) {
                     Some(leaf) => {
-                        moved |= leaf.0 != at[l].0;
-                        first[l] = leaf;
+                        if leaf.0 != at[l].0 {
+                            moved = true;
+                            first[l] = leaf;
+                            rows[l] = body.leaf_nodes(leaf.0, leaf.1);
+                        }
                     }
                     None => take &= !(1 << l),
                 }
             }
             if moved {
-                let rows = corners_of(&first);
                 maps = Maps::from_nodes(|l, c| &nodes[rows[l][c] as usize]);
             }
             if take != 0 {
@@ -1024,5 +1062,133 @@ mod tests {
         check(&[Settings::default(), Settings::f32()], |l, p, o| unsafe {
             l.locate_chunk_avx512(p, o)
         });
+    }
+
+    /// The search as documented, without the shortcut of `search_box`: the predicted leaf, then
+    /// every other leaf of the box whose corners reach x, by distance to the refined guess and id.
+    fn documented_search<K: Kernel>(locator: &AdaptiveLocator<'_>, x: DVec3) -> Answer {
+        let Some(inside_tol) = locator.admit.admit(x)? else {
+            return Ok(None);
+        };
+        let options = NewtonOptions {
+            inside_tol,
+            ..locator.newton
+        };
+        let body = locator.body;
+        let predicted = locator.settings.order == CandidateOrder::Predicted;
+        let t_x = (x - body.lattice().origin()) * locator.inv_h;
+        let mut t_guess = if predicted {
+            locator.guess::<K>(t_x, t_x).0
+        } else {
+            t_x
+        };
+        let mut inversions = 0;
+        let mut collect = Collect::First;
+        let first = body.forest.leaf_at(t_guess);
+        if let Some((id, leaf)) = first {
+            let u = body.leaf_displacements(id);
+            let hit = locator.visit::<K>(
+                x,
+                id,
+                leaf,
+                &u,
+                t_guess,
+                &options,
+                &mut collect,
+                &mut inversions,
+            );
+            if hit.is_some() {
+                return Ok(hit);
+            }
+        }
+        if predicted {
+            for _ in 0..2 {
+                t_guess = locator.guess::<K>(t_x, t_guess).0;
+            }
+        }
+        let tau = options.inside_tol;
+        let range = locator.u_range;
+        let w = reach::widening(body.lattice().h(), range.high - range.low, tau);
+        let low = t_x - (range.high + w) * locator.inv_h;
+        let high = t_x - (range.low - w) * locator.inv_h;
+        let mut candidates = Vec::new();
+        body.forest.for_each_in_box(low, high, |id, leaf| {
+            let u = body.leaf_displacements(id);
+            let origin = x - body.leaf_origin(leaf);
+            if Some(id) != first.map(|f| f.0)
+                && reach::cell_reaches(origin, body.spacing(leaf.level), &u, tau)
+            {
+                let size = 0.5f64.powi(i32::from(leaf.level));
+                let lo = DVec3::from_array(leaf.ijk.map(f64::from)) * size;
+                let gap = (lo - t_guess).max(t_guess - (lo + size)).max(DVec3::ZERO);
+                candidates.push((gap.max_element(), id, leaf));
+            }
+        });
+        candidates.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        for (_, id, leaf) in candidates {
+            let u = body.leaf_displacements(id);
+            let hit = locator.visit::<K>(
+                x,
+                id,
+                leaf,
+                &u,
+                t_guess,
+                &options,
+                &mut collect,
+                &mut inversions,
+            );
+            if hit.is_some() {
+                return Ok(hit);
+            }
+        }
+        Ok(None)
+    }
+
+    /// The scene with larger displacements than its own, so that many points miss their
+    /// predicted leaf (along x too, or not: then the guesses of points on the faces normal to x
+    /// lie exactly on those faces), and points on every corner, edge and face of every leaf.
+    fn scene_of_misses(along_x: bool) -> (AdaptiveBody, Vec<DVec3>) {
+        let (mut body, mut points) = scene();
+        let x_part = if along_x { 1.0 } else { 0.0 };
+        body.update_independent(|n, x, u| {
+            *u = DVec3::new(
+                x_part * (0.2 * (x.y * 7.0).sin() + 0.03 * (n % 5) as f64),
+                0.15 * (x.z * 9.0).cos(),
+                0.2 * (x.x * 5.0).sin(),
+            )
+        })
+        .unwrap();
+        for cell in 0..body.cell_count() as u32 {
+            for k in 0..27 {
+                let xi = DVec3::new((k % 3) as f64, (k / 3 % 3) as f64, (k / 9) as f64) - 1.0;
+                points.push(body.point_at(CellId(cell), xi).unwrap());
+            }
+        }
+        (body, points)
+    }
+
+    #[test]
+    fn the_search_answers_as_documented() {
+        for (along_x, order) in [true, false]
+            .into_iter()
+            .flat_map(|a| [CandidateOrder::Predicted, CandidateOrder::Undeformed].map(|o| (a, o)))
+        {
+            let (body, points) = scene_of_misses(along_x);
+            for base in [Settings::default(), Settings::f32()] {
+                let locator = AdaptiveLocator::new(&body, Settings { order, ..base }).unwrap();
+                let mut beyond_first = 0;
+                for &x in &points {
+                    let expected = match base.precision {
+                        Precision::F64 => documented_search::<Hex8Map>(&locator, x),
+                        Precision::F32 => documented_search::<Hex8Map32>(&locator, x),
+                    };
+                    assert_eq!(bits(&locator.locate(x)), bits(&expected), "at {x}");
+                    beyond_first +=
+                        usize::from(matches!(expected, Ok(Some(h)) if h.inversions > 1));
+                }
+                // The search past the predicted leaf is exercised.
+                assert!(beyond_first > 50, "{beyond_first}");
+            }
+        }
     }
 }

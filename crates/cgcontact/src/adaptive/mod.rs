@@ -254,7 +254,7 @@ impl AdaptiveBody {
     /// The spacing of level `level`'s lattice, h / 2^level (exact).
     #[must_use]
     pub fn spacing(&self, level: u8) -> DVec3 {
-        self.lattice.h() * 0.5f64.powi(i32::from(level))
+        self.lattice.h() * locate::level_size(level)
     }
 
     /// The undeformed lowest corner of `leaf`: o + ijk · h/2^level.

@@ -262,6 +262,13 @@ impl Nodes {
                 (owners[r], owners[r + 1].first)
             }
         };
+        self.in_record(owner, next, q, l)
+    }
+
+    /// The node of the owner `owner` (whose successor's first node is `next`) at local
+    /// coordinates `q` on level `l`'s lattice, if there is one.
+    #[inline(always)]
+    fn in_record(&self, owner: Owner, next: u32, q: [u32; 3], l: u32) -> Option<u32> {
         if owner.shape & LIST == 0 {
             let level = owner.shape & 31;
             let off = if level >= l {
@@ -299,26 +306,78 @@ impl Nodes {
         // Most often every corner's owner is full at the cell's level: the cell's own base cell,
         // or across its upper faces the next one (where the corner is at local 0). Then each
         // corner is its owner's first node plus its rank, computed for all 8 without a branch
-        // (8 independent loads of owner records, most of them the same), and checked once.
+        // from the 8 owner records b + e (e in {0, 1}³; b is a base cell, so all 8 are in the
+        // owner grid), and checked once.
         if let Owners::Dense(owners) = &self.owners {
+            let gx = self.grid[0] as usize;
+            let gxy = gx * self.grid[1] as usize;
+            let cell = b[0] as usize + gx * b[1] as usize + gxy * b[2] as usize;
+            let owner = |d: usize| owners.get(cell + d).copied().unwrap_or(EMPTY_OWNER);
+            let near = [
+                owner(0),
+                owner(1),
+                owner(gx),
+                owner(gx + 1),
+                owner(gxy),
+                owner(gxy + 1),
+                owner(gxy + gx),
+                owner(gxy + gx + 1),
+            ];
             let side = 1 << l;
-            let up = lo.map(|v| u32::from(v + 1 == side));
-            let cell = b[0] + self.grid[0] * (b[1] + self.grid[1] * b[2]);
-            let stride = [1, self.grid[0], self.grid[0] * self.grid[1]];
+            let (ux, uy, uz) = (lo[0] + 1 == side, lo[1] + 1 == side, lo[2] + 1 == side);
+            let up = u32::from(ux) | u32::from(uy) << 1 | u32::from(uz) << 2;
+            // Per axis, the rank's part of the corner's coordinate: at `lo`, and one step up (0
+            // where that step crosses into the next owner).
+            let (x0, y0, z0) = (lo[0], lo[1] << l, lo[2] << (2 * l));
+            let x1 = if ux { 0 } else { x0 + 1 };
+            let y1 = if uy { 0 } else { y0 + side };
+            let z1 = if uz { 0 } else { z0 + (side << l) };
+            let ranks = [
+                x0 + y0 + z0,
+                x1 + y0 + z0,
+                x1 + y1 + z0,
+                x0 + y1 + z0,
+                x0 + y0 + z1,
+                x1 + y0 + z1,
+                x1 + y1 + z1,
+                x0 + y1 + z1,
+            ];
+            // The owner of each corner (VTK order): bit a of its offset, where that step crosses.
+            const BITS: [u32; 8] = [0, 1, 3, 2, 4, 5, 7, 6];
             let mut nodes = [0u32; 8];
             let mut full = true;
-            for (node, off) in nodes.iter_mut().zip(CORNER_OFFSETS) {
-                let e = [0, 1, 2].map(|a| off[a] & up[a]);
-                let q = [0, 1, 2].map(|a| lo[a] + off[a] - (e[a] << l));
-                let at = cell + e[0] * stride[0] + e[1] * stride[1] + e[2] * stride[2];
-                // b is a base cell and e at most 1 per axis: `at` is in the owner grid.
-                let owner = owners.get(at as usize).copied().unwrap_or(EMPTY_OWNER);
+            for c in 0..8 {
+                let owner = near[(BITS[c] & up) as usize];
                 full &= owner.shape == l;
-                *node = owner.first + (q[0] | q[1] << l | q[2] << (2 * l));
+                nodes[c] = owner.first + ranks[c];
             }
             if full {
                 return nodes;
             }
+            // Else corner by corner from the same records (masked owners, full ones at another
+            // level); listing owners are searched as `in_owner` does.
+            for (c, node) in nodes.iter_mut().enumerate() {
+                let e = BITS[c] & up;
+                let off = CORNER_OFFSETS[c];
+                let q = [0, 1, 2].map(|a| {
+                    if off[a] == 0 {
+                        lo[a]
+                    } else if e >> a & 1 == 1 {
+                        0
+                    } else {
+                        lo[a] + 1
+                    }
+                });
+                let owner = near[e as usize];
+                *node = if owner.shape & LIST == 0 {
+                    self.in_record(owner, 0, q, l)
+                } else {
+                    let eb = [0, 1, 2].map(|a| b[a] + (e >> a & 1));
+                    self.in_owner(eb, q, l)
+                }
+                .unwrap_or(0);
+            }
+            return nodes;
         }
         let mut nodes = [0; 8];
         for (node, off) in nodes.iter_mut().zip(CORNER_OFFSETS) {
