@@ -20,11 +20,16 @@ fn main() -> Result<(), cgcontact::Error> {
         .find_map(|a| a.strip_prefix("points="))
         .map(|n| n.parse().expect("points=N with N a number"))
         .unwrap_or(1_000_000);
-    let settings = if has("f32") {
+    let mut settings = if has("f32") {
         Settings::f32()
     } else {
         Settings::default()
     };
+    if let Some(log2) = args.iter().find_map(|a| a.strip_prefix("blocked=")) {
+        settings.schedule = cgcontact::Schedule::Blocked {
+            log2_cells: log2.parse().expect("blocked=N with N a number"),
+        };
+    }
     // `big`: the `adaptive` bench's build scene (1.3 M nodes): a third of the base spacing.
     let (h, base) = if has("big") {
         (DVec3::splat(0.25 / 3.0), [60, 120, 60])

@@ -258,19 +258,19 @@ impl Forest {
         }
         let mut entry = self.base_entry(ijk);
         if Self::is_brick(entry) {
-            // The same steps as the tree's below, on the indices alone, then one load.
-            let base = ijk;
+            // Where the tree's steps below end, in one step: t · 2^L is exact (a power of two), so
+            // its floor is the cell the L comparisons choose; clamped into the base cell as they
+            // are (t beyond the lattice, NaN to the lowest).
             let brick_level = self.brick_level(entry);
-            let mut scale = 1.0;
-            for _ in 0..brick_level {
-                let next_scale = scale * 2.0;
-                for axis in 0..3 {
-                    let upper = t[axis] * next_scale >= f64::from(2 * ijk[axis] + 1);
-                    ijk[axis] = 2 * ijk[axis] + u32::from(upper);
-                }
-                scale = next_scale;
+            let scale = f64::from_bits((1023 + u64::from(brick_level)) << 52);
+            let top = (1 << brick_level) - 1;
+            let mut q = [0u32; 3];
+            for axis in 0..3 {
+                let low = ijk[axis] << brick_level;
+                let fine = (t[axis] * scale).max(0.0) as u32;
+                q[axis] = fine.saturating_sub(low).min(top);
+                ijk[axis] = low + q[axis];
             }
-            let q = [0, 1, 2].map(|a| ijk[a] - (base[a] << brick_level));
             let id = self.brick_leaf(entry, q);
             return Some((
                 id,
@@ -466,6 +466,25 @@ mod tests {
                     let t = DVec3::new(x, y, z);
                     assert_eq!(bricked.leaf_at(t), trees.leaf_at(t), "{t}");
                 }
+            }
+        }
+        // Far beyond the lattice, and not numbers: clamped as the trees clamp them.
+        let odd = [
+            f64::NAN,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            1e300,
+            -1e300,
+            5e9,
+            0.999,
+        ];
+        for (a, b) in odd.iter().flat_map(|&a| odd.iter().map(move |&b| (a, b))) {
+            for t in [
+                DVec3::new(a, b, 0.4),
+                DVec3::new(0.2, a, b),
+                DVec3::new(b, 0.7, a),
+            ] {
+                assert_eq!(bricked.leaf_at(t), trees.leaf_at(t), "{t}");
             }
         }
         for q in (0..12u32 * 4 * 4).map(|i| [i % 12, (i / 12) % 8, i / 96]) {
