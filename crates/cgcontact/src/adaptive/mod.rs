@@ -691,9 +691,8 @@ impl AdaptiveBody {
 
     /// Stores (`true`) or drops (`false`) each leaf's 8 corner nodes: 32 bytes per leaf that the
     /// locators then read instead of computing the corners from the node numbering. On the
-    /// benchmarks' adaptive block the batched f32 locate ran 1.3× faster with it and the f64 one
-    /// within the VM's ±10 % noise, for about 28 more bytes per node (docs/benchmarks.md). Off
-    /// when a body is made.
+    /// benchmarks' adaptive block the batched locate ran 1.16× (f64) and 1.26× (f32) faster with
+    /// it, for about 28 more bytes per node (docs/benchmarks.md). Off when a body is made.
     /// The answers are the same, bitwise.
     pub fn set_corner_table(&mut self, on: bool) {
         self.corner_table = if on {
