@@ -35,7 +35,7 @@ use grid::configs;
 use measure::measure;
 use plot::plot;
 use report::{kept_reading, report};
-use scale::{measure_scale, scale_plot, scale_section};
+use scale::{Gslib, measure_scale, scale_plot, scale_section};
 use scenes::scenes;
 
 /// Measure the accuracy/speed trade of every strategy and setting on generated scenes.
@@ -43,6 +43,7 @@ use scenes::scenes;
 #[command(after_help = "Example:
   cgcontact tradeoff                 # the full report into docs/ (about 4 minutes on 2 cores)
   cgcontact tradeoff --quick --out /tmp/report
+  cgcontact tradeoff --gslib benches/gslib/run-2026-11-24.log   # with gslib's line
 
 Writes DIR/tradeoff.md (the table, the machine, the command), DIR/tradeoff.svg (throughput
 against ξ error, one mark per configuration) and DIR/scale.svg (points/s against cells, 16,000 to
@@ -58,6 +59,10 @@ pub struct TradeoffArgs {
     /// Worker threads of the "all threads" column [default: all cores].
     #[arg(long, value_name = "N")]
     threads: Option<usize>,
+    /// A log of benches/gslib/run.sh: adds gslib findpts's points/s on the same blocks to the
+    /// scale section and its plot.
+    #[arg(long, value_name = "LOG")]
+    gslib: Option<PathBuf>,
 }
 
 pub fn run(args: &TradeoffArgs) -> Result<()> {
@@ -73,6 +78,8 @@ pub fn run(args: &TradeoffArgs) -> Result<()> {
             .context("cannot start the worker threads")
     };
     let (one, all) = (pool(1)?, pool(threads)?);
+    // Read before the long measurements, so that a bad log fails at once.
+    let gslib = args.gslib.as_deref().map(Gslib::read).transpose()?;
     crate::output::prepare_folder("--out", &args.out)?;
 
     let started = Instant::now();
@@ -92,7 +99,7 @@ pub fn run(args: &TradeoffArgs) -> Result<()> {
     let scale = measure_scale(args.quick, &one, |m| bar.set_message(m))?;
     bar.finish_and_clear();
 
-    scale_plot(&args.out.join("scale.svg"), &scale)?;
+    scale_plot(&args.out.join("scale.svg"), &scale, gslib.as_ref())?;
     let svg = args.out.join("tradeoff.svg");
     let plotted = plot(&svg, &rows)?;
     let md = args.out.join("tradeoff.md");
@@ -108,7 +115,7 @@ pub fn run(args: &TradeoffArgs) -> Result<()> {
         plotted,
         reading,
     );
-    report.push_str(&scale_section(&scale));
+    report.push_str(&scale_section(&scale, gslib.as_ref()));
     crate::output::write_text(&md, &report)?;
     crate::output::say!(
         "{} configurations × {} scenes and {} sizes in {:.1} s; wrote {}, {} and scale.svg",

@@ -209,6 +209,9 @@ pub(super) fn report(
     if args.out != Path::new("docs") {
         let _ = write!(command, " --out {}", args.out.display());
     }
+    if let Some(log) = &args.gslib {
+        let _ = write!(command, " --gslib {}", log.display());
+    }
     let _ = writeln!(s, "# The accuracy/speed trade\n");
     let _ = writeln!(
         s,

@@ -8,7 +8,7 @@ use std::fmt::Write as _;
 use std::path::Path;
 use std::time::Duration;
 
-use anyhow::{Result, anyhow, bail};
+use anyhow::{Context, Result, anyhow, bail};
 use cgcontact::glam::DVec3;
 use cgcontact::{Answer, LatticeLocator, Locator, Schedule, Settings};
 use cgcontact_scenes::indented_block;
@@ -36,6 +36,66 @@ const LABELS: [&str; 5] = [
     "f32, random order, as given",
     "f32, random order, default schedule",
 ];
+
+/// gslib's `findpts` on the same blocks and points, one thread, read from a log of
+/// `benches/gslib/run.sh` (its own run, not this one): points/s per cell count.
+pub(super) struct Gslib {
+    /// The log's path and its first comment line (when and where it ran).
+    source: String,
+    pps: Vec<(usize, f64)>,
+}
+
+impl Gslib {
+    /// Reads the `gslib cells=N … points_per_s=P …` lines of the log at `path`.
+    pub(super) fn read(path: &Path) -> Result<Self> {
+        let name = path.display();
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("cannot read the gslib log {name}"))?;
+        let mut pps: Vec<(usize, f64)> = Vec::new();
+        for (n, line) in text.lines().enumerate() {
+            if !line.starts_with("gslib cells=") {
+                continue;
+            }
+            let field = |key: &str| {
+                line.split_whitespace()
+                    .find_map(|f| f.strip_prefix(key)?.strip_prefix('='))
+                    .ok_or_else(|| anyhow!("{name}:{}: no `{key}=` in a gslib line", n + 1))
+            };
+            let cells: usize = field("cells")?
+                .parse()
+                .ok()
+                .filter(|&c| c > 0)
+                .ok_or_else(|| anyhow!("{name}:{}: `cells` is not a cell count", n + 1))?;
+            let rate: f64 = field("points_per_s")?
+                .parse()
+                .ok()
+                .filter(|r: &f64| r.is_finite() && *r > 0.0)
+                .ok_or_else(|| anyhow!("{name}:{}: `points_per_s` is not a rate", n + 1))?;
+            if pps.iter().any(|&(c, _)| c == cells) {
+                bail!("{name}:{}: a second gslib run of {cells} cells", n + 1);
+            }
+            pps.push((cells, rate));
+        }
+        if pps.is_empty() {
+            bail!(
+                "{name}: no `gslib cells=… points_per_s=…` line: not a log of benches/gslib/run.sh"
+            );
+        }
+        let header = text
+            .lines()
+            .find_map(|l| l.strip_prefix("# "))
+            .unwrap_or("no header line");
+        Ok(Self {
+            source: format!("`{name}` ({header})"),
+            pps,
+        })
+    }
+
+    /// Points/s on the block of `cells` cells, if the log has it.
+    fn at(&self, cells: usize) -> Option<f64> {
+        self.pps.iter().find(|&&(c, _)| c == cells).map(|&(_, r)| r)
+    }
+}
 
 /// Blocks and point counts: tiny ones with `quick`.
 fn sizes(quick: bool) -> (Vec<[u32; 3]>, usize) {
@@ -114,8 +174,8 @@ pub(super) fn measure_scale(
     Ok(rows)
 }
 
-/// The markdown section.
-pub(super) fn scale_section(rows: &[ScaleRow]) -> String {
+/// The markdown section, with a column for gslib when its log was given.
+pub(super) fn scale_section(rows: &[ScaleRow], gslib: Option<&Gslib>) -> String {
     let mut s = String::new();
     let Some(first) = rows.first() else {
         return s;
@@ -133,19 +193,42 @@ pub(super) fn scale_section(rows: &[ScaleRow]) -> String {
         first.points,
         Schedule::AUTO_BYTES >> 20,
     );
+    if let Some(gslib) = gslib {
+        let _ = writeln!(
+            s,
+            "*gslib findpts*: gslib's `findpts` on the same blocks and points, one thread, from \
+             {}, written by `benches/gslib/run.sh` ([gslib.md](gslib.md)): another run than \
+             this report's, so compare orders of magnitude.\n",
+            gslib.source
+        );
+    }
     let _ = write!(s, "| cells | f64 displacements MB |");
     for label in LABELS {
         let _ = write!(s, " {label} pts/s |");
+    }
+    if gslib.is_some() {
+        let _ = write!(s, " gslib findpts pts/s |");
     }
     let _ = writeln!(
         s,
         " vs smallest (f64, default) | f32 / f64 (default) | wrong cells |"
     );
-    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|---|");
+    let columns = 5 + LABELS.len() + usize::from(gslib.is_some());
+    let _ = writeln!(s, "|{}", "---|".repeat(columns));
     for r in rows {
         let _ = write!(s, "| {} | {:.1} |", r.cells, r.bytes as f64 / 1e6);
         for pps in r.pps {
             let _ = write!(s, " {:.2} M |", pps / 1e6);
+        }
+        if let Some(gslib) = gslib {
+            match gslib.at(r.cells) {
+                Some(pps) => {
+                    let _ = write!(s, " {:.2} M |", pps / 1e6);
+                }
+                None => {
+                    let _ = write!(s, " not in the log |");
+                }
+            }
         }
         let _ = writeln!(
             s,
@@ -159,8 +242,9 @@ pub(super) fn scale_section(rows: &[ScaleRow]) -> String {
     s
 }
 
-/// Write `scale.svg`: points/s (1 thread) against cells, log–log, one line per column.
-pub(super) fn scale_plot(path: &Path, rows: &[ScaleRow]) -> Result<()> {
+/// Write `scale.svg`: points/s (1 thread) against cells, log–log, one line per column, and one for
+/// gslib at the sizes its log has.
+pub(super) fn scale_plot(path: &Path, rows: &[ScaleRow], gslib: Option<&Gslib>) -> Result<()> {
     if rows.is_empty() {
         bail!("no size ran");
     }
@@ -171,7 +255,15 @@ pub(super) fn scale_plot(path: &Path, rows: &[ScaleRow]) -> Result<()> {
         root.fill(&WHITE).map_err(|e| fail(&e))?;
         let x_lo = rows.iter().map(|r| r.cells).min().unwrap_or(1) as f64 / 1.5;
         let x_hi = rows.iter().map(|r| r.cells).max().unwrap_or(1) as f64 * 1.5;
-        let all = rows.iter().flat_map(|r| r.pps);
+        let gslib_line: Vec<(f64, f64)> = gslib.map_or_else(Vec::new, |g| {
+            rows.iter()
+                .filter_map(|r| Some((r.cells as f64, g.at(r.cells)?)))
+                .collect()
+        });
+        let all = rows
+            .iter()
+            .flat_map(|r| r.pps)
+            .chain(gslib_line.iter().map(|p| p.1));
         let y_hi = all.clone().fold(0.0, f64::max) * 1.5;
         let y_lo = all.fold(f64::INFINITY, f64::min) / 1.5;
         let mut chart = ChartBuilder::on(&root)
@@ -210,9 +302,34 @@ pub(super) fn scale_plot(path: &Path, rows: &[ScaleRow]) -> Result<()> {
                 .draw_series(line.into_iter().map(|p| Circle::new(p, 3, colour.filled())))
                 .map_err(|e| fail(&e))?;
         }
+        // gslib's line runs along the bottom, an order of magnitude below the others: the legend
+        // goes between, on the right, just below the lowest of ours at the largest size.
+        let legend = match rows.last() {
+            Some(last) if !gslib_line.is_empty() => {
+                let lowest = last.pps.iter().copied().fold(f64::INFINITY, f64::min);
+                let (right, top) = chart.backend_coord(&(x_hi, lowest / 1.25));
+                SeriesLabelPosition::Coordinate(right - 380, top)
+            }
+            _ => SeriesLabelPosition::LowerLeft,
+        };
+        if !gslib_line.is_empty() {
+            let colour = RGBColor(148, 103, 189);
+            chart
+                .draw_series(LineSeries::new(gslib_line.clone(), colour.stroke_width(2)))
+                .map_err(|e| fail(&e))?
+                .label("gslib findpts, f64, random order (its own run)")
+                .legend(move |(x, y)| PathElement::new([(x, y), (x + 18, y)], colour));
+            chart
+                .draw_series(
+                    gslib_line
+                        .into_iter()
+                        .map(|p| Circle::new(p, 3, colour.filled())),
+                )
+                .map_err(|e| fail(&e))?;
+        }
         chart
             .configure_series_labels()
-            .position(SeriesLabelPosition::LowerLeft)
+            .position(legend)
             .background_style(WHITE.mix(0.8))
             .border_style(BLACK)
             .draw()

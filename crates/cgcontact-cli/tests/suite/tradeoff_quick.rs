@@ -123,6 +123,103 @@ fn quick_tradeoff_writes_a_row_per_configuration_and_lattice_f64_is_exact() {
     );
 }
 
+/// With `--gslib LOG`, the scale section and its plot carry gslib's points/s from the log (a log
+/// of `benches/gslib/run.sh`, here for the quick sizes of 250 and 2,000 cells, and one size the
+/// report does not run).
+#[test]
+fn quick_tradeoff_adds_gslib_from_its_log() {
+    let dir = tempfile::tempdir().expect("temporary folder");
+    let log = dir.path().join("gslib.log");
+    std::fs::write(
+        &log,
+        "# 2026-11-24T00:00:00Z vm, 2 cores\n\
+         ## block 5 x 10 x 5\n\
+         gslib cells=250 points=20000 setup_s=0.01 find_s=0.02 points_per_s=1234567 repeats=3\n\
+         gslib agree_1e-10=20000 code0=20000 code1_border=0 code2_notfound=0 wrong_cell=0\n\
+         gslib cells=2000 points=20000 setup_s=0.02 find_s=0.03 points_per_s=765432.1 repeats=3\n\
+         gslib cells=16000 points=20000 setup_s=0.1 find_s=0.9 points_per_s=555555 repeats=3\n",
+    )
+    .expect("the log is written");
+    let out = dir.path().join("report");
+    let output = Command::new(env!("CARGO_BIN_EXE_cgcontact"))
+        .args(["tradeoff", "--quick", "--threads", "1", "--out"])
+        .arg(&out)
+        .arg("--gslib")
+        .arg(&log)
+        .output()
+        .expect("the binary runs");
+    assert!(
+        output.status.success(),
+        "tradeoff failed: {}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let md = std::fs::read_to_string(out.join("tradeoff.md")).expect("tradeoff.md");
+    assert!(
+        md.contains("2026-11-24T00:00:00Z vm, 2 cores"),
+        "the log's header"
+    );
+    assert!(
+        md.contains(&format!("--gslib {}`", log.display())),
+        "the command names the log"
+    );
+    let scale: Vec<Vec<&str>> = section(&md, "## Scale")
+        .filter(|l| l.starts_with("| ") && !l.starts_with("| cells"))
+        .map(|l| l.trim_matches('|').split(" | ").map(str::trim).collect())
+        .collect();
+    let gslib: Vec<(&str, &str)> = scale.iter().map(|row| (row[0], row[7])).collect();
+    assert_eq!(gslib, [("250", "1.23 M"), ("2000", "0.77 M")], "{scale:?}");
+    let svg = std::fs::read_to_string(out.join("scale.svg")).expect("scale.svg");
+    assert!(svg.contains("gslib findpts"), "no gslib line in the plot");
+}
+
+/// A `--gslib` log that cannot be used is refused before anything is measured or written, with
+/// exit code 2 and the file (and line) named.
+#[test]
+fn tradeoff_refuses_a_bad_gslib_log() {
+    let dir = tempfile::tempdir().expect("temporary folder");
+    for (text, expected) in [
+        ("# a log\nscene [5, 10, 5]: 250 cells\n", "no `gslib cells="),
+        (
+            "gslib cells=250 points=1 points_per_s=fast\n",
+            "gslib.log:1: `points_per_s` is not a rate",
+        ),
+        (
+            "gslib cells=250 points_per_s=1\n\ngslib cells=250 points_per_s=2\n",
+            "gslib.log:3: a second gslib run of 250 cells",
+        ),
+        (
+            "gslib cells=-3 points_per_s=1\n",
+            "`cells` is not a cell count",
+        ),
+    ] {
+        let log = dir.path().join("gslib.log");
+        std::fs::write(&log, text).expect("the log is written");
+        let out = dir.path().join("report");
+        let output = Command::new(env!("CARGO_BIN_EXE_cgcontact"))
+            .args(["tradeoff", "--quick", "--out"])
+            .arg(&out)
+            .arg("--gslib")
+            .arg(&log)
+            .output()
+            .expect("the binary runs");
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert_eq!(output.status.code(), Some(2), "{text:?}: {stderr}");
+        assert!(stderr.contains(expected), "{text:?}: {stderr}");
+        assert!(!out.exists(), "{text:?}: a report was written");
+    }
+    let missing = dir.path().join("nowhere.log");
+    let output = Command::new(env!("CARGO_BIN_EXE_cgcontact"))
+        .args(["tradeoff", "--quick", "--out"])
+        .arg(dir.path().join("report"))
+        .arg("--gslib")
+        .arg(&missing)
+        .output()
+        .expect("the binary runs");
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("nowhere.log"), "{stderr}");
+}
+
 /// The lines of a section of the report: after its heading, up to the next `## ` heading.
 fn section<'a>(md: &'a str, heading: &str) -> impl Iterator<Item = &'a str> {
     md.lines()
