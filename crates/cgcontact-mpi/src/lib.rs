@@ -10,6 +10,7 @@
 //! | [`DistributedLocator`] | collective queries: points routed to their block's home, searched there by the core's `LatticeLocator` (or its `GapFinder`: `gap_all_into`, into [`Gaps`]), answers back in input order (`locate_all_into` reuses one [`Located`]'s buffers across a solver's iterations) |
 //! | [`Partition`] | slabs, Morton runs or scattered cells: the splits the command line and the tests use |
 //! | [`gather_located`], [`gather_gaps`] | every rank's answers on one rank, for one results file |
+//! | [`abort_on_panic`] | a panic on one rank aborts every rank, rather than leaving mpirun waiting |
 //!
 //! ```no_run
 //! use cgcontact::glam::DVec3;
@@ -43,6 +44,7 @@
 mod distributed;
 mod error;
 mod exchange;
+mod panic;
 mod partition;
 
 pub use distributed::{
@@ -51,4 +53,5 @@ pub use distributed::{
 };
 pub use error::Error;
 pub use exchange::Traffic;
+pub use panic::abort_on_panic;
 pub use partition::Partition;

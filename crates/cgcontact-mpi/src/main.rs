@@ -104,6 +104,8 @@ fn main() -> ExitCode {
         eprintln!("cgcontact-mpi: MPI was already initialised");
         return ExitCode::from(2);
     };
+    // A bug of ours on one rank must end the run with one line, not leave the others waiting.
+    cgcontact_mpi::abort_on_panic(2);
     let world = universe.world();
     let Command::Locate(args) = &cli.command;
     match locate(&world, args) {

@@ -22,12 +22,74 @@ use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
 
 fn main() {
-    if std::env::var_os("OMPI_COMM_WORLD_SIZE").is_none() && std::env::var_os("PMI_SIZE").is_none()
-    {
-        drive();
-    } else {
-        rank();
+    let under_mpirun = std::env::var_os("OMPI_COMM_WORLD_SIZE").is_some()
+        || std::env::var_os("PMI_SIZE").is_some();
+    match (under_mpirun, std::env::var_os(PANIC_ON_RANK)) {
+        (false, _) => {
+            a_panic_aborts_every_rank();
+            drive();
+        }
+        (true, Some(rank)) => panicking_rank(&rank.to_string_lossy()),
+        (true, None) => rank(),
     }
+}
+
+/// Set for the run of [`a_panic_aborts_every_rank`]: the rank that panics.
+const PANIC_ON_RANK: &str = "CGCONTACT_MPI_TEST_PANIC_ON_RANK";
+
+/// One rank panics while the others wait in a collective: with `abort_on_panic`, mpirun returns
+/// with the code given to it and the panic is printed with its rank, instead of waiting forever.
+fn a_panic_aborts_every_rank() {
+    let exe = std::env::current_exe().expect("the test's own path");
+    let mut command = Command::new("mpirun");
+    command.arg("--oversubscribe");
+    if is_root() {
+        command.arg("--allow-run-as-root");
+    }
+    command
+        .args(["-np", "3"])
+        .arg(&exe)
+        .env(PANIC_ON_RANK, "1")
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped());
+    let start = Instant::now();
+    let mut child = command
+        .spawn()
+        .unwrap_or_else(|e| panic!("cannot start mpirun ({e}): is Open MPI installed?"));
+    let status = loop {
+        if let Some(status) = child.try_wait().expect("waiting on mpirun") {
+            break status;
+        }
+        if start.elapsed() > Duration::from_secs(60) {
+            let _ = child.kill();
+            panic!("a rank panicked and mpirun was still running 60 s later");
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    let mut stderr = String::new();
+    std::io::Read::read_to_string(&mut child.stderr.take().expect("piped"), &mut stderr)
+        .expect("mpirun's standard error");
+    // Open MPI's mpirun returns the code given to MPI_Abort.
+    assert_eq!(status.code(), Some(3), "mpirun's status: {status}");
+    assert!(
+        stderr.contains("cgcontact-mpi: rank 1 panicked at") && stderr.contains("on purpose"),
+        "the panic and its rank are printed: {stderr}"
+    );
+    println!(
+        "a panic on rank 1 of 3 ended mpirun in {:.1} s",
+        start.elapsed().as_secs_f64()
+    );
+}
+
+/// A rank of [`a_panic_aborts_every_rank`]: rank `which` panics, the others wait in a barrier.
+fn panicking_rank(which: &str) {
+    let universe = mpi::initialize().expect("MPI starts once");
+    cgcontact_mpi::abort_on_panic(3);
+    let world = universe.world();
+    if world.rank().to_string() == which {
+        panic!("on purpose, to test abort_on_panic");
+    }
+    world.barrier();
 }
 
 /// Start this program under mpirun for P = 1..=4 (or the `CGCONTACT_MPI_RANKS` list).
