@@ -141,6 +141,8 @@ struct Case {
 
 fn rank() {
     let universe = mpi::initialize().expect("MPI starts once");
+    // A failed assertion ends the run at once rather than leaving the other ranks waiting.
+    cgcontact_mpi::abort_on_panic(1);
     let world = universe.world();
     let size = world.size() as usize;
     let (mut checked, mut patched) = (0usize, 0usize);
