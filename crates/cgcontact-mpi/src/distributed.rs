@@ -1197,47 +1197,65 @@ fn local_body<'c>(
         .map(|o| o[0] as usize + dims[0] * (o[1] as usize + dims[1] * o[2] as usize));
     let mut table = vec![DVec3::NAN; table_nodes];
     let mut seen = vec![false; table_nodes];
-    let mut ids: Vec<CellId> = Vec::with_capacity(count + extremes.len());
-    // Two passes without a branch per corner: every corner written (the last writer wins), then
-    // every corner compared with what stayed, bit for bit: a node given two displacements differs
-    // there for one of its cells.
+    // One pass without a branch per corner: every corner written (the last writer wins), each
+    // write compared with the value it replaces unless that was the NaN of a node not yet written
+    // (the displacements are finite: every rank checked its cells). Consecutive writes all equal
+    // is every write equal, so `differ` is zero exactly when no node was given two values.
+    let mut differ = 0u64;
     for (cell, ijk) in cells.clone() {
         let at = slot(ijk).expect("in the box");
         if std::mem::replace(&mut seen[at], true) {
             return Err(Error::DuplicateCell { cell: cell.cell });
         }
-        ids.push(cell.cell);
         for (&offset, &u) in corner.iter().zip(&cell.u) {
-            table[at + offset] = u;
+            let kept = std::mem::replace(&mut table[at + offset], u);
+            let bits = (kept.x.to_bits() ^ u.x.to_bits())
+                | (kept.y.to_bits() ^ u.y.to_bits())
+                | (kept.z.to_bits() ^ u.z.to_bits());
+            differ |= if kept.x.is_nan() { 0 } else { bits };
         }
     }
-    for (cell, ijk) in cells {
-        let at = slot(ijk).expect("in the box");
-        let differ = |(&offset, &u): (&usize, &DVec3)| {
-            let kept = table[at + offset];
-            (kept.x.to_bits() ^ u.x.to_bits())
-                | (kept.y.to_bits() ^ u.y.to_bits())
-                | (kept.z.to_bits() ^ u.z.to_bits())
-        };
-        if corner.iter().zip(&cell.u).map(differ).fold(0, |a, b| a | b) != 0 {
-            let c = corner
-                .iter()
-                .zip(&cell.u)
-                .position(|pair| differ(pair) != 0)
-                .expect("one corner differs");
-            let ijk = [0, 1, 2].map(|a| ijk[a] + cgcontact::CORNER_OFFSETS[c][a]);
-            return Err(Error::InconsistentNode {
-                node: lattice.node_index(ijk),
-            });
+    if differ != 0 {
+        // Which node: the first cell, in the order given, one of whose corners differs from
+        // the value that stayed.
+        for (cell, ijk) in cells {
+            let at = slot(ijk).expect("in the box");
+            let differs = |(&offset, &u): (&usize, &DVec3)| {
+                let kept: DVec3 = table[at + offset];
+                kept.to_array().map(f64::to_bits) != u.to_array().map(f64::to_bits)
+            };
+            if let Some(c) = corner.iter().zip(&cell.u).position(differs) {
+                let ijk = [0, 1, 2].map(|a| ijk[a] + cgcontact::CORNER_OFFSETS[c][a]);
+                return Err(Error::InconsistentNode {
+                    node: lattice.node_index(ijk),
+                });
+            }
+        }
+        unreachable!("a node given two values differs from the one that stayed");
+    }
+    // The cells in ascending id order: the box's rows are the lattice's, in its order.
+    let [nx, ny, _] = lattice.cells().map(|n| n as usize);
+    let cell_dims = [0, 1, 2].map(|a| dims[a] - 1);
+    let mut ids: Vec<CellId> = Vec::with_capacity(count + extremes.len());
+    for z in 0..cell_dims[2] {
+        for y in 0..cell_dims[1] {
+            let row = dims[0] * (y + dims[1] * z);
+            let first = low[0] as usize + nx * (low[1] as usize + y + ny * (low[2] as usize + z));
+            for x in 0..cell_dims[0] {
+                if seen[row + x] {
+                    ids.push(CellId((first + x) as u32));
+                }
+            }
         }
     }
     let mut aside: Vec<(usize, DVec3)> = Vec::new();
     for extreme in extremes {
         let ijk = lattice.cell_ijk(extreme.cell).expect("checked in range");
-        if slot(ijk).is_some_and(|at| seen[at]) || ids[count..].contains(&extreme.cell) {
+        // Kept in ascending order, so that the body's sort of the ids finds them sorted.
+        let Err(place) = ids.binary_search(&extreme.cell) else {
             continue;
-        }
-        ids.push(extreme.cell);
+        };
+        ids.insert(place, extreme.cell);
         for (c, node) in lattice.corner_nodes(ijk).into_iter().enumerate() {
             let node_ijk = lattice.node_ijk(node).expect("a node of the lattice");
             match slot(node_ijk) {
