@@ -5,12 +5,16 @@
 //! Printed once: how many points are within D, the penetration (the most negative gap), and how
 //! many closest points lie on an edge or corner rather than inside a face.
 //!
+//! Then the same on the seed's block refined 2 levels under the sphere (`cgcontact demo
+//! --adaptive`'s scene), and the first `GapFinder::new` on that body, which makes the table of its
+//! leaves' open faces (kept by the body for every later finder).
+//!
 //! Run: `cargo bench -p cgcontact-benches --bench gap`
 
 use std::hint::black_box;
 
-use cgcontact::{GapFinder, LatticeLocator, Locator, Settings};
-use cgcontact_scenes::SphereOnBlock;
+use cgcontact::{AdaptiveLocator, GapFinder, LatticeLocator, Locator, Settings};
+use cgcontact_scenes::{SphereOnAdaptiveBlock, SphereOnBlock};
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 
 fn gap(c: &mut Criterion) {
@@ -53,6 +57,44 @@ fn gap(c: &mut Criterion) {
     finder.gap_all_into(&points, &mut gaps);
     group.bench_function("gap D = h, warm, 1 thread", |b| {
         b.iter(|| one.install(|| finder.regap_all(black_box(&points), &mut gaps)))
+    });
+    group.finish();
+
+    let adaptive = SphereOnAdaptiveBlock::fine()
+        .build("sphere-adaptive")
+        .expect("the seed's scene, refined");
+    let points = adaptive.contact_points.clone();
+    let locator =
+        AdaptiveLocator::new(&adaptive.body, Settings::default()).expect("valid settings");
+    let mut group = c.benchmark_group("gap/sphere-adaptive-6700-f64");
+    group.sample_size(10);
+    group.bench_function("first GapFinder::new (open-face table), 1 thread", |b| {
+        b.iter_batched(
+            || adaptive.body.clone(),
+            |body| {
+                let locator = AdaptiveLocator::new(&body, Settings::default()).expect("valid");
+                one.install(|| black_box(GapFinder::new(&locator, h).map(|_| ()).is_ok()))
+            },
+            criterion::BatchSize::LargeInput,
+        )
+    });
+    let finder = GapFinder::new(&locator, h).expect("a valid distance");
+    let found = points
+        .iter()
+        .filter(|&&x| matches!(finder.gap(x), Ok(Some(_))))
+        .count();
+    println!(
+        "{} sphere points on the adaptive block ({} leaves): {found} within D",
+        points.len(),
+        adaptive.body.cell_count()
+    );
+    group.sample_size(20);
+    group.throughput(Throughput::Elements(points.len() as u64));
+    group.bench_function("locate, 1 thread", |b| {
+        b.iter(|| one.install(|| locator.locate_all_into(black_box(&points), &mut located)))
+    });
+    group.bench_function("gap D = h, 1 thread", |b| {
+        b.iter(|| one.install(|| finder.gap_all_into(black_box(&points), &mut gaps)))
     });
     group.finish();
 }

@@ -336,10 +336,17 @@ impl Forest {
 
     /// Calls `visit(id, leaf)` for every leaf whose closed undeformed box meets the box [`low`,
     /// `high`] (base lattice coordinates), each once, in base cell order and depth first.
-    pub(super) fn for_each_in_box(
+    pub(super) fn for_each_in_box(&self, low: DVec3, high: DVec3, visit: impl FnMut(u32, Leaf)) {
+        self.for_each_in_box_where(low, high, |_| true, visit);
+    }
+
+    /// [`Forest::for_each_in_box`] in the base cells `base` accepts (by their index, x fastest)
+    /// alone: the others' leaves are not visited.
+    pub(super) fn for_each_in_box_where(
         &self,
         low: DVec3,
         high: DVec3,
+        base: impl Fn(u32) -> bool,
         mut visit: impl FnMut(u32, Leaf),
     ) {
         let mut lo = [0u32; 3];
@@ -359,6 +366,9 @@ impl Forest {
         for k in lo[2]..=hi[2] {
             for j in lo[1]..=hi[1] {
                 for i in lo[0]..=hi[0] {
+                    if !base(i + self.cells[0] * (j + self.cells[1] * k)) {
+                        continue;
+                    }
                     stack.push((self.base_entry([i, j, k]), 0, [i, j, k]));
                     while let Some((entry, level, ijk)) = stack.pop() {
                         if entry == EMPTY {

@@ -73,6 +73,15 @@ impl Leaf {
     }
 }
 
+/// The leaves' faces on the boundary surface.
+#[derive(Clone, Debug)]
+struct OpenFaces {
+    /// Per leaf, its local faces not covered from the other side (bit f: face f): 1 byte a leaf.
+    leaves: Box<[u8]>,
+    /// The base cells (index, x fastest) holding a leaf with such a face, ascending.
+    bases: Box<[u32]>,
+}
+
 /// A body meshed by leaf cells of several refinement levels of a base lattice, deformed by nodal
 /// displacements that obey (or are reported against) the hanging nodes' constraints.
 #[derive(Clone, Debug)]
@@ -89,6 +98,9 @@ pub struct AdaptiveBody {
     u: Vec<DVec3>,
     forest: Forest,
     hanging: Constraints,
+    /// What the gap search measures, from the geometry alone: computed once, by the first gap
+    /// search's [`AdaptiveBody::prepare_open_faces`], and kept.
+    open_faces: std::sync::OnceLock<Box<OpenFaces>>,
 }
 
 impl AdaptiveBody {
@@ -167,6 +179,7 @@ impl AdaptiveBody {
             corner_table: Vec::new(),
             forest,
             hanging: Constraints::default(),
+            open_faces: std::sync::OnceLock::new(),
         };
         body.hanging = body.find_hanging();
         Ok(body)
@@ -555,7 +568,7 @@ impl AdaptiveBody {
     /// cells and the listed nodes around level changes), the octrees with the base cell index,
     /// the hanging nodes' constraints, and the corner table when stored.
     #[must_use]
-    pub fn heap_parts(&self) -> [(&'static str, usize); 6] {
+    pub fn heap_parts(&self) -> [(&'static str, usize); 7] {
         [
             ("displacements", self.u.capacity() * size_of::<DVec3>()),
             ("leaves", self.leaves.heap_bytes()),
@@ -566,24 +579,87 @@ impl AdaptiveBody {
                 "corner table",
                 self.corner_table.capacity() * size_of::<[u32; 8]>(),
             ),
+            (
+                "open faces (after a gap search)",
+                self.open_faces.get().map_or(0, |o| {
+                    size_of::<OpenFaces>() + o.leaves.len() + size_of_val(&*o.bases)
+                }),
+            ),
         ]
+    }
+
+    /// The local faces of leaf `id` not covered from the other side (bit f: face f), from the
+    /// table when [`AdaptiveBody::prepare_open_faces`] made it.
+    #[inline]
+    pub(crate) fn open_faces(&self, id: u32) -> u8 {
+        match self.open_faces.get() {
+            Some(open) => open.leaves[id as usize],
+            None => self.leaf_open_faces(self.leaves.at(id)),
+        }
+    }
+
+    /// Calls `visit(id, leaf)` for every leaf whose closed undeformed box meets [`low`, `high`]
+    /// (base lattice coordinates), each once, in base cell order and depth first, leaving out the
+    /// base cells without a leaf on the boundary surface once
+    /// [`AdaptiveBody::prepare_open_faces`] has found them.
+    pub(crate) fn for_each_surface_leaf_in_box(
+        &self,
+        low: DVec3,
+        high: DVec3,
+        visit: impl FnMut(u32, Leaf),
+    ) {
+        match self.open_faces.get() {
+            Some(open) => self.forest.for_each_in_box_where(
+                low,
+                high,
+                |base| open.bases.binary_search(&base).is_ok(),
+                visit,
+            ),
+            None => self.forest.for_each_in_box(low, high, visit),
+        }
+    }
+
+    /// Makes the table of [`AdaptiveBody::open_faces`] if it is not made yet (in parallel on the
+    /// current rayon pool; about a microsecond per leaf).
+    pub(crate) fn prepare_open_faces(&self) {
+        use rayon::prelude::*;
+        self.open_faces.get_or_init(|| {
+            let leaves: Box<[u8]> = (0..self.leaves.len() as u32)
+                .into_par_iter()
+                .map(|id| self.leaf_open_faces(self.leaves.at(id)))
+                .collect::<Vec<u8>>()
+                .into_boxed_slice();
+            let [nx, ny, _] = self.lattice.cells();
+            let mut bases: Vec<u32> = leaves
+                .iter()
+                .enumerate()
+                .filter(|&(_, &open)| open != 0)
+                .map(|(id, _)| {
+                    let leaf = self.leaves.at(id as u32);
+                    let b = leaf.ijk.map(|v| v >> leaf.level);
+                    b[0] + nx * (b[1] + ny * b[2])
+                })
+                .collect();
+            bases.sort_unstable();
+            bases.dedup();
+            Box::new(OpenFaces {
+                leaves,
+                bases: bases.into_boxed_slice(),
+            })
+        });
+    }
+
+    fn leaf_open_faces(&self, leaf: Leaf) -> u8 {
+        (0..6).fold(0, |open, face| {
+            let covered = self.face_coverage(leaf, face) == crate::gap::Coverage::Covered;
+            open | u8::from(!covered) << face
+        })
     }
 
     /// The leaf at base lattice coordinates `t` clamped into the lattice's box, with its id.
     #[inline]
     pub(crate) fn leaf_near(&self, t: DVec3) -> Option<(u32, Leaf)> {
         self.forest.leaf_at(t)
-    }
-
-    /// Calls `visit(id, leaf)` for every leaf whose closed undeformed box meets [`low`, `high`]
-    /// (base lattice coordinates), each once.
-    pub(crate) fn for_each_leaf_in_box(
-        &self,
-        low: DVec3,
-        high: DVec3,
-        visit: impl FnMut(u32, Leaf),
-    ) {
-        self.forest.for_each_in_box(low, high, visit);
     }
 
     /// How much of face `face` (VTK local face: axis `face / 2`, upper side when odd) of `leaf` is

@@ -125,6 +125,7 @@ impl<'l, L: Surface> GapFinder<'l, L> {
                 "the gap search distance must be finite and at least 0, got {distance}"
             )));
         }
+        surface.prepare();
         let u_range = surface
             .displacements()
             .iter()
@@ -253,7 +254,7 @@ impl<'l, L: Surface> GapFinder<'l, L> {
         let low = (x - lattice.origin() - range.high - reach) * inv_h;
         let high = (x - lattice.origin() - range.low + reach) * inv_h;
         self.surface.cells_in_box(low, high, |cell| {
-            if cell.id == first {
+            if cell.id == first || (L::OPEN_FACES_STORED && self.surface.open_faces(cell) == 0) {
                 return;
             }
             let origin = self.surface.cell_origin(cell);

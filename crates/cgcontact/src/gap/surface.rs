@@ -68,6 +68,11 @@ pub(crate) mod sealed {
         fn coverage(&self, cell: Cell, face: usize) -> Coverage;
         /// The corner displacements of `cell`, VTK order.
         fn corner_displacements(&self, cell: Cell) -> [DVec3; 8];
+        /// Whatever [`Faces::open_faces`] computes once per body, before the first search.
+        fn prepare(&self) {}
+        /// Whether [`Faces::open_faces`] is a table lookup (cheaper than any bound), so that the
+        /// search asks it first.
+        const OPEN_FACES_STORED: bool = false;
     }
 
     /// Cell index range along one axis of the cells (`n` of them) whose closed interval meets
@@ -244,19 +249,26 @@ pub(crate) mod sealed {
         }
 
         fn cells_in_box(&self, low: DVec3, high: DVec3, mut visit: impl FnMut(Cell)) {
-            self.body().for_each_leaf_in_box(low, high, |id, leaf| {
-                visit(Cell {
-                    id,
-                    level: leaf.level,
-                    ijk: leaf.ijk,
+            self.body()
+                .for_each_surface_leaf_in_box(low, high, |id, leaf| {
+                    visit(Cell {
+                        id,
+                        level: leaf.level,
+                        ijk: leaf.ijk,
+                    });
                 });
-            });
         }
 
         #[inline]
-        fn open_faces(&self, _: Cell) -> u8 {
-            0b11_1111
+        fn open_faces(&self, cell: Cell) -> u8 {
+            self.body().open_faces(cell.id)
         }
+
+        fn prepare(&self) {
+            self.body().prepare_open_faces();
+        }
+
+        const OPEN_FACES_STORED: bool = true;
 
         fn coverage(&self, cell: Cell, face: usize) -> Coverage {
             self.body()
