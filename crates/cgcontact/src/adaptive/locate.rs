@@ -586,8 +586,6 @@ impl AdaptiveLocator<'_> {
             }
         }
         let mut found = 0;
-        // The leaf at the guess, per lane (below).
-        let mut first = at;
         if take != 0 {
             let mut rows = [[0u32; 8]; MAX_W];
             for l in 0..V::W {
@@ -603,6 +601,7 @@ impl AdaptiveLocator<'_> {
             let t_guess = t_x_lanes - maps.map(V3::narrow(xi)).widen().mul_each(self.inv_h);
             // The leaf at the guess, per lane; its map is x's leaf's unless the lane moved, and
             // only the lanes that moved get their corners anew.
+            let mut first = at;
             let mut moved = false;
             for l in 0..V::W {
                 if take & (1 << l) == 0 {
