@@ -40,35 +40,17 @@ const PANIC_ON_RANK: &str = "CGCONTACT_MPI_TEST_PANIC_ON_RANK";
 /// One rank panics while the others wait in a collective: with `abort_on_panic`, mpirun returns
 /// with the code given to it and the panic is printed with its rank, instead of waiting forever.
 fn a_panic_aborts_every_rank() {
-    let exe = std::env::current_exe().expect("the test's own path");
-    let mut command = Command::new("mpirun");
-    command.arg("--oversubscribe");
-    if is_root() {
-        command.arg("--allow-run-as-root");
-    }
-    command
-        .args(["-np", "3"])
-        .arg(&exe)
-        .env(PANIC_ON_RANK, "1")
-        .stdout(std::process::Stdio::null())
-        .stderr(std::process::Stdio::piped());
     let start = Instant::now();
-    let mut child = command
-        .spawn()
-        .unwrap_or_else(|e| panic!("cannot start mpirun ({e}): is Open MPI installed?"));
-    let status = loop {
-        if let Some(status) = child.try_wait().expect("waiting on mpirun") {
-            break status;
-        }
-        if start.elapsed() > Duration::from_secs(60) {
-            let _ = child.kill();
-            panic!("a rank panicked and mpirun was still running 60 s later");
-        }
-        std::thread::sleep(Duration::from_millis(50));
-    };
-    let mut stderr = String::new();
-    std::io::Read::read_to_string(&mut child.stderr.take().expect("piped"), &mut stderr)
-        .expect("mpirun's standard error");
+    let (status, stderr) = mpirun(
+        "3",
+        |command| {
+            command
+                .env(PANIC_ON_RANK, "1")
+                .stdout(std::process::Stdio::null())
+                .stderr(std::process::Stdio::piped());
+        },
+        Duration::from_secs(60),
+    );
     // Open MPI's mpirun returns the code given to MPI_Abort.
     assert_eq!(status.code(), Some(3), "mpirun's status: {status}");
     assert!(
@@ -94,35 +76,55 @@ fn panicking_rank(which: &str) {
 
 /// Start this program under mpirun for P = 1..=4 (or the `CGCONTACT_MPI_RANKS` list).
 fn drive() {
-    let exe = std::env::current_exe().expect("the test's own path");
     let ranks = std::env::var("CGCONTACT_MPI_RANKS").unwrap_or_else(|_| "1,2,3,4".to_owned());
     for p in ranks.split(',') {
-        let mut command = Command::new("mpirun");
-        command.arg("--oversubscribe");
-        if is_root() {
-            command.arg("--allow-run-as-root");
-        }
-        command.args(["-np", p]).arg(&exe);
         let start = Instant::now();
-        let mut child = command
-            .spawn()
-            .unwrap_or_else(|e| panic!("cannot start mpirun ({e}): is Open MPI installed?"));
-        let status = loop {
-            if let Some(status) = child.try_wait().expect("waiting on mpirun") {
-                break status;
-            }
-            if start.elapsed() > Duration::from_secs(600) {
-                let _ = child.kill();
-                panic!("mpirun -np {p} hung for 600 s");
-            }
-            std::thread::sleep(Duration::from_millis(50));
-        };
+        let (status, _) = mpirun(p, |_| {}, Duration::from_secs(600));
         assert!(status.success(), "mpirun -np {p} failed: {status}");
         println!(
             "mpirun -np {p}: every answer bitwise the serial one ({:.1} s)",
             start.elapsed().as_secs_f64()
         );
     }
+}
+
+/// Runs this program under `mpirun --oversubscribe -np P`, with what `configure` adds, and fails
+/// when it is still running after `limit`: its status, and its standard error when piped.
+fn mpirun(
+    np: &str,
+    configure: impl FnOnce(&mut Command),
+    limit: Duration,
+) -> (std::process::ExitStatus, String) {
+    let exe = std::env::current_exe().expect("the test's own path");
+    let mut command = Command::new("mpirun");
+    command.arg("--oversubscribe");
+    if is_root() {
+        command.arg("--allow-run-as-root");
+    }
+    command.args(["-np", np]).arg(&exe);
+    configure(&mut command);
+    let start = Instant::now();
+    let mut child = command
+        .spawn()
+        .unwrap_or_else(|e| panic!("cannot start mpirun ({e}): is Open MPI installed?"));
+    let status = loop {
+        if let Some(status) = child.try_wait().expect("waiting on mpirun") {
+            break status;
+        }
+        if start.elapsed() > limit {
+            let _ = child.kill();
+            panic!(
+                "mpirun -np {np} was still running after {} s",
+                limit.as_secs()
+            );
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    let mut stderr = String::new();
+    if let Some(mut pipe) = child.stderr.take() {
+        std::io::Read::read_to_string(&mut pipe, &mut stderr).expect("mpirun's standard error");
+    }
+    (status, stderr)
 }
 
 fn is_root() -> bool {

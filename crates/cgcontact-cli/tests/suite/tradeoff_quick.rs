@@ -3,7 +3,8 @@
 //! never asserted. The configurations are read from the report's own list (written from
 //! `ConfigId`, so their labels are typed once, in `tradeoff/grid.rs`).
 
-use std::process::Command;
+use std::path::Path;
+use std::process::{Command, Output};
 
 /// Columns of the results table (see `tradeoff/report.rs`).
 const SCENE: usize = 0;
@@ -30,11 +31,7 @@ const SCENES: [&str; 7] = [
 #[test]
 fn quick_tradeoff_writes_a_row_per_configuration_and_lattice_f64_is_exact() {
     let dir = tempfile::tempdir().expect("temporary folder");
-    let output = Command::new(env!("CARGO_BIN_EXE_cgcontact"))
-        .args(["tradeoff", "--quick", "--threads", "2", "--out"])
-        .arg(dir.path())
-        .output()
-        .expect("the binary runs");
+    let output = tradeoff(&["--threads", "2"], dir.path(), None);
     assert!(
         output.status.success(),
         "tradeoff failed: {}",
@@ -141,13 +138,7 @@ fn quick_tradeoff_adds_gslib_from_its_log() {
     )
     .expect("the log is written");
     let out = dir.path().join("report");
-    let output = Command::new(env!("CARGO_BIN_EXE_cgcontact"))
-        .args(["tradeoff", "--quick", "--threads", "1", "--out"])
-        .arg(&out)
-        .arg("--gslib")
-        .arg(&log)
-        .output()
-        .expect("the binary runs");
+    let output = tradeoff(&["--threads", "1"], &out, Some(&log));
     assert!(
         output.status.success(),
         "tradeoff failed: {}",
@@ -195,29 +186,31 @@ fn tradeoff_refuses_a_bad_gslib_log() {
         let log = dir.path().join("gslib.log");
         std::fs::write(&log, text).expect("the log is written");
         let out = dir.path().join("report");
-        let output = Command::new(env!("CARGO_BIN_EXE_cgcontact"))
-            .args(["tradeoff", "--quick", "--out"])
-            .arg(&out)
-            .arg("--gslib")
-            .arg(&log)
-            .output()
-            .expect("the binary runs");
+        let output = tradeoff(&[], &out, Some(&log));
         let stderr = String::from_utf8_lossy(&output.stderr);
         assert_eq!(output.status.code(), Some(2), "{text:?}: {stderr}");
         assert!(stderr.contains(expected), "{text:?}: {stderr}");
         assert!(!out.exists(), "{text:?}: a report was written");
     }
     let missing = dir.path().join("nowhere.log");
-    let output = Command::new(env!("CARGO_BIN_EXE_cgcontact"))
-        .args(["tradeoff", "--quick", "--out"])
-        .arg(dir.path().join("report"))
-        .arg("--gslib")
-        .arg(&missing)
-        .output()
-        .expect("the binary runs");
+    let output = tradeoff(&[], &dir.path().join("report"), Some(&missing));
     let stderr = String::from_utf8_lossy(&output.stderr);
     assert_eq!(output.status.code(), Some(2), "{stderr}");
     assert!(stderr.contains("nowhere.log"), "{stderr}");
+}
+
+/// `cgcontact tradeoff --quick` with `args`, into `out`, with `--gslib` when given.
+fn tradeoff(args: &[&str], out: &Path, gslib: Option<&Path>) -> Output {
+    let mut command = Command::new(env!("CARGO_BIN_EXE_cgcontact"));
+    command
+        .args(["tradeoff", "--quick"])
+        .args(args)
+        .arg("--out")
+        .arg(out);
+    if let Some(log) = gslib {
+        command.arg("--gslib").arg(log);
+    }
+    command.output().expect("the binary runs")
 }
 
 /// The lines of a section of the report: after its heading, up to the next `## ` heading.

@@ -1083,10 +1083,9 @@ mod tests {
         };
         let mut inversions = 0;
         let mut collect = Collect::First;
-        let first = body.forest.leaf_at(t_guess);
-        if let Some((id, leaf)) = first {
+        let mut visit = |id: u32, leaf: Leaf, t_guess: DVec3| {
             let u = body.leaf_displacements(id);
-            let hit = locator.visit::<K>(
+            locator.visit::<K>(
                 x,
                 id,
                 leaf,
@@ -1095,10 +1094,13 @@ mod tests {
                 &options,
                 &mut collect,
                 &mut inversions,
-            );
-            if hit.is_some() {
-                return Ok(hit);
-            }
+            )
+        };
+        let first = body.forest.leaf_at(t_guess);
+        if let Some((id, leaf)) = first
+            && let Some(hit) = visit(id, leaf, t_guess)
+        {
+            return Ok(Some(hit));
         }
         if predicted {
             for _ in 0..2 {
@@ -1124,23 +1126,9 @@ mod tests {
             }
         });
         candidates.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-        for (_, id, leaf) in candidates {
-            let u = body.leaf_displacements(id);
-            let hit = locator.visit::<K>(
-                x,
-                id,
-                leaf,
-                &u,
-                t_guess,
-                &options,
-                &mut collect,
-                &mut inversions,
-            );
-            if hit.is_some() {
-                return Ok(hit);
-            }
-        }
-        Ok(None)
+        Ok(candidates
+            .into_iter()
+            .find_map(|(_, id, leaf)| visit(id, leaf, t_guess)))
     }
 
     /// The scene with larger displacements than its own, so that many points miss their
