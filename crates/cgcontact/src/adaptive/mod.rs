@@ -620,33 +620,37 @@ impl AdaptiveBody {
     }
 
     /// Makes the table of [`AdaptiveBody::open_faces`] if it is not made yet (in parallel on the
-    /// current rayon pool; about a microsecond per leaf).
+    /// current rayon pool; about a microsecond per leaf). Computed outside the cell, then stored:
+    /// a rayon worker that waited inside the cell's initialisation could be handed another task
+    /// that initialises the same cell, and deadlock. Two threads may both compute it; the first
+    /// stored is kept.
     pub(crate) fn prepare_open_faces(&self) {
         use rayon::prelude::*;
-        self.open_faces.get_or_init(|| {
-            let leaves: Box<[u8]> = (0..self.leaves.len() as u32)
-                .into_par_iter()
-                .map(|id| self.leaf_open_faces(self.leaves.at(id)))
-                .collect::<Vec<u8>>()
-                .into_boxed_slice();
-            let [nx, ny, _] = self.lattice.cells();
-            let mut bases: Vec<u32> = leaves
-                .iter()
-                .enumerate()
-                .filter(|&(_, &open)| open != 0)
-                .map(|(id, _)| {
-                    let leaf = self.leaves.at(id as u32);
-                    let b = leaf.ijk.map(|v| v >> leaf.level);
-                    b[0] + nx * (b[1] + ny * b[2])
-                })
-                .collect();
-            bases.sort_unstable();
-            bases.dedup();
-            Box::new(OpenFaces {
-                leaves,
-                bases: bases.into_boxed_slice(),
+        if self.open_faces.get().is_some() {
+            return;
+        }
+        let leaves: Box<[u8]> = (0..self.leaves.len() as u32)
+            .into_par_iter()
+            .map(|id| self.leaf_open_faces(self.leaves.at(id)))
+            .collect::<Vec<u8>>()
+            .into_boxed_slice();
+        let [nx, ny, _] = self.lattice.cells();
+        let mut bases: Vec<u32> = leaves
+            .iter()
+            .enumerate()
+            .filter(|&(_, &open)| open != 0)
+            .map(|(id, _)| {
+                let leaf = self.leaves.at(id as u32);
+                let b = leaf.ijk.map(|v| v >> leaf.level);
+                b[0] + nx * (b[1] + ny * b[2])
             })
-        });
+            .collect();
+        bases.sort_unstable();
+        bases.dedup();
+        let _ = self.open_faces.set(Box::new(OpenFaces {
+            leaves,
+            bases: bases.into_boxed_slice(),
+        }));
     }
 
     fn leaf_open_faces(&self, leaf: Leaf) -> u8 {
