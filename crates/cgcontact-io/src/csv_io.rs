@@ -414,7 +414,6 @@ pub fn write_owner_rows<'a>(
             write!(out, ",{}", GAP_HEADER.join(","))?;
         }
         writeln!(out)?;
-        // The gap columns of point p: empty where the surface is farther than D.
         // The gap columns of each point, in one buffer rewritten for each.
         let mut gap = String::new();
         // Reused for every point: at most a few owners each, sorted by their input cell.

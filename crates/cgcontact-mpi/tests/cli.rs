@@ -143,27 +143,25 @@ fn results_files_are_byte_for_byte_those_of_cgcontact_locate() {
             .expect("the scene's mesh");
         let points = folder.join("all.csv");
         with_boundary_points(&mesh, &folder.join("points.csv"), &points, 3000);
-        let serial = folder.join("serial.csv");
-        run(Command::new(&bin)
-            .args(["locate", "--quiet", "--mesh"])
-            .arg(&mesh)
-            .arg("--points")
-            .arg(&points)
-            .arg("--out")
-            .arg(&serial));
-        let want = std::fs::read(&serial).unwrap();
+        // `cgcontact locate` with `extra` flags: the file to match.
+        let serial = |name: &str, extra: &[&str]| {
+            let out = folder.join(name);
+            run(Command::new(&bin)
+                .args(["locate", "--quiet"])
+                .args(extra)
+                .arg("--mesh")
+                .arg(&mesh)
+                .arg("--points")
+                .arg(&points)
+                .arg("--out")
+                .arg(&out));
+            std::fs::read(&out).unwrap()
+        };
+        let want = serial("serial.csv", &[]);
         // With gaps (within about two cells of these scenes): the same columns as `cgcontact
         // locate --gap`.
         let gap = "0.6";
-        let serial_gaps = folder.join("serial-gaps.csv");
-        run(Command::new(&bin)
-            .args(["locate", "--quiet", "--gap", gap, "--mesh"])
-            .arg(&mesh)
-            .arg("--points")
-            .arg(&points)
-            .arg("--out")
-            .arg(&serial_gaps));
-        let want_gaps = std::fs::read(&serial_gaps).unwrap();
+        let want_gaps = serial("serial-gaps.csv", &["--gap", gap]);
         let runs = (1..=4)
             .flat_map(|ranks| ["slabs", "morton", "random"].map(|p| (ranks, p, false)))
             .chain([(1, "slabs", true), (3, "slabs", true), (2, "random", true)]);

@@ -620,7 +620,7 @@ impl AdaptiveBody {
     }
 
     /// Makes the table of [`AdaptiveBody::open_faces`] if it is not made yet (in parallel on the
-    /// current rayon pool; about a microsecond per leaf). Computed outside the cell, then stored:
+    /// current rayon pool; 4.6 ms for 27,984 leaves on one thread in the `gap` bench). Computed outside the cell, then stored:
     /// a rayon worker that waited inside the cell's initialisation could be handed another task
     /// that initialises the same cell, and deadlock. Two threads may both compute it; the first
     /// stored is kept.
