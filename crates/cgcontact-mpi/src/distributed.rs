@@ -21,14 +21,26 @@
 //!
 //! Memory per rank: its home blocks' cells plus the halo (O(own cells) for a compact partition),
 //! one `u32` per block for the home map, and the points routed to it.
+//!
+//! # Adaptive bodies
+//! The same steps run on leaves ([`DistributedBody::new_adaptive`]): blocks are blocks of base
+//! cells, a leaf belongs to the base cell it lies in, and a point goes to the home of its base
+//! cell's block. The core's adaptive search reads only leaves meeting x − the displacement range,
+//! in base lattice units, and the leaf holding x: the reach above, in base cells. It also depends
+//! on two global quantities, which every local body gets: the displacement range (the leaves
+//! holding its extremes) and the finest level (the inside tolerance scales with the finest
+//! spacing: a leaf of that level). Its candidates are ordered by distance, then by leaf id: the
+//! local body lists its leaves in ascending id in the whole body, so its ties break as the serial
+//! body's do, and the answers name leaves by those ids.
 
 use std::time::Instant;
 
+use cgcontact::adaptive::MAX_LEVEL;
 use cgcontact::glam::DVec2;
 use cgcontact::glam::DVec3;
 use cgcontact::{
-    Answer, Body, CellId, Contact, Face, GapAnswer, GapFinder, Hit, Lattice, LatticeLocator,
-    Locator, PointError, Settings,
+    AdaptiveBody, AdaptiveLocator, Answer, Body, CellId, Contact, Face, GapAnswer, GapFinder, Hit,
+    Lattice, LatticeLocator, Leaf, Locator, PointError, Settings,
 };
 use mpi::collective::SystemOperation;
 use mpi::traits::*;
@@ -48,6 +60,10 @@ const MARGIN: f64 = 3.0;
 
 /// Words per cell record: the cell id, then 8 corners × 3 displacement components (f64 bits).
 const CELL_WORDS: usize = 25;
+
+/// Words per leaf record: the leaf's id, its level and position (two words), then its corners'
+/// displacements as in a cell record.
+const LEAF_WORDS: usize = 27;
 
 /// A rank whose leaving points are at most one in this many of its points searches all of them
 /// where they lie (see [`DistributedLocator::locate_all_into`]).
@@ -70,6 +86,245 @@ pub struct OwnedCell {
     pub cell: CellId,
     /// The displacements of its 8 corners, in VTK order (`Body::cell_displacements`' order).
     pub u: [DVec3; 8],
+}
+
+/// One leaf of an adaptive body a rank holds: its id in the whole body, where it lies, and its
+/// corners' displacements. Each leaf is held by one rank; the leaves of one base cell may be
+/// spread over several.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct OwnedLeaf {
+    /// The leaf's id in the whole body: its position in the leaves of the serial
+    /// `AdaptiveBody`, the cell the answers name.
+    pub id: CellId,
+    /// Its level and position.
+    pub leaf: Leaf,
+    /// The displacements of its 8 corners, in VTK order (`AdaptiveBody::cell_displacements`'
+    /// order).
+    pub u: [DVec3; 8],
+}
+
+/// What the setup ships and checks of a cell or a leaf: the same steps build uniform and
+/// adaptive local bodies.
+trait Record: Copy + std::fmt::Debug {
+    /// Words of its record on the wire.
+    const WORDS: usize;
+    /// The cell errors and answers name.
+    fn name(&self) -> CellId;
+    /// Its corners' displacements, VTK order.
+    fn u(&self) -> &[DVec3; 8];
+    /// Its refinement level (0 for a lattice cell).
+    fn level(&self) -> u8;
+    /// The base lattice cell it lies in, or why it lies in none.
+    fn base_cell(&self, lattice: &Lattice) -> Result<[u32; 3], Error>;
+    fn write(&self, out: &mut [u64]);
+    fn read(words: &[u64]) -> Self;
+    /// The local body of the records kept and received, each with its base cell, and the
+    /// extremes (added unless there).
+    fn local<'c>(
+        lattice: &Lattice,
+        records: impl Iterator<Item = (&'c Self, [u32; 3])> + Clone,
+        extremes: &[Self],
+    ) -> Result<LocalBody, Error>
+    where
+        Self: 'c;
+}
+
+impl Record for OwnedCell {
+    const WORDS: usize = CELL_WORDS;
+
+    fn name(&self) -> CellId {
+        self.cell
+    }
+
+    fn u(&self) -> &[DVec3; 8] {
+        &self.u
+    }
+
+    fn level(&self) -> u8 {
+        0
+    }
+
+    fn base_cell(&self, lattice: &Lattice) -> Result<[u32; 3], Error> {
+        lattice.cell_ijk(self.cell).ok_or(Error::CellOutOfRange {
+            cell: self.cell,
+            cells: lattice.cell_count(),
+        })
+    }
+
+    fn write(&self, out: &mut [u64]) {
+        write_cell(self, out);
+    }
+
+    fn read(words: &[u64]) -> Self {
+        read_cell(words)
+    }
+
+    fn local<'c>(
+        lattice: &Lattice,
+        records: impl Iterator<Item = (&'c Self, [u32; 3])> + Clone,
+        extremes: &[Self],
+    ) -> Result<LocalBody, Error> {
+        local_body(lattice, records, extremes).map(LocalBody::Uniform)
+    }
+}
+
+impl Record for OwnedLeaf {
+    const WORDS: usize = LEAF_WORDS;
+
+    fn name(&self) -> CellId {
+        self.id
+    }
+
+    fn u(&self) -> &[DVec3; 8] {
+        &self.u
+    }
+
+    fn level(&self) -> u8 {
+        self.leaf.level
+    }
+
+    fn base_cell(&self, lattice: &Lattice) -> Result<[u32; 3], Error> {
+        let Leaf { level, ijk } = self.leaf;
+        let cells = lattice.cells();
+        if level > MAX_LEVEL || (0..3).any(|a| u64::from(ijk[a]) >= u64::from(cells[a]) << level) {
+            return Err(Error::LeafOutOfRange {
+                leaf: self.id,
+                level,
+                ijk,
+            });
+        }
+        Ok(ijk.map(|i| i >> level))
+    }
+
+    fn write(&self, out: &mut [u64]) {
+        let Leaf { level, ijk } = self.leaf;
+        out[0] = u64::from(self.id.0);
+        out[1] = u64::from(level) << 32 | u64::from(ijk[0]);
+        out[2] = u64::from(ijk[1]) << 32 | u64::from(ijk[2]);
+        write_corners(&self.u, &mut out[3..]);
+    }
+
+    fn read(words: &[u64]) -> Self {
+        let low = |w: u64| (w & 0xffff_ffff) as u32;
+        Self {
+            id: CellId(words[0] as u32),
+            leaf: Leaf::new(
+                (words[1] >> 32) as u8,
+                [low(words[1]), (words[2] >> 32) as u32, low(words[2])],
+            ),
+            u: read_corners(&words[3..]),
+        }
+    }
+
+    fn local<'c>(
+        lattice: &Lattice,
+        records: impl Iterator<Item = (&'c Self, [u32; 3])> + Clone,
+        extremes: &[Self],
+    ) -> Result<LocalBody, Error> {
+        local_adaptive_body(lattice, records.map(|(leaf, _)| *leaf).collect(), extremes)
+    }
+}
+
+/// A rank's local body: lattice cells, or leaves with their ids in the whole body.
+// One per setup, held in place: the variants' sizes do not matter.
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Debug)]
+enum LocalBody {
+    Uniform(Body),
+    Adaptive {
+        body: AdaptiveBody,
+        /// Each local leaf's id in the whole body (ascending: the local ids keep the serial
+        /// order, which breaks the search's ties).
+        ids: Vec<CellId>,
+    },
+}
+
+impl LocalBody {
+    fn cell_count(&self) -> usize {
+        match self {
+            Self::Uniform(body) => body.active_count(),
+            Self::Adaptive { body, .. } => body.cell_count(),
+        }
+    }
+
+    fn heap_bytes(&self) -> usize {
+        match self {
+            Self::Uniform(body) => body.heap_bytes(),
+            Self::Adaptive { body, ids } => body.heap_bytes() + size_of_val(ids.as_slice()),
+        }
+    }
+}
+
+/// The core's locator over a local body.
+#[derive(Clone, Debug)]
+enum LocalLocator<'a> {
+    Uniform(LatticeLocator<'a>),
+    Adaptive {
+        locator: AdaptiveLocator<'a>,
+        ids: &'a [CellId],
+    },
+}
+
+impl LocalLocator<'_> {
+    /// The local answers of `points` into `out`, naming cells by their ids in the whole body.
+    fn locate_all_into(&self, points: &[DVec3], out: &mut Vec<Answer>) {
+        match self {
+            Self::Uniform(locator) => locator.locate_all_into(points, out),
+            Self::Adaptive { locator, ids } => {
+                locator.locate_all_into(points, out);
+                for answer in out.iter_mut() {
+                    if let Ok(Some(hit)) = answer {
+                        hit.cell = ids[hit.cell.index()];
+                    }
+                }
+            }
+        }
+    }
+
+    /// The inversions the local search of `x` tries.
+    fn tried(&self, x: DVec3) -> u32 {
+        match self {
+            Self::Uniform(locator) => locator.locate_counted(x).1,
+            Self::Adaptive { locator, .. } => locator.locate_counted(x).1,
+        }
+    }
+
+    /// A gap finder over the local body.
+    fn finder(&self, distance: f64) -> Result<LocalFinder<'_>, Error> {
+        Ok(match self {
+            Self::Uniform(locator) => LocalFinder::Uniform(GapFinder::new(locator, distance)?),
+            Self::Adaptive { locator, ids } => LocalFinder::Adaptive {
+                finder: GapFinder::new(locator, distance)?,
+                ids,
+            },
+        })
+    }
+}
+
+/// The core's gap finder over a local body.
+enum LocalFinder<'l> {
+    Uniform(GapFinder<'l, LatticeLocator<'l>>),
+    Adaptive {
+        finder: GapFinder<'l, AdaptiveLocator<'l>>,
+        ids: &'l [CellId],
+    },
+}
+
+impl LocalFinder<'_> {
+    /// The local gap answers of `points` into `out`, naming cells by their ids in the whole body.
+    fn gap_all_into(&self, points: &[DVec3], out: &mut Vec<GapAnswer>) {
+        match self {
+            Self::Uniform(finder) => finder.gap_all_into(points, out),
+            Self::Adaptive { finder, ids } => {
+                finder.gap_all_into(points, out);
+                for answer in out.iter_mut() {
+                    if let Ok(Some(contact)) = answer {
+                        contact.face.cell = ids[contact.face.cell.index()];
+                    }
+                }
+            }
+        }
+    }
 }
 
 /// The setup's settings.
@@ -269,7 +524,7 @@ pub struct DistributedBody {
     before: [u32; 3],
     after: [u32; 3],
     /// The local body; `None` when this rank is home to no block with cells.
-    body: Option<Body>,
+    body: Option<LocalBody>,
     stats: SetupStats,
 }
 
@@ -281,6 +536,33 @@ impl DistributedBody {
         comm: &C,
         lattice: Lattice,
         cells: &[OwnedCell],
+        config: Config,
+    ) -> Result<Self, Error> {
+        Self::setup(comm, lattice, cells, config)
+    }
+
+    /// Collective, as [`DistributedBody::new`], for an adaptive body: every rank calls it with
+    /// the same base `lattice` and `config` and its own leaves (any subset of the body's leaves,
+    /// each leaf on exactly one rank, each with its id in the whole body). Points are routed by
+    /// the base cell they lie in; each home receives every leaf of the base cells within its
+    /// points' reach, the leaves holding the displacement extremes and a leaf of the finest
+    /// level (the search's tolerance depends on the finest spacing), so that the answers are
+    /// bitwise those of the serial `AdaptiveLocator` on the whole body.
+    pub fn new_adaptive<C: Communicator>(
+        comm: &C,
+        lattice: Lattice,
+        leaves: &[OwnedLeaf],
+        config: Config,
+    ) -> Result<Self, Error> {
+        Self::setup(comm, lattice, leaves, config)
+    }
+
+    /// The setup of [`DistributedBody::new`] and [`DistributedBody::new_adaptive`]: lattice
+    /// cells are leaves of level 0.
+    fn setup<C: Communicator, R: Record>(
+        comm: &C,
+        lattice: Lattice,
+        cells: &[R],
         config: Config,
     ) -> Result<Self, Error> {
         let start = Instant::now();
@@ -301,9 +583,11 @@ impl DistributedBody {
         } else {
             0
         };
+        let finest = scan.as_ref().map_or(0, |scan| scan.finest.0);
         let mut words = vec![failed, u64::from(!cells.is_empty())];
         words.extend(high);
         words.extend(low.map(|k| !k));
+        words.push(u64::from(finest));
         let agreed = all_reduce(comm, &words, SystemOperation::max(), &mut traffic);
         if agreed[0] != 0 {
             scan?;
@@ -319,9 +603,13 @@ impl DistributedBody {
         let low_key: [u64; 3] = [!agreed[5], !agreed[6], !agreed[7]];
         let u_high = DVec3::from_array(high_key.map(from_order_key));
         let u_low = DVec3::from_array(low_key.map(from_order_key));
+        // The finest level of any leaf (0 on a uniform body).
+        let finest = agreed[8] as u8;
 
-        // 2. The cells holding the six extremes, sent to every rank: the lowest rank holding each
-        //    names it, then one reduction carries them (only that rank's words are non-zero).
+        // 2. The cells holding the six extremes (and, on an adaptive body, a leaf of the finest
+        //    level: the seventh), sent to every rank: the lowest rank holding each names it, then
+        //    one reduction carries them (only that rank's words are non-zero).
+        let slots = if finest > 0 { 7 } else { 6 };
         let extremes: Vec<(usize, usize)> = (0..3)
             .filter(|_| !cells.is_empty())
             .flat_map(|a| {
@@ -330,25 +618,26 @@ impl DistributedBody {
                     (low_key[a] == low[a]).then_some(scan.low[a].1),
                 ]
             })
+            .chain(
+                (slots == 7 && !cells.is_empty())
+                    .then(|| (scan.finest.0 == finest).then_some(scan.finest.1)),
+            )
             .enumerate()
             .filter_map(|(slot, at)| at.map(|at| (slot, at)))
             .collect();
-        let mut holders = vec![u64::MAX; 6];
+        let mut holders = vec![u64::MAX; slots];
         for &(slot, _) in &extremes {
             holders[slot] = rank as u64;
         }
         let holders = all_reduce(comm, &holders, SystemOperation::min(), &mut traffic);
-        let mut extreme_words = vec![0u64; 6 * CELL_WORDS];
+        let mut extreme_words = vec![0u64; slots * R::WORDS];
         for &(slot, at) in &extremes {
             if holders[slot] == rank as u64 {
-                write_cell(&cells[at], &mut extreme_words[slot * CELL_WORDS..]);
+                cells[at].write(&mut extreme_words[slot * R::WORDS..]);
             }
         }
         let extreme_words = all_reduce(comm, &extreme_words, SystemOperation::max(), &mut traffic);
-        let extremes: Vec<OwnedCell> = extreme_words
-            .chunks_exact(CELL_WORDS)
-            .map(read_cell)
-            .collect();
+        let extremes: Vec<R> = extreme_words.chunks_exact(R::WORDS).map(R::read).collect();
 
         // 3. The ownership map: one reduction over the blocks of (count of cells, rank) packed so
         //    that the maximum is the rank holding most, the lowest on a tie.
@@ -417,8 +706,8 @@ impl DistributedBody {
                 }
                 let out: &mut Vec<u64> = &mut outgoing[home as usize];
                 let at = out.len();
-                out.resize(at + CELL_WORDS, 0);
-                write_cell(cell, &mut out[at..]);
+                out.resize(at + R::WORDS, 0);
+                cell.write(&mut out[at..]);
             }
         }
         drop(block_of);
@@ -432,12 +721,12 @@ impl DistributedBody {
         // 5. The local body: the cells kept and received and the extreme cells, checked for a
         //    cell held twice and a node given two displacements, then agreed on.
         let home_blocks = blocks.home.iter().filter(|&&h| h == rank as u32).count();
-        let halo: Vec<(OwnedCell, [u32; 3])> = received
-            .chunks_exact(CELL_WORDS)
+        let halo: Vec<(R, [u32; 3])> = received
+            .chunks_exact(R::WORDS)
             .map(|words| {
-                let cell = read_cell(words);
+                let cell = R::read(words);
                 // Every rank checked its cells: in range.
-                (cell, lattice.cell_ijk(cell.cell).unwrap_or([u32::MAX; 3]))
+                (cell, cell.base_cell(&lattice).unwrap_or([u32::MAX; 3]))
             })
             .collect();
         drop(received);
@@ -449,7 +738,7 @@ impl DistributedBody {
         let built = if kept.is_empty() && halo.is_empty() {
             Ok(None)
         } else {
-            local_body(&lattice, local_cells, &extremes).map(Some)
+            R::local(&lattice, local_cells, &extremes).map(Some)
         };
         drop(halo);
         let failed = if built.is_err() {
@@ -469,10 +758,10 @@ impl DistributedBody {
             seconds: start.elapsed().as_secs_f64(),
             traffic,
             own_cells: cells.len(),
-            local_cells: body.as_ref().map_or(0, Body::active_count),
+            local_cells: body.as_ref().map_or(0, LocalBody::cell_count),
             blocks: block_count,
             home_blocks,
-            body_bytes: body.as_ref().map_or(0, Body::heap_bytes),
+            body_bytes: body.as_ref().map_or(0, LocalBody::heap_bytes),
         };
         Ok(Self {
             lattice,
@@ -493,10 +782,24 @@ impl DistributedBody {
     }
 
     /// This rank's local body (its home blocks' cells, their halo, the extreme cells), `None` when
-    /// it is home to no block with cells.
+    /// it is home to no block with cells or the body is adaptive.
     #[must_use]
     pub fn local_body(&self) -> Option<&Body> {
-        self.body.as_ref()
+        match &self.body {
+            Some(LocalBody::Uniform(body)) => Some(body),
+            _ => None,
+        }
+    }
+
+    /// This rank's local adaptive body (its home blocks' leaves, their halo, the extreme and
+    /// finest leaves) and each local leaf's id in the whole body, `None` when it is home to no
+    /// block with leaves or the body is uniform.
+    #[must_use]
+    pub fn local_adaptive_body(&self) -> Option<(&AdaptiveBody, &[CellId])> {
+        match &self.body {
+            Some(LocalBody::Adaptive { body, ids }) => Some((body, ids)),
+            _ => None,
+        }
     }
 
     /// What the setup cost this rank.
@@ -534,7 +837,14 @@ impl DistributedBody {
     /// A locator over this rank's local body (local work: the core's O(nodes) build).
     pub fn locator(&self) -> Result<DistributedLocator<'_>, Error> {
         let local = match &self.body {
-            Some(body) => Some(LatticeLocator::new(body, self.settings)?),
+            Some(LocalBody::Uniform(body)) => Some(LocalLocator::Uniform(LatticeLocator::new(
+                body,
+                self.settings,
+            )?)),
+            Some(LocalBody::Adaptive { body, ids }) => Some(LocalLocator::Adaptive {
+                locator: AdaptiveLocator::new(body, self.settings)?,
+                ids,
+            }),
             None => None,
         };
         Ok(DistributedLocator { body: self, local })
@@ -545,14 +855,27 @@ impl DistributedBody {
 #[derive(Clone, Debug)]
 pub struct DistributedLocator<'a> {
     body: &'a DistributedBody,
-    local: Option<LatticeLocator<'a>>,
+    local: Option<LocalLocator<'a>>,
 }
 
 impl DistributedLocator<'_> {
-    /// The core locator over this rank's local body, if it has one.
+    /// The core locator over this rank's local body, if it has one and it is uniform.
     #[must_use]
     pub fn local(&self) -> Option<&LatticeLocator<'_>> {
-        self.local.as_ref()
+        match &self.local {
+            Some(LocalLocator::Uniform(locator)) => Some(locator),
+            _ => None,
+        }
+    }
+
+    /// The core locator over this rank's local adaptive body, if it has one (its answers name
+    /// local leaves: [`DistributedBody::local_adaptive_body`] maps them to the whole body's).
+    #[must_use]
+    pub fn local_adaptive(&self) -> Option<&AdaptiveLocator<'_>> {
+        match &self.local {
+            Some(LocalLocator::Adaptive { locator, .. }) => Some(locator),
+            _ => None,
+        }
     }
 
     /// Collective: every rank calls it with its own points (any number, none included). Each
@@ -640,7 +963,7 @@ impl DistributedLocator<'_> {
                             // replaced (a second search of a point this body does not hold
                             // would cost more than the first).
                             _ if homes[i] as usize != me => 0,
-                            _ => local.locate_counted(x).1,
+                            _ => local.tried(x),
                         },
                     ));
                 }
@@ -728,7 +1051,7 @@ impl DistributedLocator<'_> {
             });
         }
         let finder = match &self.local {
-            Some(local) => Some(GapFinder::new(local, distance)?),
+            Some(local) => Some(local.finder(distance)?),
             None => None,
         };
         let Gaps {
@@ -970,10 +1293,10 @@ impl Route {
 /// The inversions the serial search tried for `x`, whose answer is `answer`: what `cgcontact
 /// locate` writes (a hit's count, else the count of a search that found nothing).
 #[inline]
-fn tried_count(local: &LatticeLocator<'_>, answer: &Answer, x: impl Fn() -> DVec3) -> u32 {
+fn tried_count(local: &LocalLocator<'_>, answer: &Answer, x: impl Fn() -> DVec3) -> u32 {
     match answer {
         Ok(Some(hit)) => hit.inversions,
-        _ => local.locate_counted(x()).1,
+        _ => local.tried(x()),
     }
 }
 
@@ -1046,11 +1369,13 @@ struct Scan {
     ijk: Vec<[u32; 3]>,
     low: [(u64, usize); 3],
     high: [(u64, usize); 3],
+    /// The deepest level and the index of the first record at it.
+    finest: (u8, usize),
 }
 
 /// Check one rank's cells (in the lattice, finite displacements) and the block size, in one pass
 /// that also gathers what [`Scan`] holds.
-fn scan_cells(lattice: &Lattice, cells: &[OwnedCell], config: &Config) -> Result<Scan, Error> {
+fn scan_cells<R: Record>(lattice: &Lattice, cells: &[R], config: &Config) -> Result<Scan, Error> {
     if config.block == 0 || config.block > 1 << 20 {
         return Err(Error::BlockSize(config.block));
     }
@@ -1062,28 +1387,27 @@ fn scan_cells(lattice: &Lattice, cells: &[OwnedCell], config: &Config) -> Result
         ijk: Vec::with_capacity(cells.len()),
         low: [(u64::MAX, 0); 3],
         high: [(0, 0); 3],
+        finest: (0, 0),
     };
-    for (at, cell) in cells.iter().enumerate() {
-        let Some(ijk) = lattice.cell_ijk(cell.cell) else {
-            return Err(Error::CellOutOfRange {
-                cell: cell.cell,
-                cells: lattice.cell_count(),
-            });
-        };
-        scan.ijk.push(ijk);
+    for (at, record) in cells.iter().enumerate() {
+        scan.ijk.push(record.base_cell(lattice)?);
+        if record.level() > scan.finest.0 {
+            scan.finest = (record.level(), at);
+        }
+        let u = record.u();
         // A finite sum means finite terms; an infinite or NaN one is looked into (finite values
         // may overflow it).
-        let sum = cell.u.iter().fold(DVec3::ZERO, |s, &u| s + u);
+        let sum = u.iter().fold(DVec3::ZERO, |s, &u| s + u);
         if !sum.is_finite()
-            && let Some(corner) = cell.u.iter().position(|u| !u.is_finite())
+            && let Some(corner) = u.iter().position(|u| !u.is_finite())
         {
             return Err(Error::NonFiniteDisplacement {
-                cell: cell.cell,
+                cell: record.name(),
                 corner,
             });
         }
-        let (mut low, mut high) = (cell.u[0], cell.u[0]);
-        for &u in &cell.u[1..] {
+        let (mut low, mut high) = (u[0], u[0]);
+        for &u in &u[1..] {
             low = low.min(u);
             high = high.max(u);
         }
@@ -1091,9 +1415,7 @@ fn scan_cells(lattice: &Lattice, cells: &[OwnedCell], config: &Config) -> Result
             // The order keys rank -0 below +0, which a floating-point minimum does not.
             let zero = |v: f64, sign: bool| {
                 if v == 0.0
-                    && cell
-                        .u
-                        .iter()
+                    && u.iter()
                         .any(|u| u[a] == 0.0 && u[a].is_sign_negative() == sign)
                 {
                     if sign { -0.0 } else { 0.0 }
@@ -1346,27 +1668,89 @@ fn local_body_sorted(
     Ok(body)
 }
 
-fn write_cell(cell: &OwnedCell, out: &mut [u64]) {
-    out[0] = u64::from(cell.cell.0);
-    for (c, u) in cell.u.iter().enumerate() {
+/// The local adaptive body of the `leaves` kept and received (each must come once: a leaf held
+/// by two ranks arrives twice) and the `extremes` (added unless there), in ascending id order,
+/// so that local ids keep the serial order; checked for a node given two displacements.
+fn local_adaptive_body(
+    lattice: &Lattice,
+    mut leaves: Vec<OwnedLeaf>,
+    extremes: &[OwnedLeaf],
+) -> Result<LocalBody, Error> {
+    leaves.sort_unstable_by_key(|l| l.id);
+    if let Some(pair) = leaves.windows(2).find(|p| p[0].id == p[1].id) {
+        return Err(Error::DuplicateCell { cell: pair[0].id });
+    }
+    for extreme in extremes {
+        if leaves.binary_search_by_key(&extreme.id, |l| l.id).is_err() {
+            leaves.push(*extreme);
+        }
+    }
+    leaves.sort_unstable_by_key(|l| l.id);
+    leaves.dedup_by_key(|l| l.id);
+    let ids: Vec<CellId> = leaves.iter().map(|l| l.id).collect();
+    let global = |local: CellId| ids.get(local.index()).copied().unwrap_or(local);
+    let mut body = AdaptiveBody::from_leaves(*lattice, leaves.iter().map(|l| l.leaf).collect())
+        .map_err(|e| match e {
+            cgcontact::Error::InvalidLeaf { cell, reason } => cgcontact::Error::InvalidLeaf {
+                cell: global(cell),
+                reason,
+            },
+            cgcontact::Error::OverlappingCells { cell, other } => {
+                cgcontact::Error::OverlappingCells {
+                    cell: global(cell),
+                    other: global(other),
+                }
+            }
+            e => e,
+        })?;
+    let mut u = vec![DVec3::NAN; body.node_count()];
+    let bits = |u: DVec3| u.to_array().map(f64::to_bits);
+    for (local, leaf) in leaves.iter().enumerate() {
+        let nodes = body
+            .cell_nodes(CellId(local as u32))
+            .expect("a leaf of the body");
+        for (corner, (&node, &value)) in nodes.iter().zip(&leaf.u).enumerate() {
+            let kept = std::mem::replace(&mut u[node], value);
+            if !kept.x.is_nan() && bits(kept) != bits(value) {
+                return Err(Error::InconsistentCorner {
+                    cell: leaf.id,
+                    corner,
+                });
+            }
+        }
+    }
+    body.set_displacements(&u)?;
+    Ok(LocalBody::Adaptive { body, ids })
+}
+
+/// The 8 corners' displacements as 24 words (f64 bits).
+fn write_corners(u: &[DVec3; 8], out: &mut [u64]) {
+    for (c, u) in u.iter().enumerate() {
         for a in 0..3 {
-            out[1 + 3 * c + a] = u[a].to_bits();
+            out[3 * c + a] = u[a].to_bits();
         }
     }
 }
 
+fn read_corners(words: &[u64]) -> [DVec3; 8] {
+    std::array::from_fn(|c| {
+        DVec3::new(
+            f64::from_bits(words[3 * c]),
+            f64::from_bits(words[3 * c + 1]),
+            f64::from_bits(words[3 * c + 2]),
+        )
+    })
+}
+
+fn write_cell(cell: &OwnedCell, out: &mut [u64]) {
+    out[0] = u64::from(cell.cell.0);
+    write_corners(&cell.u, &mut out[1..]);
+}
+
 fn read_cell(words: &[u64]) -> OwnedCell {
-    let mut u = [DVec3::ZERO; 8];
-    for (c, u) in u.iter_mut().enumerate() {
-        *u = DVec3::new(
-            f64::from_bits(words[1 + 3 * c]),
-            f64::from_bits(words[2 + 3 * c]),
-            f64::from_bits(words[3 + 3 * c]),
-        );
-    }
     OwnedCell {
         cell: CellId(words[0] as u32),
-        u,
+        u: read_corners(&words[1..]),
     }
 }
 

@@ -23,6 +23,26 @@ pub enum Error {
         /// The corner (VTK order).
         corner: usize,
     },
+    /// A leaf deeper than the core's deepest level or outside the base lattice.
+    #[error(
+        "leaf {leaf} (level {level}, indices {ijk:?}) is deeper than 20 levels or outside the lattice"
+    )]
+    LeafOutOfRange {
+        /// The leaf's id.
+        leaf: CellId,
+        /// Its level.
+        level: u8,
+        /// Its indices on its level's lattice.
+        ijk: [u32; 3],
+    },
+    /// A leaf's corner is a node that another leaf gives a different displacement.
+    #[error("leaf {cell}: corner {corner} is a node another leaf gives a different displacement")]
+    InconsistentCorner {
+        /// The leaf.
+        cell: CellId,
+        /// The corner (VTK order).
+        corner: usize,
+    },
     /// No rank holds any cell.
     #[error("no rank holds any cell: the body is empty")]
     EmptyBody,

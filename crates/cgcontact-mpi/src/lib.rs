@@ -1,13 +1,13 @@
 //! # cgcontact-mpi
 //!
 //! cgcontact's contact search over MPI ranks: each rank holds any subset of a body's active cells
-//! and any set of points; every point gets **the answer the serial search on the whole body
-//! gives**, bit for bit, whatever the partition.
+//! (or of an adaptive body's leaves) and any set of points; every point gets **the answer the
+//! serial search on the whole body gives**, bit for bit, whatever the partition.
 //!
 //! | piece | what it is |
 //! |---|---|
-//! | [`DistributedBody`] | the collective setup: the displacement range, the ownership map of lattice blocks, each rank's local body (its home blocks' cells and their halo) |
-//! | [`DistributedLocator`] | collective queries: points routed to their block's home, searched there by the core's `LatticeLocator` (or its `GapFinder`: `gap_all_into`, into [`Gaps`]), answers back in input order (`locate_all_into` reuses one [`Located`]'s buffers across a solver's iterations) |
+//! | [`DistributedBody`] | the collective setup: the displacement range, the ownership map of lattice blocks, each rank's local body (its home blocks' cells and their halo); `new` takes [`OwnedCell`]s, `new_adaptive` an adaptive body's [`OwnedLeaf`]s |
+//! | [`DistributedLocator`] | collective queries: points routed to their block's home, searched there by the core's `LatticeLocator` or `AdaptiveLocator` (or its `GapFinder`: `gap_all_into`, into [`Gaps`]), answers back in input order (`locate_all_into` reuses one [`Located`]'s buffers across a solver's iterations) |
 //! | [`Partition`] | slabs, Morton runs or scattered cells: the splits the command line and the tests use |
 //! | [`gather_located`], [`gather_gaps`] | every rank's answers on one rank, for one results file |
 //! | [`abort_on_panic`] | a panic on one rank aborts every rank, rather than leaving mpirun waiting |
@@ -48,8 +48,8 @@ mod panic;
 mod partition;
 
 pub use distributed::{
-    Config, DistributedBody, DistributedLocator, Gaps, Located, OwnedCell, QueryStats, SetupStats,
-    gather_gaps, gather_located,
+    Config, DistributedBody, DistributedLocator, Gaps, Located, OwnedCell, OwnedLeaf, QueryStats,
+    SetupStats, gather_gaps, gather_located,
 };
 pub use error::Error;
 pub use exchange::Traffic;

@@ -17,8 +17,8 @@ use cgcontact_io::{
     DisplacementArray, MeshBody, read_body, read_points, write_owner_rows, write_results_counted,
 };
 use cgcontact_mpi::{
-    Config, DistributedBody, Error, Gaps, Located, OwnedCell, Partition, QueryStats, SetupStats,
-    gather_gaps, gather_located,
+    Config, DistributedBody, Error, Gaps, Located, OwnedCell, OwnedLeaf, Partition, QueryStats,
+    SetupStats, gather_gaps, gather_located,
 };
 use clap::{Args, Parser, Subcommand};
 use mpi::collective::SystemOperation;
@@ -45,8 +45,8 @@ enum Command {
 
 The results file is the one `cgcontact locate` writes for the same mesh and points, byte for byte.
 Each rank reads the whole mesh and keeps its partition's cells (slabs across the longest lattice
-axis, Morton runs, or scattered), and keeps a contiguous run of the points' rows. Uniform meshes
-only (not adaptive ones). Exit code 2 on bad input, on every rank.")]
+axis, Morton runs, or scattered; the leaves of an adaptive mesh go with the base cell they lie
+in), and keeps a contiguous run of the points' rows. Exit code 2 on bad input, on every rank.")]
 struct LocateArgs {
     /// The mesh (.vtk or .vtu).
     #[arg(long, value_name = "FILE")]
@@ -79,6 +79,10 @@ struct LocateArgs {
     /// Print one JSON object with the timings, messages and bytes of every rank.
     #[arg(long)]
     json: bool,
+    /// On an adaptive mesh, refuse hanging nodes whose displacement breaks their constraint (as
+    /// `cgcontact locate --strict` does); without it, rank 0 warns.
+    #[arg(long)]
+    strict: bool,
     /// Print nothing but errors.
     #[arg(long)]
     quiet: bool,
@@ -197,13 +201,7 @@ fn locate(world: &SimpleCommunicator, args: &LocateArgs) -> Result<(), Failure> 
             &DisplacementArray::from_option(args.displacement.as_deref()),
         )
         .map_err(anyhow::Error::from)
-        .and_then(|mesh| match mesh {
-            MeshBody::Uniform(mesh) => Ok(mesh),
-            MeshBody::Adaptive(_) => Err(anyhow!(
-                "{}: an adaptive mesh (cells of several sizes): cgcontact-mpi searches uniform meshes only",
-                args.mesh.display()
-            )),
-        }),
+        .and_then(|mesh| check_constraints(args, rank, mesh)),
     )?;
     let points = agree(
         world,
@@ -211,23 +209,59 @@ fn locate(world: &SimpleCommunicator, args: &LocateArgs) -> Result<(), Failure> 
     )?;
     let read_seconds = read_start.elapsed().as_secs_f64();
 
-    // This rank's cells and points.
-    let lattice = *mesh.body.lattice();
-    let cells: Vec<CellId> = mesh.body.active_cells().collect();
-    let owners = args.partition.owners(&lattice, &cells, size);
-    let mine: Vec<OwnedCell> = cells
-        .iter()
-        .zip(&owners)
-        .filter(|&(_, &r)| r == rank as usize)
-        .map(|(&cell, _)| OwnedCell {
-            cell,
-            u: mesh
-                .body
-                .cell_displacements(cell)
-                .expect("an active cell of the body"),
-        })
-        .collect();
-    drop(owners);
+    // This rank's cells (or leaves, split by the base cell they lie in) and points.
+    let mine = match &mesh {
+        MeshBody::Uniform(mesh) => {
+            let cells: Vec<CellId> = mesh.body.active_cells().collect();
+            let owners = args.partition.owners(mesh.body.lattice(), &cells, size);
+            Mine::Cells(
+                cells
+                    .iter()
+                    .zip(&owners)
+                    .filter(|&(_, &r)| r == rank as usize)
+                    .map(|(&cell, _)| OwnedCell {
+                        cell,
+                        u: mesh
+                            .body
+                            .cell_displacements(cell)
+                            .expect("an active cell of the body"),
+                    })
+                    .collect(),
+            )
+        }
+        MeshBody::Adaptive(mesh) => {
+            let lattice = mesh.body.lattice();
+            let leaves = mesh.body.leaves();
+            let base: Vec<CellId> = leaves
+                .iter()
+                .map(|leaf| lattice.cell_id(leaf.ijk.map(|i| i >> leaf.level)))
+                .collect();
+            let owners = args.partition.owners(lattice, &base, size);
+            Mine::Leaves(
+                leaves
+                    .iter()
+                    .enumerate()
+                    .zip(&owners)
+                    .filter(|&(_, &r)| r == rank as usize)
+                    .map(|((id, leaf), _)| {
+                        let id = CellId(id as u32);
+                        OwnedLeaf {
+                            id,
+                            leaf,
+                            u: mesh
+                                .body
+                                .cell_displacements(id)
+                                .expect("a leaf of the body"),
+                        }
+                    })
+                    .collect(),
+            )
+        }
+    };
+    let (lattice, cell_count) = match &mesh {
+        MeshBody::Uniform(mesh) => (*mesh.body.lattice(), mesh.body.active_count()),
+        MeshBody::Adaptive(mesh) => (*mesh.body.lattice(), mesh.body.cell_count()),
+    };
     let n = points.len();
     let rows = rank as usize * n / size..(rank as usize + 1) * n / size;
     let my_points = &points[rows];
@@ -238,7 +272,12 @@ fn locate(world: &SimpleCommunicator, args: &LocateArgs) -> Result<(), Failure> 
         gap_distance: args.gap.unwrap_or(0.0),
     };
     world.barrier();
-    let distributed = DistributedBody::new(world, lattice, &mine, config).map_err(|e| match e {
+    let distributed = match &mine {
+        Mine::Cells(cells) => DistributedBody::new(world, lattice, cells, config),
+        Mine::Leaves(leaves) => DistributedBody::new_adaptive(world, lattice, leaves, config),
+    };
+    drop(mine);
+    let distributed = distributed.map_err(|e| match e {
         Error::OnAnotherRank { .. } => Failure::Elsewhere,
         e => Failure::Here(anyhow!(e).context("setup")),
     })?;
@@ -290,11 +329,11 @@ fn locate(world: &SimpleCommunicator, args: &LocateArgs) -> Result<(), Failure> 
                 Ok(Some(hit)) => std::slice::from_ref(hit),
                 _ => &[],
             });
-            write_owner_rows(out, one, tried, |c| mesh.cells.input_cell(c), Some(gaps))
+            write_owner_rows(out, one, tried, |c| mesh.cells().input_cell(c), Some(gaps))
                 .with_context(|| format!("{}: cannot write the results", out.display()))
         }
         (Some((answers, tried)), Some(out), _) => {
-            write_results_counted(out, answers, tried, &mesh.cells)
+            write_results_counted(out, answers, tried, mesh.cells())
                 .with_context(|| format!("{}: cannot write the results", out.display()))
         }
         _ => Ok(()),
@@ -314,7 +353,7 @@ fn locate(world: &SimpleCommunicator, args: &LocateArgs) -> Result<(), Failure> 
                 ranks: size,
                 points: n,
                 located: located_count,
-                cells: cells.len(),
+                cells: cell_count,
                 blocks: distributed.stats().blocks,
                 read_seconds,
                 query_seconds,
@@ -325,6 +364,38 @@ fn locate(world: &SimpleCommunicator, args: &LocateArgs) -> Result<(), Failure> 
         );
     }
     Ok(())
+}
+
+/// This rank's share of the body.
+enum Mine {
+    Cells(Vec<OwnedCell>),
+    Leaves(Vec<OwnedLeaf>),
+}
+
+/// An adaptive mesh's hanging nodes against their constraints, as `cgcontact locate` checks
+/// them: a warning on rank 0 (unless `--quiet`), or with `--strict` an error.
+fn check_constraints(args: &LocateArgs, rank: i32, mesh: MeshBody) -> anyhow::Result<MeshBody> {
+    if let MeshBody::Adaptive(adaptive) = &mesh {
+        let report = adaptive.constraints;
+        if let (false, Some((node, by))) = (report.holds(), report.worst) {
+            let position = adaptive.body.node_position(node).unwrap_or_default();
+            let message = format!(
+                "{}: {} of {} hanging nodes break their constraint by more than {:.1e}; the worst, at {}, by {by:.3e}: the deformed mesh gaps or overlaps there",
+                args.mesh.display(),
+                report.violating,
+                report.hanging,
+                adaptive.constraint_tolerance,
+                position,
+            );
+            if args.strict {
+                anyhow::bail!("{message}");
+            }
+            if !args.quiet && rank == 0 {
+                eprintln!("cgcontact-mpi: warning: {message} (--strict refuses such a mesh)");
+            }
+        }
+    }
+    Ok(mesh)
 }
 
 /// Refuse, before any file is read, what cannot work: a block size out of range, no threads, an

@@ -66,14 +66,26 @@ fn run(command: &mut Command) {
     );
 }
 
+/// The point of a cell at ξ.
+type PointAt<'a> = dyn Fn(CellId, DVec3) -> Option<DVec3> + 'a;
+
 /// Points at ξ ∈ {−1, 0, 1}³ of the mesh's cells (faces, edges and nodes shared between cells,
-/// so between ranks), then the scene's own points, as a CSV file.
+/// so between ranks; on an adaptive mesh, between leaves of different levels), then the scene's
+/// own points, as a CSV file.
 fn with_boundary_points(mesh: &Path, scene_points: &Path, out: &Path, count: usize) {
-    let MeshBody::Uniform(mesh) = read_body(mesh, &DisplacementArray::from_option(None)).unwrap()
-    else {
-        panic!("a uniform scene");
+    let mesh = read_body(mesh, &DisplacementArray::from_option(None)).unwrap();
+    let (cells, point_at) = match &mesh {
+        MeshBody::Uniform(mesh) => (
+            mesh.body.active_cells().collect(),
+            Box::new(|cell, xi| mesh.body.point_at(cell, xi)) as Box<PointAt<'_>>,
+        ),
+        MeshBody::Adaptive(mesh) => (
+            (0..mesh.body.cell_count() as u32)
+                .map(CellId)
+                .collect::<Vec<_>>(),
+            Box::new(|cell, xi| mesh.body.point_at(cell, xi)) as Box<PointAt<'_>>,
+        ),
     };
-    let cells: Vec<CellId> = mesh.body.active_cells().collect();
     let mut text = String::from("x,y,z\n");
     let mut state = 0x2545_F491_4F6C_DD1Du64;
     let mut next = |n: usize| {
@@ -89,7 +101,7 @@ fn with_boundary_points(mesh: &Path, scene_points: &Path, out: &Path, count: usi
             [-1.0, 0.0, 1.0][next(3)],
             [-1.0, 0.0, 1.0][next(3)],
         );
-        let x = mesh.body.point_at(cell, xi).unwrap();
+        let x = point_at(cell, xi).unwrap();
         text.push_str(&format!("{},{},{}\n", x.x, x.y, x.z));
     }
     let scene = std::fs::read_to_string(scene_points).unwrap();
@@ -102,7 +114,7 @@ fn results_files_are_byte_for_byte_those_of_cgcontact_locate() {
     let bin = cgcontact();
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let scenes: [(&str, &[&str]); 3] = [
+    let scenes: [(&str, &[&str]); 4] = [
         ("fine", &["sphere-fine"]),
         (
             "jitter",
@@ -126,6 +138,22 @@ fn results_files_are_byte_for_byte_those_of_cgcontact_locate() {
                 "3000",
                 "--format",
                 "vtk-binary",
+            ],
+        ),
+        // Three levels, unbalanced (jumps of more than one level), leaves in random order, on
+        // the coarse block's spacing.
+        (
+            "adaptive",
+            &[
+                "sphere-adaptive",
+                "--h",
+                "0.5",
+                "--levels",
+                "3",
+                "--unbalanced",
+                "--shuffle",
+                "--known",
+                "3000",
             ],
         ),
     ];
@@ -199,6 +227,59 @@ fn results_files_are_byte_for_byte_those_of_cgcontact_locate() {
             );
         }
     }
+}
+
+/// A hanging node moved off its constraint: one warning naming the count and the worst node's
+/// offset, as `cgcontact locate` gives it, or with `--strict` exit code 2 on every rank.
+#[test]
+fn a_broken_hanging_node_warns_once_and_strict_refuses() {
+    use cgcontact::{AdaptiveBody, Lattice, Leaf};
+    let dir = tempfile::tempdir().unwrap();
+    let lattice = Lattice::new(DVec3::ZERO, DVec3::ONE, [2, 1, 1]).unwrap();
+    let mut leaves = vec![Leaf::new(0, [0, 0, 0])];
+    leaves.extend(Leaf::new(0, [1, 0, 0]).children());
+    let mut body = AdaptiveBody::from_leaves(lattice, leaves).unwrap();
+    let hanging = body.hanging_nodes().next().unwrap();
+    let mut u = vec![DVec3::ZERO; body.node_count()];
+    u[hanging].x = 0.01;
+    body.set_displacements(&u).unwrap();
+    let mesh = dir.path().join("mesh.vtu");
+    cgcontact_io::write_adaptive_mesh(&mesh, &body, cgcontact_io::MeshFormat::Xml).unwrap();
+    let points = dir.path().join("points.csv");
+    std::fs::write(&points, "x,y,z\n0.5,0.5,0.5\n1.5,0.25,0.25\n").unwrap();
+    let out = dir.path().join("results.csv");
+    let (mesh, points, out) = (
+        mesh.to_str().unwrap(),
+        points.to_str().unwrap(),
+        out.to_str().unwrap(),
+    );
+    let args = ["locate", "--mesh", mesh, "--points", points, "--out", out];
+    let run = mpirun(3, &args);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "{stderr}");
+    assert_eq!(stderr.matches("warning").count(), 1, "{stderr}");
+    assert!(
+        stderr.contains("1 of 5 hanging nodes") && stderr.contains("1.000e-2"),
+        "{stderr}"
+    );
+    let rows = std::fs::read_to_string(out).unwrap();
+    // Both points located: a cell in every row.
+    let located = rows
+        .lines()
+        .skip(1)
+        .filter(|row| row.split(',').nth(1) != Some("-1"));
+    assert_eq!(located.count(), 2, "{rows}");
+    std::fs::remove_file(out).unwrap();
+    let strict = mpirun(3, &[&args[..], &["--strict"]].concat());
+    let stderr = String::from_utf8_lossy(&strict.stderr);
+    assert_eq!(strict.status.code(), Some(2), "{stderr}");
+    assert!(!stderr.contains("warning"), "{stderr}");
+    assert_eq!(
+        stderr.matches("break their constraint").count(),
+        1,
+        "{stderr}"
+    );
+    assert!(!Path::new(out).exists());
 }
 
 #[test]

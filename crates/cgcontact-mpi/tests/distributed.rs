@@ -5,19 +5,25 @@
 //! `OMPI_COMM_WORLD_SIZE`), it is one rank: on every scene, partition and block size, each rank's
 //! answers must be bitwise those of the serial `LatticeLocator` on the whole body (cell, ξ,
 //! iterations, residual, inversions, and the inversions tried by points not found), and its gap
-//! answers those of the serial `GapFinder` (gap, closest point, normal, face, (s, t)). A mismatch
-//! aborts every rank with a message naming the point.
+//! answers those of the serial `GapFinder` (gap, closest point, normal, face, (s, t)); on adaptive
+//! scenes, those of the serial `AdaptiveLocator` and its `GapFinder`. A mismatch aborts every rank
+//! with a message naming the point.
 
 use std::process::Command;
 use std::time::{Duration, Instant};
 
 use cgcontact::glam::DVec3;
 use cgcontact::{
-    Answer, Body, CellId, GapAnswer, GapFinder, Lattice, LatticeLocator, Locator, PointError,
-    Settings,
+    AdaptiveBody, AdaptiveLocator, Answer, Body, CellId, GapAnswer, GapFinder, Lattice,
+    LatticeLocator, Leaf, Locator, PointError, Settings,
 };
-use cgcontact_mpi::{Config, DistributedBody, Error, Gaps, Located, OwnedCell, Partition};
-use cgcontact_scenes::{SphereOnBlock, known_points};
+use cgcontact_mpi::{
+    Config, DistributedBody, Error, Gaps, Located, OwnedCell, OwnedLeaf, Partition,
+};
+use cgcontact_scenes::{
+    LeafDraw, LeafOrder, SphereOnAdaptiveBlock, SphereOnBlock, adaptive_known_points, known_points,
+    refine_lattice,
+};
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
 
@@ -172,7 +178,22 @@ fn rank() {
             }
         }
     }
+    let mut adaptive = 0usize;
+    for case in adaptive_cases() {
+        for split in [
+            Split::Base(Partition::Slabs),
+            Split::Base(Partition::Morton),
+            Split::Base(Partition::Random),
+            Split::Leafwise,
+        ] {
+            for placement in [Placement::Split, Placement::AllOnLast, Placement::MostlyOwn] {
+                adaptive += check_adaptive(&world, &case, split, placement, 0.0);
+            }
+            adaptive += check_adaptive(&world, &case, split, Placement::Split, 1.0);
+        }
+    }
     refusals_agree(&world);
+    adaptive_refusals_agree(&world);
     let mut total = 0usize;
     world.all_reduce_into(
         &checked,
@@ -194,10 +215,17 @@ fn rank() {
         &mut gaps_total,
         mpi::collective::SystemOperation::sum(),
     );
+    let mut adaptive_total = 0usize;
+    world.all_reduce_into(
+        &adaptive,
+        &mut adaptive_total,
+        mpi::collective::SystemOperation::sum(),
+    );
     if world.rank() == 0 {
         println!(
             "{size} ranks: {total} answers bitwise the serial ones ({patched_total} in-place \
-             queries with points leaving), and {gaps_total} gap answers"
+             queries with points leaving), {gaps_total} gap answers, and \
+             {adaptive_total} answers and gap answers on adaptive bodies"
         );
     }
 }
@@ -490,6 +518,377 @@ fn refusals_agree(world: &SimpleCommunicator) {
             &format!("no cells: rank {rank} got {:?}", other.map(|_| ())),
         ),
     }
+}
+
+/// One adaptive test scene: a body and every query point (all ranks build the same).
+struct AdaptiveCase {
+    name: &'static str,
+    body: AdaptiveBody,
+    points: Vec<DVec3>,
+}
+
+/// How the leaves are split over the ranks.
+#[derive(Clone, Copy, Debug)]
+enum Split {
+    /// By the base cell each leaf lies in, as the command line splits them.
+    Base(Partition),
+    /// Leaf by leaf, scattered: the leaves of one base cell on several ranks.
+    Leafwise,
+}
+
+/// The leaves `split` gives `rank` of `size`, with their ids and displacements.
+fn leaves_of(body: &AdaptiveBody, split: Split, rank: usize, size: usize) -> Vec<OwnedLeaf> {
+    let lattice = *body.lattice();
+    let leaves = body.leaves().to_vec();
+    let owners = match split {
+        Split::Base(partition) => {
+            let base: Vec<CellId> = leaves
+                .iter()
+                .map(|leaf| lattice.cell_id(leaf.ijk.map(|i| i >> leaf.level)))
+                .collect();
+            partition.owners(&lattice, &base, size)
+        }
+        // The random partition hashes the ids it is given: here the leaves'.
+        Split::Leafwise => {
+            let ids: Vec<CellId> = (0..leaves.len() as u32).map(CellId).collect();
+            Partition::Random.owners(&lattice, &ids, size)
+        }
+    };
+    leaves
+        .iter()
+        .enumerate()
+        .filter(|&(id, _)| owners[id] == rank)
+        .map(|(id, &leaf)| {
+            let id = CellId(id as u32);
+            OwnedLeaf {
+                id,
+                leaf,
+                u: body.cell_displacements(id).expect("a leaf"),
+            }
+        })
+        .collect()
+}
+
+/// The distributed answers (with `gap_cells` > 0, the gap answers within that many base cells)
+/// of this rank's share of an adaptive case's points against the serial ones on the whole body.
+/// Returns how many were checked.
+fn check_adaptive(
+    world: &SimpleCommunicator,
+    case: &AdaptiveCase,
+    split: Split,
+    placement: Placement,
+    gap_cells: f64,
+) -> usize {
+    let (rank, size) = (world.rank() as usize, world.size() as usize);
+    let lattice = *case.body.lattice();
+    let distance = gap_cells * lattice.h().max_element();
+    let what = format!(
+        "{} / {split:?} / {placement:?} / gap {distance} on rank {rank} of {size}",
+        case.name
+    );
+    let config = Config {
+        block: 4,
+        gap_distance: distance,
+        ..Config::default()
+    };
+    let mine = leaves_of(&case.body, split, rank, size);
+    let distributed = DistributedBody::new_adaptive(world, lattice, &mine, config)
+        .unwrap_or_else(|e| fail(world, &format!("{what}: setup: {e}")));
+    let points = share(&case.points, &distributed, placement, rank, size);
+    let locator = distributed
+        .locator()
+        .unwrap_or_else(|e| fail(world, &format!("{what}: locator: {e}")));
+    let serial = AdaptiveLocator::new(&case.body, Settings::default()).expect("default settings");
+    let reversed: Vec<DVec3> = points.iter().rev().copied().collect();
+    if gap_cells > 0.0 {
+        let mut gaps = Gaps::default();
+        for query in [&reversed, &points] {
+            locator
+                .gap_all_into(world, query, distance, &mut gaps)
+                .unwrap_or_else(|e| fail(world, &format!("{what}: {e}")));
+        }
+        let mut expected = Vec::new();
+        GapFinder::new(&serial, distance)
+            .expect("a valid distance")
+            .gap_all_into(&points, &mut expected);
+        for (i, (x, (got, want))) in points
+            .iter()
+            .zip(gaps.answers.iter().zip(&expected))
+            .enumerate()
+        {
+            if gap_bits(got) != gap_bits(want) {
+                fail(
+                    world,
+                    &format!(
+                        "{what}: this rank's point {i} at {x}: distributed {got:?}, serial {want:?}"
+                    ),
+                );
+            }
+        }
+        return points.len();
+    }
+    let mut located = Located::default();
+    locator.locate_all_into(world, &reversed, &mut located);
+    locator.locate_all_into(world, &points, &mut located);
+    let expected = serial.locate_all(&points);
+    for (i, (x, (got, want))) in points
+        .iter()
+        .zip(located.answers.iter().zip(&expected))
+        .enumerate()
+    {
+        let want_tried = match want {
+            Ok(Some(hit)) => hit.inversions,
+            _ => serial.locate_counted(*x).1,
+        };
+        if bits(got) != bits(want) || located.tried[i] != want_tried {
+            fail(
+                world,
+                &format!(
+                    "{what}: this rank's point {i} at {x}: distributed {got:?} (tried {}), serial {want:?} (tried {want_tried})",
+                    located.tried[i]
+                ),
+            );
+        }
+    }
+    // Every local body has the whole body's finest level, on which the search's tolerance
+    // depends, even where no leaf near its points is that fine.
+    if let Some((local, _)) = distributed.local_adaptive_body()
+        && local.finest_level() != case.body.finest_level()
+    {
+        fail(
+            world,
+            &format!(
+                "{what}: the local body's finest level is {}, the body's {}",
+                local.finest_level(),
+                case.body.finest_level()
+            ),
+        );
+    }
+    // Memory follows the leaves: with slabs over several ranks no rank holds the whole body.
+    if let (Split::Base(Partition::Slabs), true) = (split, size > 1) {
+        let local = distributed.stats().local_cells;
+        if local >= case.body.cell_count() {
+            fail(
+                world,
+                &format!("{what}: the local body holds all {local} leaves"),
+            );
+        }
+    }
+    points.len()
+}
+
+/// A leaf out of range on one rank, or leaves overlapping across ranks: every rank gets an
+/// error, none hangs.
+fn adaptive_refusals_agree(world: &SimpleCommunicator) {
+    let (rank, size) = (world.rank() as usize, world.size() as usize);
+    let lattice = Lattice::new(DVec3::ZERO, DVec3::ONE, [4, 3, 2]).expect("a lattice");
+    // Base cell 0 refined once, the other 23 base cells whole.
+    let mut leaves: Vec<Leaf> = Leaf::new(0, [0; 3]).children().to_vec();
+    leaves.extend((1..24).map(|c| Leaf::new(0, lattice.cell_ijk(CellId(c)).expect("a cell"))));
+    let owned = |id: usize, leaf: Leaf| OwnedLeaf {
+        id: CellId(id as u32),
+        leaf,
+        u: [DVec3::ZERO; 8],
+    };
+    let mine = |extra: Option<Leaf>| -> Vec<OwnedLeaf> {
+        let mut mine: Vec<OwnedLeaf> = leaves
+            .iter()
+            .enumerate()
+            .filter(|(id, _)| id % size == rank)
+            .map(|(id, &leaf)| owned(id, leaf))
+            .collect();
+        if let Some(leaf) = extra.filter(|_| rank == size - 1) {
+            mine.push(owned(leaves.len(), leaf));
+        }
+        mine
+    };
+    let last = size - 1;
+    // Level 1 indices beyond the lattice's 8 finer cells along x, on the last rank.
+    match DistributedBody::new_adaptive(
+        world,
+        lattice,
+        &mine(Some(Leaf::new(1, [8, 0, 0]))),
+        Config::default(),
+    ) {
+        Err(Error::LeafOutOfRange { leaf, .. })
+            if rank == last && leaf == CellId(leaves.len() as u32) => {}
+        Err(Error::OnAnotherRank { rank: r }) if rank != last && r as usize == last => {}
+        other => fail(
+            world,
+            &format!(
+                "leaf out of range on rank {last}: rank {rank} got {:?}",
+                other.map(|_| ())
+            ),
+        ),
+    }
+    // Base cell 0 whole as well as refined: an overlap, found where both arrive.
+    let result = DistributedBody::new_adaptive(
+        world,
+        lattice,
+        &mine(Some(Leaf::new(0, [0; 3]))),
+        Config::default(),
+    );
+    match result {
+        Err(Error::Core(cgcontact::Error::OverlappingCells { cell, other })) => {
+            let ids = [cell, other];
+            if !ids.contains(&CellId(leaves.len() as u32)) {
+                fail(
+                    world,
+                    &format!(
+                        "the overlap names {ids:?}, not the whole cell {}",
+                        leaves.len()
+                    ),
+                );
+            }
+        }
+        Err(Error::OnAnotherRank { .. }) => {}
+        other => fail(
+            world,
+            &format!(
+                "overlapping leaves: rank {rank} got {:?}",
+                other.map(|_| ())
+            ),
+        ),
+    }
+    // Without the extra leaf, the body sets up on every rank.
+    if let Err(e) = DistributedBody::new_adaptive(world, lattice, &mine(None), Config::default()) {
+        fail(
+            world,
+            &format!("a valid adaptive body: rank {rank} got {e}"),
+        );
+    }
+}
+
+/// The adaptive scenes: the seed's coarse block refined two levels under the sphere (balanced,
+/// leaves shuffled) and three levels unbalanced (jumps of more than one level, jittered), with
+/// holes; each with the sphere's contact points, known points, and points at ξ ∈ {−1, 0, 1}³ of
+/// random leaves (on faces, edges and nodes shared by leaves of different levels and ranks).
+fn adaptive_cases() -> Vec<AdaptiveCase> {
+    let balanced = SphereOnAdaptiveBlock {
+        order: LeafOrder::Shuffled,
+        ..SphereOnAdaptiveBlock::coarse()
+    }
+    .build("balanced")
+    .expect("the adaptive scene");
+    let unbalanced = SphereOnAdaptiveBlock {
+        levels: 3,
+        balanced: false,
+        order: LeafOrder::Shuffled,
+        ..SphereOnAdaptiveBlock::refining(SphereOnBlock {
+            jitter: 0.1,
+            known_points: 1500,
+            ..SphereOnBlock::coarse()
+        })
+    }
+    .build("unbalanced")
+    .expect("the adaptive scene");
+    let mut cases = Vec::new();
+    for (name, scene, every) in [
+        ("balanced", balanced, 0),
+        ("unbalanced-holed", unbalanced, 9),
+    ] {
+        let body = if every == 0 {
+            scene.body.clone()
+        } else {
+            // Every `every`-th leaf left out, the displacements the scene's at the nodes left.
+            let kept: Vec<Leaf> = scene
+                .body
+                .leaves()
+                .iter()
+                .enumerate()
+                .filter(|(i, _)| i % every != 4)
+                .map(|(_, leaf)| leaf)
+                .collect();
+            let mut holed =
+                AdaptiveBody::from_leaves(*scene.body.lattice(), kept).expect("leaves left");
+            let whole = &scene.body;
+            let finest = whole.finest_level();
+            assert_eq!(
+                holed.finest_level(),
+                finest,
+                "the holes keep the finest level"
+            );
+            let u: Vec<DVec3> = (0..holed.node_count())
+                .map(|node| {
+                    let x = holed.node_position(node).expect("a node");
+                    let at = whole
+                        .node_at_finest(finest_coords(whole, x))
+                        .expect("a node of the whole");
+                    whole.displacements()[at]
+                })
+                .collect();
+            holed.set_displacements(&u).expect("finite");
+            holed
+        };
+        let mut points = scene.all_points();
+        points.extend([DVec3::NAN, DVec3::splat(1e6), DVec3::splat(-3.0)]);
+        points.extend(adaptive_boundary_points(&body, 1500, 3));
+        cases.push(AdaptiveCase { name, body, points });
+    }
+
+    // Two levels in the corner of high x and low y, the displacement extremes at the corners
+    // of low and high x + y: ranks away from the refined corner hold no fine leaf near their
+    // points, nor an extreme one.
+    let lattice = Lattice::new(
+        DVec3::new(1.0, -2.0, 0.5),
+        DVec3::new(0.5, 0.4, 0.3),
+        [24, 6, 4],
+    )
+    .expect("a lattice");
+    let upper = lattice.upper();
+    let leaves = refine_lattice(&lattice, 2, true, |_, low, _| {
+        low.x >= upper.x - 1.0 && low.y < lattice.origin().y + 0.8
+    })
+    .expect("leaves");
+    let mut body = AdaptiveBody::from_leaves(lattice, leaves).expect("an adaptive body");
+    let span = upper - lattice.origin();
+    body.update_independent(|_, x, u| {
+        let s = (x - lattice.origin()) / span;
+        let ramp = s.x + s.y + 0.1 * s.z;
+        *u = DVec3::new(0.02 + 0.05 * ramp, -0.01 + 0.03 * ramp, 0.015 * ramp);
+    })
+    .expect("finite");
+    let mut points: Vec<DVec3> = adaptive_known_points(&body, 1500, LeafDraw::PerLeaf, 11)
+        .iter()
+        .map(|k| k.x)
+        .collect();
+    points.extend(adaptive_boundary_points(&body, 1500, 12));
+    cases.push(AdaptiveCase {
+        name: "corner-refined",
+        body,
+        points,
+    });
+    cases
+}
+
+/// The finest-level lattice coordinates of an undeformed node position of `body`.
+fn finest_coords(body: &AdaptiveBody, x: DVec3) -> [u32; 3] {
+    let lattice = body.lattice();
+    let t = (x - lattice.origin()) / lattice.h() * f64::from(1u32 << body.finest_level());
+    t.round().to_array().map(|v| v as u32)
+}
+
+/// `count` points of random leaves at ξ whose components are −1, 0 or 1, from `seed`.
+fn adaptive_boundary_points(body: &AdaptiveBody, count: usize, seed: u64) -> Vec<DVec3> {
+    let leaves = body.cell_count();
+    let mut state = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
+    let mut next = |n: usize| {
+        state = state
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1_442_695_040_888_963_407);
+        ((state >> 33) % n as u64) as usize
+    };
+    (0..count)
+        .map(|_| {
+            let leaf = CellId(next(leaves) as u32);
+            let xi = DVec3::new(
+                [-1.0, 0.0, 1.0][next(3)],
+                [-1.0, 0.0, 1.0][next(3)],
+                [-1.0, 0.0, 1.0][next(3)],
+            );
+            body.point_at(leaf, xi).expect("a leaf")
+        })
+        .collect()
 }
 
 fn fail(world: &SimpleCommunicator, message: &str) -> ! {
