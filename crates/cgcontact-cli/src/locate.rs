@@ -123,24 +123,14 @@ pub fn run(args: &LocateArgs) -> Result<()> {
         &args.mesh,
         &DisplacementArray::from_option(args.displacement.as_deref()),
     )?;
-    if let MeshBody::Adaptive(adaptive) = &mesh {
-        let report = adaptive.constraints;
-        if let (false, Some((node, by))) = (report.holds(), report.worst) {
-            let position = adaptive.body.node_position(node).unwrap_or_default();
-            let message = format!(
-                "{}: {} of {} hanging nodes break their constraint by more than {:.1e}; the worst, at {}, by {by:.3e}: the deformed mesh gaps or overlaps there",
-                args.mesh.display(),
-                report.violating,
-                report.hanging,
-                adaptive.constraint_tolerance,
-                position,
-            );
-            if args.strict {
-                anyhow::bail!("{message}");
-            }
-            if !args.search.quiet {
-                eprintln!("cgcontact: warning: {message} (--strict refuses such a mesh)");
-            }
+    if let MeshBody::Adaptive(adaptive) = &mesh
+        && let Some(message) = adaptive.constraint_problem(&args.mesh)
+    {
+        if args.strict {
+            anyhow::bail!("{message}");
+        }
+        if !args.search.quiet {
+            eprintln!("cgcontact: warning: {message} (--strict refuses such a mesh)");
         }
     }
     let points = read_points(&args.points)?;

@@ -51,6 +51,28 @@ pub enum MeshBody {
     Adaptive(AdaptiveMesh),
 }
 
+impl AdaptiveMesh {
+    /// What is wrong with the hanging nodes as read, for the mesh read from `path`: how many
+    /// break their constraint by more than [`AdaptiveMesh::constraint_tolerance`], and the worst
+    /// one's position and offset; `None` when every one obeys it.
+    #[must_use]
+    pub fn constraint_problem(&self, path: &std::path::Path) -> Option<String> {
+        let report = self.constraints;
+        let (false, Some((node, by))) = (report.holds(), report.worst) else {
+            return None;
+        };
+        let position = self.body.node_position(node).unwrap_or_default();
+        Some(format!(
+            "{}: {} of {} hanging nodes break their constraint by more than {:.1e}; the worst, at {}, by {by:.3e}: the deformed mesh gaps or overlaps there",
+            path.display(),
+            report.violating,
+            report.hanging,
+            self.constraint_tolerance,
+            position,
+        ))
+    }
+}
+
 impl MeshBody {
     /// Input cell order ↔ the body's cell ids.
     #[must_use]

@@ -375,24 +375,14 @@ enum Mine {
 /// An adaptive mesh's hanging nodes against their constraints, as `cgcontact locate` checks
 /// them: a warning on rank 0 (unless `--quiet`), or with `--strict` an error.
 fn check_constraints(args: &LocateArgs, rank: i32, mesh: MeshBody) -> anyhow::Result<MeshBody> {
-    if let MeshBody::Adaptive(adaptive) = &mesh {
-        let report = adaptive.constraints;
-        if let (false, Some((node, by))) = (report.holds(), report.worst) {
-            let position = adaptive.body.node_position(node).unwrap_or_default();
-            let message = format!(
-                "{}: {} of {} hanging nodes break their constraint by more than {:.1e}; the worst, at {}, by {by:.3e}: the deformed mesh gaps or overlaps there",
-                args.mesh.display(),
-                report.violating,
-                report.hanging,
-                adaptive.constraint_tolerance,
-                position,
-            );
-            if args.strict {
-                anyhow::bail!("{message}");
-            }
-            if !args.quiet && rank == 0 {
-                eprintln!("cgcontact-mpi: warning: {message} (--strict refuses such a mesh)");
-            }
+    if let MeshBody::Adaptive(adaptive) = &mesh
+        && let Some(message) = adaptive.constraint_problem(&args.mesh)
+    {
+        if args.strict {
+            anyhow::bail!("{message}");
+        }
+        if !args.quiet && rank == 0 {
+            eprintln!("cgcontact-mpi: warning: {message} (--strict refuses such a mesh)");
         }
     }
     Ok(mesh)

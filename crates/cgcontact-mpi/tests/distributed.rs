@@ -291,26 +291,7 @@ fn check(
 
     // The serial answers on the whole body: the oracle.
     let serial = LatticeLocator::new(&case.body, Settings::default()).expect("default settings");
-    let expected = serial.locate_all(points);
-    for (i, (x, (got, want))) in points
-        .iter()
-        .zip(located.answers.iter().zip(&expected))
-        .enumerate()
-    {
-        let want_tried = match want {
-            Ok(Some(hit)) => hit.inversions,
-            _ => serial.locate_counted(*x).1,
-        };
-        if bits(got) != bits(want) || located.tried[i] != want_tried {
-            fail(
-                world,
-                &format!(
-                    "{what}: this rank's point {i} at {x}: distributed {got:?} (tried {}), serial {want:?} (tried {want_tried})",
-                    located.tried[i]
-                ),
-            );
-        }
-    }
+    expect_located(world, &what, points, &located, &serial);
     // Memory follows the cells: with slabs over several ranks no rank holds the whole body.
     let stats = distributed.stats();
     if partition == Partition::Slabs && size > 1 && block == 8 && case.name == "sphere-fine" {
@@ -372,22 +353,11 @@ fn check_gaps(
     let finder = GapFinder::new(&serial, distance).expect("a valid distance");
     let mut expected = Vec::new();
     finder.gap_all_into(&points, &mut expected);
-    let mut contacts = 0;
-    for (i, (x, (got, want))) in points
+    expect_gaps(world, &what, &points, &gaps.answers, &expected);
+    let contacts = expected
         .iter()
-        .zip(gaps.answers.iter().zip(&expected))
-        .enumerate()
-    {
-        if gap_bits(got) != gap_bits(want) {
-            fail(
-                world,
-                &format!(
-                    "{what}: this rank's point {i} at {x}: distributed {got:?}, serial {want:?}"
-                ),
-            );
-        }
-        contacts += usize::from(matches!(want, Ok(Some(c)) if c.gap > 0.0));
-    }
+        .filter(|want| matches!(want, Ok(Some(c)) if c.gap > 0.0))
+        .count();
     // Points outside within the distance are part of what is checked.
     let mut outside = 0usize;
     world.all_reduce_into(
@@ -402,6 +372,69 @@ fn check_gaps(
         );
     }
     points.len()
+}
+
+/// Fails every rank unless `located` holds, for each of `points`, the `serial` locator's answer
+/// bit for bit, and for a point not found the inversions its serial search tries.
+fn expect_located(
+    world: &SimpleCommunicator,
+    what: &str,
+    points: &[DVec3],
+    located: &Located,
+    serial: &impl Locator,
+) {
+    let expected = serial.locate_all(points);
+    if located.answers.len() != points.len() || located.tried.len() != points.len() {
+        fail(
+            world,
+            &format!("{what}: answers for {} points", located.answers.len()),
+        );
+    }
+    for (i, (x, (got, want))) in points
+        .iter()
+        .zip(located.answers.iter().zip(&expected))
+        .enumerate()
+    {
+        let want_tried = match want {
+            Ok(Some(hit)) => hit.inversions,
+            _ => serial.locate_counted(*x).1,
+        };
+        if bits(got) != bits(want) || located.tried[i] != want_tried {
+            fail(
+                world,
+                &format!(
+                    "{what}: this rank's point {i} at {x}: distributed {got:?} (tried {}), serial {want:?} (tried {want_tried})",
+                    located.tried[i]
+                ),
+            );
+        }
+    }
+}
+
+/// Fails every rank unless each of `got` is the `expected` gap answer of its point, bit for bit.
+fn expect_gaps(
+    world: &SimpleCommunicator,
+    what: &str,
+    points: &[DVec3],
+    got: &[GapAnswer],
+    expected: &[GapAnswer],
+) {
+    if got.len() != points.len() {
+        fail(
+            world,
+            &format!("{what}: gap answers for {} points", got.len()),
+        );
+    }
+    for (i, (x, (got, want))) in points.iter().zip(got.iter().zip(expected)).enumerate() {
+        if gap_bits(got) != gap_bits(want) {
+            fail(
+                world,
+                &format!(
+                    "{what}: this rank's point {i} at {x}: distributed {got:?}, serial {want:?}"
+                ),
+            );
+        }
+    }
 }
 
 /// A gap answer's fields as bits.
@@ -611,45 +644,13 @@ fn check_adaptive(
         GapFinder::new(&serial, distance)
             .expect("a valid distance")
             .gap_all_into(&points, &mut expected);
-        for (i, (x, (got, want))) in points
-            .iter()
-            .zip(gaps.answers.iter().zip(&expected))
-            .enumerate()
-        {
-            if gap_bits(got) != gap_bits(want) {
-                fail(
-                    world,
-                    &format!(
-                        "{what}: this rank's point {i} at {x}: distributed {got:?}, serial {want:?}"
-                    ),
-                );
-            }
-        }
+        expect_gaps(world, &what, &points, &gaps.answers, &expected);
         return points.len();
     }
     let mut located = Located::default();
     locator.locate_all_into(world, &reversed, &mut located);
     locator.locate_all_into(world, &points, &mut located);
-    let expected = serial.locate_all(&points);
-    for (i, (x, (got, want))) in points
-        .iter()
-        .zip(located.answers.iter().zip(&expected))
-        .enumerate()
-    {
-        let want_tried = match want {
-            Ok(Some(hit)) => hit.inversions,
-            _ => serial.locate_counted(*x).1,
-        };
-        if bits(got) != bits(want) || located.tried[i] != want_tried {
-            fail(
-                world,
-                &format!(
-                    "{what}: this rank's point {i} at {x}: distributed {got:?} (tried {}), serial {want:?} (tried {want_tried})",
-                    located.tried[i]
-                ),
-            );
-        }
-    }
+    expect_located(world, &what, &points, &located, &serial);
     // Every local body has the whole body's finest level, on which the search's tolerance
     // depends, even where no leaf near its points is that fine.
     if let Some((local, _)) = distributed.local_adaptive_body()
@@ -870,25 +871,8 @@ fn finest_coords(body: &AdaptiveBody, x: DVec3) -> [u32; 3] {
 
 /// `count` points of random leaves at ξ whose components are −1, 0 or 1, from `seed`.
 fn adaptive_boundary_points(body: &AdaptiveBody, count: usize, seed: u64) -> Vec<DVec3> {
-    let leaves = body.cell_count();
-    let mut state = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
-    let mut next = |n: usize| {
-        state = state
-            .wrapping_mul(6_364_136_223_846_793_005)
-            .wrapping_add(1_442_695_040_888_963_407);
-        ((state >> 33) % n as u64) as usize
-    };
-    (0..count)
-        .map(|_| {
-            let leaf = CellId(next(leaves) as u32);
-            let xi = DVec3::new(
-                [-1.0, 0.0, 1.0][next(3)],
-                [-1.0, 0.0, 1.0][next(3)],
-                [-1.0, 0.0, 1.0][next(3)],
-            );
-            body.point_at(leaf, xi).expect("a leaf")
-        })
-        .collect()
+    let leaves: Vec<CellId> = (0..body.cell_count() as u32).map(CellId).collect();
+    points_at_corners(&leaves, |leaf, xi| body.point_at(leaf, xi), count, seed)
 }
 
 fn fail(world: &SimpleCommunicator, message: &str) -> ! {
@@ -1041,6 +1025,16 @@ fn holed(body: &Body, every: usize) -> Body {
 /// centres: shared between cells, often of two ranks), from `seed`.
 fn boundary_points(body: &Body, count: usize, seed: u64) -> Vec<DVec3> {
     let cells: Vec<CellId> = body.active_cells().collect();
+    points_at_corners(&cells, |cell, xi| body.point_at(cell, xi), count, seed)
+}
+
+/// `count` points `point_at` gives for random `cells` at random ξ ∈ {−1, 0, 1}³, from `seed`.
+fn points_at_corners(
+    cells: &[CellId],
+    point_at: impl Fn(CellId, DVec3) -> Option<DVec3>,
+    count: usize,
+    seed: u64,
+) -> Vec<DVec3> {
     let mut state = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
     let mut next = |n: usize| {
         state = state
@@ -1056,7 +1050,7 @@ fn boundary_points(body: &Body, count: usize, seed: u64) -> Vec<DVec3> {
                 [-1.0, 0.0, 1.0][next(3)],
                 [-1.0, 0.0, 1.0][next(3)],
             );
-            body.point_at(cell, xi).expect("an active cell")
+            point_at(cell, xi).expect("a cell of the body")
         })
         .collect()
 }

@@ -2,7 +2,7 @@
 //! patch, deformed by the same analytic indentation, hanging nodes filled from their constraints.
 
 use cgcontact::glam::DVec3;
-use cgcontact::{AdaptiveBody, CellId, Error};
+use cgcontact::{AdaptiveBody, CellId, Error, Lattice, Leaf};
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -232,6 +232,25 @@ pub fn adaptive_block(
         "adaptive-{}x{}x{}-l{levels}",
         cells[0], cells[1], cells[2]
     ))
+}
+
+/// The smallest body with hanging nodes: two unit base cells along x, the second refined once
+/// (5 hanging nodes on the face they share), undeformed but for the first hanging node, moved `by`
+/// along x off its constraint: what the readers' constraint check must report.
+///
+/// # Errors
+/// When `by` is not finite.
+pub fn hanging_node_moved(by: f64) -> Result<AdaptiveBody, Error> {
+    let lattice = Lattice::new(DVec3::ZERO, DVec3::ONE, [2, 1, 1])?;
+    let mut leaves = vec![Leaf::new(0, [0, 0, 0])];
+    leaves.extend(Leaf::new(0, [1, 0, 0]).children());
+    let mut body = AdaptiveBody::from_leaves(lattice, leaves)?;
+    let mut u = vec![DVec3::ZERO; body.node_count()];
+    if let Some(node) = body.hanging_nodes().next() {
+        u[node].x = by;
+    }
+    body.set_displacements(&u)?;
+    Ok(body)
 }
 
 /// Cells per axis of a block shaped like `shape` (its aspect ratio) with about `count` cells, at

@@ -54,6 +54,7 @@ mod sphere;
 
 pub use adaptive::{
     AdaptiveScene, LeafOrder, SphereOnAdaptiveBlock, adaptive_block, block_cells_for,
+    hanging_node_moved,
 };
 pub use field::Indentation;
 pub use known::{KnownPoint, LeafDraw, adaptive_known_points, known_points};

@@ -289,17 +289,8 @@ fn adaptive_scene_located_as_known_by_every_strategy() {
 /// offset, or with `--strict` exit code 2.
 #[test]
 fn broken_hanging_node_warns_and_strict_refuses() {
-    use cgcontact::glam::DVec3;
-    use cgcontact::{AdaptiveBody, Lattice, Leaf};
     let dir = tempfile::tempdir().unwrap();
-    let lattice = Lattice::new(DVec3::ZERO, DVec3::ONE, [2, 1, 1]).unwrap();
-    let mut leaves = vec![Leaf::new(0, [0, 0, 0])];
-    leaves.extend(Leaf::new(0, [1, 0, 0]).children());
-    let mut body = AdaptiveBody::from_leaves(lattice, leaves).unwrap();
-    let hanging = body.hanging_nodes().next().unwrap();
-    let mut u = vec![DVec3::ZERO; body.node_count()];
-    u[hanging].x = 0.01;
-    body.set_displacements(&u).unwrap();
+    let body = cgcontact_scenes::hanging_node_moved(0.01).unwrap();
     let mesh = dir.path().join("mesh.vtu");
     cgcontact_io::write_adaptive_mesh(&mesh, &body, cgcontact_io::MeshFormat::Xml).unwrap();
     let points = dir.path().join("points.csv");
