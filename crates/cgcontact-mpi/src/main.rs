@@ -66,9 +66,11 @@ struct LocateArgs {
     /// Threads of each rank's local search.
     #[arg(long, default_value_t = 1)]
     threads: usize,
-    /// Edge of the ownership map's blocks, in cells.
-    #[arg(long, default_value_t = 8)]
-    block: u32,
+    /// Edge of the ownership map's blocks, in (base) cells [default: 8 on a uniform mesh; on an
+    /// adaptive one, 8 cells of the finest level: 8 / 2^finest base cells, at least 1, so that a
+    /// refined patch spans several blocks and its points several homes].
+    #[arg(long, value_name = "CELLS")]
+    block: Option<u32>,
     /// Also measure each point's signed gap to the mesh's deformed boundary surface within D, as
     /// `cgcontact locate --gap D` does: the same columns appended to every row, byte for byte.
     #[arg(long, value_name = "D")]
@@ -266,9 +268,13 @@ fn locate(world: &SimpleCommunicator, args: &LocateArgs) -> Result<(), Failure> 
     let rows = rank as usize * n / size..(rank as usize + 1) * n / size;
     let my_points = &points[rows];
 
+    let block = args.block.unwrap_or(match &mesh {
+        MeshBody::Uniform(_) => 8,
+        MeshBody::Adaptive(mesh) => (8u32 >> mesh.body.finest_level().min(3)).max(1),
+    });
     let config = Config {
         settings: Settings::default(),
-        block: args.block,
+        block,
         gap_distance: args.gap.unwrap_or(0.0),
     };
     world.barrier();
@@ -354,6 +360,7 @@ fn locate(world: &SimpleCommunicator, args: &LocateArgs) -> Result<(), Failure> 
                 points: n,
                 located: located_count,
                 cells: cell_count,
+                block,
                 blocks: distributed.stats().blocks,
                 read_seconds,
                 query_seconds,
@@ -391,11 +398,10 @@ fn check_constraints(args: &LocateArgs, rank: i32, mesh: MeshBody) -> anyhow::Re
 /// Refuse, before any file is read, what cannot work: a block size out of range, no threads, an
 /// output that is an input or in a missing folder.
 fn check_args(args: &LocateArgs) -> Result<()> {
-    if args.block == 0 || args.block > 1 << 20 {
-        bail!(
-            "--block {}: it must be between 1 and 1048576 cells",
-            args.block
-        );
+    if let Some(block) = args.block
+        && (block == 0 || block > 1 << 20)
+    {
+        bail!("--block {block}: it must be between 1 and 1048576 cells");
     }
     if args.threads == 0 {
         bail!("--threads 0: at least one thread searches");
@@ -446,6 +452,8 @@ struct Summary<'a> {
     points: usize,
     located: usize,
     cells: usize,
+    /// The blocks' edge, in (base) cells.
+    block: u32,
     blocks: usize,
     read_seconds: f64,
     query_seconds: f64,
@@ -473,7 +481,7 @@ fn print_summary(args: &LocateArgs, s: &Summary<'_>) {
             "{{\"ranks\": {}, \"partition\": \"{}\", \"block\": {}, \"threads\": {}, \"points\": {}, \"located\": {}, \"cells\": {}, \"blocks\": {}, \"read_seconds\": {}, \"query_seconds\": {}, \"points_per_second\": {}, \"gap_seconds\": {}, \"total_seconds\": {}, \"per_rank\": [{}]}}",
             s.ranks,
             args.partition.name(),
-            args.block,
+            s.block,
             args.threads,
             s.points,
             s.located,

@@ -6,8 +6,11 @@ use cgcontact::{CellId, Lattice};
 /// How cells are split over ranks.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Partition {
-    /// Slabs across the lattice's longest axis: rank r gets the cells whose index along it lies in
-    /// [r·n/P, (r+1)·n/P). With more ranks than cells along the axis, some ranks get none.
+    /// Slabs of whole layers across the lattice's longest axis, about equal in the cells given:
+    /// a layer goes to rank ⌊(cells given in the layers before it) · P / (cells given)⌋. On a
+    /// full block that is the layers [r·n/P, (r+1)·n/P) for rank r; given an adaptive body's
+    /// leaves as their base cells, the slabs hold about equal numbers of leaves. With more ranks
+    /// than layers, some ranks get none.
     Slabs,
     /// The active cells sorted along a Morton (Z-order) curve of their lattice indices, cut into P
     /// runs of equal count.
@@ -40,11 +43,19 @@ impl Partition {
             Self::Slabs => {
                 let counts = lattice.cells();
                 let axis = (0..3).max_by_key(|&a| (counts[a], 3 - a)).unwrap_or(0);
-                let n = counts[axis] as usize;
-                cells
-                    .iter()
-                    .map(|&c| ijk(c)[axis] as usize * ranks / n)
-                    .collect()
+                let layer: Vec<usize> = cells.iter().map(|&c| ijk(c)[axis] as usize).collect();
+                // Each layer's rank from the cells before it.
+                let mut rank = vec![0usize; counts[axis] as usize];
+                for &l in &layer {
+                    rank[l] += 1;
+                }
+                let mut before = 0;
+                for slot in &mut rank {
+                    let here = *slot;
+                    *slot = before * ranks / cells.len().max(1);
+                    before += here;
+                }
+                layer.iter().map(|&l| rank[l]).collect()
             }
             Self::Morton => {
                 let mut order: Vec<(u64, usize)> = cells
@@ -123,9 +134,25 @@ mod tests {
                 assert!(owners.iter().all(|&r| r < ranks), "{partition:?} {ranks}");
             }
         }
-        // Slabs across y, the longest axis: 7 layers over 5 ranks.
-        let slabs = Partition::Slabs.owners(&lattice, &cells, 5);
-        assert_eq!(slabs[0], 0);
-        assert_eq!(slabs[41], 4);
+        // Slabs across y, the longest axis: on the full lattice, layer l to rank ⌊l·P/7⌋.
+        for ranks in 1..10 {
+            let slabs = Partition::Slabs.owners(&lattice, &cells, ranks);
+            for (&cell, &rank) in cells.iter().zip(&slabs) {
+                let y = lattice.cell_ijk(cell).unwrap()[1] as usize;
+                assert_eq!(rank, y * ranks / 7, "{ranks} ranks, {cell:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn slabs_balance_the_cells_given() {
+        // Layer 0 given ten times (an adaptive base cell's leaves), layers 1 to 6 once each.
+        let lattice = Lattice::new(DVec3::ZERO, DVec3::ONE, [1, 7, 1]).unwrap();
+        let mut cells = vec![CellId(0); 10];
+        cells.extend((1..7).map(CellId));
+        let slabs = Partition::Slabs.owners(&lattice, &cells, 2);
+        // 10 entries on rank 0, 6 on rank 1 (by layer count: layers 0 to 3, 13 against 3).
+        assert!(slabs[..10].iter().all(|&r| r == 0), "{slabs:?}");
+        assert!(slabs[10..].iter().all(|&r| r == 1), "{slabs:?}");
     }
 }

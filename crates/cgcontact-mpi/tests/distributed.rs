@@ -834,12 +834,12 @@ fn adaptive_cases() -> Vec<AdaptiveCase> {
     let lattice = Lattice::new(
         DVec3::new(1.0, -2.0, 0.5),
         DVec3::new(0.5, 0.4, 0.3),
-        [24, 6, 4],
+        [48, 6, 4],
     )
     .expect("a lattice");
     let upper = lattice.upper();
     let leaves = refine_lattice(&lattice, 2, true, |_, low, _| {
-        low.x >= upper.x - 1.0 && low.y < lattice.origin().y + 0.8
+        low.x >= upper.x - 0.5 && low.y < lattice.origin().y + 0.4
     })
     .expect("leaves");
     let mut body = AdaptiveBody::from_leaves(lattice, leaves).expect("an adaptive body");
