@@ -357,9 +357,10 @@ pub struct SetupStats {
     pub seconds: f64,
     /// Its messages and bytes.
     pub traffic: Traffic,
-    /// Cells this rank was given.
+    /// Cells (leaves, on an adaptive body) this rank was given.
     pub own_cells: usize,
-    /// Cells of its local body: its home blocks' cells, their halo and the extreme cells.
+    /// Cells (leaves) of its local body: its home blocks' cells, their halo and the extreme
+    /// cells.
     pub local_cells: usize,
     /// Blocks of the ownership map (every rank keeps the whole map: one `u32` each).
     pub blocks: usize,
@@ -548,6 +549,11 @@ impl DistributedBody {
     /// points' reach, the leaves holding the displacement extremes and a leaf of the finest
     /// level (the search's tolerance depends on the finest spacing), so that the answers are
     /// bitwise those of the serial `AdaptiveLocator` on the whole body.
+    ///
+    /// `config.block` counts base cells. Where the points crowd into a refined patch, blocks of
+    /// about 8 finest cells (8 >> finest level base cells, as `cgcontact-mpi locate` takes by
+    /// default) spread them over several homes; blocks of 8 base cells may put the whole patch
+    /// in one (docs/scaling.md).
     pub fn new_adaptive<C: Communicator>(
         comm: &C,
         lattice: Lattice,
