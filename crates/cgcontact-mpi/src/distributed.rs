@@ -152,11 +152,15 @@ impl Record for OwnedCell {
     }
 
     fn write(&self, out: &mut [u64]) {
-        write_cell(self, out);
+        out[0] = u64::from(self.cell.0);
+        write_corners(&self.u, &mut out[1..]);
     }
 
     fn read(words: &[u64]) -> Self {
-        read_cell(words)
+        Self {
+            cell: CellId(words[0] as u32),
+            u: read_corners(&words[1..]),
+        }
     }
 
     fn local<'c>(
@@ -193,7 +197,7 @@ impl Record for OwnedLeaf {
                 ijk,
             });
         }
-        Ok(ijk.map(|i| i >> level))
+        Ok(self.leaf.base())
     }
 
     fn write(&self, out: &mut [u64]) {
@@ -1748,18 +1752,6 @@ fn read_corners(words: &[u64]) -> [DVec3; 8] {
     })
 }
 
-fn write_cell(cell: &OwnedCell, out: &mut [u64]) {
-    out[0] = u64::from(cell.cell.0);
-    write_corners(&cell.u, &mut out[1..]);
-}
-
-fn read_cell(words: &[u64]) -> OwnedCell {
-    OwnedCell {
-        cell: CellId(words[0] as u32),
-        u: read_corners(&words[1..]),
-    }
-}
-
 /// An answer and its tried count as 6 words: kind (0 none, 1 hit, 2 refused) and cell; ξ's bits;
 /// iterations and inversions (or tried); the residual's bits.
 fn encode(answer: &Answer, tried: u32) -> [u64; ANSWER_WORDS] {
@@ -2046,21 +2038,35 @@ mod tests {
         }
     }
 
-    #[test]
-    fn a_cell_record_keeps_every_bit() {
-        let cell = OwnedCell {
-            cell: CellId(12345),
-            u: [0, 1, 2, 3, 4, 5, 6, 7].map(|c| DVec3::new(c as f64 * 0.1, -0.0, 1e-300)),
-        };
-        let mut words = [0u64; CELL_WORDS];
-        write_cell(&cell, &mut words);
-        let back = read_cell(&words);
-        assert_eq!(back.cell, cell.cell);
-        for (a, b) in back.u.iter().zip(&cell.u) {
+    /// `record` written and read back, compared bit for bit.
+    fn round_trip<R: Record>(record: R) -> R {
+        let mut words = vec![0u64; R::WORDS];
+        record.write(&mut words);
+        let back = R::read(&words);
+        assert_eq!(back.name(), record.name());
+        for (a, b) in back.u().iter().zip(record.u()) {
             assert_eq!(
                 a.to_array().map(f64::to_bits),
                 b.to_array().map(f64::to_bits)
             );
         }
+        back
+    }
+
+    #[test]
+    fn cell_and_leaf_records_keep_every_bit() {
+        let u = [0, 1, 2, 3, 4, 5, 6, 7].map(|c| DVec3::new(c as f64 * 0.1, -0.0, 1e-300));
+        round_trip(OwnedCell {
+            cell: CellId(12345),
+            u,
+        });
+        // The largest level and indices a leaf may have.
+        let leaf = Leaf::new(MAX_LEVEL, [u32::MAX, 7, (1 << 21) - 1]);
+        let back = round_trip(OwnedLeaf {
+            id: CellId(u32::MAX - 1),
+            leaf,
+            u,
+        });
+        assert_eq!(back.leaf, leaf);
     }
 }

@@ -236,7 +236,7 @@ fn locate(world: &SimpleCommunicator, args: &LocateArgs) -> Result<(), Failure> 
             let leaves = mesh.body.leaves();
             let base: Vec<CellId> = leaves
                 .iter()
-                .map(|leaf| lattice.cell_id(leaf.ijk.map(|i| i >> leaf.level)))
+                .map(|leaf| lattice.cell_id(leaf.base()))
                 .collect();
             let owners = args.partition.owners(lattice, &base, size);
             Mine::Leaves(

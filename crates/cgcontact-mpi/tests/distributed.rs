@@ -577,7 +577,7 @@ fn leaves_of(body: &AdaptiveBody, split: Split, rank: usize, size: usize) -> Vec
         Split::Base(partition) => {
             let base: Vec<CellId> = leaves
                 .iter()
-                .map(|leaf| lattice.cell_id(leaf.ijk.map(|i| i >> leaf.level)))
+                .map(|leaf| lattice.cell_id(leaf.base()))
                 .collect();
             partition.owners(&lattice, &base, size)
         }

@@ -59,7 +59,7 @@ impl Forest {
         for (id, leaf) in leaves.iter().enumerate() {
             let id = id as u32;
             let l = u32::from(leaf.level);
-            let b = leaf.ijk.map(|v| v >> l);
+            let b = leaf.base();
             let key = b[0] + cells[0] * (b[1] + cells[1] * b[2]);
             let mut entry = *base.entry(key).or_insert(EMPTY);
             if l == 0 {

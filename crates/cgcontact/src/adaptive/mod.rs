@@ -71,6 +71,18 @@ impl Leaf {
             ijk: [0, 1, 2].map(|a| 2 * self.ijk[a] + ((c as u32 >> a) & 1)),
         })
     }
+
+    /// The base lattice cell (level 0) this leaf lies in.
+    ///
+    /// ```
+    /// use cgcontact::Leaf;
+    /// assert_eq!(Leaf::new(2, [5, 0, 11]).base(), [1, 0, 2]);
+    /// assert_eq!(Leaf::new(0, [5, 0, 11]).base(), [5, 0, 11]);
+    /// ```
+    #[must_use]
+    pub fn base(self) -> [u32; 3] {
+        self.ijk.map(|v| v >> self.level)
+    }
 }
 
 /// The leaves' faces on the boundary surface.
@@ -620,10 +632,10 @@ impl AdaptiveBody {
     }
 
     /// Makes the table of [`AdaptiveBody::open_faces`] if it is not made yet (in parallel on the
-    /// current rayon pool; 4.6 ms for 27,984 leaves on one thread in the `gap` bench). Computed outside the cell, then stored:
-    /// a rayon worker that waited inside the cell's initialisation could be handed another task
-    /// that initialises the same cell, and deadlock. Two threads may both compute it; the first
-    /// stored is kept.
+    /// current rayon pool; 4.6 ms for 27,984 leaves on one thread in the `gap` bench). Computed
+    /// outside the cell, then stored: a rayon worker that waited inside the cell's initialisation
+    /// could be handed another task that initialises the same cell, and deadlock. Two threads may
+    /// both compute it; the first stored is kept.
     pub(crate) fn prepare_open_faces(&self) {
         use rayon::prelude::*;
         if self.open_faces.get().is_some() {
@@ -641,7 +653,7 @@ impl AdaptiveBody {
             .filter(|&(_, &open)| open != 0)
             .map(|(id, _)| {
                 let leaf = self.leaves.at(id as u32);
-                let b = leaf.ijk.map(|v| v >> leaf.level);
+                let b = leaf.base();
                 b[0] + nx * (b[1] + ny * b[2])
             })
             .collect();
