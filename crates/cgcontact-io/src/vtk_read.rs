@@ -257,7 +257,13 @@ fn parse_legacy_whole(bytes: &[u8]) -> Result<Vtk, ErrorKind> {
     };
     match vtkio::parser::parse_be(bytes) {
         Ok((rest, vtk)) => match rest.iter().position(|b| !b.is_ascii_whitespace()) {
-            None => Ok(vtk),
+            None => match dangling_data_header(bytes) {
+                Some((line, header)) => Err(ErrorKind::Vtk(format!(
+                    "legacy VTK: line {line}: the file ends after `{header}`, before any of its \
+                     arrays (truncated?)"
+                ))),
+                None => Ok(vtk),
+            },
             Some(i) => {
                 let (line, excerpt) = at_line(&rest[i..]);
                 Err(ErrorKind::Vtk(format!(
@@ -283,6 +289,44 @@ fn parse_legacy_whole(bytes: &[u8]) -> Result<Vtk, ErrorKind> {
             )))
         }
     }
+}
+
+/// The last line of a legacy file, with its number, when it is a data section's header with no
+/// array after it that no writer ends a whole file with; vtkio reads such a section as one
+/// without arrays, so a file cut right after the header would read as a mesh without
+/// displacement.
+/// - `POINT_DATA n`: VTK writes the header only before an array, and vtkio (our own writer)
+///   follows it with `CELL_DATA`.
+/// - `CELL_DATA n` with no `POINT_DATA` line before it: vtkio ends its files with a bare
+///   `CELL_DATA` after its `POINT_DATA` section, and VTK writes `CELL_DATA` before `POINT_DATA`
+///   and only before an array.
+fn dangling_data_header(bytes: &[u8]) -> Option<(usize, String)> {
+    let end = bytes.iter().rposition(|b| !b.is_ascii_whitespace())? + 1;
+    let start = bytes[..end]
+        .iter()
+        .rposition(|&b| b == b'\n')
+        .map_or(0, |i| i + 1);
+    let line = std::str::from_utf8(&bytes[start..end]).ok()?;
+    let mut words = line.split_whitespace();
+    let keyword = words.next()?.to_ascii_uppercase();
+    let count: u64 = words.next()?.parse().ok()?;
+    if count == 0 || words.next().is_some() {
+        return None;
+    }
+    let point_data_before = || {
+        bytes[..start]
+            .windows(12)
+            .any(|w| w.eq_ignore_ascii_case(b"\nPOINT_DATA "))
+    };
+    let dangling = match keyword.as_str() {
+        "POINT_DATA" => true,
+        "CELL_DATA" => !point_data_before(),
+        _ => false,
+    };
+    dangling.then(|| {
+        let number = 1 + bytes[..start].iter().filter(|&&b| b == b'\n').count();
+        (number, line.trim().to_owned())
+    })
 }
 
 /// In an ASCII legacy file, the first section holding fewer values than its header declares:

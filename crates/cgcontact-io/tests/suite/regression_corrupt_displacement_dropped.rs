@@ -201,3 +201,55 @@ fn nan_at_an_unused_node_is_refused_in_every_format() {
         }
     }
 }
+
+/// A legacy file cut right after its `POINT_DATA n` line, or after a `CELL_DATA n` line before
+/// it (where VTK writes it), was read as a mesh without displacement (vtkio accepts a data
+/// section with no array), and solved as undeformed with exit code 0. Now it is refused, naming
+/// the line. A file that ends with vtkio's own bare `CELL_DATA n` after its `POINT_DATA` still
+/// reads.
+#[test]
+fn legacy_file_cut_after_a_data_section_header() {
+    let mut body = common::body_with_holes(DVec3::ZERO, DVec3::splat(0.5), [3, 2, 2], 9);
+    body.update_displacements(|_, x, u| *u = DVec3::new(0.01 * x.y, 0.0, -0.01 * x.x))
+        .unwrap();
+    let mesh = HexMesh::from_body(&body);
+    let dir = tempfile::tempdir().unwrap();
+    let mut files = Vec::new();
+    for (format, how) in [
+        ("ascii", MeshFormat::LegacyAscii),
+        ("binary", MeshFormat::LegacyBinary),
+    ] {
+        let path = dir.path().join(format!("{format}.vtk"));
+        write_mesh(&path, &body, how).unwrap();
+        files.push((format, std::fs::read(&path).unwrap()));
+    }
+    let cells = mesh.cells.len();
+    for (format, bytes) in files {
+        // The intact file (vtkio's: a bare `CELL_DATA` line ends it) reads with its
+        // displacement.
+        assert!(
+            bytes
+                .trim_ascii_end()
+                .ends_with(format!("CELL_DATA {cells}").as_bytes())
+        );
+        let read = parse_hex_mesh(&bytes, &DisplacementArray::Default).unwrap();
+        assert_eq!(read.displacement, mesh.displacement, "{format}");
+        let header = bytes
+            .windows(11)
+            .rposition(|w| w == b"POINT_DATA ")
+            .unwrap();
+        let line_end = header + bytes[header..].iter().position(|&b| b == b'\n').unwrap();
+        let cut_points = bytes[..=line_end].to_vec();
+        let mut cut_cells = bytes[..header].to_vec();
+        cut_cells.extend_from_slice(format!("CELL_DATA {cells}\n").as_bytes());
+        for (case, cut) in [("POINT_DATA", cut_points), ("CELL_DATA", cut_cells)] {
+            let error = parse_hex_mesh(&cut, &DisplacementArray::Default)
+                .expect_err(&format!("{format}: cut after {case} accepted"));
+            let message = error.to_string();
+            assert!(
+                message.contains(case) && message.contains("truncated"),
+                "{format}, {case}: {message}"
+            );
+        }
+    }
+}
