@@ -53,10 +53,10 @@ pub enum ErrorKind {
     #[error("{0}")]
     Io(#[from] std::io::Error),
     /// The file is not in a format this crate reads.
-    #[error("unrecognised format: {0}")]
+    #[error("unrecognised format: {}", crate::one_line(.0))]
     Format(String),
     /// The VTK parser rejected the file (truncated, malformed, or a feature it does not support).
-    #[error("malformed VTK file: {0}")]
+    #[error("malformed VTK file: {}", crate::one_line(.0))]
     Vtk(String),
     /// The data set is not an unstructured grid.
     #[error("the data set is a {0}, expected an unstructured grid")]

@@ -73,6 +73,23 @@ pub use vtk_write::{
     write_points_vtu,
 };
 
+/// `message` on one line: its control characters escaped (`\n` for a newline). The parsers'
+/// own messages may quote a file's text, newlines included.
+pub(crate) fn one_line(message: &str) -> String {
+    if !message.chars().any(char::is_control) {
+        return message.to_owned();
+    }
+    message
+        .chars()
+        .flat_map(|c| {
+            let escape = c.is_control();
+            c.escape_default()
+                .filter(move |_| escape)
+                .chain(std::iter::once(c).filter(move |_| !escape))
+        })
+        .collect()
+}
+
 /// A piece of an input for an error message: at most `max_chars` characters, control characters
 /// and undecodable bytes escaped, in backticks, so that a binary file never reaches the terminal.
 pub(crate) fn excerpt(bytes: &[u8], max_chars: usize) -> String {

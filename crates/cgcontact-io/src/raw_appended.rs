@@ -185,10 +185,12 @@ fn offset_attributes(head: &[u8]) -> Result<Vec<Offset>, String> {
                 .ok_or("unterminated offset attribute")?;
         let text =
             std::str::from_utf8(&head[start..end]).map_err(|_| "offset is not text".to_owned())?;
-        let value = text
-            .trim()
-            .parse()
-            .map_err(|_| format!("offset `{text}` is not a byte count"))?;
+        let value = text.trim().parse().map_err(|_| {
+            format!(
+                "offset {} is not a byte count",
+                crate::excerpt(text.as_bytes(), 40)
+            )
+        })?;
         found.push(Offset { start, end, value });
         at = end;
     }

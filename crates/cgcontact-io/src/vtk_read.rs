@@ -168,6 +168,7 @@ fn parse_vtk(bytes: &[u8]) -> Result<Vtk, ErrorKind> {
         let xml = converted.as_deref().unwrap_or(bytes);
         // A corrupt compressed-block header would make vtkio's allocation abort the process.
         block_headers::check(xml)?;
+        check_xml_arrays(xml)?;
         guarded("XML VTK", || {
             Vtk::parse_xml(xml).map_err(|e| {
                 let message = format!("XML VTK: {e}");
@@ -181,6 +182,112 @@ fn parse_vtk(bytes: &[u8]) -> Result<Vtk, ErrorKind> {
         Err(ErrorKind::Format(
             "neither a legacy VTK file (`# vtk DataFile ...`) nor an XML VTK file (`<VTKFile ...>`)".to_owned(),
         ))
+    }
+}
+
+/// The VTK XML types of a `<DataArray>`: what `type` may be.
+const XML_NUMBER_TYPES: [&str; 10] = [
+    "Int8", "UInt8", "Int16", "UInt16", "Int32", "UInt32", "Int64", "UInt64", "Float32", "Float64",
+];
+
+/// Refuses, in an XML file's pieces, what vtkio would skip without a word and so turn into a
+/// mesh read wrong: an element inside `<Piece>` other than `PointData`, `CellData`, `Points` and
+/// `Cells` (a corrupt `<PointData>` tag drops the displacement), an element inside those four
+/// other than `<DataArray>` (a corrupt `<DataArray>` tag drops the array), a data array whose
+/// `type` is no VTK type, and cell arrays (`<Cells>`) that are not integers (vtkio truncates a
+/// fractional node number). Names the line and the element. Syntax errors are left to vtkio,
+/// whose messages `xml_place` locates.
+fn check_xml_arrays(xml: &[u8]) -> Result<(), ErrorKind> {
+    use quick_xml::events::Event;
+    // Raw appended bytes could contain anything: the pieces all come before them.
+    let end = crate::raw_appended::find(xml, b"<AppendedData", 0).unwrap_or(xml.len());
+    let mut reader = quick_xml::Reader::from_reader(&xml[..end]);
+    let line = |at: u64| {
+        1 + xml[..(at as usize).min(end)]
+            .iter()
+            .filter(|&&b| b == b'\n')
+            .count()
+    };
+    let mut open: Vec<Vec<u8>> = Vec::new();
+    loop {
+        let at = reader.buffer_position();
+        let (tag, empty) = match reader.read_event() {
+            Ok(Event::Start(tag)) => (tag, false),
+            Ok(Event::Empty(tag)) => (tag, true),
+            Ok(Event::End(_)) => {
+                open.pop();
+                continue;
+            }
+            Ok(Event::Eof) | Err(_) => return Ok(()),
+            Ok(_) => continue,
+        };
+        let name = tag.name().as_ref().to_vec();
+        let shown = |bytes: &[u8]| String::from_utf8_lossy(bytes).into_owned();
+        let refuse = |what: String| {
+            Err(ErrorKind::Vtk(crate::one_line(&format!(
+                "line {}: {what}",
+                line(at)
+            ))))
+        };
+        let parent = open.last().map(Vec::as_slice);
+        match parent {
+            Some(b"Piece")
+                if !matches!(
+                    name.as_slice(),
+                    b"PointData" | b"CellData" | b"Points" | b"Cells"
+                ) =>
+            {
+                return refuse(format!(
+                    "<{}> inside <Piece> is none of PointData, CellData, Points and Cells \
+                     (a corrupt tag? its data would be dropped)",
+                    shown(&name)
+                ));
+            }
+            Some(within @ (b"PointData" | b"CellData" | b"Points" | b"Cells")) => {
+                if name != b"DataArray" {
+                    return refuse(format!(
+                        "<{}> inside <{}> is not a DataArray (a corrupt tag? its data would be \
+                         dropped)",
+                        shown(&name),
+                        shown(within)
+                    ));
+                }
+                let kind = tag
+                    .try_get_attribute("type")
+                    .ok()
+                    .flatten()
+                    .map(|a| a.value.into_owned());
+                let array = tag
+                    .try_get_attribute("Name")
+                    .ok()
+                    .flatten()
+                    .map_or_else(String::new, |a| format!(" `{}`", shown(&a.value)));
+                let numeric = |k: &[u8]| XML_NUMBER_TYPES.iter().any(|t| t.as_bytes() == k);
+                let integer =
+                    |k: &[u8]| numeric(k) && (k.starts_with(b"Int") || k.starts_with(b"UInt"));
+                match kind.as_deref() {
+                    Some(k) if within == b"Cells" && !integer(k) => {
+                        return refuse(format!(
+                            "the cell array{array} is of type {}: cell arrays hold integers",
+                            shown(k)
+                        ));
+                    }
+                    Some(k) if !numeric(k) && (within == b"Points" || k != b"String") => {
+                        return refuse(format!(
+                            "the data array{array} inside <{}> is of type {}, not a VTK number \
+                             type",
+                            shown(within),
+                            shown(k)
+                        ));
+                    }
+                    _ => {}
+                }
+            }
+            _ => {}
+        }
+        if !empty {
+            open.push(name);
+        }
     }
 }
 
@@ -671,31 +778,38 @@ fn piece_displacement(
         DisplacementArray::Ignore => return Ok(None),
     };
     // Arrays come as attributes (VECTORS, SCALARS, XML DataArray) or inside FIELD blocks.
-    let mut found = None;
+    let mut found = Vec::new();
     for attribute in &piece.data.point {
         match attribute {
             Attribute::DataArray(array) => {
                 available.push(array.name.clone());
-                if found.is_none() && array.name == name {
-                    found = Some((array.elem.num_comp() as usize, &array.data));
+                if array.name == name {
+                    found.push((array.elem.num_comp() as usize, &array.data));
                 }
             }
             Attribute::Field { data_array, .. } => {
                 for array in data_array {
                     available.push(array.name.clone());
-                    if found.is_none() && array.name == name {
-                        found = Some((array.elem as usize, &array.data));
+                    if array.name == name {
+                        found.push((array.elem as usize, &array.data));
                     }
                 }
             }
         }
     }
-    let Some((components, data)) = found else {
-        return Ok(None);
-    };
     let bad = |message: String| ErrorKind::BadDisplacement {
         name: name.to_owned(),
         message,
+    };
+    let (components, data) = match found.as_slice() {
+        [] => return Ok(None),
+        [one] => *one,
+        more => {
+            return Err(bad(format!(
+                "{} point arrays have that name: which one is the displacement is ambiguous",
+                more.len()
+            )));
+        }
     };
     if components != 3 {
         return Err(bad(format!("{components} components per node, expected 3")));

@@ -253,3 +253,103 @@ fn legacy_file_cut_after_a_data_section_header() {
         }
     }
 }
+
+/// What vtkio skips without a word in a well-formed XML file: a tag that is not `<DataArray>`
+/// inside the data sections (one corrupt byte of the displacement's tag dropped it, and the mesh
+/// was solved as undeformed with exit code 0), a section tag that is not a known one inside
+/// `<Piece>`, an array type VTK does not have, and cell arrays that are not integers (vtkio
+/// truncated a connectivity of 6.5 to 6). Each is refused, naming the line and the element.
+#[test]
+fn xml_elements_and_types_vtkio_would_skip() {
+    let text = common::vtu_ascii(&mesh());
+    let intact = parse_hex_mesh(text.as_bytes(), &DisplacementArray::Default).unwrap();
+    assert!(intact.displacement.is_some());
+    let line_of = |needle: &str| 1 + text[..text.find(needle).unwrap()].matches('\n').count();
+    let cases = [
+        (
+            "<DataArray type=\"Float64\" Name=\"displacement\"",
+            "<DataArrax type=\"Float64\" Name=\"displacement\"",
+            "<DataArrax> inside <PointData>",
+        ),
+        ("<PointData", "<PointDatx", "<PointDatx> inside <Piece>"),
+        (
+            "<DataArray type=\"Float64\" Name=\"displacement\"",
+            "<DataArray type=\"Float128\" Name=\"displacement\"",
+            "Float128",
+        ),
+        (
+            "<DataArray type=\"Float64\" Name=\"Points\"",
+            "<DataArray type=\"String\" Name=\"Points\"",
+            "String",
+        ),
+        (
+            "<DataArray type=\"Int64\" Name=\"connectivity\"",
+            "<DataArray type=\"Float64\" Name=\"connectivity\"",
+            "`connectivity` is of type Float64",
+        ),
+    ];
+    for (from, to, expected) in cases {
+        let corrupt = text.replacen(from, to, 1);
+        assert_ne!(corrupt, text);
+        let error = parse_hex_mesh(corrupt.as_bytes(), &DisplacementArray::Default)
+            .expect_err(&format!("{to}: accepted"));
+        let message = error.to_string();
+        let line = format!("line {}:", line_of(from));
+        assert!(
+            message.contains(expected) && message.contains(&line),
+            "{to}: {message}"
+        );
+    }
+    // Other numeric types still read: an Int32 connectivity, Float32 points.
+    let other = text
+        .replacen("type=\"Int64\" Name=\"connectivity\"", "type=\"Int32\" Name=\"connectivity\"", 1)
+        .replacen("type=\"Float64\" Name=\"Points\"", "type=\"Float32\" Name=\"Points\"", 1);
+    parse_hex_mesh(other.as_bytes(), &DisplacementArray::Default).unwrap();
+}
+
+/// Two point arrays named as the displacement asked for (in a `.vtu` or in a legacy file): the
+/// first one was used without a word. Now it is an error: which one is meant is ambiguous.
+#[test]
+fn two_arrays_with_the_displacements_name() {
+    let mesh = mesh();
+    let vtu = common::vtu_ascii(&mesh);
+    let start = vtu.find("        <DataArray type=\"Float64\" Name=\"displacement\"").unwrap();
+    let end = vtu[start..].find("</DataArray>\n").unwrap() + start + "</DataArray>\n".len();
+    let twice_vtu = format!("{}{}{}", &vtu[..end], &vtu[start..end], &vtu[end..]);
+    let legacy = common::legacy_ascii(&mesh, common::LegacyData::Vectors, false);
+    let start = legacy.find("VECTORS displacement").unwrap();
+    let end = legacy[start..]
+        .find("\nCELL_DATA")
+        .map_or(legacy.len(), |i| start + i + 1);
+    let twice_legacy = format!("{}{}{}", &legacy[..end], &legacy[start..end], &legacy[end..]);
+    for (format, bytes) in [("vtu", twice_vtu), ("legacy", twice_legacy)] {
+        let error = parse_hex_mesh(bytes.as_bytes(), &DisplacementArray::Default)
+            .expect_err(&format!("{format}: accepted"));
+        let message = error.to_string();
+        assert!(
+            message.contains("displacement") && message.contains("ambiguous"),
+            "{format}: {message}"
+        );
+    }
+}
+
+/// Messages that quote a file's text, newlines included (a raw appended `offset` attribute, an
+/// end tag that does not match), stay on one line, their control characters escaped.
+#[test]
+fn messages_that_quote_the_file_stay_on_one_line() {
+    let mesh = mesh();
+    let raw = common::vtu_raw_appended(&mesh, false, true, 4096);
+    let at = raw.windows(8).position(|w| w == b"offset=\"").unwrap() + 8;
+    let mut bad_offset = raw[..at].to_vec();
+    bad_offset.extend_from_slice(b"0\n  x");
+    bad_offset.extend_from_slice(&raw[at + raw[at..].iter().position(|&b| b == b'"').unwrap()..]);
+    let text = common::vtu_ascii(&mesh);
+    let bad_end = text.replacen("</Points>", "</Poi\nnts>", 1);
+    for (case, bytes) in [("offset", bad_offset), ("end tag", bad_end.into_bytes())] {
+        let error = parse_hex_mesh(&bytes, &DisplacementArray::Default)
+            .expect_err(&format!("{case}: accepted"));
+        let message = error.to_string();
+        assert!(!message.contains('\n'), "{case}: {message}");
+        assert!(message.contains("\\n"), "{case}: {message}");
+    }
+}
