@@ -221,6 +221,11 @@ impl<'a> Cells<'a> {
 
     /// Exact inversion of `x` in `cell` with kernel `K`, in the cell's local frame, from ξ = 0.
     /// `Some` (with `inversions` left at 0) only when the point is inside.
+    ///
+    /// An inversion that runs out of iterations is run again with [`PATIENT_ITERATIONS`] times
+    /// as many: from the centre of a strongly distorted but valid cell (a corner moved 300 h),
+    /// Newton may need 70 iterations, and an oracle that gave up there would call a point that
+    /// the cell holds not located. (The reported iterations are the second run's.)
     #[inline]
     pub(crate) fn invert_exact<K: Kernel>(
         &self,
@@ -230,7 +235,14 @@ impl<'a> Cells<'a> {
     ) -> Option<Hit> {
         let (low, h, u) = self.local(cell);
         let map = K::lattice_cell(h, &u);
-        let inversion = map.invert_f64(x - low, DVec3::ZERO, options);
+        let mut inversion = map.invert_f64(x - low, DVec3::ZERO, options);
+        if inversion.status == Status::NotConverged {
+            let patient = NewtonOptions {
+                max_iter: options.max_iter.saturating_mul(PATIENT_ITERATIONS),
+                ..*options
+            };
+            inversion = map.invert_f64(x - low, DVec3::ZERO, &patient);
+        }
         (inversion.status == Status::Inside).then(|| Hit {
             cell,
             xi: inversion.xi.clamp(DVec3::NEG_ONE, DVec3::ONE),
@@ -266,6 +278,10 @@ impl<'a> Cells<'a> {
         })
     }
 }
+
+/// How many times the iteration limit an exact inversion that ran out of iterations gets on its
+/// second try ([`Cells::invert_exact`]).
+pub(crate) const PATIENT_ITERATIONS: u32 = 16;
 
 /// [`Cells::local`] of an active cell of a uniform body. A function of its own, not an arm of the
 /// match, and the only caller of `Body::cell_displacements` in this crate, so that it compiles as

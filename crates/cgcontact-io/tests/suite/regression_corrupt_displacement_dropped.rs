@@ -302,8 +302,16 @@ fn xml_elements_and_types_vtkio_would_skip() {
     }
     // Other numeric types still read: an Int32 connectivity, Float32 points.
     let other = text
-        .replacen("type=\"Int64\" Name=\"connectivity\"", "type=\"Int32\" Name=\"connectivity\"", 1)
-        .replacen("type=\"Float64\" Name=\"Points\"", "type=\"Float32\" Name=\"Points\"", 1);
+        .replacen(
+            "type=\"Int64\" Name=\"connectivity\"",
+            "type=\"Int32\" Name=\"connectivity\"",
+            1,
+        )
+        .replacen(
+            "type=\"Float64\" Name=\"Points\"",
+            "type=\"Float32\" Name=\"Points\"",
+            1,
+        );
     parse_hex_mesh(other.as_bytes(), &DisplacementArray::Default).unwrap();
 }
 
@@ -313,7 +321,9 @@ fn xml_elements_and_types_vtkio_would_skip() {
 fn two_arrays_with_the_displacements_name() {
     let mesh = mesh();
     let vtu = common::vtu_ascii(&mesh);
-    let start = vtu.find("        <DataArray type=\"Float64\" Name=\"displacement\"").unwrap();
+    let start = vtu
+        .find("        <DataArray type=\"Float64\" Name=\"displacement\"")
+        .unwrap();
     let end = vtu[start..].find("</DataArray>\n").unwrap() + start + "</DataArray>\n".len();
     let twice_vtu = format!("{}{}{}", &vtu[..end], &vtu[start..end], &vtu[end..]);
     let legacy = common::legacy_ascii(&mesh, common::LegacyData::Vectors, false);
@@ -321,7 +331,12 @@ fn two_arrays_with_the_displacements_name() {
     let end = legacy[start..]
         .find("\nCELL_DATA")
         .map_or(legacy.len(), |i| start + i + 1);
-    let twice_legacy = format!("{}{}{}", &legacy[..end], &legacy[start..end], &legacy[end..]);
+    let twice_legacy = format!(
+        "{}{}{}",
+        &legacy[..end],
+        &legacy[start..end],
+        &legacy[end..]
+    );
     for (format, bytes) in [("vtu", twice_vtu), ("legacy", twice_legacy)] {
         let error = parse_hex_mesh(bytes.as_bytes(), &DisplacementArray::Default)
             .expect_err(&format!("{format}: accepted"));
