@@ -103,10 +103,10 @@ impl<'a> BodyRef<'a> {
         let u_max = self.max_displacement().max_element();
         match self {
             Self::Uniform(body) => InsideTolerance::new(settings, body.lattice(), u_max),
-            Self::Adaptive(body) => InsideTolerance::with_h_min(
+            Self::Adaptive(body) => InsideTolerance::with_spacing(
                 settings,
                 body.lattice().origin(),
-                body.spacing(body.finest_level()).min_element(),
+                body.spacing(body.finest_level()),
                 u_max,
             ),
         }
@@ -160,7 +160,7 @@ impl<'a> Cells<'a> {
 
     /// Inside tolerance (ξ units) for a query at `x`: the one definition every strategy shares.
     #[inline]
-    pub(crate) fn inside_tolerance(&self, x: DVec3) -> f64 {
+    pub(crate) fn inside_tolerance(&self, x: DVec3) -> DVec3 {
         self.inside.at(x)
     }
 

@@ -54,7 +54,9 @@ impl<'a> RTree<'a> {
                     .copied()
                     .fold(DVec3::NEG_INFINITY, DVec3::max);
                 let farthest = (low + origin).abs().max((high + origin).abs());
-                let pad = 2.0 * cells.inside_tolerance(farthest) * (high - low).max_element();
+                let pad = 2.0
+                    * cells.inside_tolerance(farthest).max_element()
+                    * (high - low).max_element();
                 let rectangle =
                     Rectangle::from_corners((low - pad).to_array(), (high + pad).to_array());
                 GeomWithData::new(rectangle, cell)

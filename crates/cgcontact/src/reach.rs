@@ -105,15 +105,16 @@ impl Admit {
         }
     }
 
-    /// The inside tolerance for `x` when some cell can hold it, `Ok(None)` when it lies outside the
-    /// shifted box (widened by that tolerance), an error when it is not finite.
+    /// The inside tolerance (per axis) for `x` when some cell can hold it, `Ok(None)` when it lies
+    /// outside the shifted box (widened by the largest of those tolerances, as every filter is),
+    /// an error when it is not finite.
     #[inline(always)]
-    pub(crate) fn admit(&self, x: DVec3) -> Result<Option<f64>, PointError> {
+    pub(crate) fn admit(&self, x: DVec3) -> Result<Option<DVec3>, PointError> {
         if !x.is_finite() {
             return Err(PointError::NonFinite);
         }
         let inside_tol = self.inside_tol.at(x);
-        let slack = self.pad * inside_tol;
+        let slack = self.pad * inside_tol.max_element();
         if x.cmplt(self.low - slack).any() || x.cmpgt(self.high + slack).any() {
             return Ok(None);
         }
@@ -122,7 +123,8 @@ impl Admit {
 }
 
 /// How far outside a cell's shifted box a point may be and still be found inside it by a Newton
-/// inversion with inside tolerance `tau`: at |ξ_k| ≤ 1 + τ the undeformed part leaves the cell by
+/// inversion with inside tolerance `tau` (the largest of the per-axis tolerances: the filters
+/// widen by it on every axis, a superset of what each axis needs): at |ξ_k| ≤ 1 + τ the undeformed part leaves the cell by
 /// τh/2 and the trilinear extrapolation of the displacements leaves their range by at most
 /// ((1 + τ)³ − 1)/2 ≈ 1.5τ of its width `spread`. 2τ (h + spread) per axis covers both, and covers
 /// [`cell_reaches`]'s widening of a cell of the range, so that a block's test passes wherever one

@@ -2,7 +2,7 @@
 
 use glam::DVec3;
 
-use crate::lanes::Lanes;
+use crate::lanes::{Lanes, V3};
 
 use crate::hex8::NewtonOptions;
 use crate::{Error, Lattice, Schedule};
@@ -42,7 +42,7 @@ pub struct Settings {
     /// Newton iteration limit per candidate cell.
     pub max_iter: u32,
     /// A point is inside when every |ξ_k| ≤ 1 + `inside_tol` + a rounding allowance that grows with the
-    /// size of the coordinates relative to the cell (see docs/numerics.md).
+    /// size of the coordinates relative to the cell's edge along axis k (see docs/numerics.md).
     pub inside_tol: f64,
     /// Candidate order of the lattice locator.
     pub order: CandidateOrder,
@@ -116,19 +116,22 @@ impl Settings {
         NewtonOptions {
             tol: self.newton_tol,
             max_iter: self.max_iter,
-            inside_tol: self.inside_tol,
+            inside_tol: DVec3::splat(self.inside_tol),
             ..NewtonOptions::default()
         }
     }
 
-    /// Inside tolerance (ξ units) for a query at `x` on `lattice` with largest displacement component
-    /// `u_max`: the setting plus the rounding carried by the data. A point given on a face of a cell far
-    /// from the origin is only known to `eps · |x|`, and the kernel rounds at its own precision, so the
-    /// allowance is 8 ε₆₄ max(|x|∞, |origin|∞) / h_min + 8 ε_kernel (2 + u_max / h_min) (the lattice's
-    /// origin counts too: a cell's corners are computed from it): closed cells stay closed at any
-    /// offset, and no more. Every strategy uses this, so that they agree on what "inside" means.
+    /// Inside tolerance (ξ units, per axis) for a query at `x` on `lattice` with largest
+    /// displacement component `u_max`: the setting plus the rounding carried by the data. A point
+    /// given on a face of a cell far from the origin is only known to `eps · |x|`, and the kernel
+    /// rounds at its own precision, so the allowance along axis k is
+    /// `8 ε₆₄ max(|x|∞, |origin|∞) / h_k + 8 ε_kernel (2 + u_max / h_k)` (the lattice's origin
+    /// counts too: a cell's corners are computed from it). Closed cells stay closed at any offset,
+    /// and no more, whatever the anisotropy: with the smallest spacing on every axis, a point
+    /// 5e-4 h outside a face of a 1000 : 1 cell at 1e9 was found inside. Every strategy uses this,
+    /// so that they agree on what "inside" means.
     #[must_use]
-    pub fn inside_tolerance(&self, lattice: &Lattice, u_max: f64, x: DVec3) -> f64 {
+    pub fn inside_tolerance(&self, lattice: &Lattice, u_max: f64, x: DVec3) -> DVec3 {
         InsideTolerance::new(self, lattice, u_max).at(x)
     }
 
@@ -146,10 +149,10 @@ impl Settings {
 /// one multiply-add and no division.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct InsideTolerance {
-    /// The setting plus the kernel's allowance.
-    base: f64,
-    /// 8 ε₆₄ / h_min.
-    per_magnitude: f64,
+    /// The setting plus the kernel's allowance, per axis.
+    base: DVec3,
+    /// 8 ε₆₄ / h_k.
+    per_magnitude: DVec3,
     /// |origin|∞ of the lattice.
     origin_magnitude: f64,
 }
@@ -158,31 +161,40 @@ impl InsideTolerance {
     /// The constants of [`Settings::inside_tolerance`] for a body on `lattice` with `u_max`.
     #[must_use]
     pub fn new(settings: &Settings, lattice: &Lattice, u_max: f64) -> Self {
-        Self::with_h_min(settings, lattice.origin(), lattice.h().min_element(), u_max)
+        Self::with_spacing(settings, lattice.origin(), lattice.h(), u_max)
     }
 
     /// The same constants for a body whose lattice starts at `origin` and whose smallest cell
-    /// edge is `h_min` (an adaptive body's finest spacing).
+    /// edges are `h` per axis (an adaptive body's finest spacing).
     #[must_use]
-    pub fn with_h_min(settings: &Settings, origin: DVec3, h_min: f64, u_max: f64) -> Self {
+    pub fn with_spacing(settings: &Settings, origin: DVec3, h: DVec3, u_max: f64) -> Self {
+        let eps = 8.0 * settings.epsilon();
         Self {
-            base: settings.inside_tol + 8.0 * settings.epsilon() * (2.0 + u_max / h_min),
-            per_magnitude: 8.0 * f64::EPSILON / h_min,
+            base: h
+                .to_array()
+                .map(|h| settings.inside_tol + eps * (2.0 + u_max / h))
+                .into(),
+            per_magnitude: h.to_array().map(|h| 8.0 * f64::EPSILON / h).into(),
             origin_magnitude: origin.abs().max_element(),
         }
     }
 
-    /// The inside tolerance (ξ units) for a query at `x`.
+    /// The inside tolerance (ξ units, per axis) for a query at `x`.
     #[inline]
     #[must_use]
-    pub fn at(&self, x: DVec3) -> f64 {
-        self.at_magnitude(x.abs().max_element())
+    pub fn at(&self, x: DVec3) -> DVec3 {
+        let magnitude = x.abs().max_element().max(self.origin_magnitude);
+        self.base + self.per_magnitude * magnitude
     }
 
-    /// [`InsideTolerance::at`] from |x|∞, in lanes (the batched search) or in one f64.
+    /// [`InsideTolerance::at`] from |x|∞, in lanes (the batched search).
     #[inline(always)]
-    pub(crate) fn at_magnitude<D: Lanes<S = f64>>(&self, magnitude: D) -> D {
-        D::splat(self.base)
-            + D::splat(self.per_magnitude) * magnitude.max(D::splat(self.origin_magnitude))
+    pub(crate) fn at_magnitude<D: Lanes<S = f64>>(&self, magnitude: D) -> V3<D> {
+        let magnitude = magnitude.max(D::splat(self.origin_magnitude));
+        V3 {
+            x: D::splat(self.base.x) + D::splat(self.per_magnitude.x) * magnitude,
+            y: D::splat(self.base.y) + D::splat(self.per_magnitude.y) * magnitude,
+            z: D::splat(self.base.z) + D::splat(self.per_magnitude.z) * magnitude,
+        }
     }
 }

@@ -130,7 +130,8 @@ fn check_scene(spec: &AdaptiveSpec, settings: Settings, xi_tol: f64) -> (Tally, 
     .unwrap();
     let h_min = body.spacing(body.finest_level()).min_element();
     let u_max = body.max_displacement().max_element();
-    let inside = InsideTolerance::with_h_min(&settings, body.lattice().origin(), h_min, u_max);
+    let finest = body.spacing(body.finest_level());
+    let inside = InsideTolerance::with_spacing(&settings, body.lattice().origin(), finest, u_max);
     let (mut by_centroid, mut by_noderad, mut located) = (Tally::default(), Tally::default(), 0);
     for (index, (x, kind)) in common::adaptive::points(&body, 150, spec.seed + 1)
         .into_iter()
@@ -140,7 +141,7 @@ fn check_scene(spec: &AdaptiveSpec, settings: Settings, xi_tol: f64) -> (Tally, 
         // Against a known ξ the bound adds the rounding of the generated point's global
         // coordinates (half an ulp of |x|, over the finest cell's half-width, with margin).
         let known_tol = xi_tol + 8.0 * f64::EPSILON * x.abs().max_element() / h_min;
-        let boundary_resolved = 2e-9 > 2.0 * inside.at(x);
+        let boundary_resolved = 2e-9 > 2.0 * inside.at(x).max_element();
         let owners = brute.locate_owners(x).unwrap();
 
         // The adaptive locator finds exactly the oracle's owners, at the same ξ.
@@ -505,8 +506,8 @@ fn non_finite_points_and_bad_settings_are_errors() {
     ));
 }
 
-/// Far from the origin the inside tolerance grows with |x| / h_min, h_min the finest spacing (the
-/// adaptive locator's definition): points off outer faces by half of it are inside for every
+/// Far from the origin the inside tolerance grows with |x| / h, h the finest spacing along the
+/// axis (the adaptive locator's definition): points off outer faces by half of it are inside for every
 /// strategy, by twice it outside. A strategy taking h_min from the base lattice would call the
 /// first outside.
 #[test]
@@ -523,7 +524,8 @@ fn every_strategy_uses_the_adaptive_locators_inside_tolerance() {
     let h_min = body.spacing(body.finest_level()).min_element();
     assert!(h_min < 0.25 / 4.0, "a refinement to test");
     let u_max = body.max_displacement().max_element();
-    let inside = InsideTolerance::with_h_min(&settings, body.lattice().origin(), h_min, u_max);
+    let finest = body.spacing(body.finest_level());
+    let inside = InsideTolerance::with_spacing(&settings, body.lattice().origin(), finest, u_max);
     let adaptive = AdaptiveLocator::new(&body, settings).unwrap();
     let strategies: Vec<Box<dyn Locator + '_>> = vec![
         Box::new(BruteForce::new(&body, settings).unwrap()),
@@ -544,7 +546,7 @@ fn every_strategy_uses_the_adaptive_locators_inside_tolerance() {
         let axis = (0..3)
             .max_by(|&a, &b| on_face[a].abs().total_cmp(&on_face[b].abs()))
             .unwrap();
-        let tol = inside.at(x);
+        let tol = inside.at(x)[axis];
         for (factor, expected) in [(0.5, true), (2.0, false)] {
             let mut xi = on_face;
             xi[axis] = on_face[axis].signum() * (1.0 + factor * tol);

@@ -37,7 +37,11 @@ fn check_body(
         .into_iter()
         .enumerate()
     {
-        let boundary_resolved = 2e-9 > 2.0 * settings.inside_tolerance(body.lattice(), u_max, x);
+        let boundary_resolved = 2e-9
+            > 2.0
+                * settings
+                    .inside_tolerance(body.lattice(), u_max, x)
+                    .max_element();
         let known_tol = xi_tol + 64.0 * f64::EPSILON * x.abs().max_element() / spec.h.min_element();
         let context = || format!("point {index} {x} ({kind:?}) in {spec:?}");
         let expected = lattice.locate(x).unwrap();

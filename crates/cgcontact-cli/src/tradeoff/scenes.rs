@@ -239,7 +239,7 @@ pub(super) fn scenes(quick: bool, pool: &rayon::ThreadPool) -> Result<Vec<TradeS
     let tight = NewtonOptions {
         tol: 1e-16,
         max_iter: 50,
-        inside_tol: 1e-6,
+        inside_tol: DVec3::splat(1e-6),
         ..NewtonOptions::default()
     };
     for (x, reference) in far.points.iter().zip(&mut far.reference) {

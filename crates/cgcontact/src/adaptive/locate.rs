@@ -61,7 +61,7 @@ impl<'a> AdaptiveLocator<'a> {
         });
         let u_max = u_range.high.max(-u_range.low);
         let lattice = body.lattice();
-        let h_min = body.spacing(body.finest).min_element();
+        let h_finest = body.spacing(body.finest);
         Ok(Self {
             body,
             settings,
@@ -69,10 +69,10 @@ impl<'a> AdaptiveLocator<'a> {
             u_range,
             inv_h: lattice.h().recip(),
             admit: reach::Admit::new(
-                InsideTolerance::with_h_min(
+                InsideTolerance::with_spacing(
                     &settings,
                     lattice.origin(),
-                    h_min,
+                    h_finest,
                     u_max.max_element(),
                 ),
                 lattice,
@@ -313,7 +313,8 @@ impl<'a> AdaptiveLocator<'a> {
             }
         }
         let t_guess = *t_guess;
-        let tau = options.inside_tol;
+        // The filters widen by the largest of the per-axis tolerances.
+        let tau = options.inside_tol.max_element();
         let range = self.u_range;
         let w = reach::widening(body.lattice().h(), range.high - range.low, tau);
         let low = t_x - (range.high + w) * self.inv_h;
@@ -396,7 +397,7 @@ const GROUP: usize = 8;
 /// A group's common path up to the inversion: for each point, its inside tolerance (`None`: refused
 /// or out of reach), the predicted leaf, that leaf's corner displacements, and the guess.
 struct Front {
-    tol: [Option<f64>; GROUP],
+    tol: [Option<DVec3>; GROUP],
     first: [Option<(u32, Leaf)>; GROUP],
     u: [[DVec3; 8]; GROUP],
     t_guess: [DVec3; GROUP],
@@ -571,7 +572,7 @@ impl AdaptiveLocator<'_> {
         let no_leaf = (0, Leaf::new(0, [0; 3]));
         // The leaf at x, per lane; lanes refused, out of reach or in a hole leave the batch.
         let mut take = 0u32;
-        let mut tol = [0.0; MAX_W];
+        let mut tol = [DVec3::ZERO; MAX_W];
         let mut t_x = [DVec3::ZERO; MAX_W];
         let mut at = [no_leaf; MAX_W];
         for l in 0..V::W {
@@ -628,7 +629,7 @@ impl AdaptiveLocator<'_> {
                     let leaf = first[l].1;
                     Self::undeformed_xi(t_guess.lane(l), leaf.level, leaf.ijk)
                 });
-                let inside = V::splat(V::S::of(1.0)) + V::from_fn(|l| V::S::of(tol[l]));
+                let inside = V3::<V>::splat(DVec3::ONE) + lanes3::<V>(|l| tol[l]);
                 let (xi, rr, iterations, inside_lanes) =
                     maps.invert(x_local, xi0, inside, V::mask_from_bits(take), &self.newton);
                 let xi = xi.widen().clamp(-1.0, 1.0);
@@ -707,7 +708,7 @@ impl AdaptiveLocator<'_> {
     {
         let body = self.body;
         let mut take = 0u32;
-        let mut tol = [0.0; MAX_W];
+        let mut tol = [DVec3::ZERO; MAX_W];
         let mut cell = [CellId(0); MAX_W];
         // Lanes not taken read leaf 0's corners (there is one: a lane took a leaf), and are ignored.
         let mut rows = [[0u32; 8]; MAX_W];
@@ -738,7 +739,7 @@ impl AdaptiveLocator<'_> {
             let nodes = V::Node::of(self);
             let mut maps = Maps::<V>::from_nodes(|l, c| &nodes[rows[l][c] as usize]);
             maps.add_lattice_lanes(lanes3::<V>(|l| half[l]));
-            let inside = V::splat(V::S::of(1.0)) + V::from_fn(|l| V::S::of(tol[l]));
+            let inside = V3::<V>::splat(DVec3::ONE) + lanes3::<V>(|l| tol[l]);
             let (xi, rr, iterations, inside_lanes) = maps.invert(
                 lanes3::<V>(|l| x_local[l]),
                 lanes3::<V>(|l| xi0[l]),
@@ -1107,7 +1108,8 @@ mod tests {
                 t_guess = locator.guess::<K>(t_x, t_guess).0;
             }
         }
-        let tau = options.inside_tol;
+        // The filters widen by the largest of the per-axis tolerances.
+        let tau = options.inside_tol.max_element();
         let range = locator.u_range;
         let w = reach::widening(body.lattice().h(), range.high - range.low, tau);
         let low = t_x - (range.high + w) * locator.inv_h;

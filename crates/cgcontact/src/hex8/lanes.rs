@@ -127,7 +127,7 @@ impl<V: Lanes> Maps<V> {
     }
 
     /// The common path of `Hex8Map::invert` for W points at once: plain Newton steps, no line search.
-    /// `inside` is 1 + each lane's inside tolerance. Lanes with `take` unset are ignored. Returns, per
+    /// `inside` is 1 + each lane's inside tolerance, per axis. Lanes with `take` unset are ignored. Returns, per
     /// lane, the final ξ, |residual|², the iterations and whether the lane ended `Inside` on the common
     /// path (the scalar kernel then gives exactly this answer); a lane not `Inside` must be redone.
     #[inline(always)]
@@ -135,7 +135,7 @@ impl<V: Lanes> Maps<V> {
         &self,
         x: V3<V>,
         xi0: V3<V>,
-        inside: V,
+        inside: V3<V>,
         take: V::Mask,
         options: &NewtonOptions,
     ) -> (V3<V>, V, [u32; MAX_W], u32) {
@@ -144,7 +144,12 @@ impl<V: Lanes> Maps<V> {
         // The scalar kernel's safeguards (`hex8`), so that both loops take the same decisions.
         let line_search_above = V::splat(V::S::of(hex8::LINE_SEARCH_ABOVE));
         let early_outside_step = V::splat(V::S::of(hex8::EARLY_OUTSIDE_STEP));
-        let early_outside = inside + V::splat(V::S::of(hex8::EARLY_OUTSIDE_MARGIN));
+        let margin = V::splat(V::S::of(hex8::EARLY_OUTSIDE_MARGIN));
+        let early_outside = V3 {
+            x: inside.x + margin,
+            y: inside.y + margin,
+            z: inside.z + margin,
+        };
         let (low, high) = (V::S::of(-hex8::NEWTON_BOX), V::S::of(hex8::NEWTON_BOX));
         let magnitude = self.magnitude(x);
         let mut xi = xi0.clamp(V::S::of(-1.0), V::S::of(1.0));
@@ -177,14 +182,17 @@ impl<V: Lanes> Maps<V> {
             let r_trial = x - f_trial;
             let rr_trial = r_trial.dot(r_trial);
             let finite = trial.is_finite() & rr_trial.is_finite() & delta.is_finite();
-            let far = trial.abs().max_element();
+            let far = trial.abs();
+            let within = far.x.le(inside.x) & far.y.le(inside.y) & far.z.le(inside.z);
             // Converged: Inside, or (Outside / not finite) left to the scalar search.
-            let inside_now = pending & !singular & converged & finite & far.le(inside);
+            let inside_now = pending & !singular & converged & finite & within;
             // Not converged: a step the scalar kernel would shorten (line search), a non-finite value
             // or an early Outside all leave the common path.
             let line_search = rr_trial.gt(rr) & size.gt(line_search_above);
             let moved = (trial - xi).abs().max_element();
-            let early_out = moved.lt(early_outside_step) & far.gt(early_outside);
+            let beyond =
+                far.x.gt(early_outside.x) | far.y.gt(early_outside.y) | far.z.gt(early_outside.z);
+            let early_out = moved.lt(early_outside_step) & beyond;
             let go_on = pending & !(converged | singular | line_search | early_out) & finite;
             let keep = inside_now | go_on;
             xi = V3::select(keep, trial, xi);

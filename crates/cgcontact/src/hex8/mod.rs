@@ -55,8 +55,8 @@ pub struct NewtonOptions {
     pub tol: f64,
     /// Iteration limit.
     pub max_iter: u32,
-    /// The result is inside when every |ξ_k| ≤ 1 + `inside_tol`.
-    pub inside_tol: f64,
+    /// The result is inside when every |ξ_k| ≤ 1 + `inside_tol`'s component k.
+    pub inside_tol: DVec3,
     /// Give up (singular) when det J falls to this fraction of the cell's det J at ξ = 0 or below.
     pub det_ratio_min: f64,
 }
@@ -66,7 +66,7 @@ impl Default for NewtonOptions {
         Self {
             tol: crate::Settings::NEWTON_TOL,
             max_iter: crate::Settings::MAX_ITER,
-            inside_tol: crate::Settings::INSIDE_TOL,
+            inside_tol: DVec3::splat(crate::Settings::INSIDE_TOL),
             det_ratio_min: 1e-12,
         }
     }
@@ -257,7 +257,7 @@ macro_rules! stamp_hex8 {
                 const EARLY_OUTSIDE_STEP: $S = crate::hex8::EARLY_OUTSIDE_STEP as $S;
                 const EARLY_OUTSIDE_MARGIN: $S = crate::hex8::EARLY_OUTSIDE_MARGIN as $S;
                 let tol = options.tol as $S;
-                let inside = 1.0 + options.inside_tol as $S;
+                let inside = <$V>::splat(1.0) + $to_v(options.inside_tol);
                 let det_floor = options.det_ratio_min as $S * self.det_at_center().abs();
                 let magnitude = self.magnitude(x);
                 let mut xi = xi0.clamp(<$V>::splat(-1.0), <$V>::splat(1.0));
@@ -298,7 +298,7 @@ macro_rules! stamp_hex8 {
                         rr = r.dot(r);
                         let status = if !xi.is_finite() || !rr.is_finite() {
                             Status::Singular
-                        } else if xi.abs().max_element() <= inside {
+                        } else if xi.abs().cmple(inside).all() {
                             Status::Inside
                         } else {
                             Status::Outside
@@ -325,7 +325,7 @@ macro_rules! stamp_hex8 {
                     if !xi.is_finite() || !rr.is_finite() {
                         return finish(Status::Singular, xi, iteration, rr);
                     }
-                    if moved < EARLY_OUTSIDE_STEP && xi.abs().max_element() > inside + EARLY_OUTSIDE_MARGIN {
+                    if moved < EARLY_OUTSIDE_STEP && xi.abs().cmpgt(inside + EARLY_OUTSIDE_MARGIN).any() {
                         return finish(Status::Outside, xi, iteration, rr);
                     }
                 }
@@ -490,7 +490,7 @@ mod tests {
             DVec3::ZERO,
             &NewtonOptions {
                 tol: 1e-5,
-                inside_tol: 1e-6,
+                inside_tol: DVec3::splat(1e-6),
                 ..Default::default()
             },
         );

@@ -7,7 +7,7 @@ use glam::{DVec3, Vec3A};
 use super::{Answer, Boxed, Hit, LatticeLocator, Locator};
 use crate::PointError;
 use crate::hex8::lanes::Maps;
-use crate::lanes::{Lanes, MAX_W, Real, V3, Wide};
+use crate::lanes::{Lanes, MAX_W, V3, Wide};
 use crate::lattice::CellId;
 use crate::settings::{CandidateOrder, Precision};
 
@@ -50,7 +50,7 @@ struct Front<V: Lanes> {
     x: V3<V::Wide>,
     t_x: V3<V::Wide>,
     cell_x: V3<V::Wide>,
-    inside_tol: V::Wide,
+    inside_tol: V3<V::Wide>,
     /// Lanes with a finite point, and lanes within reach (bits): `admit`'s two answers.
     finite: u32,
     take: u32,
@@ -66,7 +66,7 @@ impl<V: Lanes> Front<V> {
             x: zero,
             t_x: zero,
             cell_x: zero,
-            inside_tol: V::Wide::splat(0.0),
+            inside_tol: V3::splat(DVec3::ZERO),
             finite: 0,
             take: 0,
             maps: Maps {
@@ -124,7 +124,7 @@ impl LatticeLocator<'_> {
         // `admit`: finite and within reach (the lattice's box shifted by the displacement range,
         // widened by the tolerance).
         let inside_tol = self.admit.inside_tol.at_magnitude(x.abs().max_element());
-        let slack = splat(self.admit.pad).scale(inside_tol);
+        let slack = splat(self.admit.pad).scale(inside_tol.max_element());
         let (low, high) = (
             splat(self.admit.low) - slack,
             splat(self.admit.high) + slack,
@@ -293,7 +293,7 @@ impl LatticeLocator<'_> {
         maps.add_lattice(lattice.h());
         let x_local = x - (splat(lattice.origin()) + first.mul_each(lattice.h()));
         let xi0 = (t_guess - first).scale(V::Wide::splat(2.0)) - splat(DVec3::ONE);
-        let inside = V::splat(V::S::of(1.0)) + V::narrow(inside_tol);
+        let inside = V3::<V>::splat(DVec3::ONE) + V3::narrow(inside_tol);
         let (xi, rr, iterations, found) = maps.invert(
             V3::narrow(x_local),
             V3::narrow(xi0),

@@ -190,7 +190,7 @@ impl LatticeLocator<'_> {
                 y: V::from_fn(|l| V::S::of(v[l].y)),
                 z: V::from_fn(|l| V::S::of(v[l].z)),
             };
-            let inside = V::splat(V::S::of(1.0)) + V::from_fn(|l| V::S::of(front.tol[l]));
+            let inside = V3::<V>::splat(DVec3::ONE) + lanes3(&front.tol);
             let (xi, rr, iterations, inside_lanes) = maps.invert(
                 lanes3(&front.x_local),
                 lanes3(&front.xi0),
@@ -226,7 +226,7 @@ impl LatticeLocator<'_> {
 /// in the lanes `take` has), and the hinted cells' displacement maps.
 struct WarmFront<V: Lanes> {
     take: u32,
-    tol: [f64; MAX_W],
+    tol: [DVec3; MAX_W],
     cell: [CellId; MAX_W],
     x_local: [DVec3; MAX_W],
     xi0: [DVec3; MAX_W],
@@ -238,7 +238,7 @@ impl<V: Lanes> WarmFront<V> {
     fn new() -> Self {
         Self {
             take: 0,
-            tol: [0.0; MAX_W],
+            tol: [DVec3::ZERO; MAX_W],
             cell: [CellId(0); MAX_W],
             x_local: [DVec3::ZERO; MAX_W],
             xi0: [DVec3::ZERO; MAX_W],

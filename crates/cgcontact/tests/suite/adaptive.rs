@@ -133,11 +133,10 @@ fn deform(body: &mut AdaptiveBody, strain: f64, jitter: f64, seed: u64) {
 
 /// Every leaf holding `x` by inverting each one (the oracle), ascending.
 fn brute_owners(body: &AdaptiveBody, settings: &Settings, x: DVec3) -> Vec<u32> {
-    let h_min = body.spacing(body.finest_level()).min_element();
-    let tol = InsideTolerance::with_h_min(
+    let tol = InsideTolerance::with_spacing(
         settings,
         body.lattice().origin(),
-        h_min,
+        body.spacing(body.finest_level()),
         body.max_displacement().max_element(),
     );
     let options = NewtonOptions {

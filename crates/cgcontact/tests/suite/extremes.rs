@@ -492,11 +492,17 @@ fn points_on_every_node_edge_and_face_have_all_owners_sorted() {
 }
 
 /// Points 1e-12 h inside the outer faces are always found; points outside by more than the inside
-/// tolerance (converted to a distance, plus the rounding of x) never are. 1e-12 h outside is reported.
+/// tolerance of their axis (converted to a distance, plus the rounding of x) never are. 1e-12 h
+/// outside is reported. On a 1000 : 1 lattice too: with one tolerance for every axis, from the
+/// smallest spacing, a point 5e-4 h outside a face of the long axis was found at 1e9.
 #[test]
 fn boundary_1e_12_h_inside_found_outside_beyond_tolerance_not() {
-    for exponent in [0, 3, 6, 9] {
-        let h = DVec3::new(0.5, 0.4, 0.3);
+    for (exponent, h) in [0, 3, 6, 9].into_iter().flat_map(|e| {
+        [
+            (e, DVec3::new(0.5, 0.4, 0.3)),
+            (e, DVec3::new(1.0, 1e-3, 0.25)),
+        ]
+    }) {
         let origin = if exponent == 0 {
             DVec3::new(0.2, -0.1, 0.3)
         } else {
@@ -533,8 +539,17 @@ fn boundary_1e_12_h_inside_found_outside_beyond_tolerance_not() {
                     locator.locate(on_face).unwrap().is_some(),
                     "{name} 1e{exponent}: {on_face} on"
                 );
-                // Outside by the tolerance (ξ units → distance h/2 · tol) twice over, plus x's rounding.
-                let tol = settings.inside_tolerance(&lattice, 0.0, on_face);
+                // Outside by the tolerance of this axis (ξ units → distance h/2 · tol) twice over,
+                // plus x's rounding. The tolerance as docs/numerics.md defines it, written out here
+                // (u = 0), so that the library's own cannot widen it unseen.
+                let magnitude = on_face.abs().max_element().max(origin.abs().max_element());
+                let tol = settings.inside_tol
+                    + 16.0 * settings.epsilon()
+                    + 8.0 * f64::EPSILON * magnitude / h[axis];
+                assert!(
+                    settings.inside_tolerance(&lattice, 0.0, on_face)[axis] <= tol * (1.0 + 1e-9),
+                    "{name} 1e{exponent}: the tolerance of axis {axis}"
+                );
                 let beyond =
                     2.0 * tol * h[axis] / 2.0 + 4.0 * f64::EPSILON * on_face.abs().max_element();
                 let outside = on_face + normal * beyond;
@@ -553,9 +568,11 @@ fn boundary_1e_12_h_inside_found_outside_beyond_tolerance_not() {
                 }
                 total += 1;
             }
-            let tol = settings.inside_tolerance(&lattice, 0.0, lattice.upper());
+            let tol = settings
+                .inside_tolerance(&lattice, 0.0, lattice.upper())
+                .max_element();
             println!(
-                "MEASURED boundary_1e_12_h_inside_found_outside_beyond_tolerance_not | offset 1e{exponent} h | {name} | inside tolerance {tol:.2e} ξ = {:.2e} h | 1e-12 h outside found {outside_hair_found}/{total}",
+                "MEASURED boundary_1e_12_h_inside_found_outside_beyond_tolerance_not | offset 1e{exponent} h | spacing {h} | {name} | inside tolerance (largest axis) {tol:.2e} ξ = {:.2e} h | 1e-12 h outside found {outside_hair_found}/{total}",
                 tol / 2.0
             );
         }

@@ -86,7 +86,7 @@ pub fn point_at(body: &Body, cell: CellId, xi: DVec3) -> DVec3 {
 }
 
 /// The oracle: every active cell that holds `x`, by exhaustive exact inversion.
-pub fn brute_owners(body: &Body, x: DVec3, inside_tol: f64) -> Vec<CellId> {
+pub fn brute_owners(body: &Body, x: DVec3, inside_tol: DVec3) -> Vec<CellId> {
     let l = body.lattice();
     let options = cgcontact::hex8::NewtonOptions {
         inside_tol,
