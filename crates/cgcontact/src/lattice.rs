@@ -53,8 +53,9 @@ pub struct Lattice {
 impl Lattice {
     /// A lattice with its lowest node at `origin`, spacing `h` per axis and `cells` cells per axis.
     ///
-    /// Errors when a value is not finite, a spacing is not positive, a count is zero, or the node
-    /// count does not fit the `u32` indices used throughout.
+    /// Errors when a value is not finite, a spacing is not positive, a count is zero, the node
+    /// count does not fit the `u32` indices used throughout, or a spacing is too fine for f64
+    /// coordinates of the lattice's magnitude to resolve ([`Lattice::check_resolution`]).
     pub fn new(origin: DVec3, h: DVec3, cells: [u32; 3]) -> Result<Self, Error> {
         if !origin.is_finite() {
             return Err(Error::InvalidLattice(format!(
@@ -78,8 +79,36 @@ impl Lattice {
                 "{nodes} nodes exceed the 2^32 - 1 indices this library uses"
             )));
         }
-        Ok(Self { origin, h, cells })
+        let lattice = Self { origin, h, cells };
+        lattice.check_resolution(h)?;
+        Ok(lattice)
     }
+
+    /// Refuses cells of spacing `h` on this lattice (its own, or an adaptive body's finest level)
+    /// when f64 coordinates of the lattice's magnitude M (the largest |coordinate| of its box)
+    /// cannot resolve them: when the rounding of a coordinate, in ξ units of a cell
+    /// (8 ε₆₄ M / h_k, the inside test's allowance), exceeds [`Lattice::RESOLUTION`] on some axis.
+    /// Past that, the nodes themselves are off by a visible share of a cell, and a point could
+    /// be called inside cells it is far outside of (at 1e12 with h = 1e-4, by 0.6 h).
+    pub fn check_resolution(&self, h: DVec3) -> Result<(), Error> {
+        let magnitude = self.origin.abs().max(self.upper().abs()).max_element();
+        for a in 0..3 {
+            let share = 8.0 * f64::EPSILON * magnitude / h[a];
+            if share > Self::RESOLUTION {
+                return Err(Error::InvalidLattice(format!(
+                    "spacing {h} is too fine for coordinates as large as {magnitude:e}: their \
+                     rounding is {share:.1e} of a cell along axis {a} (at most {:e}); move the \
+                     mesh nearer the origin",
+                    Self::RESOLUTION
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    /// The largest share of a cell (in ξ units) that the rounding of a coordinate may take:
+    /// a lattice finer than that for its magnitude is refused ([`Lattice::check_resolution`]).
+    pub const RESOLUTION: f64 = 0.1;
 
     /// Position of node (0, 0, 0).
     #[inline]
@@ -292,6 +321,27 @@ mod tests {
         assert!(Lattice::new(DVec3::ZERO, DVec3::new(1.0, 0.0, 1.0), [1, 1, 1]).is_err());
         assert!(Lattice::new(DVec3::ZERO, DVec3::ONE, [1, 0, 1]).is_err());
         assert!(Lattice::new(DVec3::NAN, DVec3::ONE, [1, 1, 1]).is_err());
+    }
+
+    /// At 1e12 a coordinate rounds by 1.2e-4: a spacing of 1e-4 there is refused (the nodes are
+    /// off by most of a cell, and the inside test would admit points 0.6 h outside), 1 is not.
+    #[test]
+    fn spacings_finer_than_the_coordinates_resolve_are_refused() {
+        let far = DVec3::new(0.0, 1e12, 0.0);
+        let error = Lattice::new(far, DVec3::new(1.0, 1e-4, 1.0), [2, 2, 2]).unwrap_err();
+        assert!(error.to_string().contains("axis 1"), "{error}");
+        Lattice::new(far, DVec3::new(1.0, 1.0, 1.0), [2, 2, 2]).unwrap();
+        // Either side of the limit, 8 ε M / h = RESOLUTION, by the magnitude of the far corner
+        // (below the origin: the lattice's box ends at 0).
+        let limit = Lattice::RESOLUTION / (8.0 * f64::EPSILON);
+        for (m, ok) in [(0.9 * limit, true), (1.1 * limit, false)] {
+            let origin = DVec3::new(-m, 0.0, 0.0);
+            assert_eq!(
+                Lattice::new(origin, DVec3::ONE, [1, 1, 1]).is_ok(),
+                ok,
+                "{m:e}"
+            );
+        }
         assert!(Lattice::new(DVec3::ZERO, DVec3::ONE, [100_000, 100_000, 1]).is_err());
         // (2^32)^3 nodes: more than u64 counts, refused rather than overflowing.
         assert!(Lattice::new(DVec3::ZERO, DVec3::ONE, [u32::MAX; 3]).is_err());

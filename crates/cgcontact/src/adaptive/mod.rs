@@ -121,7 +121,8 @@ impl AdaptiveBody {
     ///
     /// Errors, naming the leaf, when a leaf is deeper than [`MAX_LEVEL`], lies outside the
     /// lattice, or overlaps another, when the finest level's lattice exceeds 2^21 − 1 cells per
-    /// axis, or when there is no leaf.
+    /// axis or is too fine for its coordinates ([`Lattice::check_resolution`]), or when there is
+    /// no leaf.
     pub fn from_leaves(lattice: Lattice, leaves: Vec<Leaf>) -> Result<Self, Error> {
         if leaves.is_empty() {
             return Err(Error::EmptyBody);
@@ -159,6 +160,7 @@ impl AdaptiveBody {
             }
             finest = finest.max(leaf.level);
         }
+        lattice.check_resolution(lattice.h() / f64::from(1u32 << finest))?;
         if let Some(&n) = counts.iter().max() {
             if u64::from(n) << finest >= 1 << KEY_BITS {
                 return Err(Error::InvalidLattice(format!(

@@ -636,3 +636,27 @@ fn the_corner_table_changes_no_answer() {
         }
     }
 }
+
+/// A base lattice that its coordinates resolve, refined until its finest level's cells are
+/// finer than they do (at 1e9, 17 levels of a unit spacing: 7.6e-6): refused, as the uniform
+/// lattice of that spacing would be; 10 levels (1e-3) are not.
+#[test]
+fn a_finest_level_finer_than_the_coordinates_resolve_is_refused() {
+    let lattice = Lattice::new(DVec3::splat(1e9), DVec3::ONE, [1, 1, 1]).unwrap();
+    let refined = |levels: u8| {
+        let mut leaves = Vec::new();
+        let mut corner = Leaf::new(0, [0, 0, 0]);
+        for _ in 0..levels {
+            let children = corner.children();
+            leaves.extend_from_slice(&children[1..]);
+            corner = children[0];
+        }
+        leaves.push(corner);
+        AdaptiveBody::from_leaves(lattice, leaves)
+    };
+    refined(10).unwrap();
+    assert!(matches!(
+        refined(17).unwrap_err(),
+        Error::InvalidLattice(message) if message.contains("too fine")
+    ));
+}
