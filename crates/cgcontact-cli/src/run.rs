@@ -37,6 +37,11 @@ pub enum StrategyName {
 /// The most worker threads per available core `--threads` starts.
 pub const THREADS_PER_CORE: usize = 4;
 
+/// The rounding of the displacements in f32, as a share of a cell (ε₃₂ |u| / h), above which
+/// `--precision f32` gets a warning: about 840 cells of displacement (a rigid translation of the
+/// body, say), where f32's ξ error grows past 1e-4.
+const F32_ROUNDING_WARNING: f64 = 1e-4;
+
 /// Newton step tolerances (ξ units) above which `--tol` gets a warning.
 const LOOSE_TOL: f64 = 1e-3;
 
@@ -173,6 +178,11 @@ pub struct Summary {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub hanging_nodes: Option<usize>,
     pub max_displacement: [f64; 3],
+    /// With f32 precision: how much f32 rounds the largest displacement, as a share of a cell
+    /// (ε₃₂ · |u| / h, per axis, the largest; the finest level's h on an adaptive body); absent
+    /// with f64.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub f32_rounding: Option<f64>,
     /// Where the displacement came from: the point-data array read, `generated` for a built-in
     /// scene, or null when the mesh file had none (the body is undeformed).
     pub displacement: Option<String>,
@@ -311,6 +321,17 @@ impl Summary {
             for file in &self.files {
                 say!("wrote {file}")?;
             }
+        }
+        if let Some(rounding) = self.f32_rounding.filter(|&r| r > F32_ROUNDING_WARNING)
+            && !args.quiet
+        {
+            eprintln!(
+                "cgcontact: warning: f32: the displacements ({:.1e} at most) are {:.0} cells, which \
+                 f32 rounds by {rounding:.0e} of a cell: ξ is good to about that, and a point that \
+                 close to a face may be put in the cell beside it (--precision f64 is exact)",
+                DVec3::from_array(self.max_displacement).max_element(),
+                rounding / f64::from(f32::EPSILON)
+            );
         }
         if !self.inverted_cells.is_empty() && !args.quiet {
             let first: Vec<String> = self
@@ -481,6 +502,13 @@ pub fn search_listing_owners(
             BodyRef::Adaptive(b) => Some(b.hanging_nodes().count()),
         },
         max_displacement: body.max_displacement().to_array(),
+        f32_rounding: (settings.precision == Precision::F32).then(|| {
+            let h = match body {
+                BodyRef::Uniform(b) => b.lattice().h(),
+                BodyRef::Adaptive(b) => b.spacing(b.finest_level()),
+            };
+            (f64::from(f32::EPSILON) * body.max_displacement() / h).max_element()
+        }),
         displacement: Some("generated".to_owned()),
         inverted_cells: match body {
             BodyRef::Uniform(b) => b.inverted_cells(),

@@ -290,3 +290,43 @@ fn mesh_read_without_displacement_says_so() {
     let summary: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
     assert_eq!(summary["displacement"], "displacement", "{summary}");
 }
+
+/// f32 rounds a displacement of 1e5 cells (a rigid translation) by about 1e-2 of a cell: points
+/// near faces landed in the neighbouring cell without a word. Now `--precision f32` warns when the
+/// rounding passes 1e-4 of a cell, and `--json` says how much it is; f64, and f32 on small
+/// displacements, say nothing.
+#[test]
+fn f32_on_displacements_of_many_cells_is_warned() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = dir.path().join("moved.vtk");
+    let mut text = String::from(
+        "# vtk DataFile Version 4.2\nmoved\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS 8 double\n",
+    );
+    for k in 0..2 {
+        for (i, j) in [(0, 0), (1, 0), (1, 1), (0, 1)] {
+            text += &format!("{i} {j} {k}\n");
+        }
+    }
+    text += "CELLS 1 9\n8 0 1 2 3 4 5 6 7\nCELL_TYPES 1\n12\n";
+    text += "POINT_DATA 8\nVECTORS displacement double\n";
+    text += &"100000 0 0\n".repeat(8);
+    std::fs::write(&mesh, text).unwrap();
+    let points = dir.path().join("points.csv");
+    std::fs::write(&points, "x,y,z\n100000.5,0.5,0.5\n").unwrap();
+    let run = locate(&mesh, &points, &["--precision", "f32", "--json"]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    assert!(stderr(&run).contains("warning: f32"), "{}", stderr(&run));
+    let summary: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    let rounding = summary["f32_rounding"].as_f64().unwrap();
+    assert!(
+        (rounding - 1e5 * f64::from(f32::EPSILON)).abs() < 1e-9,
+        "{summary}"
+    );
+    let exact = locate(&mesh, &points, &["--json"]);
+    assert!(stderr(&exact).is_empty(), "{}", stderr(&exact));
+    let summary: serde_json::Value = serde_json::from_slice(&exact.stdout).unwrap();
+    assert!(summary.get("f32_rounding").is_none(), "{summary}");
+    let (_small, mesh, points) = scene();
+    let small = locate(&mesh, &points, &["--precision", "f32"]);
+    assert!(stderr(&small).is_empty(), "{}", stderr(&small));
+}
