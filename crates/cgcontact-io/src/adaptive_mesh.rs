@@ -14,7 +14,9 @@ use cgcontact::adaptive::{ConstraintReport, MAX_LEVEL};
 use cgcontact::{AdaptiveBody, CORNER_OFFSETS, Lattice, Leaf};
 use glam::DVec3;
 
-use crate::mesh::{LatticeMesh, ROUNDING_SLACK, merge_displacements};
+use crate::mesh::{
+    F32_ROUNDING_SLACK, LatticeMesh, ROUNDING_SLACK, all_f32, coordinate_slack, merge_displacements,
+};
 use crate::{CellMap, ErrorKind, HexMesh, LATTICE_TOLERANCE};
 
 /// Ratio of the largest to the smallest cell edge (on some axis) above which a mesh is read as
@@ -159,6 +161,12 @@ impl HexMesh {
                 base[a] = base[a].max(e[a]);
             }
         }
+        // Coordinates all 32-bit floats round by more (checked against the cells below).
+        let point_slack = if all_f32(&self.points) {
+            F32_ROUNDING_SLACK
+        } else {
+            ROUNDING_SLACK
+        };
         let mut levels = Vec::with_capacity(self.cells.len());
         for (c, e) in cell_edges.iter().enumerate() {
             let bad = || ErrorKind::CellSize {
@@ -179,8 +187,11 @@ impl HexMesh {
             // (far from the origin a tiny cell's edge carries |x| ε): far tighter than a level
             // apart. The lattice checks below are the exact ones.
             let magnitude = self.points[self.cells[c][0] as usize].abs().max_element();
-            let slack = 4.0 * ROUNDING_SLACK * magnitude;
-            if (0..3).any(|a| (e[a] - base[a] * scale).abs() > 1e-6 * base[a] * scale + slack) {
+            let slack = 4.0 * point_slack * magnitude;
+            if (0..3).any(|a| {
+                let expected = base[a] * scale;
+                (e[a] - expected).abs() > 1e-6 * expected + slack.min(expected / 20.0)
+            }) {
                 return Err(bad());
             }
             levels.push(level as u8);
@@ -224,7 +235,8 @@ impl HexMesh {
         // Every used node on the finest lattice.
         let limit = counts.map(|n| u64::from(n) * steps);
         let magnitude = origin.abs().max(lattice.upper().abs());
-        let tol = LATTICE_TOLERANCE * h_fine + ROUNDING_SLACK * magnitude;
+        let tol =
+            LATTICE_TOLERANCE * h_fine + coordinate_slack(&self.points, used, magnitude, h_fine);
         let mut q = vec![[u32::MAX; 3]; self.points.len()];
         for n in used.iter_ones() {
             let p = self.points[n];
@@ -307,7 +319,14 @@ impl HexMesh {
             let values = merge_displacements(by_node, u, LATTICE_TOLERANCE * h_base.max_element())?;
             debug_assert_eq!(values.len(), body.node_count());
             body.set_displacements(&values)?;
-            constraint_tolerance += ROUNDING_SLACK * body.max_displacement().max_element();
+            // Displacements all 32-bit floats: a hanging node's value and its constraint differ
+            // by their rounding.
+            let slack = if all_f32(u) {
+                F32_ROUNDING_SLACK
+            } else {
+                ROUNDING_SLACK
+            };
+            constraint_tolerance += slack * body.max_displacement().max_element();
         }
         let cells = CellMap::identity(self.cells.len());
         Ok(AdaptiveMesh {

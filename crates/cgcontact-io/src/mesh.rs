@@ -14,6 +14,37 @@ pub const LATTICE_TOLERANCE: f64 = 1e-9;
 /// to f64 (a few ulps): far from the origin it can exceed `LATTICE_TOLERANCE * h`.
 pub(crate) const ROUNDING_SLACK: f64 = 4.0 * f64::EPSILON;
 
+/// [`ROUNDING_SLACK`] for coordinates that are all 32-bit floats (VTK's `vtkPoints` default): a
+/// node is then off its lattice position by the float's rounding (ε₃₂ / 2 of its magnitude), or
+/// by a 6-digit decimal print of it (VTK's legacy ASCII writer: up to 5e-6 of it).
+pub(crate) const F32_ROUNDING_SLACK: f64 = 64.0 * f32::EPSILON as f64;
+
+/// Whether every value is a 32-bit float (`v as f32` gives it back): data a file stored as
+/// floats, or that a parser read as floats.
+pub(crate) fn all_f32<'a>(values: impl IntoIterator<Item = &'a DVec3>) -> bool {
+    values
+        .into_iter()
+        .all(|v| v.to_array().iter().all(|&c| f64::from(c as f32) == c))
+}
+
+/// How far (per axis) a node may be off its lattice position by the rounding of its
+/// coordinates, at the lattice's `magnitude`: [`ROUNDING_SLACK`] of it, or when the used nodes
+/// are all 32-bit floats [`F32_ROUNDING_SLACK`] of it, but at most a twentieth of a cell of
+/// spacing `h` (so that a node is never near two lattice positions; floats that round more than
+/// that are off the lattice, an error naming the node).
+pub(crate) fn coordinate_slack(
+    points: &[DVec3],
+    used: &BitVec,
+    magnitude: DVec3,
+    h: DVec3,
+) -> DVec3 {
+    if all_f32(used.iter_ones().map(|n| &points[n])) {
+        (F32_ROUNDING_SLACK * magnitude).min(h / 20.0)
+    } else {
+        ROUNDING_SLACK * magnitude
+    }
+}
+
 /// A lattice may have at most this many nodes, or 64 per node in use if that is more. Beyond that
 /// the body's per-node slot array (4 bytes per lattice node) would dwarf the mesh: a few cells far
 /// apart, or a spacing detected wrong.
@@ -364,7 +395,7 @@ impl HexMesh {
         let h = lattice.h();
         let nodes = lattice.nodes();
         let magnitude = origin.abs().max(lattice.upper().abs());
-        let tol = LATTICE_TOLERANCE * h + ROUNDING_SLACK * magnitude;
+        let tol = LATTICE_TOLERANCE * h + coordinate_slack(&self.points, used, magnitude, h);
         let mut ijk = vec![[u32::MAX; 3]; self.points.len()];
         for n in used.iter_ones() {
             let p = self.points[n];

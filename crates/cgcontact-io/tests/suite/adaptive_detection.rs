@@ -303,3 +303,32 @@ fn a_mesh_of_one_size_stays_uniform() {
     // And a one-level mesh read as adaptive on purpose is a one-level body.
     assert_eq!(mesh_of(&body).to_adaptive().unwrap().body.finest_level(), 0);
 }
+
+/// An adaptive mesh whose coordinates and displacements are 32-bit floats (VTK's default), on
+/// spacings no float holds exactly: each leaf is found at its level and place, and the hanging
+/// nodes' displacements, rounded as floats, still hold their constraints. With f64's rounding as
+/// the only slack the nodes were off the lattice.
+#[test]
+fn float_coordinates_and_displacements_make_the_same_leaves() {
+    let body = body(
+        DVec3::new(0.3, -1.7, 2.9),
+        DVec3::new(0.1, 0.3, 0.07),
+        [3, 2, 2],
+        2,
+        11,
+    );
+    let mesh = mesh_of(&body);
+    let float = |v: &DVec3| v.as_vec3().as_dvec3();
+    let rounded = HexMesh {
+        points: mesh.points.iter().map(float).collect(),
+        cells: mesh.cells.clone(),
+        displacement: mesh
+            .displacement
+            .as_ref()
+            .map(|u| u.iter().map(float).collect()),
+    };
+    assert_ne!(rounded.points, mesh.points);
+    let read = adaptive(&rounded);
+    assert_eq!(read.body.leaves(), body.leaves());
+    assert!(read.constraints.holds(), "{:?}", read.constraints);
+}

@@ -99,3 +99,53 @@ fn every_flavour_vtk_writes_is_read_and_located_as_known() {
         }
     }
 }
+
+/// VTK's points are 32-bit floats unless told otherwise. With spacings no float holds exactly
+/// (0.1, 0.3, 0.07), each node is off its lattice position by the float's rounding, and such a
+/// mesh was refused as off the lattice (the tolerance was f64's rounding). Nodes that are all
+/// floats now get the float's rounding as slack: both files (legacy ASCII, whose writer prints
+/// 6 digits, and XML binary) read, each file cell on its lattice cell, and a cell's centre is
+/// located in it.
+#[test]
+fn float_points_as_vtk_writes_them_by_default() {
+    let text = std::fs::read_to_string(folder().join("float-cells.csv")).unwrap();
+    let expected: Vec<[u32; 3]> = text
+        .lines()
+        .skip(1)
+        .map(|line| {
+            let v: Vec<u32> = line.split(',').map(|v| v.parse().unwrap()).collect();
+            [v[0], v[1], v[2]]
+        })
+        .collect();
+    assert!(expected.len() > 40);
+    let h = DVec3::new(0.1, 0.3, 0.07);
+    for file in [
+        "float-points-legacy-ascii.vtk",
+        "float-points-xml-binary.vtu",
+    ] {
+        let mesh = read_mesh(folder().join(file), &DisplacementArray::Default)
+            .unwrap_or_else(|e| panic!("{file}: {e}"));
+        let lattice = *mesh.body.lattice();
+        assert!(
+            ((lattice.h() - h) / h).abs().max_element() < 1e-6,
+            "{file}: {}",
+            lattice.h()
+        );
+        let low = expected.iter().fold([u32::MAX; 3], |m, c| {
+            [m[0].min(c[0]), m[1].min(c[1]), m[2].min(c[2])]
+        });
+        let locator = LatticeLocator::new(&mesh.body, Settings::default()).unwrap();
+        for (input, ijk) in expected.iter().enumerate() {
+            let cell = mesh.cells.lattice_cell(input).unwrap();
+            let found = lattice.cell_ijk(cell).unwrap();
+            assert_eq!(
+                [0, 1, 2].map(|a| found[a] + low[a]),
+                *ijk,
+                "{file}: cell {input}"
+            );
+            let centre = lattice.node_position(found) + 0.5 * lattice.h();
+            let hit = locator.locate(centre).unwrap().unwrap();
+            assert_eq!(mesh.input_cell(hit.cell), Some(input), "{file}");
+        }
+    }
+}
