@@ -389,10 +389,12 @@ fn parse_legacy_whole(bytes: &[u8]) -> Result<Vtk, ErrorKind> {
             "legacy VTK: the file ends before its data does (truncated?)".to_owned(),
         )),
         Err(nom::Err::Error(e) | nom::Err::Failure(e)) => {
+            // The parser's own code (`MapOpt`, `Digit`) names its combinator, not the file's
+            // mistake: the line and the text are what a reader can act on.
             let (line, excerpt) = at_line(e.input);
             Err(ErrorKind::Vtk(format!(
-                "legacy VTK: line {line}: cannot parse {excerpt} (expected {:?}; truncated or malformed?)",
-                e.code
+                "legacy VTK: line {line}: cannot parse {excerpt} there (an unknown keyword, \
+                 cell type or number, or a truncated or malformed section)"
             )))
         }
     }
@@ -701,6 +703,14 @@ fn append_cells(
             // Offsets are cell ends; legacy 5.x files and some writers add a leading 0.
             let ends = match offsets.split_first() {
                 Some((&0, rest)) if offsets.len() == types.len() + 1 => rest,
+                Some((&first, _)) if offsets.len() == types.len() + 1 => {
+                    return Err(ErrorKind::Topology(format!(
+                        "{} offsets for {} cells start at {first}: a list of cell starts and \
+                         the end (legacy 5.x OFFSETS) starts at 0",
+                        offsets.len(),
+                        types.len()
+                    )));
+                }
                 _ => offsets.as_slice(),
             };
             let mut ranges = Vec::with_capacity(ends.len());

@@ -168,3 +168,39 @@ fn xml_errors_name_the_line() {
         .to_string();
     assert!(message.contains(&format!("line {line}")), "{message}");
 }
+
+/// A cell type the parser does not know (255) said "expected MapOpt", the parser's combinator;
+/// now the line and the value, in words. A legacy 5.x `OFFSETS` list that does not start at 0
+/// said "3 cells in the connectivity but 2 cell types"; now it says where the offsets start.
+#[test]
+fn parser_internals_and_offsets_not_starting_at_zero() {
+    let body = body_with_holes(DVec3::ZERO, DVec3::splat(0.5), [2, 1, 1], 1);
+    let mesh = HexMesh::from_body(&body);
+    let text = legacy_ascii(&mesh, LegacyData::Vectors, false);
+    let types_at = text.find("CELL_TYPES").unwrap();
+    let line = 2 + text[..types_at].matches('\n').count();
+    let unknown = format!(
+        "{}{}",
+        &text[..types_at],
+        text[types_at..].replacen("\n12\n", "\n255\n", 1)
+    );
+    let message = parse_hex_mesh(unknown.as_bytes(), &DisplacementArray::Default)
+        .unwrap_err()
+        .to_string();
+    assert!(message.contains(&format!("line {line}")), "{message}");
+    assert!(
+        message.contains("`255`") && !message.contains("MapOpt"),
+        "{message}"
+    );
+
+    let v51 = legacy_ascii(&mesh, LegacyData::Vectors, true);
+    let n = mesh.cells.len();
+    let starts: Vec<String> = (0..=n).map(|c| (8 * c).to_string()).collect();
+    let shifted: Vec<String> = (0..=n).map(|c| (8 * c.max(1)).to_string()).collect();
+    let bad = v51.replacen(&starts.join(" "), &shifted.join(" "), 1);
+    assert_ne!(bad, v51);
+    let message = parse_hex_mesh(bad.as_bytes(), &DisplacementArray::Default)
+        .unwrap_err()
+        .to_string();
+    assert!(message.contains("start at 8"), "{message}");
+}
