@@ -218,7 +218,16 @@ impl HexMesh {
                     axis_name[a]
                 )));
             }
-            let h = (high - low) / n;
+            // The extent's spacing, more precise than one cell's edge; but when it is not a whole
+            // number of the edges' finest spacing (a cell off its level's lattice stretched the
+            // extent), the edges' own, so that the node found off the lattice is the one at
+            // fault and the spacing reported is the mesh's.
+            let from_extent = (high - low) / n;
+            let h = if (from_extent - estimate).abs() <= 1e-3 * estimate {
+                from_extent
+            } else {
+                estimate
+            };
             // The anchor's offset from the lowest plane, in finest steps, brought to a multiple of
             // the base spacing by moving the origin down.
             let r = ((anchor[a] - low) / h).round() as i64;

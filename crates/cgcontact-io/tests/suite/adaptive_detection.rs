@@ -332,3 +332,38 @@ fn float_coordinates_and_displacements_make_the_same_leaves() {
     assert_eq!(read.body.leaves(), body.leaves());
     assert!(read.constraints.holds(), "{:?}", read.constraints);
 }
+
+/// A half-size cell beside a unit cell but a quarter of a unit off its level's lattice (at
+/// x = 1.25): the extent, 1.75, is no whole number of half cells, and the spacing taken from it
+/// (0.4375) made the error quote a spacing the mesh does not have. The finest spacing now comes
+/// from the cells' edges when the extent disagrees: the error names a node of the shifted cell,
+/// with spacing 0.5 and half a spacing off.
+#[test]
+fn a_cell_off_its_levels_lattice_is_reported_with_the_meshs_spacing() {
+    let cube = |low: DVec3, edge: f64| -> Vec<DVec3> {
+        CORNER_OFFSETS
+            .iter()
+            .map(|o| low + edge * DVec3::new(f64::from(o[0]), f64::from(o[1]), f64::from(o[2])))
+            .collect()
+    };
+    let mut points = cube(DVec3::ZERO, 1.0);
+    points.extend(cube(DVec3::new(1.25, 0.0, 0.0), 0.5));
+    let mesh = HexMesh {
+        points,
+        cells: vec![
+            std::array::from_fn(|c| c as u32),
+            std::array::from_fn(|c| 8 + c as u32),
+        ],
+        displacement: None,
+    };
+    match mesh.to_body() {
+        Err(ErrorKind::OffLattice {
+            node, h, offset, ..
+        }) => {
+            assert!(node >= 8, "node {node}");
+            assert_eq!(h[0], 0.5);
+            assert_eq!(offset[0].abs(), 0.5);
+        }
+        other => panic!("{:?}", other.err()),
+    }
+}
