@@ -321,6 +321,9 @@ mod tests {
         assert!(Lattice::new(DVec3::ZERO, DVec3::new(1.0, 0.0, 1.0), [1, 1, 1]).is_err());
         assert!(Lattice::new(DVec3::ZERO, DVec3::ONE, [1, 0, 1]).is_err());
         assert!(Lattice::new(DVec3::NAN, DVec3::ONE, [1, 1, 1]).is_err());
+        assert!(Lattice::new(DVec3::ZERO, DVec3::ONE, [100_000, 100_000, 1]).is_err());
+        // (2^32)^3 nodes: more than u64 counts, refused rather than overflowing.
+        assert!(Lattice::new(DVec3::ZERO, DVec3::ONE, [u32::MAX; 3]).is_err());
     }
 
     /// At 1e12 a coordinate rounds by 1.2e-4: a spacing of 1e-4 there is refused (the nodes are
@@ -331,8 +334,8 @@ mod tests {
         let error = Lattice::new(far, DVec3::new(1.0, 1e-4, 1.0), [2, 2, 2]).unwrap_err();
         assert!(error.to_string().contains("axis 1"), "{error}");
         Lattice::new(far, DVec3::new(1.0, 1.0, 1.0), [2, 2, 2]).unwrap();
-        // Either side of the limit, 8 ε M / h = RESOLUTION, by the magnitude of the far corner
-        // (below the origin: the lattice's box ends at 0).
+        // Either side of the limit, 8 ε M / h = RESOLUTION, M the largest |coordinate| of the
+        // box: here its lowest corner's, on the negative side.
         let limit = Lattice::RESOLUTION / (8.0 * f64::EPSILON);
         for (m, ok) in [(0.9 * limit, true), (1.1 * limit, false)] {
             let origin = DVec3::new(-m, 0.0, 0.0);
@@ -342,8 +345,5 @@ mod tests {
                 "{m:e}"
             );
         }
-        assert!(Lattice::new(DVec3::ZERO, DVec3::ONE, [100_000, 100_000, 1]).is_err());
-        // (2^32)^3 nodes: more than u64 counts, refused rather than overflowing.
-        assert!(Lattice::new(DVec3::ZERO, DVec3::ONE, [u32::MAX; 3]).is_err());
     }
 }

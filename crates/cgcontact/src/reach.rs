@@ -124,11 +124,11 @@ impl Admit {
 
 /// How far outside a cell's shifted box a point may be and still be found inside it by a Newton
 /// inversion with inside tolerance `tau` (the largest of the per-axis tolerances: the filters
-/// widen by it on every axis, a superset of what each axis needs): at |ξ_k| ≤ 1 + τ the undeformed part leaves the cell by
-/// τh/2 and the trilinear extrapolation of the displacements leaves their range by at most
-/// ((1 + τ)³ − 1)/2 ≈ 1.5τ of its width `spread`. 2τ (h + spread) per axis covers both, and covers
-/// [`cell_reaches`]'s widening of a cell of the range, so that a block's test passes wherever one
-/// of its cells' does.
+/// widen by it on every axis, a superset of what each axis needs): at |ξ_k| ≤ 1 + τ the
+/// undeformed part leaves the cell by τh/2 and the trilinear extrapolation of the displacements
+/// leaves their range by at most ((1 + τ)³ − 1)/2 ≈ 1.5τ of its width `spread`. 2τ (h + spread)
+/// per axis covers both, and covers [`cell_reaches`]'s widening of a cell of the range, so that a
+/// block's test passes wherever one of its cells' does.
 #[inline(always)]
 pub(crate) fn widening(h: DVec3, spread: DVec3, tau: f64) -> DVec3 {
     2.0 * tau * (h + spread)

@@ -15,9 +15,10 @@ pub enum Precision {
     F64,
     /// f32 in the cell's local frame (glam's SIMD `Vec3A` one point at a time; 8 lanes per AVX2
     /// register in `locate_all`): ξ error ≈ 1e-6, growing as ε₃₂ |u| / h with the displacements
-    /// (about 1e-2 for a body translated 7e4 cells: use f64 there). Its speed-up over f64 depends on the scene: about
-    /// 1.5× where the displacements stay in cache, 1.2–1.3× on random-order points of a large body,
-    /// whose time goes to waiting on memory (docs/benchmarks.md has the measured figures).
+    /// (about 1e-2 for a body translated 7e4 cells: use f64 there). Its speed-up over f64 depends
+    /// on the scene: about 1.5× where the displacements stay in cache, 1.2–1.3× on random-order
+    /// points of a large body, whose time goes to waiting on memory (docs/benchmarks.md has the
+    /// measured figures).
     F32,
 }
 

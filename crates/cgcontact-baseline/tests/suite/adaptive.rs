@@ -507,8 +507,8 @@ fn non_finite_points_and_bad_settings_are_errors() {
 }
 
 /// Far from the origin the inside tolerance grows with |x| / h, h the finest spacing along the
-/// axis (the adaptive locator's definition): points off outer faces by half of it are inside for every
-/// strategy, by twice it outside. A strategy taking h_min from the base lattice would call the
+/// axis (the adaptive locator's definition): points off outer faces by half of it are inside for
+/// every strategy, by twice it outside. A strategy taking h_min from the base lattice would call the
 /// first outside.
 #[test]
 fn every_strategy_uses_the_adaptive_locators_inside_tolerance() {

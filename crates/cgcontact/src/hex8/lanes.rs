@@ -127,9 +127,10 @@ impl<V: Lanes> Maps<V> {
     }
 
     /// The common path of `Hex8Map::invert` for W points at once: plain Newton steps, no line search.
-    /// `inside` is 1 + each lane's inside tolerance, per axis. Lanes with `take` unset are ignored. Returns, per
-    /// lane, the final ξ, |residual|², the iterations and whether the lane ended `Inside` on the common
-    /// path (the scalar kernel then gives exactly this answer); a lane not `Inside` must be redone.
+    /// `inside` is 1 + each lane's inside tolerance, per axis. Lanes with `take` unset are ignored.
+    /// Returns, per lane, the final ξ, |residual|², the iterations and whether the lane ended
+    /// `Inside` on the common path (the scalar kernel then gives exactly this answer); a lane not
+    /// `Inside` must be redone.
     #[inline(always)]
     pub fn invert(
         &self,

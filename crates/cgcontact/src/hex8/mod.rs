@@ -325,7 +325,8 @@ macro_rules! stamp_hex8 {
                     if !xi.is_finite() || !rr.is_finite() {
                         return finish(Status::Singular, xi, iteration, rr);
                     }
-                    if moved < EARLY_OUTSIDE_STEP && xi.abs().cmpgt(inside + EARLY_OUTSIDE_MARGIN).any() {
+                    let beyond = xi.abs().cmpgt(inside + EARLY_OUTSIDE_MARGIN).any();
+                    if moved < EARLY_OUTSIDE_STEP && beyond {
                         return finish(Status::Outside, xi, iteration, rr);
                     }
                 }
