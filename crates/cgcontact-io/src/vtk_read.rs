@@ -191,7 +191,7 @@ const XML_NUMBER_TYPES: [&str; 10] = [
 ];
 
 /// Refuses, in an XML file's pieces, what vtkio would skip without a word and so turn into a
-/// mesh read wrong: an element inside `<Piece>` other than `PointData`, `CellData`, `Points` and
+/// mesh read wrong: an element inside an unstructured grid's `<Piece>` other than `PointData`, `CellData`, `Points` and
 /// `Cells` (a corrupt `<PointData>` tag drops the displacement), an element inside those four
 /// other than `<DataArray>` (a corrupt `<DataArray>` tag drops the array), a data array whose
 /// `type` is no VTK type, and cell arrays (`<Cells>`) that are not integers (vtkio truncates a
@@ -230,12 +230,15 @@ fn check_xml_arrays(xml: &[u8]) -> Result<(), ErrorKind> {
             ))))
         };
         let parent = open.last().map(Vec::as_slice);
+        // Pieces of other data sets (poly data's `Polys`, ...) are refused later, by data set.
+        let grid_piece = open.len() >= 2 && open[open.len() - 2] == b"UnstructuredGrid";
         match parent {
             Some(b"Piece")
-                if !matches!(
-                    name.as_slice(),
-                    b"PointData" | b"CellData" | b"Points" | b"Cells"
-                ) =>
+                if grid_piece
+                    && !matches!(
+                        name.as_slice(),
+                        b"PointData" | b"CellData" | b"Points" | b"Cells"
+                    ) =>
             {
                 return refuse(format!(
                     "<{}> inside <Piece> is none of PointData, CellData, Points and Cells \
