@@ -3,6 +3,10 @@
 use std::path::PathBuf;
 
 use anyhow::{Result, bail};
+
+/// The most cells (`block --cells`) and known points (`--known`) a generated scene may have:
+/// 2^26, a few GB built in memory. Beyond, the allocation aborted the process.
+const MAX_SCENE_SIZE: u64 = 1 << 26;
 use cgcontact::glam::DVec3;
 use cgcontact_io::{CellMap, MeshFormat, write_adaptive_mesh, write_mesh, write_points};
 use cgcontact_scenes::{KnownPoint, LeafOrder, SphereOnAdaptiveBlock, SphereOnBlock};
@@ -126,6 +130,18 @@ pub fn run(args: &SceneArgs) -> Result<()> {
             if args.cells.len() != 3 || args.cells.contains(&0) {
                 bail!("--cells takes three positive counts, e.g. --cells 40,80,40");
             }
+            let count: u64 = args.cells.iter().map(|&n| u64::from(n)).product();
+            if count > MAX_SCENE_SIZE {
+                bail!(
+                    "--cells {} asks for {count} cells; a generated scene holds at most \
+                     {MAX_SCENE_SIZE} (the block, its nodes and displacements are built in memory)",
+                    args.cells
+                        .iter()
+                        .map(u32::to_string)
+                        .collect::<Vec<_>>()
+                        .join(",")
+                );
+            }
             let h = DVec3::splat(0.125);
             let cells = DVec3::new(
                 args.cells[0] as f64,
@@ -156,6 +172,12 @@ pub fn run(args: &SceneArgs) -> Result<()> {
         knobs.offset = vector(offset, "offset")?;
     }
     if let Some(known) = args.known {
+        if known as u64 > MAX_SCENE_SIZE {
+            bail!(
+                "--known {known}: a generated scene holds at most {MAX_SCENE_SIZE} known points \
+                 (they are built in memory before they are written)"
+            );
+        }
         knobs.known_points = known;
     }
     knobs.jitter = args.jitter;

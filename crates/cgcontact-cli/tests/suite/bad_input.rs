@@ -400,3 +400,35 @@ fn adaptive_scene_flags_are_checked() {
         assert!(!out.exists(), "{args:?} wrote its folder");
     }
 }
+
+/// A scene too large to build in memory (`--known 300000000`, `--cells 1600,1600,1600`) aborted
+/// the process on a failed allocation (exit 134). It is now a one-line error before any work, and
+/// nothing is written.
+#[test]
+fn scenes_too_large_to_build_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("scene");
+    for (flags, needle) in [
+        (&["block", "--known", "300000000"][..], "--known 300000000"),
+        (&["sphere-fine", "--known", "99999999999999"], "--known"),
+        (
+            &["block", "--cells", "1600,1600,1600"],
+            "--cells 1600,1600,1600",
+        ),
+    ] {
+        let output = Command::new(env!("CARGO_BIN_EXE_cgcontact"))
+            .arg("scene")
+            .args(flags)
+            .arg("--out")
+            .arg(&out)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&output.stderr).into_owned();
+        assert_one_line_error(
+            &format!("{flags:?}"),
+            (output.status.code(), stderr),
+            &[needle],
+        );
+        assert!(!out.join("mesh.vtu").exists());
+    }
+}
