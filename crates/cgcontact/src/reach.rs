@@ -20,6 +20,7 @@ use smallvec::SmallVec;
 
 use crate::PointError;
 use crate::body::Body;
+use crate::lanes::{V3, Wide};
 use crate::lattice::{CORNER_OFFSETS, Lattice};
 use crate::settings::InsideTolerance;
 
@@ -119,6 +120,20 @@ impl Admit {
             return Ok(None);
         }
         Ok(Some(inside_tol))
+    }
+
+    /// [`Admit::admit`] for W points in f64 lanes, the same operations: each lane's inside
+    /// tolerance, the lanes whose point is finite, and those within reach (bits).
+    #[inline(always)]
+    pub(crate) fn lanes<D: Wide>(&self, x: V3<D>) -> (V3<D>, u32, u32) {
+        let splat = V3::<D>::splat;
+        let inside_tol = self.inside_tol.at_magnitude(x.abs().max_element());
+        let slack = splat(self.pad).scale(inside_tol.max_element());
+        let (low, high) = (splat(self.low) - slack, splat(self.high) + slack);
+        let outside = x.x.lt(low.x) | x.y.lt(low.y) | x.z.lt(low.z);
+        let outside = outside | x.x.gt(high.x) | x.y.gt(high.y) | x.z.gt(high.z);
+        let finite = x.is_finite();
+        (inside_tol, D::bits(finite), D::bits(finite & !outside))
     }
 }
 

@@ -235,6 +235,37 @@ impl Forest {
         entry
     }
 
+    /// Whether the base index is dense: what [`Forest::flat_entry`] reads.
+    #[inline(always)]
+    pub(super) fn dense_base(&self) -> Option<&[u32]> {
+        match &self.base {
+            Base::Dense(dense) => Some(dense),
+            Base::Sparse(_) => None,
+        }
+    }
+
+    /// A base `entry` (of [`Forest::dense_base`]) whose leaf is found without a descent: an
+    /// unrefined cell, `(0, its leaf id)`, or a brick, `(L, its start)` for
+    /// [`Forest::brick_id`]. `None` for a tree or no leaf: [`Forest::leaf_at`] answers those.
+    #[inline(always)]
+    pub(super) fn flat_entry(&self, entry: u32) -> Option<(u32, u32)> {
+        if entry & NODE == 0 {
+            Some((0, entry))
+        } else if Self::is_brick(entry) {
+            let start = entry & !(NODE | BRICK);
+            Some((self.bricks[start as usize], start))
+        } else {
+            None
+        }
+    }
+
+    /// The leaf of the brick at `start` ([`Forest::flat_entry`]) of rank `rank` on its level's
+    /// lattice ((z, y, x) order).
+    #[inline(always)]
+    pub(super) fn brick_id(&self, start: u32, rank: usize) -> u32 {
+        self.bricks[start as usize + 1 + rank]
+    }
+
     /// The entry of base cell `b` (in range).
     #[inline(always)]
     fn base_entry(&self, b: [u32; 3]) -> u32 {

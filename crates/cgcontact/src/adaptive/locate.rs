@@ -34,16 +34,16 @@ use crate::{Error, PointError};
 /// O(nodes) (one pass for the displacement range) from a body it borrows.
 #[derive(Clone, Debug)]
 pub struct AdaptiveLocator<'a> {
-    body: &'a AdaptiveBody,
+    pub(super) body: &'a AdaptiveBody,
     settings: Settings,
-    newton: NewtonOptions,
+    pub(super) newton: NewtonOptions,
     /// The range of the displacements (signed, per axis).
     u_range: Range,
     /// 1 / h per axis, h the base spacing.
-    inv_h: DVec3,
+    pub(super) inv_h: DVec3,
     /// Which points can be held at all (the base lattice's box shifted by the displacement
     /// range), and the inside tolerance's constants, from the finest spacing.
-    admit: reach::Admit,
+    pub(super) admit: reach::Admit,
     /// With f32 precision, the displacements rounded to f32 in node order (16 bytes per node),
     /// as the f32 lanes read them. Empty with f64.
     u_f32: Vec<Vec3A>,
@@ -550,109 +550,7 @@ impl AdaptiveLocator<'_> {
         if self.settings.order != CandidateOrder::Predicted {
             return self.locate_chunk_grouped::<K>(points, out);
         }
-        let w = V::W;
-        let batches = points.len() / w;
-        for b in 0..batches {
-            let range = b * w..(b + 1) * w;
-            self.batch::<V>(&points[range.clone()], &mut out[range]);
-        }
-        let rest = batches * w;
-        self.locate_chunk_grouped::<K>(&points[rest..], &mut out[rest..]);
-    }
-
-    /// One batch of `V::W` points (see [`AdaptiveLocator::locate_chunk_lanes`]).
-    #[inline(always)]
-    fn batch<V: Lanes>(&self, xs: &[DVec3], out: &mut [Answer])
-    where
-        V::Node: LaneNodes,
-    {
-        let body = self.body;
-        let nodes = V::Node::of(self);
-        let origin = body.lattice().origin();
-        let no_leaf = (0, Leaf::new(0, [0; 3]));
-        // The leaf at x, per lane; lanes refused, out of reach or in a hole leave the batch.
-        let mut take = 0u32;
-        let mut tol = [DVec3::ZERO; MAX_W];
-        let mut t_x = [DVec3::ZERO; MAX_W];
-        let mut at = [no_leaf; MAX_W];
-        for l in 0..V::W {
-            let x = xs[l];
-            if let Ok(Some(inside_tol)) = self.admit.admit(x) {
-                tol[l] = inside_tol;
-                t_x[l] = (x - origin) * self.inv_h;
-                if let Some(found) = body.forest.leaf_at(t_x[l]) {
-                    at[l] = found;
-                    take |= 1 << l;
-                }
-            }
-        }
-        let mut found = 0;
-        if take != 0 {
-            let mut rows = [[0u32; 8]; MAX_W];
-            for l in 0..V::W {
-                rows[l] = body.leaf_nodes(at[l].0, at[l].1);
-            }
-            let mut maps = Maps::<V>::from_nodes(|l, c| &nodes[rows[l][c] as usize]);
-            // The guess x − ũ, ũ interpolated at x in x's leaf (`guess`), in lanes.
-            let xi = lanes3::<V::Wide>(|l| {
-                let leaf = at[l].1;
-                Self::undeformed_xi(t_x[l], leaf.level, leaf.ijk).clamp(DVec3::NEG_ONE, DVec3::ONE)
-            });
-            let t_x_lanes = lanes3::<V::Wide>(|l| t_x[l]);
-            let t_guess = t_x_lanes - maps.map(V3::narrow(xi)).widen().mul_each(self.inv_h);
-            // The leaf at the guess, per lane; its map is x's leaf's unless the lane moved, and
-            // only the lanes that moved get their corners anew.
-            let mut first = at;
-            let mut moved = false;
-            for l in 0..V::W {
-                if take & (1 << l) == 0 {
-                    continue;
-                }
-                match body.forest.leaf_at(t_guess.lane(l)) {
-                    Some(leaf) => {
-                        if leaf.0 != at[l].0 {
-                            moved = true;
-                            first[l] = leaf;
-                            rows[l] = body.leaf_nodes(leaf.0, leaf.1);
-                        }
-                    }
-                    None => take &= !(1 << l),
-                }
-            }
-            if moved {
-                maps = Maps::from_nodes(|l, c| &nodes[rows[l][c] as usize]);
-            }
-            if take != 0 {
-                maps.add_lattice_lanes(lanes3::<V>(|l| body.spacing(first[l].1.level) * 0.5));
-                let x_local = lanes3::<V>(|l| xs[l] - body.leaf_origin(first[l].1));
-                let xi0 = lanes3::<V>(|l| {
-                    let leaf = first[l].1;
-                    Self::undeformed_xi(t_guess.lane(l), leaf.level, leaf.ijk)
-                });
-                let inside = V3::<V>::splat(DVec3::ONE) + lanes3::<V>(|l| tol[l]);
-                let (xi, rr, iterations, inside_lanes) =
-                    maps.invert(x_local, xi0, inside, V::mask_from_bits(take), &self.newton);
-                let xi = xi.widen().clamp(-1.0, 1.0);
-                let residual = rr.widen().sqrt();
-                for (l, answer) in out.iter_mut().enumerate() {
-                    if inside_lanes & (1 << l) != 0 {
-                        *answer = Ok(Some(Hit {
-                            cell: CellId(first[l].0),
-                            xi: xi.lane(l),
-                            iterations: iterations[l],
-                            residual: residual.lane(l),
-                            inversions: 1,
-                        }));
-                    }
-                }
-                found = inside_lanes;
-            }
-        }
-        for (l, (&x, answer)) in xs.iter().zip(out.iter_mut()).enumerate() {
-            if found & (1 << l) == 0 {
-                *answer = self.search(x, Collect::First, &mut 0);
-            }
-        }
+        self.locate_pipelined::<V>(points, out);
     }
 }
 
@@ -901,6 +799,83 @@ mod tests {
         (body, points)
     }
 
+    /// A body of `counts` base cells, each by a hash of its index one of: unrefined, a brick of
+    /// level 1, 2 or 3, a tree (a brick of level 1 with one child refined twice more), or a hole;
+    /// with `only` set, just the first `only` base cells that hold leaves (a sparse forest and
+    /// node numbering on a large lattice). Displaced smoothly and by node, a small fraction of
+    /// the finest spacing times `amplitude`; points from known (leaf, ξ), a third of them on a
+    /// face, and points all over the lattice's box. Spacings and origin are dyadic: undeformed,
+    /// the points on faces are exactly on them, and so are their guesses.
+    fn refined_scene(
+        counts: [u32; 3],
+        only: Option<usize>,
+        amplitude: f64,
+    ) -> (AdaptiveBody, Vec<DVec3>) {
+        let lattice = Lattice::new(
+            DVec3::new(3.0, -2.0, 0.25),
+            DVec3::new(0.5, 0.25, 0.125),
+            counts,
+        )
+        .unwrap();
+        let mut leaves = Vec::new();
+        let mut kept = 0;
+        for c in 0..lattice.cell_count() as u32 {
+            let base = Leaf::new(0, lattice.cell_ijk(CellId(c)).unwrap());
+            let kind = (c.wrapping_mul(2_654_435_761) >> 7) % 6;
+            if kind == 5 || only.is_some_and(|n| kept == n) {
+                continue;
+            }
+            kept += 1;
+            let mut brick = vec![base];
+            for _ in 0..kind.min(3) {
+                brick = brick.iter().flat_map(|l| l.children()).collect();
+            }
+            if kind == 4 {
+                let children = base.children();
+                leaves.extend_from_slice(&children[1..]);
+                leaves.extend(children[0].children().iter().flat_map(|l| l.children()));
+            } else {
+                leaves.extend(brick);
+            }
+        }
+        // Leaves in any order: ids are not the bricks' order.
+        let n = leaves.len();
+        for i in 0..n {
+            leaves.swap(i, (i * 7919 + 13) % n);
+        }
+        let mut body = AdaptiveBody::from_leaves(lattice, leaves).unwrap();
+        let fine = amplitude * body.spacing(body.finest).min_element();
+        body.update_independent(|n, x, u| {
+            *u = fine
+                * DVec3::new(
+                    0.3 * (x.y * 3.0).sin() + 0.05 * (n % 5) as f64,
+                    0.2 * (x.z * 5.0).cos(),
+                    0.1 * (n % 7) as f64,
+                )
+        })
+        .unwrap();
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut points = Vec::new();
+        for cell in 0..body.cell_count() as u32 {
+            let mut xi = DVec3::new(next(), next(), next()) * 2.0 - 1.0;
+            if cell % 3 == 0 {
+                xi.y = -1.0;
+            }
+            points.push(body.point_at(CellId(cell), xi).unwrap());
+        }
+        let (low, high) = (lattice.origin() - 0.2, lattice.upper() + 0.2);
+        for _ in 0..500 {
+            points.push(low + (high - low) * DVec3::new(next(), next(), next()));
+        }
+        (body, points)
+    }
+
     /// A hit's fields as bits: cell, ξ, iterations, residual, inversions.
     type HitBits = (u32, [u64; 3], u32, u64, u32);
 
@@ -918,25 +893,38 @@ mod tests {
         })
     }
 
-    /// Runs `entry` with every candidate order and each of `precisions`, and compares each answer
-    /// bitwise with `locate`'s; every answer starts as a sentinel that no point here gets.
+    /// Runs `entry` on three scenes with every candidate order and each of `precisions`, and
+    /// compares each answer bitwise with `locate`'s; every answer starts as a sentinel that no
+    /// point here gets.
     fn check(
         precisions: &[Settings],
         entry: impl Fn(&AdaptiveLocator<'_>, &[DVec3], &mut [Answer]),
     ) {
-        let (body, points) = scene();
-        for order in [CandidateOrder::Predicted, CandidateOrder::Undeformed] {
-            for &base in precisions {
-                let locator = AdaptiveLocator::new(&body, Settings { order, ..base }).unwrap();
-                let mut out = vec![Err(PointError::NonFinite); points.len()];
-                out[points.len() - 1] = Ok(None);
-                entry(&locator, &points, &mut out);
-                let mut found = 0;
-                for (x, answer) in points.iter().zip(&out) {
-                    assert_eq!(bits(answer), bits(&locator.locate(*x)), "at {x}");
-                    found += usize::from(matches!(answer, Ok(Some(_))));
+        let scenes = [
+            scene(),
+            refined_scene([6, 5, 4], None, 1.0),
+            refined_scene([6, 5, 4], None, 0.0),
+            refined_scene([70, 60, 50], Some(5), 1.0),
+        ];
+        for (body, points) in &scenes {
+            for order in [CandidateOrder::Predicted, CandidateOrder::Undeformed] {
+                for &base in precisions {
+                    let locator = AdaptiveLocator::new(body, Settings { order, ..base }).unwrap();
+                    let mut out: Vec<Answer> = points
+                        .iter()
+                        .map(|x| match x.is_finite() {
+                            true => Err(PointError::NonFinite),
+                            false => Ok(None),
+                        })
+                        .collect();
+                    entry(&locator, points, &mut out);
+                    let mut found = 0;
+                    for (x, answer) in points.iter().zip(&out) {
+                        assert_eq!(bits(answer), bits(&locator.locate(*x)), "at {x}");
+                        found += usize::from(matches!(answer, Ok(Some(_))));
+                    }
+                    assert!(found > 150, "{found}");
                 }
-                assert!(found > 150, "{found}");
             }
         }
     }

@@ -24,6 +24,7 @@
 
 mod forest;
 mod hanging;
+mod lanes;
 mod leaves;
 mod locate;
 mod nodes;

@@ -301,8 +301,12 @@ impl Nodes {
     /// lattice), 0 for a corner that is no node (never, for a leaf of the body).
     #[inline(always)]
     pub(super) fn corners(&self, l: u32, ijk: [u32; 3]) -> [u32; 8] {
-        let b = ijk.map(|v| v >> l);
-        let lo = [0, 1, 2].map(|a| ijk[a] - (b[a] << l));
+        let b = [ijk[0] >> l, ijk[1] >> l, ijk[2] >> l];
+        let lo = [
+            ijk[0] - (b[0] << l),
+            ijk[1] - (b[1] << l),
+            ijk[2] - (b[2] << l),
+        ];
         // Most often every corner's owner is full at the cell's level: the cell's own base cell,
         // or across its upper faces the next one (where the corner is at local 0). Then each
         // corner is its owner's first node plus its rank, computed for all 8 without a branch
@@ -345,19 +349,30 @@ impl Nodes {
             // The owner of each corner (VTK order): bit a of its offset, where that step crosses.
             const BITS: [u32; 8] = [0, 1, 3, 2, 4, 5, 7, 6];
             let mut nodes = [0u32; 8];
-            let mut full = true;
+            // The corners whose owner is not full at level l (bits).
+            let mut other = 0u32;
             for c in 0..8 {
                 let owner = near[(BITS[c] & up) as usize];
-                full &= owner.shape == l;
-                nodes[c] = owner.first + ranks[c];
+                other |= u32::from(owner.shape != l) << c;
+                nodes[c] = owner.first.wrapping_add(ranks[c]);
             }
-            if full {
-                return nodes;
-            }
-            // Else corner by corner from the same records (masked owners, full ones at another
+            // Those corner by corner from the same records (masked owners, full ones at another
             // level); listing owners are searched as `in_owner` does.
-            for (c, node) in nodes.iter_mut().enumerate() {
+            while other != 0 {
+                let c = other.trailing_zeros() as usize;
+                other &= other - 1;
                 let e = BITS[c] & up;
+                let owner = near[e as usize];
+                // A masked owner on the cell's level (at a refinement's edge, or on the body's
+                // upper faces): the corner's rank is its bit.
+                if owner.shape & (LIST | MASK | 31) == MASK | l {
+                    let mask = self.masks[((owner.shape & !MASK) >> 5) as usize];
+                    let bit = ranks[c];
+                    if (mask >> bit) & 1 == 1 {
+                        nodes[c] = owner.first + (mask & ((1 << bit) - 1)).count_ones();
+                        continue;
+                    }
+                }
                 let off = CORNER_OFFSETS[c];
                 let q = [0, 1, 2].map(|a| {
                     if off[a] == 0 {
@@ -368,8 +383,7 @@ impl Nodes {
                         lo[a] + 1
                     }
                 });
-                let owner = near[e as usize];
-                *node = if owner.shape & LIST == 0 {
+                nodes[c] = if owner.shape & LIST == 0 {
                     self.in_record(owner, 0, q, l)
                 } else {
                     let eb = [0, 1, 2].map(|a| b[a] + (e >> a & 1));

@@ -379,6 +379,18 @@ impl<V: Lanes> Add for V3<V> {
         }
     }
 }
+impl<V: Lanes> Mul for V3<V> {
+    type Output = Self;
+    /// Component by component (glam's `DVec3 * DVec3`).
+    #[inline(always)]
+    fn mul(self, o: Self) -> Self {
+        Self {
+            x: self.x * o.x,
+            y: self.y * o.y,
+            z: self.z * o.z,
+        }
+    }
+}
 impl<V: Lanes> Sub for V3<V> {
     type Output = Self;
     #[inline(always)]

@@ -119,21 +119,11 @@ impl LatticeLocator<'_> {
         V::Node: Nodes,
     {
         let lattice = self.body.lattice();
-        let splat = V3::<V::Wide>::splat;
         let x = V::Wide::transpose(|l| &points[l]);
         // `admit`: finite and within reach (the lattice's box shifted by the displacement range,
         // widened by the tolerance).
-        let inside_tol = self.admit.inside_tol.at_magnitude(x.abs().max_element());
-        let slack = splat(self.admit.pad).scale(inside_tol.max_element());
-        let (low, high) = (
-            splat(self.admit.low) - slack,
-            splat(self.admit.high) + slack,
-        );
-        let outside = x.x.lt(low.x) | x.y.lt(low.y) | x.z.lt(low.z);
-        let outside = outside | x.x.gt(high.x) | x.y.gt(high.y) | x.z.gt(high.z);
-        let finite = x.is_finite();
-        let take = V::Wide::bits(finite & !outside);
-        let t_x = (x - splat(lattice.origin())).mul_each(self.inv_h);
+        let (inside_tol, finite, take) = self.admit.lanes(x);
+        let t_x = (x - V3::splat(lattice.origin())).mul_each(self.inv_h);
         let cell_x = self.clamped_cells::<V::Wide>(t_x);
         if take != 0 {
             front.maps = self.maps_of::<V, BOXED>(&cell_x);
@@ -144,7 +134,7 @@ impl LatticeLocator<'_> {
             cell_x,
             inside_tol,
             take,
-            finite: V::Wide::bits(finite),
+            finite,
             maps: front.maps,
         };
     }

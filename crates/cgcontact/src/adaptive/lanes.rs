@@ -1,0 +1,361 @@
+//! The adaptive locator's batched path: W points at a time in SIMD lanes, software-pipelined as
+//! the uniform locator's (`locate/batched.rs`).
+//!
+//! The leaf holding a point is found in lanes wherever the forest answers without a descent (an
+//! unrefined base cell, or a brick: a base cell refined uniformly): the base cell, the leaf's
+//! indices and its rank in the brick are computed for all lanes at once, then each lane loads its
+//! base entry and its leaf id. A lane under a tree takes the scalar descent. The corner nodes are
+//! computed per lane (`nodes.rs`), their displacements gathered into lanes. Then, as the scalar
+//! search does: the guess x − ũ in lanes; the leaf there, which is x's own (no lookup) when the
+//! guess lies in its box; one inversion in lanes, each with its leaf's spacing.
+//!
+//! Every step computes what [`super::AdaptiveLocator`]'s scalar search computes, with the same
+//! IEEE operations in the same order, so the answers are bitwise [`Locator::locate`]'s; a lane
+//! that leaves this path (refused, in a hole, missed in its predicted leaf) is answered by it.
+
+use glam::DVec3;
+
+use super::locate::{LaneNodes, level_size};
+use super::{AdaptiveLocator, Leaf};
+use crate::PointError;
+use crate::hex8::lanes::Maps;
+use crate::lanes::{Lanes, MAX_W, V3, Wide};
+use crate::lattice::CellId;
+use crate::locate::{Answer, Hit, Locator};
+
+/// 2^level, exactly.
+#[inline(always)]
+fn pow2(level: u32) -> f64 {
+    f64::from_bits((1023 + u64::from(level)) << 52)
+}
+
+/// The leaves holding W points, one per lane.
+#[derive(Clone, Copy)]
+struct Found<D> {
+    /// Lanes holding a leaf (bits); the others are in a hole or were not asked.
+    has: u32,
+    id: [u32; MAX_W],
+    /// 2^level and 2^−level.
+    scale: D,
+    size: D,
+    /// The leaf's indices on its level's lattice.
+    ijk: V3<D>,
+    /// Its corner nodes, VTK order.
+    nodes: [[u32; 8]; MAX_W],
+}
+
+/// The first half of a batch: the points, their leaves and those leaves' displacement maps (see
+/// [`AdaptiveLocator::lane_front`]).
+#[derive(Clone, Copy)]
+struct Front<V: Lanes> {
+    x: V3<V::Wide>,
+    t_x: V3<V::Wide>,
+    inside_tol: V3<V::Wide>,
+    /// Lanes with a finite point, and lanes within reach (bits): `admit`'s two answers.
+    finite: u32,
+    take: u32,
+    at: Found<V::Wide>,
+    maps: Maps<V>,
+}
+
+impl<V: Lanes> Front<V> {
+    fn new() -> Self {
+        let zero = V3::splat(DVec3::ZERO);
+        Self {
+            x: zero,
+            t_x: zero,
+            inside_tol: zero,
+            finite: 0,
+            take: 0,
+            at: Found {
+                has: 0,
+                id: [0; MAX_W],
+                scale: V::Wide::splat(1.0),
+                size: V::Wide::splat(1.0),
+                ijk: zero,
+                nodes: [[0; 8]; MAX_W],
+            },
+            maps: Maps {
+                a: [V3::splat(DVec3::ZERO); 8],
+            },
+        }
+    }
+}
+
+impl AdaptiveLocator<'_> {
+    /// Answers for `points` into `out` (same length), `V::W` at a time (see the module); the
+    /// remainder in scalar code. Software-pipelined: the next batch's front (its leaves and the
+    /// loads of their displacements) is issued before the current batch's inversion.
+    #[inline(always)]
+    pub(super) fn locate_pipelined<V: Lanes>(&self, points: &[DVec3], out: &mut [Answer])
+    where
+        V::Node: LaneNodes,
+    {
+        let w = V::W;
+        let batches = points.len() / w;
+        let mut fronts = [Front::<V>::new(), Front::<V>::new()];
+        if batches > 0 {
+            self.lane_front(&points[..w], &mut fronts[0]);
+        }
+        for b in 0..batches {
+            if b + 1 < batches {
+                self.lane_front(&points[(b + 1) * w..(b + 2) * w], &mut fronts[(b + 1) % 2]);
+            }
+            let (points, out) = (&points[b * w..(b + 1) * w], &mut out[b * w..(b + 1) * w]);
+            self.back(points, &fronts[b % 2], out);
+        }
+        for (&x, o) in points.iter().zip(out.iter_mut()).skip(batches * w) {
+            *o = self.locate(x);
+        }
+    }
+
+    /// The leaves holding the base lattice coordinates `t` in the lanes `ask`, as
+    /// [`super::forest::Forest::leaf_at`] finds them (`t` clamped into the lattice; on a boundary
+    /// between leaves, the upper one), and their corner nodes.
+    #[inline(always)]
+    fn leaves_at<D: Wide>(&self, t: V3<D>, ask: u32) -> Found<D> {
+        let body = self.body;
+        let forest = &body.forest;
+        let cells = body.lattice().cells();
+        let zero = D::splat(0.0);
+        // The base cell: `max` maps NaN to 0, as `f64::max` does, and `min` caps what `as` would
+        // saturate.
+        let clamp = |t: D, n: u32| t.max(zero).min(D::splat(f64::from(n - 1))).trunc();
+        let b = V3 {
+            x: clamp(t.x, cells[0]),
+            y: clamp(t.y, cells[1]),
+            z: clamp(t.z, cells[2]),
+        };
+        let mut level = [0u32; MAX_W];
+        let mut word = [0u32; MAX_W];
+        let mut flat = 0u32;
+        if let Some(dense) = forest.dense_base() {
+            let mut key = [0usize; MAX_W];
+            let (nx, ny) = (D::splat(f64::from(cells[0])), D::splat(f64::from(cells[1])));
+            (b.x + nx * (b.y + ny * b.z)).indices_into(&mut key);
+            for l in 0..D::W {
+                if ask & (1 << l) != 0
+                    && let Some((lv, w)) = forest.flat_entry(dense[key[l]])
+                {
+                    (level[l], word[l]) = (lv, w);
+                    flat |= 1 << l;
+                }
+            }
+        }
+        // A flat lane's leaf, as `leaf_at` finds it in a brick: t · 2^L is exact, its floor
+        // clamped into the base cell (an unrefined cell: L = 0, the cell itself).
+        let scale = D::from_fn(|l| pow2(level[l]));
+        let size = D::from_fn(|l| level_size(level[l] as u8));
+        let top = scale - D::splat(1.0);
+        let fine = |t: D, b: D| {
+            ((t * scale).max(zero).trunc() - b * scale)
+                .max(zero)
+                .min(top)
+        };
+        let q = V3 {
+            x: fine(t.x, b.x),
+            y: fine(t.y, b.y),
+            z: fine(t.z, b.z),
+        };
+        let mut found = Found {
+            has: 0,
+            id: [0; MAX_W],
+            scale,
+            size,
+            ijk: b.scale(scale) + q,
+            nodes: [[0; 8]; MAX_W],
+        };
+        let mut rank = [0usize; MAX_W];
+        (q.x + scale * (q.y + scale * q.z)).indices_into(&mut rank);
+        let mut ijk = [[0usize; MAX_W]; 3];
+        found.ijk.x.indices_into(&mut ijk[0]);
+        found.ijk.y.indices_into(&mut ijk[1]);
+        found.ijk.z.indices_into(&mut ijk[2]);
+        // The other lanes descend; their levels and indices replace the computed ones below.
+        let mut slow = 0u32;
+        let mut slow_leaf = [Leaf::new(0, [0; 3]); MAX_W];
+        for l in 0..D::W {
+            let bit = 1 << l;
+            if ask & bit == 0 {
+                continue;
+            }
+            let (id, leaf) = if flat & bit != 0 {
+                let leaf = Leaf::new(
+                    level[l] as u8,
+                    [ijk[0][l] as u32, ijk[1][l] as u32, ijk[2][l] as u32],
+                );
+                let id = if level[l] == 0 {
+                    word[l]
+                } else {
+                    forest.brick_id(word[l], rank[l])
+                };
+                (id, leaf)
+            } else {
+                let Some(found) = forest.leaf_at(t.lane(l)) else {
+                    continue;
+                };
+                slow |= bit;
+                slow_leaf[l] = found.1;
+                found
+            };
+            found.id[l] = id;
+            found.nodes[l] = body.leaf_nodes(id, leaf);
+            found.has |= bit;
+        }
+        if slow != 0 {
+            let m = D::mask_from_bits(slow);
+            let level = |l: usize| u32::from(slow_leaf[l].level);
+            found.scale = D::select(m, D::from_fn(|l| pow2(level(l))), found.scale);
+            found.size = D::select(m, D::from_fn(|l| level_size(level(l) as u8)), found.size);
+            let index = |a: usize| D::from_fn(|l| f64::from(slow_leaf[l].ijk[a]));
+            let slow_ijk = V3 {
+                x: index(0),
+                y: index(1),
+                z: index(2),
+            };
+            found.ijk = V3::select(m, slow_ijk, found.ijk);
+        }
+        found
+    }
+
+    /// The displacement maps of `found`'s leaves (node 0's in lanes without one: there is one).
+    #[inline(always)]
+    fn maps_of<V: Lanes>(&self, found: &Found<V::Wide>) -> Maps<V>
+    where
+        V::Node: LaneNodes,
+    {
+        let nodes = V::Node::of(self);
+        Maps::from_nodes(|l, c| &nodes[found.nodes[l][c] as usize])
+    }
+
+    /// `search` up to the leaf holding each of W points and its displacement map.
+    #[inline(always)]
+    fn lane_front<V: Lanes>(&self, points: &[DVec3], front: &mut Front<V>)
+    where
+        V::Node: LaneNodes,
+    {
+        let x = V::Wide::transpose(|l| &points[l]);
+        let (inside_tol, finite, take) = self.admit.lanes(x);
+        let t_x = (x - V3::splat(self.body.lattice().origin())).mul_each(self.inv_h);
+        let at = self.leaves_at(t_x, take);
+        if at.has != 0 {
+            front.maps = self.maps_of::<V>(&at);
+        }
+        *front = Front {
+            x,
+            t_x,
+            inside_tol,
+            finite,
+            take,
+            at,
+            maps: front.maps,
+        };
+    }
+
+    /// The rest of `search`'s common path for W points: the guess, the leaf there and one
+    /// inversion. A lane refused gets `admit`'s answer; one leaving the common path, the scalar
+    /// search's.
+    #[inline(always)]
+    fn back<V: Lanes>(&self, points: &[DVec3], front: &Front<V>, out: &mut [Answer])
+    where
+        V::Node: LaneNodes,
+    {
+        let (finite, take) = (front.finite, front.take);
+        let found = if take & front.at.has != 0 {
+            self.invert_lanes(front, out)
+        } else {
+            0
+        };
+        for (l, out) in out.iter_mut().enumerate() {
+            let bit = 1 << l;
+            if found & bit != 0 {
+                continue;
+            }
+            *out = if take & bit != 0 {
+                self.locate(points[l])
+            } else if finite & bit != 0 {
+                Ok(None)
+            } else {
+                Err(PointError::NonFinite)
+            };
+        }
+    }
+
+    /// The guess x − ũ, the leaf holding it and one Newton inversion there, for the lanes `front`
+    /// takes that hold a leaf: writes the answer of every lane it finds and returns their bits.
+    #[inline(always)]
+    fn invert_lanes<V: Lanes>(&self, front: &Front<V>, out: &mut [Answer]) -> u32
+    where
+        V::Node: LaneNodes,
+    {
+        let lattice = self.body.lattice();
+        let splat = V3::<V::Wide>::splat;
+        let two = V::Wide::splat(2.0);
+        let Front {
+            x,
+            t_x,
+            inside_tol,
+            take,
+            at,
+            mut maps,
+            ..
+        } = *front;
+        let mut take = take & at.has;
+        // `guess`: ũ interpolated at x in x's leaf (`undeformed_xi`, clamped).
+        let xi = ((t_x.scale(at.scale) - at.ijk).scale(two) - splat(DVec3::ONE)).clamp(-1.0, 1.0);
+        let t_guess = t_x - maps.map(V3::narrow(xi)).widen().mul_each(self.inv_h);
+        // The leaf at the guess: x's own where the guess lies in its half-open box (the leaf
+        // `leaf_at` finds there: its box's bounds are exact multiples of 2^−level), else looked up.
+        let low = at.ijk.scale(at.size);
+        let high = (at.ijk + splat(DVec3::ONE)).scale(at.size);
+        let kept = low.x.le(t_guess.x) & low.y.le(t_guess.y) & low.z.le(t_guess.z);
+        let kept = kept & t_guess.x.lt(high.x) & t_guess.y.lt(high.y) & t_guess.z.lt(high.z);
+        let moved = take & !V::Wide::bits(kept);
+        let mut leaf = at;
+        if moved != 0 {
+            let to = self.leaves_at(t_guess, moved);
+            take &= !(moved & !to.has);
+            let m = V::Wide::mask_from_bits(moved);
+            leaf.scale = V::Wide::select(m, to.scale, at.scale);
+            leaf.size = V::Wide::select(m, to.size, at.size);
+            leaf.ijk = V3::select(m, to.ijk, at.ijk);
+            for l in 0..V::W {
+                if moved & (1 << l) != 0 {
+                    leaf.id[l] = to.id[l];
+                    leaf.nodes[l] = to.nodes[l];
+                }
+            }
+            maps = self.maps_of::<V>(&leaf);
+        }
+        if take == 0 {
+            return 0;
+        }
+        // `visit`: the leaf's spacing h · 2^−level and lowest corner, the guess's ξ there.
+        let spacing = splat(lattice.h()).scale(leaf.size);
+        maps.add_lattice_lanes(V3::narrow(spacing.scale(V::Wide::splat(0.5))));
+        let x_local = x - (splat(lattice.origin()) + spacing * leaf.ijk);
+        let xi0 = (t_guess.scale(leaf.scale) - leaf.ijk).scale(two) - splat(DVec3::ONE);
+        let inside = V3::<V>::splat(DVec3::ONE) + V3::narrow(inside_tol);
+        let (xi, rr, iterations, found) = maps.invert(
+            V3::narrow(x_local),
+            V3::narrow(xi0),
+            inside,
+            V::mask_from_bits(take),
+            &self.newton,
+        );
+        let xi = xi.widen().clamp(-1.0, 1.0);
+        let residual = rr.widen().sqrt();
+        for (l, out) in out.iter_mut().enumerate() {
+            if found & (1 << l) != 0 {
+                *out = Ok(Some(Hit {
+                    cell: CellId(leaf.id[l]),
+                    xi: xi.lane(l),
+                    iterations: iterations[l],
+                    residual: residual.lane(l),
+                    inversions: 1,
+                }));
+            }
+        }
+        found
+    }
+}
