@@ -478,7 +478,10 @@ pub fn search_listing_owners(
         query_seconds_median,
         points_per_second: points.len() as f64 / query_seconds.max(1e-12),
         inversions_per_point: inversions as f64 / points.len().max(1) as f64,
-        inversions_per_located_point: located.iter().map(|h| f64::from(h.inversions)).sum::<f64>()
+        // A fold from +0: an empty float sum is −0, printed "-0.000".
+        inversions_per_located_point: located
+            .iter()
+            .fold(0.0, |sum, h| sum + f64::from(h.inversions))
             / located.len().max(1) as f64,
         strategy: locator.name().to_owned(),
         precision: match settings.precision {

@@ -7,6 +7,10 @@ use anyhow::{Result, bail};
 /// The most cells (`block --cells`) and known points (`--known`) a generated scene may have:
 /// 2^26, a few GB built in memory. Beyond, the allocation aborted the process.
 const MAX_SCENE_SIZE: u64 = 1 << 26;
+/// The shortest spacing and the farthest coordinate of a generated scene: their squares (the
+/// sphere's distances) stay normal numbers.
+const MIN_LENGTH: f64 = 1e-100;
+const MAX_LENGTH: f64 = 1e100;
 use cgcontact::glam::DVec3;
 use cgcontact_io::{CellMap, MeshFormat, write_adaptive_mesh, write_mesh, write_points};
 use cgcontact_scenes::{KnownPoint, LeafOrder, SphereOnAdaptiveBlock, SphereOnBlock};
@@ -60,17 +64,28 @@ pub struct SceneArgs {
     /// Mesh file flavour.
     #[arg(long, value_enum, default_value_t = FormatName::Vtu)]
     format: FormatName,
-    /// Cells per axis of the `block` scene.
-    #[arg(long, value_name = "NX,NY,NZ", value_delimiter = ',', default_values_t = [40u32, 80, 40])]
-    cells: Vec<u32>,
+    /// Cells per axis of the `block` scene [default: 40,80,40].
+    #[arg(long, value_name = "NX,NY,NZ", value_delimiter = ',')]
+    cells: Option<Vec<u32>>,
     /// Lattice spacing: one value, or three for anisotropic cells [default: the scene's].
-    #[arg(long, value_name = "H[,HY,HZ]", value_delimiter = ',')]
+    // Negative numbers are taken as values, so that the check below names them.
+    #[arg(
+        long,
+        value_name = "H[,HY,HZ]",
+        value_delimiter = ',',
+        allow_negative_numbers = true
+    )]
     h: Option<Vec<f64>>,
     /// Largest sink of the indented top face, in units of h (up to several h).
-    #[arg(long, value_name = "H")]
+    #[arg(long, value_name = "H", allow_negative_numbers = true)]
     sink: Option<f64>,
     /// Random nodal jitter in units of h (kept to det J > 0 unless --allow-inverted).
-    #[arg(long, value_name = "H", default_value_t = 0.0)]
+    #[arg(
+        long,
+        value_name = "H",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
     jitter: f64,
     /// Keep cells the jitter inverts.
     #[arg(long)]
@@ -84,7 +99,12 @@ pub struct SceneArgs {
     )]
     offset: Option<Vec<f64>>,
     /// Factor on every length.
-    #[arg(long, value_name = "S", default_value_t = 1.0)]
+    #[arg(
+        long,
+        value_name = "S",
+        default_value_t = 1.0,
+        allow_negative_numbers = true
+    )]
     scale: f64,
     /// Number of points made from known (cell, ξ) [default: 10,000; 1,000,000 for `block`].
     #[arg(long, value_name = "N")]
@@ -97,7 +117,7 @@ pub struct SceneArgs {
     levels: Option<u8>,
     /// `sphere-adaptive`: cells closer than this to the contact patch's centre are refined
     /// [default: the sphere's radius].
-    #[arg(long, value_name = "R")]
+    #[arg(long, value_name = "R", allow_negative_numbers = true)]
     refine_radius: Option<f64>,
     /// `sphere-adaptive`: no 2:1 balance (neighbouring cells may differ by several levels).
     #[arg(long)]
@@ -127,15 +147,16 @@ pub fn run(args: &SceneArgs) -> Result<()> {
         SceneName::SphereFine | SceneName::SphereAdaptive => SphereOnBlock::fine(),
         SceneName::SphereCoarse => SphereOnBlock::coarse(),
         SceneName::Block => {
-            if args.cells.len() != 3 || args.cells.contains(&0) {
+            let cells = args.cells.as_deref().unwrap_or(&[40, 80, 40]);
+            if cells.len() != 3 || cells.contains(&0) {
                 bail!("--cells takes three positive counts, e.g. --cells 40,80,40");
             }
-            let count: u64 = args.cells.iter().map(|&n| u64::from(n)).product();
+            let count: u64 = cells.iter().map(|&n| u64::from(n)).product();
             if count > MAX_SCENE_SIZE {
                 bail!(
                     "--cells {} asks for {count} cells; a generated scene holds at most \
                      {MAX_SCENE_SIZE} (the block, its nodes and displacements are built in memory)",
-                    args.cells
+                    cells
                         .iter()
                         .map(u32::to_string)
                         .collect::<Vec<_>>()
@@ -143,11 +164,7 @@ pub fn run(args: &SceneArgs) -> Result<()> {
                 );
             }
             let h = DVec3::splat(0.125);
-            let cells = DVec3::new(
-                args.cells[0] as f64,
-                args.cells[1] as f64,
-                args.cells[2] as f64,
-            );
+            let cells = DVec3::new(cells[0] as f64, cells[1] as f64, cells[2] as f64);
             SphereOnBlock {
                 block: h * cells,
                 h,
@@ -158,14 +175,23 @@ pub fn run(args: &SceneArgs) -> Result<()> {
             }
         }
     };
+    if args.cells.is_some() && args.name != SceneName::Block {
+        bail!("--cells applies to `block` only: the other scenes have the seed's block");
+    }
     if let Some(h) = &args.h {
         let h = vector(h, "h")?;
+        if !(h.is_finite() && h.min_element() > 0.0) {
+            bail!("--h {h} must be finite and positive");
+        }
         if args.name == SceneName::Block {
             knobs.block = knobs.block / knobs.h * h;
         }
         knobs.h = h;
     }
     if let Some(sink) = args.sink {
+        if !sink.is_finite() {
+            bail!("--sink {sink} must be finite");
+        }
         knobs.sink_in_h = sink;
     }
     if let Some(offset) = &args.offset {
@@ -179,6 +205,23 @@ pub fn run(args: &SceneArgs) -> Result<()> {
             );
         }
         knobs.known_points = known;
+    }
+    if !(args.jitter.is_finite() && args.jitter >= 0.0) {
+        bail!("--jitter {} must be finite and at least 0", args.jitter);
+    }
+    if !(args.scale.is_finite() && args.scale > 0.0) {
+        bail!("--scale {} must be finite and positive", args.scale);
+    }
+    // Every length of the scene, squared, must stay a normal number: the sphere's distances and
+    // the indentation are computed from squares.
+    let (h, size) = (knobs.h * args.scale, knobs.block * args.scale);
+    let far = (size.abs() + knobs.offset.abs()).max_element();
+    if h.min_element() < MIN_LENGTH || far > MAX_LENGTH {
+        bail!(
+            "the scene's spacing {:e} and farthest coordinate {far:e} (from --h, --scale and \
+             --offset) must lie between {MIN_LENGTH:e} and {MAX_LENGTH:e}",
+            h.min_element()
+        );
     }
     knobs.jitter = args.jitter;
     knobs.allow_inverted = args.allow_inverted;

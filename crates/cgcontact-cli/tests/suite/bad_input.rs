@@ -432,3 +432,56 @@ fn scenes_too_large_to_build_are_refused() {
         assert!(!out.join("mesh.vtu").exists());
     }
 }
+
+/// Scene numbers a scene cannot be built from: NaN or negative jitter (NaN had been taken as no
+/// jitter), negative values (which clap had reported as unknown arguments), spacings and
+/// coordinates whose squares leave the normal range (the build had failed on a NaN
+/// displacement, naming no option), and `--cells` on a scene that has its own block (ignored
+/// before). Each is a one-line error naming the option, exit 2, nothing written.
+#[test]
+fn scene_numbers_out_of_range_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("scene");
+    for (flags, needle) in [
+        (&["sphere-fine", "--jitter", "nan"][..], "--jitter NaN"),
+        (&["sphere-fine", "--jitter", "-0.1"], "--jitter -0.1"),
+        (&["sphere-fine", "--scale", "-1"], "--scale -1"),
+        (&["sphere-fine", "--scale", "1e300"], "--scale"),
+        (&["sphere-adaptive", "--scale", "1e-300"], "--scale"),
+        (&["block", "--h", "1e-300"], "--h"),
+        (&["block", "--h", "-1"], "--h [-1, -1, -1]"),
+        (&["sphere-fine", "--sink", "nan"], "--sink NaN"),
+        (&["sphere-fine", "--offset", "1e120"], "--offset"),
+        (&["sphere-adaptive", "--cells", "10,10,10"], "--cells"),
+    ] {
+        let output = Command::new(env!("CARGO_BIN_EXE_cgcontact"))
+            .arg("scene")
+            .args(flags)
+            .args(["--known", "10", "--out"])
+            .arg(&out)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&output.stderr).into_owned();
+        assert_one_line_error(
+            &format!("{flags:?}"),
+            (output.status.code(), stderr),
+            &[needle],
+        );
+        assert!(!out.exists(), "{flags:?} wrote its folder");
+    }
+    // A negative sink (a bump) is a scene: accepted.
+    let status = Command::new(env!("CARGO_BIN_EXE_cgcontact"))
+        .args([
+            "scene",
+            "sphere-fine",
+            "--sink",
+            "-0.5",
+            "--known",
+            "10",
+            "--out",
+        ])
+        .arg(&out)
+        .status()
+        .unwrap();
+    assert!(status.success());
+}

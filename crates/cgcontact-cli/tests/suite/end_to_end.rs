@@ -247,6 +247,36 @@ fn rows_not_located_carry_their_inversions() {
     assert!(read_results(dir.path().join("results.csv")).is_ok());
 }
 
+/// No point located: the summary's per-located-point figure is 0, not the −0 of an empty float
+/// sum ("-0.000 per located point" before), in the text and in `--json`.
+#[test]
+fn nothing_located_reports_zero_per_located_point() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().to_str().unwrap();
+    let scene = cgcontact(&["scene", "sphere-coarse", "--known", "10", "--out", out]);
+    assert!(scene.status.success());
+    let far = dir.path().join("far.csv");
+    std::fs::write(&far, "x,y,z\n1000,1000,1000\n").unwrap();
+    let mesh = dir.path().join("mesh.vtu");
+    let results = dir.path().join("results.csv");
+    let args = |json: bool| {
+        let mut args = vec!["locate", "--mesh", mesh.to_str().unwrap()];
+        args.extend(["--points", far.to_str().unwrap(), "--out"]);
+        args.push(results.to_str().unwrap());
+        if json {
+            args.push("--json");
+        }
+        cgcontact(&args)
+    };
+    let text = String::from_utf8(args(false).stdout).unwrap();
+    assert!(text.contains("(0.000 per located point)"), "{text}");
+    let json = String::from_utf8(args(true).stdout).unwrap();
+    assert!(
+        json.contains("\"inversions_per_located_point\": 0.0,"),
+        "{json}"
+    );
+}
+
 #[test]
 fn adaptive_scene_located_as_known_by_every_strategy() {
     for strategy in ["lattice", "rtree", "brute", "centroid", "noderad"] {
