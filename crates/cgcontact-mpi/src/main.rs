@@ -191,7 +191,7 @@ fn locate(world: &SimpleCommunicator, args: &LocateArgs) -> Result<(), Failure> 
     agree(
         world,
         rayon::ThreadPoolBuilder::new()
-            .num_threads(args.threads)
+            .num_threads(capped_threads(args, rank))
             .build_global()
             .context("cannot start the search threads"),
     )?;
@@ -393,6 +393,25 @@ fn check_constraints(args: &LocateArgs, rank: i32, mesh: MeshBody) -> anyhow::Re
         }
     }
     Ok(mesh)
+}
+
+/// Search threads per available core at most, as `cgcontact locate` caps them: more only adds
+/// switching, and a mistyped count (`--threads 1000000`) would ask the system for a million.
+const THREADS_PER_CORE: usize = 4;
+
+/// `--threads`, capped at [`THREADS_PER_CORE`] per core this rank can run on; a warning on rank 0
+/// (unless `--quiet`) says so.
+fn capped_threads(args: &LocateArgs, rank: i32) -> usize {
+    let cores = std::thread::available_parallelism().map_or(1, usize::from);
+    let cap = THREADS_PER_CORE * cores;
+    if args.threads > cap && !args.quiet && rank == 0 {
+        eprintln!(
+            "cgcontact-mpi: warning: --threads {} capped at {cap} ({THREADS_PER_CORE} per \
+             available core, {cores} here)",
+            args.threads
+        );
+    }
+    args.threads.min(cap)
 }
 
 /// Refuse, before any file is read, what cannot work: a block size out of range, no threads, an

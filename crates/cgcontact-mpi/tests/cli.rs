@@ -274,6 +274,36 @@ fn a_broken_hanging_node_warns_once_and_strict_refuses() {
     assert!(!Path::new(out).exists());
 }
 
+/// A thread count no machine has is capped, with one warning, and the search runs (before, each
+/// rank asked rayon for that many threads).
+#[test]
+fn absurd_thread_counts_are_capped_with_one_warning() {
+    let dir = tempfile::tempdir().unwrap();
+    let body = cgcontact_scenes::hanging_node_moved(0.0).unwrap();
+    let mesh = dir.path().join("mesh.vtu");
+    cgcontact_io::write_adaptive_mesh(&mesh, &body, cgcontact_io::MeshFormat::Xml).unwrap();
+    let points = dir.path().join("points.csv");
+    std::fs::write(&points, "x,y,z\n0.5,0.5,0.5\n").unwrap();
+    let out = dir.path().join("results.csv");
+    let args = [
+        "locate",
+        "--mesh",
+        mesh.to_str().unwrap(),
+        "--points",
+        points.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--threads",
+        "100000000",
+    ];
+    let run = mpirun(2, &args);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "{stderr}");
+    assert_eq!(stderr.matches("capped at").count(), 1, "{stderr}");
+    let rows = std::fs::read_to_string(&out).unwrap();
+    assert_eq!(rows.lines().count(), 2, "{rows}");
+}
+
 #[test]
 fn bad_input_stops_every_rank_with_one_message() {
     let dir = tempfile::tempdir().unwrap();
