@@ -29,14 +29,16 @@ class Body:
         counts: Sequence[int],
         active: Optional[npt.ArrayLike] = None,
     ) -> None:
-        """A body on a lattice of `counts` cells per axis. `active`: one flag per lattice cell,
-        x fastest (flat, or shape (nz, ny, nx)); None for every cell. Cells are numbered
+        """A body on a lattice of `counts` cells per axis. `active`: one flag per lattice cell
+        (booleans, or 0s and 1s), x fastest (flat, or shape (nz, ny, nx)); None for every cell.
+        Other shapes and values raise ValueError. Cells are numbered
         i + nx (j + ny k); `set_displacements` takes one row per lattice node,
         i + (nx + 1)(j + (ny + 1) k)."""
     @staticmethod
     def from_hexes(nodes: npt.ArrayLike, hexes: npt.ArrayLike) -> "Body":
         """A body from undeformed nodes (n, 3) and hexahedra (m, 8) of 0-based node numbers in
-        VTK order; the lattice is detected. Cells are numbered by their row in `hexes`."""
+        VTK order (whole numbers: 2.5 or NaN raise ValueError); the lattice is detected. Cells
+        are numbered by their row in `hexes`."""
     def set_displacements(self, u: npt.ArrayLike, fill_hanging: bool = False) -> None:
         """Sets every displacement in place: one row (ux, uy, uz) per node (`node_count`). On an
         adaptive body a hanging node's row must be its constraint's value unless `fill_hanging`.

@@ -99,9 +99,30 @@ pub fn finite(vectors: &[DVec3], what: &str) -> PyResult<()> {
     }
 }
 
-/// `what` as an `(n, 8)` int64 array of hexahedra, copied.
+/// `what` as an `(n, 8)` int64 array of hexahedra, copied. Values that are not whole numbers
+/// (2.5, NaN, or beyond int64) are refused: numpy's conversion would truncate or wrap them into
+/// other nodes' numbers.
 pub fn hexes(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<[i64; 8]>> {
-    let converted = contiguous(obj, "int64")?;
+    let numpy = obj.py().import("numpy")?;
+    let given = numpy.call_method1("asarray", (obj,))?;
+    // NaN and out-of-range floats are refused below; numpy's warning on casting them is noise.
+    let kwargs = pyo3::types::PyDict::new(obj.py());
+    kwargs.set_item("invalid", "ignore")?;
+    let quiet = numpy.call_method("errstate", (), Some(&kwargs))?;
+    quiet.call_method0("__enter__")?;
+    let converted = contiguous(&given, "int64");
+    let none = obj.py().None();
+    quiet.call_method1("__exit__", (&none, &none, &none))?;
+    let converted = converted?;
+    if !numpy
+        .call_method1("array_equal", (&converted, &given))?
+        .extract::<bool>()?
+    {
+        return Err(PyValueError::new_err(format!(
+            "{what} must hold whole node numbers (an integer array), got dtype {}",
+            given.getattr("dtype")?.str()?
+        )));
+    }
     let array = converted
         .extract::<PyReadonlyArray2<'_, i64>>()
         .ok()
@@ -121,8 +142,34 @@ pub fn hexes(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<[i64; 8]>> {
         .collect())
 }
 
-/// `what` as a flat array of booleans (C order).
-pub fn flags(obj: &Bound<'_, PyAny>) -> PyResult<Vec<bool>> {
-    let converted = contiguous(obj, "bool_")?.call_method0("ravel")?;
-    converted.call_method0("tolist")?.extract()
+/// `what`, one flag per lattice cell of `counts` ([nx, ny, nz]), as a flat array of booleans (x
+/// fastest): a flat array, or one of shape (nz, ny, nx), of booleans or of 0s and 1s. Other
+/// shapes of as many values ((nx, ny, nz) would be read transposed) and other values (2 is no
+/// flag) are refused.
+pub fn flags(obj: &Bound<'_, PyAny>, what: &str, counts: [u32; 3]) -> PyResult<Vec<bool>> {
+    let numpy = obj.py().import("numpy")?;
+    let given = numpy.call_method1("asarray", (obj,))?;
+    let shape: Vec<usize> = given.getattr("shape")?.extract()?;
+    let [nx, ny, nz] = counts.map(|n| n as usize);
+    let n = nx * ny * nz;
+    if shape != [n] && shape != [nz, ny, nx] {
+        return Err(PyValueError::new_err(format!(
+            "{what} must have shape ({n},) or (nz, ny, nx) = ({nz}, {ny}, {nx}), got {}",
+            shape_of(&given)
+        )));
+    }
+    let converted = contiguous(&given, "bool_")?;
+    if !numpy
+        .call_method1("array_equal", (&converted, &given))?
+        .extract::<bool>()?
+    {
+        return Err(PyValueError::new_err(format!(
+            "{what} must hold booleans, or 0s and 1s (dtype {})",
+            given.getattr("dtype")?.str()?
+        )));
+    }
+    converted
+        .call_method0("ravel")?
+        .call_method0("tolist")?
+        .extract()
 }

@@ -353,8 +353,8 @@ impl PyBody {
 #[pymethods]
 impl PyBody {
     /// A body on a lattice: `origin` and `spacing` (3 floats each), `counts` cells per axis.
-    /// `active` is None (every cell) or one flag per lattice cell, x fastest (a flat array, or one
-    /// of shape (nz, ny, nx)). The body starts undeformed; its cells are numbered as the
+    /// `active` is None (every cell) or one flag per lattice cell (booleans, or 0s and 1s), x
+    /// fastest (a flat array, or one of shape (nz, ny, nx)). The body starts undeformed; its cells are numbered as the
     /// lattice's, `i + nx (j + ny k)`, and `set_displacements` takes one row per lattice node,
     /// `i + (nx + 1)(j + (ny + 1) k)`.
     #[new]
@@ -375,14 +375,7 @@ impl PyBody {
         let body = match active {
             None => Body::full(lattice),
             Some(active) => {
-                let flags = arrays::flags(active)?;
-                if flags.len() != lattice.cell_count() {
-                    return Err(PyValueError::new_err(format!(
-                        "active: the lattice has {} cells, got {} flags",
-                        lattice.cell_count(),
-                        flags.len()
-                    )));
-                }
+                let flags = arrays::flags(active, "active", counts)?;
                 let ids = flags.iter().enumerate().filter(|(_, f)| **f);
                 Body::from_cells(lattice, ids.map(|(c, _)| CellId(c as u32)))
                     .map_err(value_error)?

@@ -214,14 +214,29 @@ impl PyLocator {
         &self,
         py: Python<'py>,
         points: &Bound<'py, PyAny>,
-        out: Option<Located<'py>>,
+        out: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Located<'py>> {
         let (rows, _) = arrays::rows(points, "points", false)?;
         let vectors = rows.vectors()?;
         let points: &[DVec3] = &vectors;
         let n = points.len();
         let (cells, xi) = match out {
-            Some(out) => out,
+            // Arrays of another dtype (int32 cells, float32 ξ) are named, not converted: the
+            // answers must land in the caller's arrays.
+            Some(out) => out.extract::<Located<'py>>().map_err(|_| {
+                let dtypes = out
+                    .try_iter()
+                    .and_then(|items| {
+                        items
+                            .map(|item| Ok(item?.getattr("dtype")?.str()?.to_string()))
+                            .collect::<PyResult<Vec<String>>>()
+                    })
+                    .map_or_else(|_| "?".to_owned(), |d| d.join(" and "));
+                PyValueError::new_err(format!(
+                    "out must be a tuple (cell, xi) of an int64[{n}] and a float64[{n}, 3] \
+                     array, got dtypes {dtypes}"
+                ))
+            })?,
             None => (
                 PyArray1::<i64>::zeros(py, n, false),
                 PyArray2::<f64>::zeros(py, [n, 3], false),

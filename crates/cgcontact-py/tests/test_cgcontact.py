@@ -223,6 +223,16 @@ def test_inactive_cells_hold_nothing():
     assert np.isnan(xi[~active]).all()
 
 
+def test_active_flags_in_lattice_shape_and_as_numbers():
+    points, cells, _ = cell_points()
+    nx, ny, nz = COUNTS
+    active = (np.arange(len(cells)) % 3 != 0).astype(np.int64)
+    for given in [active, active.reshape(nz, ny, nx), active.astype(float), active.astype(bool)]:
+        body = cgcontact.Body(ORIGIN, SPACING, COUNTS, given)
+        cell, _ = cgcontact.Locator(body).locate(points)
+        np.testing.assert_array_equal(cell, np.where(active == 1, cells, -1))
+
+
 def test_a_point_on_a_node_has_eight_owners():
     body = cgcontact.Body(ORIGIN, SPACING, COUNTS)
     node = np.array(ORIGIN) + np.array(SPACING) * (1, 1, 1)
@@ -327,7 +337,21 @@ def test_queries_release_the_gil():
         (lambda l, b: cgcontact.Locator(b, max_iter=0), None),
         (lambda l, b: cgcontact.Locator(b, threads=0), "threads"),
         (lambda l, b: cgcontact.Body((0, 0, 0), (0, 1, 1), (1, 1, 1)), None),
-        (lambda l, b: cgcontact.Body((0, 0, 0), (1, 1, 1), (2, 2, 2), active=[True] * 7), "8 cells"),
+        (lambda l, b: cgcontact.Body((0, 0, 0), (1, 1, 1), (2, 2, 2), active=[True] * 7),
+         r"shape \(8,\)"),
+        # (nx, ny, nz) instead of (nz, ny, nx): as many flags, read transposed.
+        (lambda l, b: cgcontact.Body((0, 0, 0), (1, 1, 1), (3, 2, 1), active=np.ones((3, 2, 1))),
+         r"\(nz, ny, nx\) = \(1, 2, 3\)"),
+        (lambda l, b: cgcontact.Body((0, 0, 0), (1, 1, 1), (2, 1, 1), active=[1, 2]), "0s and 1s"),
+        # Node numbers that are not whole: numpy's int64 conversion truncated 0.5 to node 0.
+        (lambda l, b: cgcontact.Body.from_hexes(lattice_hexes()[0], lattice_hexes()[1] + 0.5),
+         "whole node numbers"),
+        (lambda l, b: cgcontact.Body.from_hexes(lattice_hexes()[0],
+                                                np.where(lattice_hexes()[1] == 3, np.nan,
+                                                         lattice_hexes()[1])),
+         "whole node numbers"),
+        (lambda l, b: l.locate(np.zeros((2, 3)), out=(np.zeros(2, np.int32), np.zeros((2, 3)))),
+         "got dtypes int32 and float64"),
         (lambda l, b: cgcontact.Body((np.nan, 0, 0), (1, 1, 1), (1, 1, 1)), "not finite"),
         (lambda l, b: cgcontact.Body.from_hexes(lattice_hexes()[0], lattice_hexes()[1] + 100),
          "hexes row 0 corner 0"),
