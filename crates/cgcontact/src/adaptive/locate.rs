@@ -533,12 +533,13 @@ impl AdaptiveLocator<'_> {
     }
 
     /// [`AdaptiveLocator::locate_chunk`] in lanes `V` (whose precision is the kernel `K`'s), as the
-    /// uniform locator's batched path: for `V::W` points at once, the leaf at x (scalar, per lane),
-    /// its displacement map in lanes (the corners transposed in registers straight from the
+    /// uniform locator's batched path (`lanes.rs`): for `V::W` points at once, the leaf at x, its
+    /// displacement map in lanes (the corners transposed in registers straight from the
     /// displacements), the guess in lanes, the leaf at the guess (the same leaf for most points:
     /// its map is reused), and one inversion in lanes with each lane's own leaf spacing. The
-    /// remainder, the `Undeformed` order and every lane that leaves the common path go through
-    /// the scalar search, whose answers these are, bitwise.
+    /// `Undeformed` order goes through [`AdaptiveLocator::locate_chunk_grouped`]; the remainder
+    /// and every lane that leaves the common path through the scalar search, whose answers
+    /// these are, bitwise.
     #[inline(always)]
     pub(crate) fn locate_chunk_lanes<K: Kernel, V: Lanes>(
         &self,
