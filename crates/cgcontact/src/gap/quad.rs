@@ -128,12 +128,21 @@ impl Patch {
         n_low * n_low > 1.01 * (bl * bl + cl * cl) * twist
     }
 
-    /// Newton's method on ∇|S − x|²/2 from `st`, with backtracking that keeps it in the square
-    /// [lo, hi] (a sub-square of [−1, 1]²) and never uphill: the interior stationary point it
-    /// converges to, if any (`None` when it stalls against the border, whose points the edges
-    /// cover).
+    /// A bound on the rounding of each component of S(s, t) − x as [`Patch::at`] computes it:
+    /// a few units in the last place of the largest term.
+    #[inline]
+    fn rounding(&self, x: DVec3) -> f64 {
+        let terms = self.a.abs() + self.b.abs() + self.c.abs() + self.d.abs() + x.abs();
+        8.0 * f64::EPSILON * terms.max_element()
+    }
+
+    /// Newton's method on ∇|S − x|²/2 from `st`, with backtracking and a projection that keep it
+    /// in the square [lo, hi] (a sub-square of [−1, 1]²) and never uphill (beyond the rounding of
+    /// |S − x|²): the interior stationary point it converges to, if any (`None` when it stalls
+    /// against the border, whose points the edges cover).
     fn descend(&self, x: DVec3, mut st: DVec2, lo: DVec2, hi: DVec2) -> Option<DVec2> {
         let r0 = self.a - x;
+        let rounding = self.rounding(x);
         for _ in 0..NEWTON_ITERATIONS {
             let ss = self.b + self.d * st.y;
             let sc = self.c + self.d * st.x;
@@ -157,32 +166,47 @@ impl Patch {
                 -(h00 * g.y - h01_full * g.x) / det,
             );
             // Quadratic convergence: after a step this small the next would be below rounding
-            // (and rounding may then make any step look uphill).
-            if step.abs().max_element() <= 1e-13 {
+            // (and rounding may then make any step look uphill). A step that moves the point by
+            // less than its own rounding is converged too, whatever it is in (s, t) (a thin face).
+            let shift = (ss * step.x + sc * step.y).abs().max_element();
+            if step.abs().max_element() <= 1e-13 || shift <= rounding {
                 st = (st + step).clamp(lo, hi);
                 // A stationary point strictly inside the whole face (border points are the
                 // edges').
                 return (st.x.abs() < 1.0 && st.y.abs() < 1.0).then_some(st);
             }
             // Backtracking: the step is a descent direction (the Hessian, or JᵀJ, is positive
-            // definite), so some fraction of it stays in the square and does not go uphill,
+            // definite), so some fraction of it, projected onto the square, does not go uphill,
             // unless the minimum of this start is on the square's border (then the edges have it).
             let f0 = r.length_squared();
+            // Not uphill, up to the rounding of |S − x|² itself: near the minimum a good step
+            // may not lower its rounded value. That rounding is absolute, 2|r|·(S − x's
+            // rounding), not relative: for a point 1e-8·h from the face it is 1e-10 of |S − x|²,
+            // and a relative slack alone made every step of the last few look uphill, the descent
+            // give up a point 1e-12 from the minimum and the face's edge answer instead.
+            let slack = f0 * 1e-14 + 4.0 * rounding * f0.sqrt();
             let mut scale = 1.0;
-            loop {
-                let next = st + step * scale;
-                let inside = next.cmpge(lo).all() && next.cmple(hi).all();
-                // Not uphill, up to the rounding of |S − x|² itself (near the minimum a good
-                // step may not lower its rounded value).
-                if inside && (self.at(next) - x).length_squared() <= f0 * (1.0 + 1e-14) {
-                    st = next;
-                    break;
+            let next = loop {
+                // Where the step leaves the square, its projection onto it: a minimum just inside
+                // the border (a point just inside a body, near an edge) is then reached at once,
+                // where shortening the step to stay inside crawled towards the border and gave up.
+                let next = (st + step * scale).clamp(lo, hi);
+                if (self.at(next) - x).length_squared() <= f0 + slack {
+                    break next;
                 }
                 scale *= 0.5;
                 if scale < 1.0 / 1024.0 {
                     return None;
                 }
+            };
+            // Held by the border, moving the point less than its rounding: the minimum of this
+            // start is on the square's border.
+            let held = next != st + step * scale;
+            let moved = next - st;
+            if held && (ss * moved.x + sc * moved.y).abs().max_element() <= rounding {
+                return None;
             }
+            st = next;
         }
         None
     }

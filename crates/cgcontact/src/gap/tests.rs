@@ -495,3 +495,91 @@ fn uniform_and_one_level_adaptive_bodies_agree() {
         assert_eq!(p.map(|c| c.gap), q.map(|c| c.gap), "{x}");
     }
 }
+
+/// A uniform body 4 × 3 × 3 with two cells missing (concave edges and corners), each node
+/// displaced at random by up to `amp`·h per axis.
+fn jittered_body(h: DVec3, amp: f64, seed: u64) -> Body {
+    let lattice = Lattice::new(DVec3::new(-1.0, 2.0, 0.5), h, [4, 3, 3]).unwrap();
+    let mut active = bitvec![1; lattice.cell_count()];
+    for ijk in [[3, 2, 2], [1, 1, 2]] {
+        active.set(lattice.cell_id(ijk).index(), false);
+    }
+    let noise = points_in(
+        DVec3::splat(-amp),
+        DVec3::splat(amp),
+        lattice.node_count(),
+        seed,
+    );
+    let dense: Vec<DVec3> = noise.iter().map(|&u| u * h).collect();
+    Body::from_dense(lattice, active, &dense).unwrap()
+}
+
+/// Points 1e-9·h to 1e-5·h inside and outside a deformed body, beside the corners and edges of
+/// its boundary faces, against the oracle. The closest point's descent gave up there, and the
+/// face's edge answered (a gap too large, a normal far off): near the minimum |S − x|² rounds
+/// at 1e-10 of itself (its rounding is absolute, 2|S − x| times that of S − x), beyond the
+/// relative slack of the uphill test; and a minimum a hair inside an edge was approached by
+/// steps shortened to stay in the square, ever shorter, until the backtracking gave up.
+#[test]
+fn points_a_hair_off_the_surface_near_edges_find_the_nearest_face() {
+    let h = DVec3::new(0.5, 0.7, 0.3);
+    let hmin = h.min_element();
+    let body = jittered_body(h, 0.08, 0x0ed9e);
+    let locator = LatticeLocator::new(&body, Settings::default()).unwrap();
+    let finder = GapFinder::new(&locator, 0.2).unwrap();
+    let faces = uniform_faces(&body);
+    // Two draws a point: `pick` its face and how far off on which side, `near` where on it.
+    let draws = points_in(DVec3::ZERO, DVec3::ONE, 16000, 0xc0de);
+    let (mut interior, mut inside) = (0, 0);
+    for (i, (&pick, &near)) in draws.iter().zip(&draws[1..]).enumerate().step_by(2) {
+        let q = &faces[(pick.x * faces.len() as f64) as usize];
+        // From u in [0, 2): 1e-9 to 1e-3 of the face's size from its edge at −1 or at 1.
+        let hair = |u: f64| (1.0 - 10f64.powf(-9.0 + 6.0 * u.fract())) * (u - 1.0).signum();
+        let st = match i % 3 {
+            0 => DVec2::new(hair(near.x * 2.0), hair(near.y * 2.0)),
+            1 => DVec2::new(hair(near.x * 2.0), 2.0 * near.y - 1.0),
+            _ => DVec2::new(2.0 * near.x - 1.0, hair(near.y * 2.0)),
+        };
+        let depth = 10f64.powf(-9.0 + 4.0 * pick.y) * hmin * (pick.z - 0.5).signum();
+        let x = bilinear(q, st) + oracle_normal(q, st) * depth;
+        // The surface is within 1e-5·h: the faces whose corners' box (which holds the face) is
+        // within 0.1·h are enough.
+        let near: Vec<Quad> = faces
+            .iter()
+            .filter(|q| {
+                let (lo, hi) = q[1..]
+                    .iter()
+                    .fold((q[0], q[0]), |(l, h), &p| (l.min(p), h.max(p)));
+                (lo - x).max(x - hi).max(DVec3::ZERO).length() < 0.1 * hmin
+            })
+            .copied()
+            .collect();
+        let want = oracle(x, &near);
+        let c = finder.gap(x).unwrap().expect("within the search distance");
+        assert!(
+            (c.gap.abs() - want.dist).abs() <= 1e-13 * hmin,
+            "point {i} {x} ({depth:e} off face {q:?} at {st}): |gap| {} against the oracle's {}",
+            c.gap.abs(),
+            want.dist
+        );
+        if let (Some(n), true) = (want.interior_normal, c.interior) {
+            assert!(
+                (c.point - want.point).length() <= 1e-9 * hmin,
+                "point {i} {x}: closest point {} against the oracle's {}",
+                c.point,
+                want.point
+            );
+            assert!(
+                (c.normal - n).length() < 1e-8,
+                "point {i}: normal {} against {n}",
+                c.normal
+            );
+            interior += 1;
+        }
+        inside += usize::from(c.gap < 0.0);
+    }
+    assert!(
+        interior > 3000 && inside > 3000,
+        "interior {interior}, inside {inside}"
+    );
+}
