@@ -15,6 +15,7 @@ use bitvec::vec::BitVec;
 use glam::DVec3;
 
 use crate::Error;
+use crate::error::{displacement_error, displacement_ok};
 use crate::hex8;
 use crate::idmap::IdMap;
 use crate::lattice::{CORNER_OFFSETS, CellId, Lattice};
@@ -336,7 +337,8 @@ impl Body {
         self.slot_of(node).map(|s| self.u[s])
     }
 
-    /// Replace every displacement (slot order), in place: nothing is rebuilt.
+    /// Replace every displacement (slot order), in place: nothing is rebuilt. Errors on a length
+    /// mismatch or a value not finite or beyond [`crate::MAX_DISPLACEMENT`] (naming the node).
     pub fn set_displacements(&mut self, u: &[DVec3]) -> Result<(), Error> {
         if u.len() != self.u.len() {
             return Err(Error::LengthMismatch {
@@ -345,12 +347,9 @@ impl Body {
                 got: u.len(),
             });
         }
-        if let Some(i) = u.iter().position(|v| !v.is_finite()) {
+        if let Some(i) = u.iter().position(|&v| !displacement_ok(v)) {
             let node = self.nodes().nth(i).expect("slot exists");
-            return Err(Error::NonFiniteDisplacement {
-                node,
-                value: u[i].to_array(),
-            });
+            return Err(displacement_error(node, u[i]));
         }
         self.u.copy_from_slice(u);
         Ok(())
@@ -358,8 +357,9 @@ impl Body {
 
     /// Update displacements in place with `f(lattice node, undeformed position, &mut u)`.
     ///
-    /// On a non-finite result the error names the node; every displacement is then reset to zero so
-    /// that the body never holds a value the locator would trip on.
+    /// On a non-finite result, or one beyond [`crate::MAX_DISPLACEMENT`], the error names the node;
+    /// every displacement is then reset to zero so that the body never holds a value the locator
+    /// would trip on.
     pub fn update_displacements(
         &mut self,
         mut f: impl FnMut(usize, DVec3, &mut DVec3),
@@ -376,13 +376,13 @@ impl Body {
             let ijk = lattice.node_ijk(node).expect("node in range");
             let u = &mut self.u[s];
             f(node, lattice.node_position(ijk), u);
-            if bad.is_none() && !u.is_finite() {
-                bad = Some((node, u.to_array()));
+            if bad.is_none() && !displacement_ok(*u) {
+                bad = Some(displacement_error(node, *u));
             }
         }
-        if let Some((node, value)) = bad {
+        if let Some(error) = bad {
             self.u.fill(DVec3::ZERO);
-            return Err(Error::NonFiniteDisplacement { node, value });
+            return Err(error);
         }
         Ok(())
     }
@@ -581,14 +581,12 @@ impl Body {
             .collect()
     }
 
-    /// Check the body: every displacement finite and no inverted cell (errors name them).
+    /// Check the body: every displacement finite and within [`crate::MAX_DISPLACEMENT`], and no
+    /// inverted cell (errors name them).
     pub fn validate(&self) -> Result<(), Error> {
-        if let Some(i) = self.u.iter().position(|v| !v.is_finite()) {
+        if let Some(i) = self.u.iter().position(|&v| !displacement_ok(v)) {
             let node = self.nodes().nth(i).expect("slot exists");
-            return Err(Error::NonFiniteDisplacement {
-                node,
-                value: self.u[i].to_array(),
-            });
+            return Err(displacement_error(node, self.u[i]));
         }
         let inverted = self.inverted_cells();
         if inverted.is_empty() {

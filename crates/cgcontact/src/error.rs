@@ -1,5 +1,7 @@
 //! Errors: every input a user can pass is checked and answered with a value, never a panic.
 
+use glam::DVec3;
+
 use crate::CellId;
 
 /// What went wrong building or querying a body. Messages name the offending item.
@@ -25,6 +27,17 @@ pub enum Error {
     /// A displacement is NaN or infinite.
     #[error("displacement of node {node} (lattice node index) is not finite: {value:?}")]
     NonFiniteDisplacement {
+        /// Lattice node index.
+        node: usize,
+        /// The value found.
+        value: [f64; 3],
+    },
+    /// A displacement component beyond [`MAX_DISPLACEMENT`] in absolute value.
+    #[error(
+        "displacement of node {node} (lattice node index) is too large: {value:?} (at most \
+         {MAX_DISPLACEMENT:e} per axis, so that squared distances stay finite)"
+    )]
+    DisplacementTooLarge {
         /// Lattice node index.
         node: usize,
         /// The value found.
@@ -60,6 +73,28 @@ pub enum Error {
         /// The lattice's cell count.
         cells: usize,
     },
+}
+
+/// The largest displacement component a body accepts, in absolute value. Squared distances
+/// between points this far apart stay far below f64's overflow (1.8e308): with a displacement
+/// of 1e160 a gap search squared past it and answered an infinite gap with a zero normal.
+pub const MAX_DISPLACEMENT: f64 = 1e150;
+
+/// Whether a body accepts displacement `u`: finite and within [`MAX_DISPLACEMENT`] on each axis.
+#[inline]
+pub(crate) fn displacement_ok(u: DVec3) -> bool {
+    // Per axis: NaN fails its comparison (`max_element` would skip it).
+    u.abs().cmple(DVec3::splat(MAX_DISPLACEMENT)).all()
+}
+
+/// Why displacement `u` of lattice node `node`, refused by [`displacement_ok`], is refused.
+pub(crate) fn displacement_error(node: usize, u: DVec3) -> Error {
+    let value = u.to_array();
+    if u.is_finite() {
+        Error::DisplacementTooLarge { node, value }
+    } else {
+        Error::NonFiniteDisplacement { node, value }
+    }
 }
 
 /// The message of [`Error::InvertedCells`]: the count and the first cell (an empty list, which no

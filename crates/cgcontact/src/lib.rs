@@ -51,7 +51,7 @@ mod settings;
 
 pub use adaptive::{AdaptiveBody, AdaptiveLocator, Leaf};
 pub use body::Body;
-pub use error::{Error, PointError};
+pub use error::{Error, MAX_DISPLACEMENT, PointError};
 pub use gap::{Contact, Face, GapAnswer, GapFinder, Surface};
 pub use glam;
 pub use lattice::{CORNER_OFFSETS, CellId, Lattice};

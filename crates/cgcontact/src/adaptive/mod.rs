@@ -33,6 +33,7 @@ mod nodes;
 use glam::DVec3;
 
 use crate::Error;
+use crate::error::{displacement_error, displacement_ok};
 use crate::hex8::{self, Kernel};
 use crate::lattice::{CORNER_OFFSETS, CellId, Lattice};
 use forest::{Forest, Overlap};
@@ -346,8 +347,8 @@ impl AdaptiveBody {
     /// Sets every node's displacement (hanging ones included, as given: see
     /// [`AdaptiveBody::check_constraints`] and [`AdaptiveBody::fill_hanging`]).
     ///
-    /// Errors on a length mismatch or a non-finite value (naming the node); the body is then
-    /// unchanged.
+    /// Errors on a length mismatch or a value not finite or beyond [`crate::MAX_DISPLACEMENT`]
+    /// (naming the node); the body is then unchanged.
     pub fn set_displacements(&mut self, u: &[DVec3]) -> Result<(), Error> {
         if u.len() != self.u.len() {
             return Err(Error::LengthMismatch {
@@ -356,11 +357,8 @@ impl AdaptiveBody {
                 got: u.len(),
             });
         }
-        if let Some(node) = u.iter().position(|v| !v.is_finite()) {
-            return Err(Error::NonFiniteDisplacement {
-                node,
-                value: u[node].to_array(),
-            });
+        if let Some(node) = u.iter().position(|&v| !displacement_ok(v)) {
+            return Err(displacement_error(node, u[node]));
         }
         self.u.copy_from_slice(u);
         Ok(())
@@ -370,8 +368,8 @@ impl AdaptiveBody {
     /// fills the hanging nodes from their constraints: the solver-facing update, conforming by
     /// construction.
     ///
-    /// Errors on a non-finite value (naming the node); the body then keeps its previous
-    /// displacements.
+    /// Errors on a value not finite or beyond [`crate::MAX_DISPLACEMENT`] (naming the node); the
+    /// body then keeps its previous displacements.
     pub fn update_independent(
         &mut self,
         mut f: impl FnMut(usize, DVec3, &mut DVec3),
@@ -387,11 +385,8 @@ impl AdaptiveBody {
             }
             let x = origin + h * DVec3::new(q[0] as f64, q[1] as f64, q[2] as f64);
             f(node, x, u);
-            if !u.is_finite() {
-                return Err(Error::NonFiniteDisplacement {
-                    node,
-                    value: u.to_array(),
-                });
+            if !displacement_ok(*u) {
+                return Err(displacement_error(node, *u));
             }
         }
         self.u = u;

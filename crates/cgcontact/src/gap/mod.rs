@@ -118,11 +118,14 @@ const SLACK: f64 = 1e-12;
 
 impl<'l, L: Surface> GapFinder<'l, L> {
     /// A finder over the body `surface` searches, for points within `distance` of its boundary
-    /// surface. Errors when `distance` is negative or not finite.
+    /// surface. Errors when `distance` is negative, not finite or beyond
+    /// [`crate::MAX_DISPLACEMENT`] (its square, and those of the distances it admits, would
+    /// overflow: a point 1e200 away was answered an infinite gap).
     pub fn new(surface: &'l L, distance: f64) -> Result<Self, Error> {
-        if !(distance.is_finite() && distance >= 0.0) {
+        if !(0.0..=crate::MAX_DISPLACEMENT).contains(&distance) {
             return Err(Error::InvalidSettings(format!(
-                "the gap search distance must be finite and at least 0, got {distance}"
+                "the gap search distance must be at least 0 and at most {:e}, got {distance}",
+                crate::MAX_DISPLACEMENT
             )));
         }
         surface.prepare();

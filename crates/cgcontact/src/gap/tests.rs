@@ -6,7 +6,10 @@ use bitvec::prelude::*;
 use glam::{DVec2, DVec3};
 
 use super::*;
-use crate::{AdaptiveBody, AdaptiveLocator, Body, Lattice, LatticeLocator, Leaf, Settings};
+use crate::{
+    AdaptiveBody, AdaptiveLocator, Body, Error, Lattice, LatticeLocator, Leaf, MAX_DISPLACEMENT,
+    Settings,
+};
 
 /// The oracle's answer for one point.
 #[derive(Debug)]
@@ -582,4 +585,60 @@ fn points_a_hair_off_the_surface_near_edges_find_the_nearest_face() {
         interior > 3000 && inside > 3000,
         "interior {interior}, inside {inside}"
     );
+}
+
+/// A displacement of 1e160 was accepted, and a gap within a large search distance then came out
+/// infinite with a zero normal: its squared distances overflowed. Such displacements are refused
+/// by every way of setting them; at the limit the gap is finite.
+#[test]
+fn displacements_too_large_for_squared_distances_are_refused() {
+    let h = DVec3::splat(1.0);
+    let lattice = Lattice::new(DVec3::ZERO, h, [2, 2, 2]).unwrap();
+    let flung = 26; // the lattice's upper corner node
+    let field = |big: f64| {
+        let mut u = vec![DVec3::ZERO; lattice.node_count()];
+        u[flung] = DVec3::new(0.0, 0.0, big);
+        u
+    };
+    let too_large = |e: Result<(), Error>| match e {
+        Err(Error::DisplacementTooLarge { node, .. }) => node == flung,
+        _ => false,
+    };
+    let active = bitvec![1; lattice.cell_count()];
+    assert!(too_large(
+        Body::from_dense(lattice, active.clone(), &field(1e160)).map(drop)
+    ));
+    let mut body = Body::full(lattice);
+    assert!(too_large(body.set_displacements(&field(-1e160))));
+    assert!(too_large(body.update_displacements(|n, _, u| {
+        *u = field(1e160)[n];
+    })));
+    let leaves = (0..8).map(|c| Leaf::new(0, [c & 1, (c >> 1) & 1, c >> 2]));
+    let mut adaptive = AdaptiveBody::from_leaves(lattice, leaves.collect()).unwrap();
+    let n = adaptive.displacements().len();
+    let mut u = vec![DVec3::ZERO; n];
+    u[n - 1] = DVec3::splat(1e160);
+    assert!(matches!(
+        adaptive.set_displacements(&u),
+        Err(Error::DisplacementTooLarge { .. })
+    ));
+    assert!(matches!(
+        adaptive.update_independent(|_, _, u| *u = DVec3::splat(1e160)),
+        Err(Error::DisplacementTooLarge { .. })
+    ));
+    // At the limit, a point beside the flung node's faces has a finite gap, a unit normal and
+    // x = c + gap·n.
+    let body = Body::from_dense(lattice, active, &field(MAX_DISPLACEMENT)).unwrap();
+    let locator = LatticeLocator::new(&body, Settings::default()).unwrap();
+    let finder = GapFinder::new(&locator, 1e150).unwrap();
+    for x in [DVec3::new(1.5, 0.5, 3.0), DVec3::new(-2.0, 1.5, 5e149)] {
+        let c = finder.gap(x).unwrap().expect("within the search distance");
+        assert!(c.gap.is_finite() && c.gap != 0.0, "{x}: {c:?}");
+        assert!((c.normal.length() - 1.0).abs() < 1e-12, "{x}: {c:?}");
+        let miss = (c.point + c.gap * c.normal - x).length();
+        assert!(miss <= 1e-9 * (x - c.point).length(), "{x}: {c:?}");
+    }
+    // A search distance whose square would overflow is refused too: a point 1e200 away was
+    // answered an infinite gap.
+    assert!(GapFinder::new(&locator, 1e200).is_err());
 }
