@@ -16,7 +16,7 @@
 //! | `forest.rs` | the base cell index, bricks and octrees under it: point → leaf, box → leaves |
 //! | `hanging.rs` | hanging nodes and the leaves they hang on |
 //! | `locate.rs` | [`AdaptiveLocator`]: predicted leaf first, then every leaf that can hold the point |
-//! | `lanes.rs` | the locator's batched path: W points at a time in SIMD lanes, pipelined |
+//! | `lanes.rs` | the locator's batched path: 4 points at a time in SIMD lanes |
 //!
 //! Memory grows with the leaves and their nodes (per node: its displacement, 24 bytes, and about 3
 //! of numbering; per leaf: 8 bytes, and about 4 of brick or octree; 12 per hanging node; 32 more
