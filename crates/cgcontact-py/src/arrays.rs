@@ -99,6 +99,15 @@ pub fn finite(vectors: &[DVec3], what: &str) -> PyResult<()> {
     }
 }
 
+/// Whether `converted` (an array cast to another dtype) holds the values of `given`: the cast
+/// truncated or wrapped nothing.
+fn same_values(converted: &Bound<'_, PyAny>, given: &Bound<'_, PyAny>) -> PyResult<bool> {
+    let numpy = given.py().import("numpy")?;
+    numpy
+        .call_method1("array_equal", (converted, given))?
+        .extract()
+}
+
 /// `what` as an `(n, 8)` int64 array of hexahedra, copied. Values that are not whole numbers
 /// (2.5, NaN, or beyond int64) are refused: numpy's conversion would truncate or wrap them into
 /// other nodes' numbers.
@@ -114,10 +123,7 @@ pub fn hexes(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<[i64; 8]>> {
     let none = obj.py().None();
     quiet.call_method1("__exit__", (&none, &none, &none))?;
     let converted = converted?;
-    if !numpy
-        .call_method1("array_equal", (&converted, &given))?
-        .extract::<bool>()?
-    {
+    if !same_values(&converted, &given)? {
         return Err(PyValueError::new_err(format!(
             "{what} must hold whole node numbers (an integer array), got dtype {}",
             given.getattr("dtype")?.str()?
@@ -159,10 +165,7 @@ pub fn flags(obj: &Bound<'_, PyAny>, what: &str, counts: [u32; 3]) -> PyResult<V
         )));
     }
     let converted = contiguous(&given, "bool_")?;
-    if !numpy
-        .call_method1("array_equal", (&converted, &given))?
-        .extract::<bool>()?
-    {
+    if !same_values(&converted, &given)? {
         return Err(PyValueError::new_err(format!(
             "{what} must hold booleans, or 0s and 1s (dtype {})",
             given.getattr("dtype")?.str()?

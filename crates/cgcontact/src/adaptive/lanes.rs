@@ -60,24 +60,6 @@ impl<D: Wide> Found<D> {
 }
 
 impl AdaptiveLocator<'_> {
-    /// Answers for `points` into `out` (same length), `V::W` at a time (see the module); the
-    /// remainder in scalar code.
-    #[inline(always)]
-    pub(super) fn locate_batches<V: Lanes>(&self, points: &[DVec3], out: &mut [Answer])
-    where
-        V::Node: LaneNodes,
-    {
-        let w = V::W;
-        let batches = points.len() / w;
-        for b in 0..batches {
-            let range = b * w..(b + 1) * w;
-            self.batch::<V>(&points[range.clone()], &mut out[range]);
-        }
-        for (&x, o) in points.iter().zip(out.iter_mut()).skip(batches * w) {
-            *o = self.locate(x);
-        }
-    }
-
     /// The leaves holding the base lattice coordinates `t` in the lanes `ask`, as
     /// [`super::forest::Forest::leaf_at`] finds them (`t` clamped into the lattice; on a boundary
     /// between leaves, the upper one), and their corner nodes.
@@ -201,7 +183,7 @@ impl AdaptiveLocator<'_> {
     /// the leaf there and one inversion. A lane refused gets `admit`'s answer; one leaving the
     /// common path, the scalar search's.
     #[inline(always)]
-    fn batch<V: Lanes>(&self, points: &[DVec3], out: &mut [Answer])
+    pub(super) fn batch<V: Lanes>(&self, points: &[DVec3], out: &mut [Answer])
     where
         V::Node: LaneNodes,
     {

@@ -551,21 +551,24 @@ impl AdaptiveLocator<'_> {
         if self.settings.order != CandidateOrder::Predicted {
             return self.locate_chunk_grouped::<K>(points, out);
         }
-        // 8 lanes (AVX's f32) find their leaves lane by lane: the lanes' lookup of `lanes.rs`
-        // measured 17 % slower there (`profile_adaptive 3 f32`, best of 5 alternated runs: 4.89
-        // against 5.86 M points/s) with no more instructions, while with 4 lanes (f64, and the
-        // portable f32) it is 19 % faster or on par. The cause is not found.
-        if V::W == 8 {
-            let w = V::W;
-            let batches = points.len() / w;
-            for b in 0..batches {
-                let range = b * w..(b + 1) * w;
-                self.batch_per_lane::<V>(&points[range.clone()], &mut out[range]);
+        let w = V::W;
+        let batches = points.len() / w;
+        for b in 0..batches {
+            let range = b * w..(b + 1) * w;
+            let (points, out) = (&points[range.clone()], &mut out[range]);
+            // 8 lanes (AVX's f32) find their leaves lane by lane: the lanes' lookup of
+            // `lanes.rs` measured 17 % slower there (`profile_adaptive 3 f32`, best of 5
+            // alternated runs: 4.89 against 5.86 M points/s) with no more instructions, while
+            // with 4 lanes (f64, and the portable f32) it is 12 % faster or on par. The cause is
+            // not found.
+            if V::W == 8 {
+                self.batch_per_lane::<V>(points, out);
+            } else {
+                self.batch::<V>(points, out);
             }
-            let rest = batches * w;
-            return self.locate_chunk_grouped::<K>(&points[rest..], &mut out[rest..]);
         }
-        self.locate_batches::<V>(points, out);
+        let rest = batches * w;
+        self.locate_chunk_grouped::<K>(&points[rest..], &mut out[rest..]);
     }
 
     /// One batch of `V::W` points of 8 lanes (see [`AdaptiveLocator::locate_chunk_lanes`]): the
