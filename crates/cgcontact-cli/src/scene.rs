@@ -7,10 +7,10 @@ use anyhow::{Result, bail};
 /// The most cells (`block --cells`) and known points (`--known`) a generated scene may have:
 /// 2^26, a few GB built in memory. Beyond, the allocation aborted the process.
 const MAX_SCENE_SIZE: u64 = 1 << 26;
-/// The shortest spacing and the farthest coordinate of a generated scene: their squares (the
-/// sphere's distances) stay normal numbers.
-const MIN_LENGTH: f64 = 1e-100;
-const MAX_LENGTH: f64 = 1e100;
+/// The shortest spacing and the farthest coordinate of a generated scene: the lattice's own
+/// spacing range, whose squares (the sphere's distances) and cubes stay normal numbers.
+const MIN_LENGTH: f64 = cgcontact::Lattice::MIN_SPACING;
+const MAX_LENGTH: f64 = cgcontact::Lattice::MAX_SPACING;
 use cgcontact::glam::DVec3;
 use cgcontact_io::{CellMap, MeshFormat, write_adaptive_mesh, write_mesh, write_points};
 use cgcontact_scenes::{KnownPoint, LeafOrder, SphereOnAdaptiveBlock, SphereOnBlock};

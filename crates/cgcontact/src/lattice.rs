@@ -54,8 +54,9 @@ impl Lattice {
     /// A lattice with its lowest node at `origin`, spacing `h` per axis and `cells` cells per axis.
     ///
     /// Errors when a value is not finite, a spacing is not positive, a count is zero, the node
-    /// count does not fit the `u32` indices used throughout, or a spacing is too fine for f64
-    /// coordinates of the lattice's magnitude to resolve ([`Lattice::check_resolution`]).
+    /// count does not fit the `u32` indices used throughout, or a spacing lies outside
+    /// [[`Lattice::MIN_SPACING`], [`Lattice::MAX_SPACING`]] or is too fine for f64 coordinates of
+    /// the lattice's magnitude to resolve ([`Lattice::check_resolution`]).
     pub fn new(origin: DVec3, h: DVec3, cells: [u32; 3]) -> Result<Self, Error> {
         if !origin.is_finite() {
             return Err(Error::InvalidLattice(format!(
@@ -90,7 +91,17 @@ impl Lattice {
     /// (8 ε₆₄ M / h_k, the inside test's allowance), exceeds [`Lattice::RESOLUTION`] on some axis.
     /// Past that, the nodes themselves are off by a visible share of a cell, and a point could
     /// be called inside cells it is far outside of (at 1e12 with h = 1e-4, by 0.6 h).
+    /// Also refuses a spacing outside [[`Lattice::MIN_SPACING`], [`Lattice::MAX_SPACING`]].
     pub fn check_resolution(&self, h: DVec3) -> Result<(), Error> {
+        if h.min_element() < Self::MIN_SPACING || h.max_element() > Self::MAX_SPACING {
+            return Err(Error::InvalidLattice(format!(
+                "spacing {:?} lies outside [{:e}, {:e}]: a cell's volume, the Newton \
+                 inversion's determinant, would under- or overflow f64",
+                h.to_array(),
+                Self::MIN_SPACING,
+                Self::MAX_SPACING
+            )));
+        }
         let magnitude = self.origin.abs().max(self.upper().abs()).max_element();
         for a in 0..3 {
             let share = 8.0 * f64::EPSILON * magnitude / h[a];
@@ -109,6 +120,14 @@ impl Lattice {
     /// The largest share of a cell (in ξ units) that the rounding of a coordinate may take:
     /// a lattice finer than that for its magnitude is refused ([`Lattice::check_resolution`]).
     pub const RESOLUTION: f64 = 0.1;
+
+    /// The smallest and largest spacing of a cell (per axis; on an adaptive body, of its finest
+    /// level): a cell's volume h³, the determinant of its map's Jacobian, stays a normal f64
+    /// (1e-300 to 1e300). Beyond, points inside a cell of spacing 1e-110 or 1e120 were reported
+    /// outside it, and their gap positive.
+    pub const MIN_SPACING: f64 = 1e-100;
+    /// See [`Lattice::MIN_SPACING`].
+    pub const MAX_SPACING: f64 = 1e100;
 
     /// Position of node (0, 0, 0).
     #[inline]
@@ -328,6 +347,35 @@ mod tests {
 
     /// At 1e12 a coordinate rounds by 1.2e-4: a spacing of 1e-4 there is refused (the nodes are
     /// off by most of a cell, and the inside test would admit points 0.6 h outside), 1 is not.
+    /// At both ends of the spacing range a point inside a cell is found there, at its ξ, with a
+    /// negative gap; just beyond, the lattice is refused (before, it was built, and the point
+    /// reported outside with a positive gap).
+    #[test]
+    fn spacings_at_the_ends_of_the_range_locate_exactly_and_beyond_are_refused() {
+        use crate::{Body, GapFinder, LatticeLocator, Locator, Settings};
+        for h in [Lattice::MIN_SPACING, Lattice::MAX_SPACING] {
+            let lattice = Lattice::new(DVec3::ZERO, DVec3::splat(h), [2, 2, 2]).unwrap();
+            let body = Body::full(lattice);
+            let locator = LatticeLocator::new(&body, Settings::default()).unwrap();
+            let xi = DVec3::new(0.25, -0.5, 0.75);
+            let x = lattice.origin() + (DVec3::new(1.0, 0.0, 1.0) + (xi + 1.0) / 2.0) * h;
+            let hit = locator.locate(x).unwrap().expect("inside cell 5");
+            assert_eq!(hit.cell, lattice.cell_id([1, 0, 1]), "{h:e}");
+            assert!(
+                (hit.xi - xi).abs().max_element() < 1e-12,
+                "{h:e}: {}",
+                hit.xi
+            );
+            let finder = GapFinder::new(&locator, 2.0 * h).unwrap();
+            let contact = finder.gap(x).unwrap().expect("within the search distance");
+            assert!(contact.gap < 0.0, "{h:e}: {}", contact.gap);
+        }
+        for h in [Lattice::MIN_SPACING / 10.0, Lattice::MAX_SPACING * 10.0] {
+            let error = Lattice::new(DVec3::ZERO, DVec3::splat(h), [2, 2, 2]).unwrap_err();
+            assert!(error.to_string().contains("lies outside"), "{error}");
+        }
+    }
+
     #[test]
     fn spacings_finer_than_the_coordinates_resolve_are_refused() {
         let far = DVec3::new(0.0, 1e12, 0.0);
