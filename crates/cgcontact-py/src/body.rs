@@ -354,9 +354,9 @@ impl PyBody {
 impl PyBody {
     /// A body on a lattice: `origin` and `spacing` (3 floats each), `counts` cells per axis.
     /// `active` is None (every cell) or one flag per lattice cell (booleans, or 0s and 1s), x
-    /// fastest (a flat array, or one of shape (nz, ny, nx)). The body starts undeformed; its cells are numbered as the
-    /// lattice's, `i + nx (j + ny k)`, and `set_displacements` takes one row per lattice node,
-    /// `i + (nx + 1)(j + (ny + 1) k)`.
+    /// fastest (a flat array, or one of shape (nz, ny, nx)). The body starts undeformed; its
+    /// cells are numbered as the lattice's, `i + nx (j + ny k)`, and `set_displacements` takes
+    /// one row per lattice node, `i + (nx + 1)(j + (ny + 1) k)`.
     #[new]
     #[pyo3(signature = (origin, spacing, counts, active = None))]
     fn new(

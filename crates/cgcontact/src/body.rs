@@ -337,8 +337,15 @@ impl Body {
         self.slot_of(node).map(|s| self.u[s])
     }
 
+    /// The largest displacement component this body accepts: its lattice's
+    /// [`Lattice::displacement_limit`].
+    #[must_use]
+    pub fn displacement_limit(&self) -> f64 {
+        self.lattice.displacement_limit(self.lattice.h())
+    }
+
     /// Replace every displacement (slot order), in place: nothing is rebuilt. Errors on a length
-    /// mismatch or a value not finite or beyond [`crate::MAX_DISPLACEMENT`] (naming the node).
+    /// mismatch or a value not finite or beyond [`Body::displacement_limit`] (naming the node).
     pub fn set_displacements(&mut self, u: &[DVec3]) -> Result<(), Error> {
         if u.len() != self.u.len() {
             return Err(Error::LengthMismatch {
@@ -347,9 +354,10 @@ impl Body {
                 got: u.len(),
             });
         }
-        if let Some(i) = u.iter().position(|&v| !displacement_ok(v)) {
+        let limit = self.displacement_limit();
+        if let Some(i) = u.iter().position(|&v| !displacement_ok(v, limit)) {
             let node = self.nodes().nth(i).expect("slot exists");
-            return Err(displacement_error(node, u[i]));
+            return Err(displacement_error(node, u[i], limit));
         }
         self.u.copy_from_slice(u);
         Ok(())
@@ -357,14 +365,15 @@ impl Body {
 
     /// Update displacements in place with `f(lattice node, undeformed position, &mut u)`.
     ///
-    /// On a non-finite result, or one beyond [`crate::MAX_DISPLACEMENT`], the error names the node;
-    /// every displacement is then reset to zero so that the body never holds a value the locator
-    /// would trip on.
+    /// On a non-finite result, or one beyond [`Body::displacement_limit`], the error names the
+    /// node; every displacement is then reset to zero so that the body never holds a value the
+    /// locator would trip on.
     pub fn update_displacements(
         &mut self,
         mut f: impl FnMut(usize, DVec3, &mut DVec3),
     ) -> Result<(), Error> {
         let lattice = self.lattice;
+        let limit = self.displacement_limit();
         let mut bad = None;
         let nodes: Vec<usize> = match &self.slots {
             // Slot n is node n: no list needed.
@@ -376,8 +385,8 @@ impl Body {
             let ijk = lattice.node_ijk(node).expect("node in range");
             let u = &mut self.u[s];
             f(node, lattice.node_position(ijk), u);
-            if bad.is_none() && !displacement_ok(*u) {
-                bad = Some(displacement_error(node, *u));
+            if bad.is_none() && !displacement_ok(*u, limit) {
+                bad = Some(displacement_error(node, *u, limit));
             }
         }
         if let Some(error) = bad {
@@ -581,12 +590,13 @@ impl Body {
             .collect()
     }
 
-    /// Check the body: every displacement finite and within [`crate::MAX_DISPLACEMENT`], and no
+    /// Check the body: every displacement finite and within [`Body::displacement_limit`], and no
     /// inverted cell (errors name them).
     pub fn validate(&self) -> Result<(), Error> {
-        if let Some(i) = self.u.iter().position(|&v| !displacement_ok(v)) {
+        let limit = self.displacement_limit();
+        if let Some(i) = self.u.iter().position(|&v| !displacement_ok(v, limit)) {
             let node = self.nodes().nth(i).expect("slot exists");
-            return Err(displacement_error(node, self.u[i]));
+            return Err(displacement_error(node, self.u[i], limit));
         }
         let inverted = self.inverted_cells();
         if inverted.is_empty() {

@@ -32,16 +32,19 @@ pub enum Error {
         /// The value found.
         value: [f64; 3],
     },
-    /// A displacement component beyond [`MAX_DISPLACEMENT`] in absolute value.
+    /// A displacement component beyond the body's limit in absolute value (see
+    /// [`crate::Lattice::displacement_limit`]).
     #[error(
         "displacement of node {node} (lattice node index) is too large: {value:?} (at most \
-         {MAX_DISPLACEMENT:e} per axis, so that squared distances stay finite)"
+         {limit:e} per axis: displaced farther, coordinates cannot resolve this body's cells)"
     )]
     DisplacementTooLarge {
         /// Lattice node index.
         node: usize,
         /// The value found.
         value: [f64; 3],
+        /// The body's limit.
+        limit: f64,
     },
     /// Cells whose Jacobian determinant is not positive at some corner (inverted or degenerate).
     #[error("{}", inverted_message(.0))]
@@ -80,18 +83,20 @@ pub enum Error {
 /// of 1e160 a gap search squared past it and answered an infinite gap with a zero normal.
 pub const MAX_DISPLACEMENT: f64 = 1e150;
 
-/// Whether a body accepts displacement `u`: finite and within [`MAX_DISPLACEMENT`] on each axis.
+/// Whether a body accepts displacement `u`: finite and within `limit` on each axis (the body's
+/// [`crate::Lattice::displacement_limit`]).
 #[inline]
-pub(crate) fn displacement_ok(u: DVec3) -> bool {
+pub(crate) fn displacement_ok(u: DVec3, limit: f64) -> bool {
     // Per axis: NaN fails its comparison (`max_element` would skip it).
-    u.abs().cmple(DVec3::splat(MAX_DISPLACEMENT)).all()
+    u.abs().cmple(DVec3::splat(limit)).all()
 }
 
-/// Why displacement `u` of lattice node `node`, refused by [`displacement_ok`], is refused.
-pub(crate) fn displacement_error(node: usize, u: DVec3) -> Error {
+/// Why displacement `u` of lattice node `node`, refused by [`displacement_ok`] with `limit`, is
+/// refused.
+pub(crate) fn displacement_error(node: usize, u: DVec3, limit: f64) -> Error {
     let value = u.to_array();
     if u.is_finite() {
-        Error::DisplacementTooLarge { node, value }
+        Error::DisplacementTooLarge { node, value, limit }
     } else {
         Error::NonFiniteDisplacement { node, value }
     }

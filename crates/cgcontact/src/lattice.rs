@@ -121,6 +121,18 @@ impl Lattice {
     /// a lattice finer than that for its magnitude is refused ([`Lattice::check_resolution`]).
     pub const RESOLUTION: f64 = 0.1;
 
+    /// The largest displacement component a body of cells of spacing `h` on this lattice accepts
+    /// (`h`: its own, or an adaptive body's finest level's): displaced farther, the coordinates'
+    /// rounding exceeds [`Lattice::RESOLUTION`] of a cell, as [`Lattice::check_resolution`]
+    /// measures it (at 1e14 from the origin with h = 1, a point 0.05 h outside a cell was found
+    /// inside it); never beyond [`crate::MAX_DISPLACEMENT`].
+    #[must_use]
+    pub fn displacement_limit(&self, h: DVec3) -> f64 {
+        let magnitude = self.origin.abs().max(self.upper().abs()).max_element();
+        let resolved = Self::RESOLUTION * h.min_element() / (8.0 * f64::EPSILON);
+        (resolved - magnitude).clamp(0.0, crate::MAX_DISPLACEMENT)
+    }
+
     /// The smallest and largest spacing of a cell (per axis; on an adaptive body, of its finest
     /// level): a cell's volume h³, the determinant of its map's Jacobian, stays a normal f64
     /// (1e-300 to 1e300). Beyond, points inside a cell of spacing 1e-110 or 1e120 were reported
@@ -374,6 +386,31 @@ mod tests {
             let error = Lattice::new(DVec3::ZERO, DVec3::splat(h), [2, 2, 2]).unwrap_err();
             assert!(error.to_string().contains("lies outside"), "{error}");
         }
+    }
+
+    /// Displaced far from the origin, a body's coordinates cannot resolve its cells: translated
+    /// by 1e14 with h = 1, a point 0.05 h outside a cell was found inside it. Such displacements
+    /// are refused; at half the limit, points 0.1 h outside and inside a face are told apart.
+    #[test]
+    fn displacements_beyond_the_coordinates_resolution_are_refused() {
+        use crate::{Body, Error, LatticeLocator, Locator, Settings};
+        let lattice = Lattice::new(DVec3::ZERO, DVec3::ONE, [2, 2, 2]).unwrap();
+        let mut body = Body::full(lattice);
+        let limit = body.displacement_limit();
+        let shift = |by: f64| vec![DVec3::splat(by); lattice.node_count()];
+        let refused = body.set_displacements(&shift(1e14));
+        assert!(
+            matches!(refused, Err(Error::DisplacementTooLarge { node: 0, .. })),
+            "{limit:e}: {refused:?}"
+        );
+        let by = 0.5 * limit;
+        body.set_displacements(&shift(by)).unwrap();
+        let locator = LatticeLocator::new(&body, Settings::default()).unwrap();
+        let outside = DVec3::new(2.1, 0.5, 0.5) + by;
+        assert_eq!(locator.locate(outside).unwrap().map(|h| h.cell), None);
+        let inside = DVec3::new(1.9, 0.5, 0.5) + by;
+        let found = locator.locate(inside).unwrap().map(|h| h.cell);
+        assert_eq!(found, Some(lattice.cell_id([1, 0, 0])));
     }
 
     #[test]

@@ -344,11 +344,18 @@ impl AdaptiveBody {
         &self.u
     }
 
+    /// The largest displacement component this body accepts: its base lattice's
+    /// [`Lattice::displacement_limit`] for the finest level's cells.
+    #[must_use]
+    pub fn displacement_limit(&self) -> f64 {
+        self.lattice.displacement_limit(self.spacing(self.finest))
+    }
+
     /// Sets every node's displacement (hanging ones included, as given: see
     /// [`AdaptiveBody::check_constraints`] and [`AdaptiveBody::fill_hanging`]).
     ///
-    /// Errors on a length mismatch or a value not finite or beyond [`crate::MAX_DISPLACEMENT`]
-    /// (naming the node); the body is then unchanged.
+    /// Errors on a length mismatch or a value not finite or beyond
+    /// [`AdaptiveBody::displacement_limit`] (naming the node); the body is then unchanged.
     pub fn set_displacements(&mut self, u: &[DVec3]) -> Result<(), Error> {
         if u.len() != self.u.len() {
             return Err(Error::LengthMismatch {
@@ -357,8 +364,9 @@ impl AdaptiveBody {
                 got: u.len(),
             });
         }
-        if let Some(node) = u.iter().position(|&v| !displacement_ok(v)) {
-            return Err(displacement_error(node, u[node]));
+        let limit = self.displacement_limit();
+        if let Some(node) = u.iter().position(|&v| !displacement_ok(v, limit)) {
+            return Err(displacement_error(node, u[node], limit));
         }
         self.u.copy_from_slice(u);
         Ok(())
@@ -368,8 +376,8 @@ impl AdaptiveBody {
     /// fills the hanging nodes from their constraints: the solver-facing update, conforming by
     /// construction.
     ///
-    /// Errors on a value not finite or beyond [`crate::MAX_DISPLACEMENT`] (naming the node); the
-    /// body then keeps its previous displacements.
+    /// Errors on a value not finite or beyond [`AdaptiveBody::displacement_limit`] (naming the
+    /// node); the body then keeps its previous displacements.
     pub fn update_independent(
         &mut self,
         mut f: impl FnMut(usize, DVec3, &mut DVec3),
@@ -378,6 +386,7 @@ impl AdaptiveBody {
         let mut row = 0;
         let h = self.spacing(self.finest);
         let origin = self.lattice.origin();
+        let limit = self.displacement_limit();
         for ((node, u), q) in u.iter_mut().enumerate().zip(self.nodes.positions()) {
             if self.hanging.nodes.get(row) == Some(&(node as u32)) {
                 row += 1;
@@ -385,8 +394,8 @@ impl AdaptiveBody {
             }
             let x = origin + h * DVec3::new(q[0] as f64, q[1] as f64, q[2] as f64);
             f(node, x, u);
-            if !displacement_ok(*u) {
-                return Err(displacement_error(node, *u));
+            if !displacement_ok(*u, limit) {
+                return Err(displacement_error(node, *u, limit));
             }
         }
         self.u = u;

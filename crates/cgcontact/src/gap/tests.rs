@@ -628,7 +628,9 @@ fn displacements_too_large_for_squared_distances_are_refused() {
     ));
     // At the limit, a point beside the flung node's faces has a finite gap, a unit normal and
     // x = c + gap·n.
-    let body = Body::from_dense(lattice, active, &field(MAX_DISPLACEMENT)).unwrap();
+    let limit = Body::full(lattice).displacement_limit();
+    assert!(limit > 1e13 && limit <= MAX_DISPLACEMENT, "{limit:e}");
+    let body = Body::from_dense(lattice, active, &field(limit)).unwrap();
     let locator = LatticeLocator::new(&body, Settings::default()).unwrap();
     let finder = GapFinder::new(&locator, 1e150).unwrap();
     for x in [DVec3::new(1.5, 0.5, 3.0), DVec3::new(-2.0, 1.5, 5e149)] {
