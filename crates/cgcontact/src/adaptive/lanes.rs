@@ -22,7 +22,7 @@ use crate::PointError;
 use crate::hex8::lanes::Maps;
 use crate::lanes::{Lanes, MAX_W, V3, Wide};
 use crate::lattice::CellId;
-use crate::locate::{Answer, Hit, Locator};
+use crate::locate::{Answer, Locator, write_hits};
 
 /// 2^level, exactly.
 #[inline(always)]
@@ -250,27 +250,14 @@ impl AdaptiveLocator<'_> {
             let x_local = x - (splat(lattice.origin()) + spacing * leaf.ijk);
             let xi0 = (t_guess.scale(leaf.scale) - leaf.ijk).scale(two) - splat(DVec3::ONE);
             let inside = V3::<V>::splat(DVec3::ONE) + V3::narrow(inside_tol);
-            let (xi, rr, iterations, inside_lanes) = maps.invert(
+            let inverted = maps.invert(
                 V3::narrow(x_local),
                 V3::narrow(xi0),
                 inside,
                 V::mask_from_bits(take),
                 &self.newton,
             );
-            let xi = xi.widen().clamp(-1.0, 1.0);
-            let residual = rr.widen().sqrt();
-            for (l, out) in out.iter_mut().enumerate() {
-                if inside_lanes & (1 << l) != 0 {
-                    *out = Ok(Some(Hit {
-                        cell: CellId(leaf.id[l]),
-                        xi: xi.lane(l),
-                        iterations: iterations[l],
-                        residual: residual.lane(l),
-                        inversions: 1,
-                    }));
-                }
-            }
-            found = inside_lanes;
+            found = write_hits(out, inverted, |l| CellId(leaf.id[l]));
         }
         for (l, out) in out.iter_mut().enumerate() {
             let bit = 1 << l;

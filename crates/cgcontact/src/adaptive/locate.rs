@@ -20,11 +20,11 @@ use smallvec::SmallVec;
 use super::{AdaptiveBody, Leaf};
 use crate::hex8::lanes::Maps;
 use crate::hex8::{Hex8Map, Hex8Map32, Kernel, NewtonOptions, Status};
-use crate::lanes::{Lanes, MAX_W, Real as _, V3, Wide as _};
+use crate::lanes::{Lanes, MAX_W, Real as _, V3};
 use crate::lattice::CellId;
 #[cfg(target_arch = "x86_64")]
 use crate::locate::Isa;
-use crate::locate::{Answer, Collect, Hit, Locator, Owners, warm_start};
+use crate::locate::{Answer, Collect, Hit, Locator, Owners, warm_start, write_hits};
 use crate::reach::{self, Range};
 use crate::schedule::{Layout, Scheduler};
 use crate::settings::{CandidateOrder, InsideTolerance, Precision, Settings};
@@ -643,22 +643,9 @@ impl AdaptiveLocator<'_> {
                     Self::undeformed_xi(t_guess.lane(l), leaf.level, leaf.ijk)
                 });
                 let inside = V3::<V>::splat(DVec3::ONE) + lanes3::<V>(|l| tol[l]);
-                let (xi, rr, iterations, inside_lanes) =
+                let inverted =
                     maps.invert(x_local, xi0, inside, V::mask_from_bits(take), &self.newton);
-                let xi = xi.widen().clamp(-1.0, 1.0);
-                let residual = rr.widen().sqrt();
-                for (l, answer) in out.iter_mut().enumerate() {
-                    if inside_lanes & (1 << l) != 0 {
-                        *answer = Ok(Some(Hit {
-                            cell: CellId(first[l].0),
-                            xi: xi.lane(l),
-                            iterations: iterations[l],
-                            residual: residual.lane(l),
-                            inversions: 1,
-                        }));
-                    }
-                }
-                found = inside_lanes;
+                found = write_hits(out, inverted, |l| CellId(first[l].0));
             }
         }
         for (l, (&x, answer)) in xs.iter().zip(out.iter_mut()).enumerate() {
@@ -753,27 +740,14 @@ impl AdaptiveLocator<'_> {
             let mut maps = Maps::<V>::from_nodes(|l, c| &nodes[rows[l][c] as usize]);
             maps.add_lattice_lanes(lanes3::<V>(|l| half[l]));
             let inside = V3::<V>::splat(DVec3::ONE) + lanes3::<V>(|l| tol[l]);
-            let (xi, rr, iterations, inside_lanes) = maps.invert(
+            let inverted = maps.invert(
                 lanes3::<V>(|l| x_local[l]),
                 lanes3::<V>(|l| xi0[l]),
                 inside,
                 V::mask_from_bits(take),
                 &self.newton,
             );
-            let xi = xi.widen().clamp(-1.0, 1.0);
-            let residual = rr.widen().sqrt();
-            for (l, answer) in answers.iter_mut().enumerate() {
-                if inside_lanes & (1 << l) != 0 {
-                    *answer = Ok(Some(Hit {
-                        cell: cell[l],
-                        xi: xi.lane(l),
-                        iterations: iterations[l],
-                        residual: residual.lane(l),
-                        inversions: 1,
-                    }));
-                }
-            }
-            found = inside_lanes;
+            found = write_hits(answers, inverted, |l| cell[l]);
         }
         for (l, (answer, &x)) in answers.iter_mut().zip(xs).enumerate() {
             if found & (1 << l) == 0 {

@@ -284,27 +284,14 @@ impl LatticeLocator<'_> {
         let x_local = x - (splat(lattice.origin()) + first.mul_each(lattice.h()));
         let xi0 = (t_guess - first).scale(V::Wide::splat(2.0)) - splat(DVec3::ONE);
         let inside = V3::<V>::splat(DVec3::ONE) + V3::narrow(inside_tol);
-        let (xi, rr, iterations, found) = maps.invert(
+        let inverted = maps.invert(
             V3::narrow(x_local),
             V3::narrow(xi0),
             inside,
             V::mask_from_bits(take),
             &self.newton,
         );
-        let xi = xi.widen().clamp(-1.0, 1.0);
-        let residual = rr.widen().sqrt();
-        for (l, out) in out.iter_mut().enumerate() {
-            if found & (1 << l) != 0 {
-                *out = Ok(Some(Hit {
-                    cell: CellId(cell[l] as u32),
-                    xi: xi.lane(l),
-                    iterations: iterations[l],
-                    residual: residual.lane(l),
-                    inversions: 1,
-                }));
-            }
-        }
-        found
+        write_hits(out, inverted, |l| CellId(cell[l] as u32))
     }
 
     /// [`Locator::locate`] for a chunk of points: batched where that measured faster (with AVX2,
@@ -339,6 +326,31 @@ impl LatticeLocator<'_> {
             }
         }
     }
+}
+
+/// Writes into `out` the hits of an inversion in lanes (`Maps::invert`'s ξ, squared residual,
+/// iterations and lanes found): for each lane found, its cell `cell(l)`, ξ clamped into [−1, 1]³,
+/// the residual and one inversion. Returns the lanes found.
+#[inline(always)]
+pub(crate) fn write_hits<V: Lanes>(
+    out: &mut [Answer],
+    (xi, rr, iterations, found): (V3<V>, V, [u32; MAX_W], u32),
+    cell: impl Fn(usize) -> CellId,
+) -> u32 {
+    let xi = xi.widen().clamp(-1.0, 1.0);
+    let residual = rr.widen().sqrt();
+    for (l, out) in out.iter_mut().enumerate() {
+        if found & (1 << l) != 0 {
+            *out = Ok(Some(Hit {
+                cell: cell(l),
+                xi: xi.lane(l),
+                iterations: iterations[l],
+                residual: residual.lane(l),
+                inversions: 1,
+            }));
+        }
+    }
+    found
 }
 
 /// The instruction sets the batched path can be compiled for, least first.

@@ -9,7 +9,7 @@ use super::batched::Nodes;
 use super::{Answer, Hit, LatticeLocator, Locator};
 use crate::hex8::lanes::Maps;
 use crate::hex8::{Hex8Map, Hex8Map32, Kernel, NewtonOptions, Status};
-use crate::lanes::{Lanes, MAX_W, Real as _, V3, Wide as _};
+use crate::lanes::{Lanes, MAX_W, Real as _, V3};
 use crate::lattice::CellId;
 use crate::settings::Precision;
 
@@ -191,27 +191,14 @@ impl LatticeLocator<'_> {
                 z: V::from_fn(|l| V::S::of(v[l].z)),
             };
             let inside = V3::<V>::splat(DVec3::ONE) + lanes3(&front.tol);
-            let (xi, rr, iterations, inside_lanes) = maps.invert(
+            let inverted = maps.invert(
                 lanes3(&front.x_local),
                 lanes3(&front.xi0),
                 inside,
                 V::mask_from_bits(take),
                 &self.newton,
             );
-            let xi = xi.widen().clamp(-1.0, 1.0);
-            let residual = rr.widen().sqrt();
-            for (l, answer) in answers.iter_mut().enumerate() {
-                if inside_lanes & (1 << l) != 0 {
-                    *answer = Ok(Some(Hit {
-                        cell: front.cell[l],
-                        xi: xi.lane(l),
-                        iterations: iterations[l],
-                        residual: residual.lane(l),
-                        inversions: 1,
-                    }));
-                }
-            }
-            found = inside_lanes;
+            found = super::write_hits(answers, inverted, |l| front.cell[l]);
         }
         for (l, (answer, &x)) in answers.iter_mut().zip(xs).enumerate() {
             if found & (1 << l) == 0 {
