@@ -18,11 +18,10 @@ use glam::DVec3;
 
 use super::locate::{LaneNodes, level_size};
 use super::{AdaptiveLocator, Leaf};
-use crate::PointError;
 use crate::hex8::lanes::Maps;
 use crate::lanes::{Lanes, MAX_W, V3, Wide};
 use crate::lattice::CellId;
-use crate::locate::{Answer, Locator, write_hits};
+use crate::locate::{Answer, Locator, answer_the_rest, write_hits};
 
 /// 2^level, exactly.
 #[inline(always)]
@@ -259,18 +258,6 @@ impl AdaptiveLocator<'_> {
             );
             found = write_hits(out, inverted, |l| CellId(leaf.id[l]));
         }
-        for (l, out) in out.iter_mut().enumerate() {
-            let bit = 1 << l;
-            if found & bit != 0 {
-                continue;
-            }
-            *out = if admitted & bit != 0 {
-                self.locate(points[l])
-            } else if finite & bit != 0 {
-                Ok(None)
-            } else {
-                Err(PointError::NonFinite)
-            };
-        }
+        answer_the_rest(out, points, found, admitted, finite, |x| self.locate(x));
     }
 }

@@ -224,19 +224,7 @@ impl LatticeLocator<'_> {
         } else {
             0
         };
-        for (l, out) in out.iter_mut().enumerate() {
-            let bit = 1 << l;
-            if found & bit != 0 {
-                continue;
-            }
-            *out = if take & bit != 0 {
-                self.locate(points[l])
-            } else if finite & bit != 0 {
-                Ok(None)
-            } else {
-                Err(PointError::NonFinite)
-            };
-        }
+        answer_the_rest(out, points, found, take, finite, |x| self.locate(x));
     }
 
     /// The predicted cells and one Newton inversion there, for the lanes `front` takes: writes the
@@ -325,6 +313,32 @@ impl LatticeLocator<'_> {
                 }
             }
         }
+    }
+}
+
+/// The answers of a batch's lanes not `found`: the scalar search's (`locate`) for those within
+/// reach (`take`), `admit`'s for the others (none for a finite point, else an error).
+#[inline(always)]
+pub(crate) fn answer_the_rest(
+    out: &mut [Answer],
+    points: &[DVec3],
+    found: u32,
+    take: u32,
+    finite: u32,
+    locate: impl Fn(DVec3) -> Answer,
+) {
+    for (l, out) in out.iter_mut().enumerate() {
+        let bit = 1 << l;
+        if found & bit != 0 {
+            continue;
+        }
+        *out = if take & bit != 0 {
+            locate(points[l])
+        } else if finite & bit != 0 {
+            Ok(None)
+        } else {
+            Err(PointError::NonFinite)
+        };
     }
 }
 
