@@ -293,7 +293,7 @@ impl Forest {
             // its floor is the cell the L comparisons choose; clamped into the base cell as they
             // are (t beyond the lattice, NaN to the lowest).
             let brick_level = self.brick_level(entry);
-            let scale = f64::from_bits((1023 + u64::from(brick_level)) << 52);
+            let scale = super::locate::level_scale(brick_level as u8);
             let top = (1 << brick_level) - 1;
             let mut q = [0u32; 3];
             for axis in 0..3 {

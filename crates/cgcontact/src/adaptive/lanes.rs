@@ -16,18 +16,12 @@
 
 use glam::DVec3;
 
-use super::locate::{LaneNodes, level_size};
+use super::locate::{LaneNodes, level_scale, level_size};
 use super::{AdaptiveLocator, Leaf};
 use crate::hex8::lanes::Maps;
 use crate::lanes::{Lanes, MAX_W, V3, Wide};
 use crate::lattice::CellId;
-use crate::locate::{Answer, Locator, answer_the_rest, write_hits};
-
-/// 2^level, exactly.
-#[inline(always)]
-fn pow2(level: u32) -> f64 {
-    f64::from_bits((1023 + u64::from(level)) << 52)
-}
+use crate::locate::{Answer, Locator, answer_the_rest, clamped_cells, lane_indices, write_hits};
 
 /// The leaves holding W points, one per lane.
 #[derive(Clone, Copy)]
@@ -68,21 +62,12 @@ impl AdaptiveLocator<'_> {
         let forest = &body.forest;
         let cells = body.lattice().cells();
         let zero = D::splat(0.0);
-        // The base cell: `max` maps NaN to 0, as `f64::max` does, and `min` caps what `as` would
-        // saturate.
-        let clamp = |t: D, n: u32| t.max(zero).min(D::splat(f64::from(n - 1))).trunc();
-        let b = V3 {
-            x: clamp(t.x, cells[0]),
-            y: clamp(t.y, cells[1]),
-            z: clamp(t.z, cells[2]),
-        };
+        let b = clamped_cells(cells, t);
         let mut level = [0u32; MAX_W];
         let mut word = [0u32; MAX_W];
         let mut flat = 0u32;
         if let Some(dense) = forest.dense_base() {
-            let mut key = [0usize; MAX_W];
-            let (nx, ny) = (D::splat(f64::from(cells[0])), D::splat(f64::from(cells[1])));
-            (b.x + nx * (b.y + ny * b.z)).indices_into(&mut key);
+            let key = lane_indices(&b, cells);
             for l in 0..D::W {
                 if ask & (1 << l) != 0
                     && let Some((lv, w)) = forest.flat_entry(dense[key[l]])
@@ -94,7 +79,7 @@ impl AdaptiveLocator<'_> {
         }
         // A flat lane's leaf, as `leaf_at` finds it in a brick: t · 2^L is exact, its floor
         // clamped into the base cell (an unrefined cell: L = 0, the cell itself).
-        let scale = D::from_fn(|l| pow2(level[l]));
+        let scale = D::from_fn(|l| level_scale(level[l] as u8));
         let size = D::from_fn(|l| level_size(level[l] as u8));
         let top = scale - D::splat(1.0);
         let fine = |t: D, b: D| {
@@ -155,7 +140,7 @@ impl AdaptiveLocator<'_> {
         if slow != 0 {
             let m = D::mask_from_bits(slow);
             let level = |l: usize| u32::from(slow_leaf[l].level);
-            found.scale = D::select(m, D::from_fn(|l| pow2(level(l))), found.scale);
+            found.scale = D::select(m, D::from_fn(|l| level_scale(level(l) as u8)), found.scale);
             found.size = D::select(m, D::from_fn(|l| level_size(level(l) as u8)), found.size);
             let index = |a: usize| D::from_fn(|l| f64::from(slow_leaf[l].ijk[a]));
             let slow_ijk = V3 {

@@ -384,6 +384,12 @@ impl<'a> AdaptiveLocator<'a> {
     }
 }
 
+/// 2^level, exactly: the level-`level` cells per base cell edge.
+#[inline(always)]
+pub(super) fn level_scale(level: u8) -> f64 {
+    f64::from_bits((1023 + u64::from(level)) << 52)
+}
+
 /// The edge of a level-`level` cell in base lattice units, 2^−level (exact).
 #[inline(always)]
 pub(super) fn level_size(level: u8) -> f64 {

@@ -124,7 +124,7 @@ impl LatticeLocator<'_> {
         // widened by the tolerance).
         let (inside_tol, finite, take) = self.admit.lanes(x);
         let t_x = (x - V3::splat(lattice.origin())).mul_each(self.inv_h);
-        let cell_x = self.clamped_cells::<V::Wide>(t_x);
+        let cell_x = clamped_cells(lattice.cells(), t_x);
         if take != 0 {
             front.maps = self.maps_of::<V, BOXED>(&cell_x);
         }
@@ -139,29 +139,6 @@ impl LatticeLocator<'_> {
         };
     }
 
-    /// `Lattice::clamped_cell` in f64 lanes: max(0), then min(cells − 1) before truncating, which
-    /// is the same (MAXPD maps NaN to 0, as `f64::max` does).
-    #[inline(always)]
-    fn clamped_cells<D: Wide>(&self, t: V3<D>) -> V3<D> {
-        let last = DVec3::from(self.body.lattice().cells().map(|n| f64::from(n - 1)));
-        let clamp = |t: D, last: f64| t.max(D::splat(0.0)).min(D::splat(last)).trunc();
-        V3 {
-            x: clamp(t.x, last.x),
-            y: clamp(t.y, last.y),
-            z: clamp(t.z, last.z),
-        }
-    }
-
-    /// `Lattice::node_index` (`nodes`) or `Lattice::cell_id` (`cells`) of each lane's cell, exactly
-    /// (integers below 2^32 in f64).
-    #[inline(always)]
-    fn lane_indices<D: Wide>(cell: &V3<D>, [nx, ny, _]: [u32; 3]) -> [usize; MAX_W] {
-        let index = cell.x + D::splat(f64::from(nx)) * (cell.y + D::splat(f64::from(ny)) * cell.z);
-        let mut lanes = [0; MAX_W];
-        index.indices_into(&mut lanes);
-        lanes
-    }
-
     /// The displacement maps of each lane's cell (zero where a corner has none).
     #[inline(always)]
     fn maps_of<V: Lanes, const BOXED: bool>(&self, cell: &V3<V::Wide>) -> Maps<V>
@@ -173,7 +150,7 @@ impl LatticeLocator<'_> {
         if BOXED && let Some((boxed, data)) = V::Node::boxed(self) {
             return self.maps_boxed::<V>(cell, boxed, data);
         }
-        let base = Self::lane_indices(cell, self.body.lattice().nodes());
+        let base = lane_indices(cell, self.body.lattice().nodes());
         let nodes = V::Node::of(self);
         Maps::from_nodes(|l, c| self.body.corner_entry(nodes, base[l], c, &zero))
     }
@@ -191,11 +168,11 @@ impl LatticeLocator<'_> {
         let (last, zero) = (splat(boxed.last), V::Wide::splat(0.0));
         let outside = at.x.lt(zero) | at.y.lt(zero) | at.z.lt(zero) | at.x.gt(last.x);
         let outside = V::Wide::bits(outside | at.y.gt(last.y) | at.z.gt(last.z));
-        let base = Self::lane_indices(&at, boxed.dims);
+        let base = lane_indices(&at, boxed.dims);
         if outside == 0 {
             return Maps::from_nodes(|l, c| &data[base[l] + boxed.corner[c]]);
         }
-        let global = Self::lane_indices(cell, self.body.lattice().nodes());
+        let global = lane_indices(cell, self.body.lattice().nodes());
         let (nodes, zero) = (V::Node::of(self), V::Node::ZERO);
         Maps::from_nodes(|l, c| {
             if outside & (1 << l) == 0 {
@@ -254,8 +231,8 @@ impl LatticeLocator<'_> {
             }
             CandidateOrder::Undeformed => t_x,
         };
-        let first = self.clamped_cells(t_guess);
-        let cell = Self::lane_indices(&first, lattice.cells());
+        let first = clamped_cells(lattice.cells(), t_guess);
+        let cell = lane_indices(&first, lattice.cells());
         if !self.all_active {
             for (l, &cell) in cell.iter().enumerate().take(V::W) {
                 if !self.body.is_active(CellId(cell as u32)) {
@@ -314,6 +291,29 @@ impl LatticeLocator<'_> {
             }
         }
     }
+}
+
+/// `Lattice::clamped_cell` in f64 lanes: max(0), then min(cells − 1) before truncating, which
+/// is the same (MAXPD maps NaN to 0, as `f64::max` does).
+#[inline(always)]
+pub(crate) fn clamped_cells<D: Wide>(cells: [u32; 3], t: V3<D>) -> V3<D> {
+    let last = DVec3::from(cells.map(|n| f64::from(n - 1)));
+    let clamp = |t: D, last: f64| t.max(D::splat(0.0)).min(D::splat(last)).trunc();
+    V3 {
+        x: clamp(t.x, last.x),
+        y: clamp(t.y, last.y),
+        z: clamp(t.z, last.z),
+    }
+}
+
+/// `Lattice::node_index` (`nodes`) or `Lattice::cell_id` (`cells`) of each lane's cell, exactly
+/// (integers below 2^32 in f64).
+#[inline(always)]
+pub(crate) fn lane_indices<D: Wide>(cell: &V3<D>, [nx, ny, _]: [u32; 3]) -> [usize; MAX_W] {
+    let index = cell.x + D::splat(f64::from(nx)) * (cell.y + D::splat(f64::from(ny)) * cell.z);
+    let mut lanes = [0; MAX_W];
+    index.indices_into(&mut lanes);
+    lanes
 }
 
 /// The answers of a batch's lanes not `found`: the scalar search's (`locate`) for those within

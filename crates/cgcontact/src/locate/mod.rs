@@ -27,7 +27,7 @@
 mod avx;
 mod batched;
 #[cfg(target_arch = "x86_64")]
-pub(crate) use batched::{Isa, answer_the_rest, write_hits};
+pub(crate) use batched::{Isa, answer_the_rest, clamped_cells, lane_indices, write_hits};
 mod rings;
 mod scalar;
 mod warm;
