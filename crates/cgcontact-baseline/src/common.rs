@@ -287,9 +287,9 @@ impl<'a> Cells<'a> {
 /// local frame, corner 0 undisplaced at the origin) with ξ inside [−1 − t, 1 + t]³, `t` =
 /// `inside_tol`: false only when `x` lies outside the box of the cell's corners widened by what
 /// the tolerance allows. The trilinear weights sum to 1 and their absolute values to at most
-/// Π_k max(1, |ξ_k|) ≤ Π_k (1 + t_k) =: P, so each coordinate of x(ξ) lies within its corners' range
-/// widened by (P − 1) times its extent on both sides. A thousandth of the extent (and 1e-12 of
-/// the corners' magnitude) more covers the rounding of the inversion's inside test.
+/// Π_k max(1, |ξ_k|) ≤ Π_k (1 + t_k) =: P, so each coordinate of x(ξ) lies within its corners'
+/// range widened by (P − 1) times its extent on both sides. A thousandth of the extent (and
+/// 1e-12 of the corners' magnitude) more covers the rounding of the inversion's inside test.
 fn may_hold(h: DVec3, u: &[DVec3; 8], x: DVec3, inside_tol: DVec3) -> bool {
     let corners: [DVec3; 8] = std::array::from_fn(|c| {
         let [a, b, d] = CORNER_OFFSETS[c];

@@ -318,8 +318,8 @@ fn blocked<T: Copy + Send + Sync>(
         .zip(points.par_chunks(piece).zip(out.par_chunks_mut(piece)))
         .for_each(
             |((((pairs, records), starts), (local, counts)), (points, out))| {
-                // Partition: each point carried whole into its bucket. `starts` ends up holding each
-                // bucket's end, the next bucket's start.
+                // Partition: each point carried whole into its bucket. `starts` ends up holding
+                // each bucket's end, the next bucket's start.
                 for (&pair, &x) in pairs.iter().zip(points) {
                     let slot = &mut starts[(pair >> (32 + low_bits)) as usize];
                     records[*slot as usize] = Record { x, pair };
@@ -334,7 +334,8 @@ fn blocked<T: Copy + Send + Sync>(
                 for &end in &starts[..buckets - 1] {
                     let bucket = &records[begin as usize..end as usize];
                     begin = end;
-                    // The bucket's order: by block when the buckets hold several, else as partitioned.
+                    // The bucket's order: by block when the buckets hold several blocks, else as
+                    // partitioned.
                     let order = if low_bits == 0 {
                         None
                     } else {
