@@ -238,6 +238,20 @@ impl<'a> Cells<'a> {
     ) -> Option<Hit> {
         let (low, h, u) = self.local(cell);
         let map = K::lattice_cell(h, &u);
+        // A leaf coarser than the finest has its own tolerance, as the core's locator gives it:
+        // the spacings' ratio is 2^(level − finest), exactly.
+        let leaf_options;
+        let options = match self.body {
+            BodyRef::Adaptive(body) => {
+                let ratio = body.spacing(body.finest_level()).x / h.x;
+                leaf_options = NewtonOptions {
+                    inside_tol: self.inside.for_cell(options.inside_tol, ratio),
+                    ..*options
+                };
+                &leaf_options
+            }
+            BodyRef::Uniform(_) => options,
+        };
         let mut inversion = map.invert_f64(x - low, DVec3::ZERO, options);
         if inversion.status == Status::NotConverged && may_hold(h, &u, x - low, options.inside_tol)
         {

@@ -153,6 +153,8 @@ impl Settings {
 pub struct InsideTolerance {
     /// The setting plus the kernel's allowance, per axis.
     base: DVec3,
+    /// The part of `base` that does not depend on the spacing: the setting plus 16 ε_kernel.
+    fixed: DVec3,
     /// 8 ε₆₄ / h_k.
     per_magnitude: DVec3,
     /// |origin|∞ of the lattice.
@@ -176,8 +178,42 @@ impl InsideTolerance {
                 .to_array()
                 .map(|h| settings.inside_tol + eps * (2.0 + u_max / h))
                 .into(),
+            fixed: DVec3::splat(settings.inside_tol + eps * 2.0),
             per_magnitude: h.to_array().map(|h| 8.0 * f64::EPSILON / h).into(),
             origin_magnitude: origin.abs().max_element(),
+        }
+    }
+
+    /// `tol`, a tolerance [`InsideTolerance::at`] gave, for a cell whose edges are 1/`ratio` times
+    /// the spacing these constants were made with: an adaptive body's leaf of level `level` has
+    /// `ratio` 2^(level − finest) ≤ 1, a power of two. The allowance's terms in 1/h (the rounding
+    /// of x and of the displacements, measured in the cell's ξ) shrink by `ratio`; the setting and
+    /// the kernel's own rounding do not. With the finest spacing's tolerance on every leaf, a point
+    /// 3e-7 outside a level-0 leaf at x = 1e5 beside a level-15 one was found inside it (ξ clamped
+    /// to 1, residual 0). Unchanged at `ratio` 1.
+    #[inline]
+    #[must_use]
+    pub fn for_cell(&self, tol: DVec3, ratio: f64) -> DVec3 {
+        if ratio < 1.0 {
+            self.fixed + (tol - self.fixed) * ratio
+        } else {
+            tol
+        }
+    }
+
+    /// [`InsideTolerance::for_cell`] in lanes, each lane with its cell's `ratio`: the same
+    /// operations.
+    #[inline(always)]
+    pub(crate) fn for_cells<D: Lanes<S = f64>>(&self, tol: V3<D>, ratio: D) -> V3<D> {
+        let finer = ratio.lt(D::splat(1.0));
+        let scaled = |t: D, fixed: f64| {
+            let fixed = D::splat(fixed);
+            D::select(finer, fixed + (t - fixed) * ratio, t)
+        };
+        V3 {
+            x: scaled(tol.x, self.fixed.x),
+            y: scaled(tol.y, self.fixed.y),
+            z: scaled(tol.z, self.fixed.z),
         }
     }
 

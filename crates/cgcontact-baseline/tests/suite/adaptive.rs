@@ -546,7 +546,10 @@ fn every_strategy_uses_the_adaptive_locators_inside_tolerance() {
         let axis = (0..3)
             .max_by(|&a, &b| on_face[a].abs().total_cmp(&on_face[b].abs()))
             .unwrap();
-        let tol = inside.at(x)[axis];
+        // The tolerance of the cell's own level (its spacing's ratio to the finest).
+        let level = body.leaves().get(cell.index()).unwrap().level;
+        let ratio = 0.5f64.powi(i32::from(body.finest_level() - level));
+        let tol = inside.for_cell(inside.at(x), ratio)[axis];
         for (factor, expected) in [(0.5, true), (2.0, false)] {
             let mut xi = on_face;
             xi[axis] = on_face[axis].signum() * (1.0 + factor * tol);
@@ -570,4 +573,40 @@ fn every_strategy_uses_the_adaptive_locators_inside_tolerance() {
         }
     }
     assert!(checked > 100, "{checked}");
+}
+
+/// The strategies give a leaf its own level's inside tolerance, as the adaptive locator does:
+/// with the finest spacing's, brute force and the R-tree found points 1e-8 to 3e-7 outside a
+/// level-0 leaf at x = 1e5 (beside a level-15 leaf) inside it, ξ clamped to 1.
+#[test]
+fn coarse_leaves_beside_deep_ones_keep_their_own_tolerance() {
+    let lattice = Lattice::new(DVec3::new(1e5, 0.0, 0.0), DVec3::ONE, [3, 1, 1]).unwrap();
+    let leaves = vec![Leaf::new(0, [0, 0, 0]), Leaf::new(15, [2 << 15, 0, 0])];
+    let body = AdaptiveBody::from_leaves(lattice, leaves).unwrap();
+    let settings = Settings::default();
+    let strategies: Vec<Box<dyn Locator + '_>> = vec![
+        Box::new(AdaptiveLocator::new(&body, settings).unwrap()),
+        Box::new(BruteForce::new(&body, settings).unwrap()),
+        Box::new(RTree::new(&body, settings).unwrap()),
+        Box::new(CentroidRadius::new(&body, settings).unwrap()),
+        Box::new(NodeRadius::new(&body, settings).unwrap()),
+    ];
+    for off in [1e-8, 1e-7, 3e-7] {
+        for (y, z) in [(0.5, 0.5), (0.999, 0.001)] {
+            let (out, inside) = (
+                DVec3::new(1e5 + 1.0 + off, y, z),
+                DVec3::new(1e5 + 1.0 - off, y, z),
+            );
+            for strategy in &strategies {
+                let name = strategy.name();
+                assert_eq!(strategy.locate(out).unwrap(), None, "{name}, {out}");
+                assert!(
+                    strategy.locate_owners(out).unwrap().is_empty(),
+                    "{name}, {out}"
+                );
+                let hit = strategy.locate(inside).unwrap();
+                assert_eq!(hit.map(|h| h.cell), Some(CellId(0)), "{name}, {inside}");
+            }
+        }
+    }
 }

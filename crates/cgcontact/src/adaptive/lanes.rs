@@ -233,6 +233,9 @@ impl AdaptiveLocator<'_> {
             maps.add_lattice_lanes(V3::narrow(spacing.scale(V::Wide::splat(0.5))));
             let x_local = x - (splat(lattice.origin()) + spacing * leaf.ijk);
             let xi0 = (t_guess.scale(leaf.scale) - leaf.ijk).scale(two) - splat(DVec3::ONE);
+            // Each lane's tolerance for its leaf's level (`leaf_tol`): 2^level · 2^−finest.
+            let ratio = leaf.scale * V::Wide::splat(level_size(self.body.finest));
+            let inside_tol = self.admit.inside_tol.for_cells(inside_tol, ratio);
             let inside = V3::<V>::splat(DVec3::ONE) + V3::narrow(inside_tol);
             let inverted = maps.invert(
                 V3::narrow(x_local),

@@ -122,6 +122,15 @@ impl<'a> AdaptiveLocator<'a> {
         self.u_range.high.max(-self.u_range.low)
     }
 
+    /// The inside tolerance `tol` that [`reach::Admit::admit`] gave (the finest leaves') for a
+    /// leaf of `level` ([`InsideTolerance::for_cell`]).
+    #[inline(always)]
+    pub(super) fn leaf_tol(&self, tol: DVec3, level: u8) -> DVec3 {
+        self.admit
+            .inside_tol
+            .for_cell(tol, level_size(self.body.finest - level))
+    }
+
     fn search(
         &self,
         x: DVec3,
@@ -175,8 +184,12 @@ impl<'a> AdaptiveLocator<'a> {
                 body.spacing(leaf.level),
                 &body.leaf_displacements(hint.cell.0),
             );
+            let options = NewtonOptions {
+                inside_tol: self.leaf_tol(options.inside_tol, leaf.level),
+                ..*options
+            };
             let inversion =
-                map.invert_f64(x - body.leaf_origin(leaf), warm_start(hint.xi), options);
+                map.invert_f64(x - body.leaf_origin(leaf), warm_start(hint.xi), &options);
             *tried += 1;
             if inversion.status == Status::Inside {
                 return Some(Hit {
@@ -233,7 +246,11 @@ impl<'a> AdaptiveLocator<'a> {
     ) -> Option<Hit> {
         let map = K::lattice_cell(self.body.spacing(leaf.level), u);
         let xi0 = Self::undeformed_xi(t_guess, leaf.level, leaf.ijk);
-        let inversion = map.invert_f64(x - self.body.leaf_origin(leaf), xi0, options);
+        let options = NewtonOptions {
+            inside_tol: self.leaf_tol(options.inside_tol, leaf.level),
+            ..*options
+        };
+        let inversion = map.invert_f64(x - self.body.leaf_origin(leaf), xi0, &options);
         *inversions += 1;
         if inversion.status != Status::Inside {
             return None;
@@ -648,7 +665,8 @@ impl AdaptiveLocator<'_> {
                     let leaf = first[l].1;
                     Self::undeformed_xi(t_guess.lane(l), leaf.level, leaf.ijk)
                 });
-                let inside = V3::<V>::splat(DVec3::ONE) + lanes3::<V>(|l| tol[l]);
+                let inside = V3::<V>::splat(DVec3::ONE)
+                    + lanes3::<V>(|l| self.leaf_tol(tol[l], first[l].1.level));
                 let inverted =
                     maps.invert(x_local, xi0, inside, V::mask_from_bits(take), &self.newton);
                 found = write_hits(out, inverted, |l| CellId(first[l].0));
@@ -732,7 +750,7 @@ impl AdaptiveLocator<'_> {
             let Some(leaf) = body.leaves.get(hint.cell.index()) else {
                 continue;
             };
-            tol[l] = inside_tol;
+            tol[l] = self.leaf_tol(inside_tol, leaf.level);
             cell[l] = hint.cell;
             rows[l] = body.leaf_nodes(hint.cell.index() as u32, leaf);
             half[l] = body.spacing(leaf.level) * 0.5;

@@ -139,12 +139,15 @@ fn brute_owners(body: &AdaptiveBody, settings: &Settings, x: DVec3) -> Vec<u32> 
         body.spacing(body.finest_level()),
         body.max_displacement().max_element(),
     );
-    let options = NewtonOptions {
-        inside_tol: tol.at(x),
-        ..settings.newton()
-    };
     (0..body.cell_count() as u32)
         .filter(|&c| {
+            // Each leaf with the tolerance of its level (its spacing's ratio to the finest).
+            let level = body.leaves().get(c as usize).unwrap().level;
+            let ratio = 0.5f64.powi(i32::from(body.finest_level() - level));
+            let options = NewtonOptions {
+                inside_tol: tol.for_cell(tol.at(x), ratio),
+                ..settings.newton()
+            };
             let (map, origin) = body.cell_map(CellId(c)).unwrap();
             map.invert(x - origin, DVec3::ZERO, &options).status == Status::Inside
         })
@@ -659,4 +662,49 @@ fn a_finest_level_finer_than_the_coordinates_resolve_is_refused() {
         refined(17).unwrap_err(),
         Error::InvalidLattice(message) if message.contains("too fine")
     ));
+}
+
+/// A leaf's inside tolerance is its own level's: the allowance for the rounding of x
+/// (8 ε |x| / h) shrinks with its spacing. With the finest spacing's on every leaf, points 1e-8 to
+/// 3e-7 outside a level-0 leaf at x = 1e5 beside a level-15 leaf (whose allowance is 2^15 times
+/// larger in ξ) were found inside it in f64, ξ clamped to 1; by every strategy, since they share
+/// the definition. Points as far inside are found, by the scalar and the batched searches alike.
+#[test]
+fn coarse_leaves_beside_deep_ones_keep_their_own_tolerance() {
+    let lattice = Lattice::new(DVec3::new(1e5, 0.0, 0.0), DVec3::ONE, [3, 1, 1]).unwrap();
+    // Base cell 0 whole, base cell 1 a hole, one level-15 leaf in a corner of base cell 2.
+    let leaves = vec![Leaf::new(0, [0, 0, 0]), Leaf::new(15, [2 << 15, 0, 0])];
+    let body = AdaptiveBody::from_leaves(lattice, leaves).unwrap();
+    // f32's own tolerance (1e-6 + 16 ε₃₂ in ξ) holds points up to 1.5e-6 outside the face; the
+    // deep leaf's allowance had added 2.9e-6.
+    let offsets: [(Settings, &[f64]); 2] = [
+        (Settings::default(), &[1e-8, 1e-7, 3e-7]),
+        (Settings::f32(), &[2.5e-6, 4e-6]),
+    ];
+    for (settings, offsets) in offsets {
+        let locator = AdaptiveLocator::new(&body, settings).unwrap();
+        let face = 1e5 + 1.0;
+        let mut points = Vec::new();
+        for &off in offsets {
+            for &(y, z) in &[(0.5, 0.5), (0.1, 0.9), (0.999, 0.001)] {
+                points.push((DVec3::new(face + off, y, z), false));
+                points.push((DVec3::new(face - off, y, z), true));
+            }
+        }
+        let xs: Vec<DVec3> = points.iter().map(|p| p.0).collect();
+        let batch = locator.locate_all(&xs);
+        for ((x, inside), batched) in points.iter().zip(&batch) {
+            let one = locator.locate(*x).unwrap();
+            assert_eq!(one, *batched.as_ref().unwrap(), "{x}: batch against scalar");
+            let owners = locator.locate_owners(*x).unwrap();
+            if *inside {
+                let hit = one.unwrap_or_else(|| panic!("{x} ({settings:?}): not found"));
+                assert_eq!(hit.cell, CellId(0));
+                assert_eq!(owners.len(), 1, "{x}");
+            } else {
+                assert!(one.is_none(), "{x} ({settings:?}): found in {one:?}");
+                assert!(owners.is_empty(), "{x}: owners {owners:?}");
+            }
+        }
+    }
 }
