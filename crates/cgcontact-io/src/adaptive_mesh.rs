@@ -325,7 +325,9 @@ impl HexMesh {
                     (node, n)
                 })
                 .collect();
-            let values = merge_displacements(by_node, u, LATTICE_TOLERANCE * h_base.max_element())?;
+            // Copies agree to 1e-9 of the finest spacing (on its shortest axis), as hanging
+            // nodes their constraints: that is the scale of the finest leaves' ξ.
+            let values = merge_displacements(by_node, u, LATTICE_TOLERANCE * h_fine.min_element())?;
             debug_assert_eq!(values.len(), body.node_count());
             body.set_displacements(&values)?;
             // Displacements all 32-bit floats: a hanging node's value and its constraint differ

@@ -480,7 +480,9 @@ impl HexMesh {
         u: &[DVec3],
     ) -> Result<Vec<DVec3>, ErrorKind> {
         let lattice = body.lattice();
-        let tol = LATTICE_TOLERANCE * lattice.h().max_element();
+        // 1e-9 of the shortest spacing: of the largest, copies 1e-9 of a long side apart passed
+        // on a 1 : 0.01 lattice, 1e-7 of its short side, the scale of ξ along it.
+        let tol = LATTICE_TOLERANCE * lattice.h().min_element();
         // (lattice node, input node): copies of a lattice node come together once sorted.
         let by_node: Vec<(usize, usize)> = used
             .iter_ones()

@@ -287,6 +287,23 @@ fn malformed_adaptive_meshes_are_refused_naming_the_cell() {
         split.to_body(),
         Err(ErrorKind::InconsistentDisplacement { .. })
     ));
+
+    // Copies 6e-10 apart: beyond 1e-9 of the finest spacing (0.25), within 1e-9 of the base
+    // spacing, which the check used to take.
+    let mut near = good.clone();
+    let n = near.cells[fine_cell][6];
+    near.points.push(near.points[n as usize]);
+    let u = near.displacement.as_mut().unwrap();
+    u.push(u[n as usize] + DVec3::X * 6e-10);
+    near.cells[fine_cell][6] = near.points.len() as u32 - 1;
+    assert!(
+        matches!(
+            near.to_body(),
+            Err(ErrorKind::InconsistentDisplacement { .. })
+        ),
+        "{:?}",
+        near.to_body().err()
+    );
 }
 
 #[test]

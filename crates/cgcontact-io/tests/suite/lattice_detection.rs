@@ -157,26 +157,7 @@ fn duplicate_cells_and_unmerged_nodes() {
     }
 
     // Unmerged: every cell with its own 8 nodes (some exporters write that): fine.
-    let mesh = HexMesh::from_body(&body);
-    let u = mesh.displacement.clone().unwrap();
-    let mut points = Vec::new();
-    let mut disp = Vec::new();
-    let cells = mesh
-        .cells
-        .iter()
-        .map(|c| {
-            c.map(|n| {
-                points.push(mesh.points[n as usize]);
-                disp.push(u[n as usize]);
-                (points.len() - 1) as u32
-            })
-        })
-        .collect();
-    let mut unmerged = HexMesh {
-        points,
-        cells,
-        displacement: Some(disp),
-    };
+    let mut unmerged = unmerge(&HexMesh::from_body(&body));
     let found = unmerged.to_lattice().unwrap();
     assert_eq!(found.body.displacements(), body.displacements());
     // ... unless the copies of a node disagree.
@@ -195,6 +176,50 @@ fn duplicate_cells_and_unmerged_nodes() {
         }
         other => panic!("{other:?}"),
     }
+}
+
+/// `mesh` with every cell on its own 8 nodes (copies of the shared ones, same displacements).
+fn unmerge(mesh: &HexMesh) -> HexMesh {
+    let u = mesh.displacement.clone().unwrap();
+    let mut points = Vec::new();
+    let mut disp = Vec::new();
+    let cells = mesh
+        .cells
+        .iter()
+        .map(|c| {
+            c.map(|n| {
+                points.push(mesh.points[n as usize]);
+                disp.push(u[n as usize]);
+                (points.len() - 1) as u32
+            })
+        })
+        .collect();
+    HexMesh {
+        points,
+        cells,
+        displacement: Some(disp),
+    }
+}
+
+/// Copies of a node agree to 1e-9 of the shortest spacing: on a 1 : 0.01 : 1 lattice, copies
+/// 5e-10 apart (5e-8 of the short side) passed while the check took the longest.
+#[test]
+fn copies_of_a_node_agree_to_the_shortest_spacing() {
+    let body = body_with_holes(DVec3::ZERO, DVec3::new(1.0, 0.01, 1.0), [2, 2, 2], 0);
+    let mut unmerged = unmerge(&HexMesh::from_body(&body));
+    assert!(unmerged.to_lattice().is_ok());
+    let copy = (1..unmerged.points.len())
+        .find(|&n| unmerged.points[..n].contains(&unmerged.points[n]))
+        .unwrap();
+    unmerged.displacement.as_mut().unwrap()[copy].y += 5e-10;
+    assert!(
+        matches!(
+            unmerged.to_lattice(),
+            Err(ErrorKind::InconsistentDisplacement { .. })
+        ),
+        "{:?}",
+        unmerged.to_lattice().err()
+    );
 }
 
 #[test]
