@@ -97,8 +97,25 @@ impl MeshBody {
 
 /// Edge lengths of a cell along its own axes (corner 0 to corners 1, 3 and 4).
 fn edges(points: &[DVec3], cell: &[u32; 8]) -> [f64; 3] {
-    const STEP: [usize; 3] = [1, 3, 4];
     [0, 1, 2].map(|a| (points[cell[STEP[a]] as usize][a] - points[cell[0] as usize][a]).abs())
+}
+
+/// The corner one edge from corner 0 along each axis (VTK hexahedron order).
+const STEP: [usize; 3] = [1, 3, 4];
+
+/// [`edges`] of cell `c`, or the error naming the first corner of 1, 3 and 4 that does not
+/// advance along its axis (a flat or collapsed cell, or corners out of VTK order): such a cell
+/// would otherwise be blamed on another cell, or measured with an edge of 0.
+fn checked_edges(points: &[DVec3], c: usize, cell: &[u32; 8]) -> Result<[f64; 3], ErrorKind> {
+    let e = edges(points, cell);
+    match (0..3).find(|&a| e[a] == 0.0) {
+        Some(a) => Err(ErrorKind::FlatCell {
+            cell: c,
+            corner: STEP[a],
+            axis: ["x", "y", "z"][a],
+        }),
+        None => Ok(e),
+    }
 }
 
 impl HexMesh {
@@ -111,15 +128,14 @@ impl HexMesh {
         let used = self.used_nodes()?;
         let mut low = [f64::INFINITY; 3];
         let mut high = [0.0f64; 3];
-        for cell in &self.cells {
-            let e = edges(&self.points, cell);
+        for (c, cell) in self.cells.iter().enumerate() {
+            let e = checked_edges(&self.points, c, cell)?;
             for a in 0..3 {
                 low[a] = low[a].min(e[a]);
                 high[a] = high[a].max(e[a]);
             }
         }
-        // A degenerate cell (an edge of 0) is the uniform detection's to report.
-        let several = (0..3).any(|a| low[a] > 0.0 && high[a] > LEVEL_RATIO * low[a]);
+        let several = (0..3).any(|a| high[a] > LEVEL_RATIO * low[a]);
         if several {
             Ok(MeshBody::Adaptive(self.adaptive_with(&used)?))
         } else {
@@ -154,7 +170,12 @@ impl HexMesh {
             )));
         }
         // Levels from the edges, against the coarsest cells'.
-        let cell_edges: Vec<[f64; 3]> = self.cells.iter().map(|c| edges(&self.points, c)).collect();
+        let cell_edges: Vec<[f64; 3]> = self
+            .cells
+            .iter()
+            .enumerate()
+            .map(|(c, cell)| checked_edges(&self.points, c, cell))
+            .collect::<Result<_, _>>()?;
         let mut base = [0.0f64; 3];
         for e in &cell_edges {
             for a in 0..3 {
@@ -180,6 +201,17 @@ impl HexMesh {
             }
             let level = ratio.log2().round();
             if level > f64::from(MAX_LEVEL) {
+                // A whole number of halvings, only too many: say so.
+                let scale = 0.5f64.powf(level);
+                if (0..3).all(|a| (e[a] - base[a] * scale).abs() <= 1e-6 * base[a] * scale) {
+                    return Err(ErrorKind::TooDeep {
+                        cell: c,
+                        edges: *e,
+                        base,
+                        level: level as u32,
+                        max: MAX_LEVEL,
+                    });
+                }
                 return Err(bad());
             }
             let scale = 0.5f64.powi(level as i32);

@@ -212,6 +212,39 @@ pub enum ErrorKind {
     /// Two inputs that must match do not (points and answers, say).
     #[error("{0}")]
     Mismatch(String),
+    /// A cell whose corner 1, 3 or 4 has corner 0's coordinate along the axis it should advance:
+    /// flat, collapsed, or with its corners not in VTK hexahedron order.
+    #[error(
+        "cell {cell}: corners 0 and {corner} have the same {axis} coordinate: the cell is flat, or \
+         its corners are not in VTK hexahedron order (from corner 0, corner 1 along x, 3 along y, \
+         4 along z)"
+    )]
+    FlatCell {
+        /// Input cell index.
+        cell: usize,
+        /// The corner (1, 3 or 4) that does not advance.
+        corner: usize,
+        /// The axis along which it should: "x", "y" or "z".
+        axis: &'static str,
+    },
+    /// A cell of an adaptive mesh whose edges are the coarsest cells' halved more times than an
+    /// adaptive body's deepest level.
+    #[error(
+        "cell {cell}: edges {edges:?} are the coarsest cells' edges {base:?} halved {level} times, \
+         deeper than the {max} levels an adaptive body holds"
+    )]
+    TooDeep {
+        /// Input cell index.
+        cell: usize,
+        /// Its edge lengths per axis.
+        edges: [f64; 3],
+        /// The coarsest cells' edge lengths.
+        base: [f64; 3],
+        /// Its level.
+        level: u32,
+        /// The deepest level ([`cgcontact::adaptive::MAX_LEVEL`]).
+        max: u8,
+    },
     /// A cell of an adaptive mesh whose size is not the coarsest cells' halved a whole number of
     /// times, equally on every axis.
     #[error(

@@ -384,3 +384,90 @@ fn a_cell_off_its_levels_lattice_is_reported_with_the_meshs_spacing() {
         other => panic!("{:?}", other.err()),
     }
 }
+
+/// A cube of edge `edge` at `low`, appended to `mesh` with zero displacements.
+fn push_cube(mesh: &mut HexMesh, low: DVec3, edge: f64) {
+    let start = mesh.points.len() as u32;
+    for off in CORNER_OFFSETS {
+        mesh.points
+            .push(low + edge * DVec3::new(off[0] as f64, off[1] as f64, off[2] as f64));
+        if let Some(u) = mesh.displacement.as_mut() {
+            u.push(DVec3::ZERO);
+        }
+    }
+    mesh.cells.push(std::array::from_fn(|c| start + c as u32));
+}
+
+/// Cells that are flat, collapsed or listed with their corners rotated, and a cell one level too
+/// deep, are named with what is wrong with them: they had been blamed on another cell, or on
+/// edges "not the coarsest cells' halved" that were.
+#[test]
+fn flat_rotated_and_too_deep_cells_are_named() {
+    let body = body(DVec3::ZERO, DVec3::ONE, [3, 2, 2], 2, 4);
+    let good = mesh_of(&body);
+    let fine_cell = body.leaves().iter().position(|l| l.level == 2).unwrap();
+
+    // Every corner of a fine cell on one node.
+    let mut collapsed = good.clone();
+    collapsed.cells[fine_cell] = [collapsed.cells[fine_cell][0]; 8];
+    assert!(
+        matches!(collapsed.to_body(), Err(ErrorKind::FlatCell { cell, corner: 1, axis: "x" }) if cell == fine_cell),
+        "{:?}",
+        collapsed.to_body().err()
+    );
+
+    // Every cell's corners rotated a quarter turn about z: corner 1 lies along y.
+    let mut rotated = good.clone();
+    for cell in &mut rotated.cells {
+        *cell = [
+            cell[3], cell[0], cell[1], cell[2], cell[7], cell[4], cell[5], cell[6],
+        ];
+    }
+    assert!(
+        matches!(
+            rotated.to_body(),
+            Err(ErrorKind::FlatCell {
+                cell: 0,
+                corner: 1,
+                axis: "x"
+            })
+        ),
+        "{:?}",
+        rotated.to_body().err()
+    );
+
+    // A unit cube and one of edge 2^-21, one level deeper than MAX_LEVEL.
+    let mut deep = HexMesh {
+        points: Vec::new(),
+        cells: Vec::new(),
+        displacement: None,
+    };
+    push_cube(&mut deep, DVec3::ZERO, 1.0);
+    push_cube(&mut deep, DVec3::new(2.0, 0.0, 0.0), 0.5f64.powi(21));
+    assert!(
+        matches!(
+            deep.to_body(),
+            Err(ErrorKind::TooDeep {
+                cell: 1,
+                level: 21,
+                ..
+            })
+        ),
+        "{:?}",
+        deep.to_body().err()
+    );
+    // At MAX_LEVEL itself the size is accepted (the mesh then fails elsewhere or not at all,
+    // but not on the cell's size).
+    let mut deepest = deep.clone();
+    deepest.points.truncate(8);
+    deepest.cells.truncate(1);
+    push_cube(&mut deepest, DVec3::new(2.0, 0.0, 0.0), 0.5f64.powi(20));
+    assert!(
+        !matches!(
+            deepest.to_body(),
+            Err(ErrorKind::TooDeep { .. } | ErrorKind::CellSize { .. })
+        ),
+        "{:?}",
+        deepest.to_body().err()
+    );
+}
