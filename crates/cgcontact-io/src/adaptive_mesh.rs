@@ -9,6 +9,8 @@
 //! lattice, every cell's lowest corner a node of its own level's lattice, and no two cells may
 //! cover the same region. Cells and nodes may come in any order; a leaf's id is its input index.
 
+use std::collections::HashMap;
+
 use bitvec::vec::BitVec;
 use cgcontact::adaptive::{ConstraintReport, MAX_LEVEL};
 use cgcontact::{AdaptiveBody, CORNER_OFFSETS, Lattice, Leaf};
@@ -176,11 +178,37 @@ impl HexMesh {
             .enumerate()
             .map(|(c, cell)| checked_edges(&self.points, c, cell))
             .collect::<Result<_, _>>()?;
+        // Every cell has the lattice's shape (edges in the ratio of its spacings); a cell of
+        // another shape is named before its edges set the base spacing, which is the largest edge
+        // per axis (a cell stretched along x had made every other cell look wrong). The shape
+        // is the median one, within a quarter: loose enough for coordinates' rounding (each edge
+        // may be off by up to a twentieth below), tight enough for a cell doubled along an axis;
+        // the exact checks per cell follow.
+        let shape = |e: &[f64; 3]| [e[1] / e[0], e[2] / e[0]];
+        let median = |k: usize| {
+            let mut v: Vec<f64> = cell_edges.iter().map(|e| shape(e)[k]).collect();
+            let mid = v.len() / 2;
+            *v.select_nth_unstable_by(mid, f64::total_cmp).1
+        };
+        let typical = [median(0), median(1)];
+        let odd = cell_edges.iter().position(|e| {
+            let s = shape(e);
+            (0..2).any(|k| (s[k] - typical[k]).abs() > 0.25 * typical[k])
+        });
         let mut base = [0.0f64; 3];
-        for e in &cell_edges {
-            for a in 0..3 {
-                base[a] = base[a].max(e[a]);
+        for (c, e) in cell_edges.iter().enumerate() {
+            if Some(c) != odd {
+                for a in 0..3 {
+                    base[a] = base[a].max(e[a]);
+                }
             }
+        }
+        if let Some(cell) = odd {
+            return Err(ErrorKind::CellSize {
+                cell,
+                edges: cell_edges[cell],
+                base,
+            });
         }
         // Coordinates all 32-bit floats round by more (checked against the cells below).
         let point_slack = if all_f32(&self.points) {
@@ -233,8 +261,6 @@ impl HexMesh {
 
         // The finest lattice's spacing from the extent, as the uniform detection does, and the base
         // origin placed so that a coarsest cell sits on the base lattice.
-        let coarse = levels.iter().position(|&l| l == 0).unwrap_or(0);
-        let anchor = self.points[self.cells[coarse][0] as usize];
         let mut origin = [0.0; 3];
         let mut h_fine = [0.0; 3];
         let mut counts = [0u32; 3];
@@ -260,10 +286,23 @@ impl HexMesh {
             } else {
                 estimate
             };
-            // The anchor's offset from the lowest plane, in finest steps, brought to a multiple of
-            // the base spacing by moving the origin down.
-            let r = ((anchor[a] - low) / h).round() as i64;
-            let k = (-r).rem_euclid(steps as i64) as u64;
+            // The base lattice's phase: the offset from the lowest plane, in finest steps modulo
+            // a base cell, that most level-0 cells' corner 0 have (ties: the smallest), so that a
+            // misaligned level-0 cell is the one named wherever it is listed. Brought to a
+            // multiple of the base spacing by moving the origin down.
+            let mut phases: HashMap<i64, usize> = HashMap::new();
+            for (c, &level) in levels.iter().enumerate() {
+                if level == 0 {
+                    let corner = self.points[self.cells[c][0] as usize][a];
+                    let r = ((corner - low) / h).round() as i64;
+                    *phases.entry(r.rem_euclid(steps as i64)).or_default() += 1;
+                }
+            }
+            let phase = phases
+                .into_iter()
+                .max_by_key(|&(phase, count)| (count, std::cmp::Reverse(phase)))
+                .map_or(0, |(phase, _)| phase);
+            let k = (-phase).rem_euclid(steps as i64) as u64;
             origin[a] = low - k as f64 * h;
             h_fine[a] = h;
             counts[a] = (n as u64 + k).div_ceil(steps) as u32;

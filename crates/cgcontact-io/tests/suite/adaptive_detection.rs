@@ -471,3 +471,48 @@ fn flat_rotated_and_too_deep_cells_are_named() {
         deepest.to_body().err()
     );
 }
+
+/// A cell stretched along one axis, or a level-0 cell off the base lattice listed first, is the
+/// cell named: the largest edge per axis had taken the stretched cell's, and the first level-0
+/// cell had set the base lattice's phase, so that valid cells were blamed.
+#[test]
+fn the_odd_cell_is_named_wherever_it_is_listed() {
+    let body = body(DVec3::ZERO, DVec3::ONE, [3, 2, 2], 2, 4);
+    let good = mesh_of(&body);
+
+    // Twice as long along x as a base cell, beside the body.
+    let mut stretched = good.clone();
+    let start = stretched.points.len() as u32;
+    for off in CORNER_OFFSETS {
+        let off = DVec3::new(2.0 * off[0] as f64, off[1] as f64, off[2] as f64);
+        stretched.points.push(DVec3::new(10.0, 0.0, 0.0) + off);
+        stretched.displacement.as_mut().unwrap().push(DVec3::ZERO);
+    }
+    stretched
+        .cells
+        .push(std::array::from_fn(|c| start + c as u32));
+    let last = stretched.cells.len() - 1;
+    assert!(
+        matches!(stretched.to_body(), Err(ErrorKind::CellSize { cell, .. }) if cell == last),
+        "{:?}",
+        stretched.to_body().err()
+    );
+
+    // A base cell a finest step (0.25) off the base lattice, listed first.
+    for first in [false, true] {
+        let mut shifted = good.clone();
+        push_cube(&mut shifted, DVec3::new(10.25, 0.0, 0.0), 1.0);
+        let last = shifted.cells.len() - 1;
+        let named = if first {
+            shifted.cells.swap(0, last);
+            0
+        } else {
+            last
+        };
+        assert!(
+            matches!(shifted.to_body(), Err(ErrorKind::NotAligned { cell, level: 0, .. }) if cell == named),
+            "first {first}: {:?}",
+            shifted.to_body().err()
+        );
+    }
+}
