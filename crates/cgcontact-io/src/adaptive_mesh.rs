@@ -269,7 +269,15 @@ impl HexMesh {
             let estimate = base[a] / steps as f64;
             let (low, high) = self.axis_planes(used, a, 0.5 * estimate)?;
             let n = ((high - low) / estimate).round();
-            if !(n >= 1.0 && n < f64::from(1u32 << 21)) {
+            if n >= f64::from(1u32 << 21) {
+                return Err(ErrorKind::Degenerate(format!(
+                    "the nodes span {} along {}: {n} cells of the finest level (edge {estimate}), \
+                     more than the 2^21 - 1 per axis an adaptive body's finest lattice holds",
+                    high - low,
+                    axis_name[a]
+                )));
+            }
+            if n.is_nan() || n < 1.0 {
                 return Err(ErrorKind::Degenerate(format!(
                     "the nodes span {} along {} for a finest edge of {estimate}",
                     high - low,

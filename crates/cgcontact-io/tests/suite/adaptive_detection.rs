@@ -516,3 +516,26 @@ fn the_odd_cell_is_named_wherever_it_is_listed() {
         );
     }
 }
+
+/// A mesh whose finest lattice would exceed 2^21 − 1 cells along an axis says so: two unit
+/// cubes 3,000 apart and one cube of level 10 (3,001 · 1,024 finest cells along x).
+#[test]
+fn a_finest_lattice_too_wide_names_the_limit() {
+    let mut wide = HexMesh {
+        points: Vec::new(),
+        cells: Vec::new(),
+        displacement: None,
+    };
+    push_cube(&mut wide, DVec3::ZERO, 1.0);
+    push_cube(&mut wide, DVec3::new(3000.0, 0.0, 0.0), 1.0);
+    push_cube(&mut wide, DVec3::new(2.0, 0.0, 0.0), 0.5f64.powi(10));
+    match wide.to_body() {
+        Err(ErrorKind::Degenerate(message)) => {
+            assert!(
+                message.contains("2^21 - 1") && message.contains("along x"),
+                "{message}"
+            )
+        }
+        other => panic!("{:?}", other.err()),
+    }
+}
