@@ -238,14 +238,17 @@ impl<'a> Cells<'a> {
     ) -> Option<Hit> {
         let (low, h, u) = self.local(cell);
         let map = K::lattice_cell(h, &u);
-        // A leaf coarser than the finest has its own tolerance, as the core's locator gives it:
-        // the spacings' ratio is 2^(level − finest), exactly.
+        // A leaf coarser than the finest has its own tolerance, as the core's locator gives it.
         let leaf_options;
         let options = match self.body {
             BodyRef::Adaptive(body) => {
-                let ratio = body.spacing(body.finest_level()).x / h.x;
+                let level = body.leaves().get(cell.index()).expect("a leaf").level;
                 leaf_options = NewtonOptions {
-                    inside_tol: self.inside.for_cell(options.inside_tol, ratio),
+                    inside_tol: self.inside.for_leaf(
+                        options.inside_tol,
+                        level,
+                        body.finest_level(),
+                    ),
                     ..*options
                 };
                 &leaf_options

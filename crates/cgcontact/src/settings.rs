@@ -201,6 +201,14 @@ impl InsideTolerance {
         }
     }
 
+    /// [`InsideTolerance::for_cell`] for an adaptive body's leaf of `level` when these constants
+    /// were made with the spacing of its `finest` level: `ratio` 2^(level − finest).
+    #[inline]
+    #[must_use]
+    pub fn for_leaf(&self, tol: DVec3, level: u8, finest: u8) -> DVec3 {
+        self.for_cell(tol, 0.5f64.powi(i32::from(finest - level)))
+    }
+
     /// [`InsideTolerance::for_cell`] in lanes, each lane with its cell's `ratio`: the same
     /// operations.
     #[inline(always)]

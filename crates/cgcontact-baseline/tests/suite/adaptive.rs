@@ -548,8 +548,7 @@ fn every_strategy_uses_the_adaptive_locators_inside_tolerance() {
             .unwrap();
         // The tolerance of the cell's own level (its spacing's ratio to the finest).
         let level = body.leaves().get(cell.index()).unwrap().level;
-        let ratio = 0.5f64.powi(i32::from(body.finest_level() - level));
-        let tol = inside.for_cell(inside.at(x), ratio)[axis];
+        let tol = inside.for_leaf(inside.at(x), level, body.finest_level())[axis];
         for (factor, expected) in [(0.5, true), (2.0, false)] {
             let mut xi = on_face;
             xi[axis] = on_face[axis].signum() * (1.0 + factor * tol);

@@ -253,15 +253,7 @@ fn malformed_adaptive_meshes_are_refused_naming_the_cell() {
 
     // A cell of 3/4 the coarse size: no level.
     let mut odd = good.clone();
-    let start = odd.points.len() as u32;
-    for off in CORNER_OFFSETS {
-        odd.points.push(
-            DVec3::new(10.0, 0.0, 0.0)
-                + 0.75 * DVec3::new(off[0] as f64, off[1] as f64, off[2] as f64),
-        );
-        odd.displacement.as_mut().unwrap().push(DVec3::ZERO);
-    }
-    odd.cells.push(std::array::from_fn(|c| start + c as u32));
+    push_cube(&mut odd, DVec3::new(10.0, 0.0, 0.0), 0.75);
     let last = odd.cells.len() - 1;
     assert!(
         matches!(odd.to_body(), Err(ErrorKind::CellSize { cell, .. }) if cell == last),
@@ -387,10 +379,15 @@ fn a_cell_off_its_levels_lattice_is_reported_with_the_meshs_spacing() {
 
 /// A cube of edge `edge` at `low`, appended to `mesh` with zero displacements.
 fn push_cube(mesh: &mut HexMesh, low: DVec3, edge: f64) {
+    push_box(mesh, low, DVec3::splat(edge));
+}
+
+/// A box of edges `edges` at `low`, appended to `mesh` with zero displacements.
+fn push_box(mesh: &mut HexMesh, low: DVec3, edges: DVec3) {
     let start = mesh.points.len() as u32;
     for off in CORNER_OFFSETS {
         mesh.points
-            .push(low + edge * DVec3::new(off[0] as f64, off[1] as f64, off[2] as f64));
+            .push(low + edges * DVec3::new(off[0] as f64, off[1] as f64, off[2] as f64));
         if let Some(u) = mesh.displacement.as_mut() {
             u.push(DVec3::ZERO);
         }
@@ -482,15 +479,11 @@ fn the_odd_cell_is_named_wherever_it_is_listed() {
 
     // Twice as long along x as a base cell, beside the body.
     let mut stretched = good.clone();
-    let start = stretched.points.len() as u32;
-    for off in CORNER_OFFSETS {
-        let off = DVec3::new(2.0 * off[0] as f64, off[1] as f64, off[2] as f64);
-        stretched.points.push(DVec3::new(10.0, 0.0, 0.0) + off);
-        stretched.displacement.as_mut().unwrap().push(DVec3::ZERO);
-    }
-    stretched
-        .cells
-        .push(std::array::from_fn(|c| start + c as u32));
+    push_box(
+        &mut stretched,
+        DVec3::new(10.0, 0.0, 0.0),
+        DVec3::new(2.0, 1.0, 1.0),
+    );
     let last = stretched.cells.len() - 1;
     assert!(
         matches!(stretched.to_body(), Err(ErrorKind::CellSize { cell, .. }) if cell == last),

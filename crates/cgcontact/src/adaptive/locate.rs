@@ -123,12 +123,10 @@ impl<'a> AdaptiveLocator<'a> {
     }
 
     /// The inside tolerance `tol` that [`reach::Admit::admit`] gave (the finest leaves') for a
-    /// leaf of `level` ([`InsideTolerance::for_cell`]).
+    /// leaf of `level` ([`InsideTolerance::for_leaf`]).
     #[inline(always)]
     pub(super) fn leaf_tol(&self, tol: DVec3, level: u8) -> DVec3 {
-        self.admit
-            .inside_tol
-            .for_cell(tol, level_size(self.body.finest - level))
+        self.admit.inside_tol.for_leaf(tol, level, self.body.finest)
     }
 
     fn search(

@@ -143,9 +143,8 @@ fn brute_owners(body: &AdaptiveBody, settings: &Settings, x: DVec3) -> Vec<u32> 
         .filter(|&c| {
             // Each leaf with the tolerance of its level (its spacing's ratio to the finest).
             let level = body.leaves().get(c as usize).unwrap().level;
-            let ratio = 0.5f64.powi(i32::from(body.finest_level() - level));
             let options = NewtonOptions {
-                inside_tol: tol.for_cell(tol.at(x), ratio),
+                inside_tol: tol.for_leaf(tol.at(x), level, body.finest_level()),
                 ..settings.newton()
             };
             let (map, origin) = body.cell_map(CellId(c)).unwrap();
