@@ -3,8 +3,9 @@
 //! 1,000,000 points made from known (cell, ξ) in random order, then the same points sorted by cell
 //! (lattice order). Each is answered by `locate_all_into` (a reused buffer) under the input-order
 //! schedule and sorted by cell inside (`Schedule::Blocked { log2_cells: 0 }`, what
-//! `Schedule::Auto` does above its threshold), in f64 and f32, on 1 and 2 threads; for f64 on one
-//! thread also sorted by blocks of 8³ and 16³ cells. Printed once per
+//! `Schedule::Auto` does above its threshold to points out of order), in f64 and f32, on 1 and 2
+//! threads; on one thread also under `Schedule::Auto` (random and lattice order) and lattice order
+//! sorted again; for f64 on one thread also sorted by blocks of 8³ and 16³ cells. Printed once per
 //! size: the bytes of nodal data (what `Schedule::Auto` decides by), and the sort's buffers per
 //! point.
 //!
@@ -79,6 +80,18 @@ fn scale(c: &mut Criterion) {
                     pool,
                 ));
             }
+            // What the default schedule makes of each order: it sorts points in random order and
+            // keeps points already in lattice order as they come.
+            let auto = locator(Schedule::Auto);
+            for (label, points) in [("random", &random), ("lattice order", &ordered)] {
+                runs.push((format!("{label}, auto, 1 thr"), &auto, points, &pools[0]));
+            }
+            runs.push((
+                "lattice order, sorted by cell, 1 thr".to_owned(),
+                &blocked,
+                &ordered,
+                &pools[0],
+            ));
             let others: Vec<(u8, LatticeLocator<'_>)> = if name == "f64" {
                 [3, 4]
                     .map(|k| (k, locator(Schedule::Blocked { log2_cells: k })))

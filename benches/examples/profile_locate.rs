@@ -1,8 +1,10 @@
 //! A fixed amount of single-threaded locating, for profilers (perf, callgrind).
 //!
-//! Run: `cargo run --release -p cgcontact-benches --example profile_locate [repeats] [f32] [each] [big|huge|sphere] [sorted [window=N]|slabs] [input] [stats]`
+//! Run: `cargo run --release -p cgcontact-benches --example profile_locate [repeats] [f32] [each] [big|huge|sphere] [sorted [mix=F] [window=N]|slabs] [input] [stats]`
 //! (`each`: one `locate` call per point instead of the batched `locate_all_into`; `sorted`: the
 //! points in lattice order instead of random order, to tell waiting on memory from computing;
+//! `mix=F`: then a share F of them swapped with points anywhere (what `Schedule::Auto`'s
+//! coherence sample decides on);
 //! `window=N`: then shuffled within consecutive windows of N points, so that the lanes of a batch
 //! hold different cells while memory stays local; `slabs`: random order within slabs of 5 cell
 //! layers; `input`: `Schedule::Input`, no sort inside the batched path; `stats`: how many points needed more than one inversion, and Newton iterations per hit).
@@ -70,6 +72,23 @@ fn main() -> Result<(), cgcontact::Error> {
             (t.z as i64, t.y as i64, t.x as i64)
         };
         points.sort_by_key(key);
+        if let Some(f) = args.iter().find_map(|a| a.strip_prefix("mix=")) {
+            // A share `f` of the points swapped with points anywhere: lattice order with that
+            // share of far jumps between consecutive points.
+            let f: f64 = f.parse().expect("mix=F with F a share in [0, 1]");
+            let n = points.len();
+            let mut state = 12345u64;
+            let mut next = || {
+                state = state
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                state >> 11
+            };
+            for _ in 0..(f * n as f64 / 2.0) as usize {
+                let (i, j) = (next() as usize % n, next() as usize % n);
+                points.swap(i, j);
+            }
+        }
         if let Some(w) = args.iter().find_map(|a| a.strip_prefix("window=")) {
             let w: usize = w.parse().expect("window=N with N a number of points");
             // A fixed linear congruential shuffle: the same order on every run.

@@ -24,8 +24,9 @@ use crate::Lattice;
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum Schedule {
     /// [`Schedule::Blocked`] with [`Schedule::AUTO_LOG2_CELLS`] when the body's nodal data
-    /// exceeds [`Schedule::AUTO_BYTES`] and there are at least [`Schedule::AUTO_MIN_POINTS`]
-    /// points; otherwise the input order.
+    /// exceeds [`Schedule::AUTO_BYTES`], there are at least [`Schedule::AUTO_MIN_POINTS`]
+    /// points, and they do not already come in an order the caches follow (a sample of pairs of
+    /// consecutive points, [`Schedule::AUTO_FAR_SHARE`]); otherwise the input order.
     #[default]
     Auto,
     /// The points in the order given, in pieces of 256 across the threads.
@@ -53,6 +54,14 @@ impl Schedule {
     /// Fewer points than this are answered in input order by [`Schedule::Auto`]: the sort's
     /// fixed costs (a histogram per pass and thread) would not pay.
     pub const AUTO_MIN_POINTS: usize = 16_384;
+    /// Pairs of consecutive points [`Schedule::Auto`] samples, evenly spread over the input, to
+    /// tell whether the points already come in an order the caches follow.
+    pub const AUTO_SAMPLES: usize = 1024;
+    /// [`Schedule::Auto`] keeps the input order when at most this share of the sampled pairs of
+    /// consecutive points jump further than a layer of cells (`far`): the sort then costs more
+    /// than the cache misses it would save. On the 4.2 M-cell block of docs/benchmarks.md, input
+    /// order is 1.45× the sorted speed with no far jumps, and breaks even at about a fifth.
+    pub const AUTO_FAR_SHARE: f64 = 0.125;
 
     /// The block edge (log2, cells) to sort by for `points` points on a body of `bytes` of nodal
     /// data, or `None` for the input order.
@@ -110,6 +119,27 @@ impl Blocks {
 
     fn len(&self) -> usize {
         self.counts.iter().map(|&n| n as usize).product()
+    }
+
+    /// Whether the points already come in an order the caches follow: at most
+    /// [`Schedule::AUTO_FAR_SHARE`] of [`Schedule::AUTO_SAMPLES`] pairs of consecutive points,
+    /// evenly spread over the input, lie more than a layer of blocks apart (their keys differ by
+    /// more than a layer's blocks; a NaN point is clamped into block 0 as the sort does).
+    fn coherent(&self, points: &[DVec3]) -> bool {
+        let n = points.len();
+        if n < 2 {
+            return true;
+        }
+        let samples = Schedule::AUTO_SAMPLES.min(n - 1);
+        let layer = self.counts[0] as usize * self.counts[1] as usize;
+        let far = (0..samples)
+            .filter(|&s| {
+                // Evenly spread: pair (i, i + 1) with i from 0 to n − 2.
+                let i = s * (n - 1) / samples;
+                self.key(points[i]).abs_diff(self.key(points[i + 1])) > layer
+            })
+            .count();
+        far as f64 <= Schedule::AUTO_FAR_SHARE * samples as f64
     }
 
     #[inline(always)]
@@ -213,17 +243,18 @@ impl Scheduler {
         chunk: impl Fn(&[DVec3], &mut [T]) + Sync,
     ) {
         debug_assert_eq!(points.len(), out.len());
-        let Some(log2) = self
+        let sorted = self
             .schedule
             .resolve(layout.bytes, points.len())
             .filter(|_| points.len() > 1)
-        else {
+            .map(|log2| Blocks::new(layout.lattice, layout.level, log2))
+            .filter(|blocks| self.schedule != Schedule::Auto || !blocks.coherent(points));
+        let Some(blocks) = sorted else {
             out.par_chunks_mut(CHUNK)
                 .zip(points.par_chunks(CHUNK))
                 .for_each(|(out, points)| chunk(points, out));
             return;
         };
-        let blocks = Blocks::new(layout.lattice, layout.level, log2);
         // The pool, or fresh buffers when another call on this locator holds it.
         let mut fresh = None;
         let mut guard = match self.pool.try_lock() {
@@ -592,6 +623,99 @@ mod tests {
         assert!(big.len() as u64 <= MAX_BLOCKS && big.len() as u64 > MAX_BLOCKS / 8);
         let deep = Blocks::new(&lattice, 20, 0);
         assert!(deep.len() as u64 <= MAX_BLOCKS && deep.len() as u64 > MAX_BLOCKS / 8);
+    }
+
+    /// Points in lattice order on a 64 × 64 × 64 lattice (one per cell, 2^18), then a share of
+    /// them swapped with points anywhere (a fixed shuffle).
+    fn lattice_ordered(swapped: f64) -> (Lattice, Vec<DVec3>) {
+        let lattice = Lattice::new(DVec3::new(-3.0, 1.0, 2.0), DVec3::splat(0.5), [64; 3]).unwrap();
+        let mut points: Vec<DVec3> = (0..64u32 * 64 * 64)
+            .map(|c| {
+                let ijk = [c % 64, c / 64 % 64, c / 4096];
+                lattice.node_position(ijk) + DVec3::new(0.1, 0.2, 0.3)
+            })
+            .collect();
+        let n = points.len();
+        let mut state = 99u64;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as usize % n
+        };
+        for _ in 0..(swapped * n as f64 / 2.0) as usize {
+            let (i, j) = (next(), next());
+            points.swap(i, j);
+        }
+        (lattice, points)
+    }
+
+    #[test]
+    fn coherence_is_told_from_far_jumps() {
+        let blocks = |lattice: &Lattice| Blocks::new(lattice, 0, 0);
+        // Lattice order, and lattice order with a few far jumps: kept.
+        for swapped in [0.0, 0.02] {
+            let (lattice, points) = lattice_ordered(swapped);
+            assert!(blocks(&lattice).coherent(&points), "{swapped}");
+        }
+        // Many far jumps, random order: sorted.
+        for swapped in [0.2, 1.0] {
+            let (lattice, points) = lattice_ordered(swapped);
+            assert!(!blocks(&lattice).coherent(&points), "{swapped}");
+        }
+        // Points in z order then x order: consecutive points a layer or less apart, kept; in
+        // x-major order (each step a layer or more): sorted; alternating between two far
+        // regions: sorted.
+        let (lattice, mut points) = lattice_ordered(0.0);
+        let b = blocks(&lattice);
+        points.sort_by(|p, q| (p.y, p.z, p.x).partial_cmp(&(q.y, q.z, q.x)).unwrap());
+        assert!(b.coherent(&points));
+        points.sort_by(|p, q| (p.x, p.y, p.z).partial_cmp(&(q.x, q.y, q.z)).unwrap());
+        assert!(!b.coherent(&points));
+        let (lo, hi) = points.split_at(points.len() / 2);
+        let alternating: Vec<DVec3> = lo.iter().zip(hi).flat_map(|(a, b)| [*a, *b]).collect();
+        assert!(!b.coherent(&alternating));
+        // NaN points fall in block 0, as the sort puts them; a single point is in order, two
+        // far apart are not.
+        assert!(b.coherent(&vec![DVec3::NAN; 40_000]));
+        assert!(b.coherent(&points[..1]) && b.coherent(&points[..2]));
+        assert!(!b.coherent(&[points[0], points[70_000]]));
+    }
+
+    /// Under `Auto` on a large body, points in lattice order are answered as given and points in
+    /// random order are sorted first; an explicit `Blocked` sorts either.
+    #[test]
+    fn auto_keeps_an_order_the_caches_follow() {
+        let one = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .unwrap();
+        for (swapped, schedule, sorts) in [
+            (0.0, Schedule::Auto, false),
+            (1.0, Schedule::Auto, true),
+            (0.0, Schedule::Blocked { log2_cells: 4 }, true),
+        ] {
+            let (lattice, points) = lattice_ordered(swapped);
+            let seen = Mutex::new(Vec::new());
+            let chunk = |p: &[DVec3], o: &mut [u8]| {
+                seen.lock().unwrap().extend_from_slice(p);
+                o.fill(1);
+            };
+            let mut out = vec![0u8; points.len()];
+            let scheduler = Scheduler::new(schedule);
+            one.install(|| {
+                scheduler.run(
+                    layout(&lattice, 0, Schedule::AUTO_BYTES + 1),
+                    &points,
+                    &mut out,
+                    false,
+                    chunk,
+                )
+            });
+            assert!(out.iter().all(|&o| o == 1));
+            let seen = seen.into_inner().unwrap();
+            assert_eq!(seen == points, !sorts, "{swapped} {schedule:?}");
+        }
     }
 
     #[test]
