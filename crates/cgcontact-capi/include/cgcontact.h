@@ -28,7 +28,8 @@
  * place. Displacements are node-major or component-major (cgc_layout constants). Outputs are
  * caller-owned: cells (n int64), xi (3 n doubles, xi eta zeta per point), status (n bytes,
  * optional); cgc_gap's gap (n doubles), closest and normal (3 n doubles each), face_cell (n
- * int64) and face (n int32), each optional; they must not overlap each other or the inputs.
+ * int64) and face (n int32), each optional; they must not overlap each other or the inputs
+ * (an overlap is refused with CGC_ERROR_INVALID_ARGUMENT, naming the two arrays).
  *
  * Threads: every function may be called from any thread, and the same handles may be used from
  * several threads at once. cgc_locate, cgc_gap and cgc_locator_query_seconds only read the body
@@ -155,9 +156,9 @@ uint32_t cgc_abi_version(void);
 const char *cgc_version(void);
 
 // A body on a lattice: `origin[3]`, spacing `h[3]`, `cells[3]` cells per axis. `active` is NULL
-// (every cell active) or `active_len` bytes, one per lattice cell, nonzero for an active cell,
-// cells numbered `i + nx (j + ny k)` (x fastest). The body starts undeformed. Cell numbers in
-// answers are lattice cell numbers. Writes the new handle to `*out`.
+// with `active_len` 0 (every cell active) or `active_len` bytes, one per lattice cell, nonzero
+// for an active cell, cells numbered `i + nx (j + ny k)` (x fastest). The body starts
+// undeformed. Cell numbers in answers are lattice cell numbers. Writes the new handle to `*out`.
 //
 // Displacements (`cgc_body_set_displacements`) are then given for every lattice node,
 // `(nx + 1)(ny + 1)(nz + 1)` of them numbered `i + (nx + 1)(j + (ny + 1) k)`; values at nodes of
@@ -278,8 +279,9 @@ const char *cgc_last_error(void);
 // strategy, with the locator's precision and tolerances deciding the sign near the surface.
 //
 // # Safety
-// `locator` must be a live handle or NULL; the arrays must hold the stated lengths, and the
-// output arrays must not overlap each other or `points`.
+// `locator` must be a live handle or NULL; the arrays must hold the stated lengths. Output arrays
+// that overlap each other or `points` are refused (`CGC_ERROR_INVALID_ARGUMENT`), before
+// anything is written.
 cgc_error cgc_gap(const cgc_locator *locator,
                   const double *points,
                   size_t n_points,
@@ -316,8 +318,9 @@ cgc_error cgc_locator_new(const cgc_body *body, const cgc_settings *settings, cg
 // writing every answer (the message names the first such point).
 //
 // # Safety
-// `locator` must be a live handle or NULL; the arrays must hold the stated lengths, and the
-// output arrays must not overlap each other or `points`.
+// `locator` must be a live handle or NULL; the arrays must hold the stated lengths. Output arrays
+// that overlap each other or `points` are refused (`CGC_ERROR_INVALID_ARGUMENT`), before
+// anything is written.
 cgc_error cgc_locate(const cgc_locator *locator,
                      const double *points,
                      size_t n_points,

@@ -282,9 +282,9 @@ impl CgcBody {
 }
 
 /// A body on a lattice: `origin[3]`, spacing `h[3]`, `cells[3]` cells per axis. `active` is NULL
-/// (every cell active) or `active_len` bytes, one per lattice cell, nonzero for an active cell,
-/// cells numbered `i + nx (j + ny k)` (x fastest). The body starts undeformed. Cell numbers in
-/// answers are lattice cell numbers. Writes the new handle to `*out`.
+/// with `active_len` 0 (every cell active) or `active_len` bytes, one per lattice cell, nonzero
+/// for an active cell, cells numbered `i + nx (j + ny k)` (x fastest). The body starts
+/// undeformed. Cell numbers in answers are lattice cell numbers. Writes the new handle to `*out`.
 ///
 /// Displacements (`cgc_body_set_displacements`) are then given for every lattice node,
 /// `(nx + 1)(ny + 1)(nz + 1)` of them numbered `i + (nx + 1)(j + (ny + 1) k)`; values at nodes of
@@ -338,6 +338,12 @@ pub unsafe extern "C" fn cgc_body_from_lattice(
                 )
             })?;
         drop(probe);
+        if active.is_null() && active_len != 0 {
+            return Err(Failure::new(
+                CgcError::NullPointer,
+                format!("active is NULL (for {active_len} flags): pass NULL with 0 for every cell"),
+            ));
+        }
         let body = if active.is_null() {
             Body::full(lattice)
         } else {
@@ -396,7 +402,16 @@ pub unsafe extern "C" fn cgc_body_from_mesh(
         let (points, topology) = unsafe {
             (
                 raw::points(nodes, n_nodes, "nodes")?,
-                raw::slice(cells, n_cells.saturating_mul(8), "cells")?,
+                raw::slice(
+                    cells,
+                    n_cells.checked_mul(8).ok_or_else(|| {
+                        Failure::new(
+                            CgcError::LengthMismatch,
+                            format!("cells: {n_cells} cells do not fit in memory"),
+                        )
+                    })?,
+                    "cells",
+                )?,
             )
         };
         if n_cells == 0 {

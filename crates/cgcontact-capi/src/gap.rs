@@ -134,8 +134,9 @@ fn answer_all<L: Surface + Sync>(
 /// strategy, with the locator's precision and tolerances deciding the sign near the surface.
 ///
 /// # Safety
-/// `locator` must be a live handle or NULL; the arrays must hold the stated lengths, and the
-/// output arrays must not overlap each other or `points`.
+/// `locator` must be a live handle or NULL; the arrays must hold the stated lengths. Output arrays
+/// that overlap each other or `points` are refused (`CGC_ERROR_INVALID_ARGUMENT`), before
+/// anything is written.
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn cgc_gap(
     locator: *const CgcLocator,
@@ -149,9 +150,23 @@ pub unsafe extern "C" fn cgc_gap(
     face: *mut i32,
 ) -> CgcError {
     guard(|| {
-        let n3 = n_points.saturating_mul(3);
-        // SAFETY: the caller guarantees a live handle and arrays of the stated lengths, outputs
-        // not overlapping anything else.
+        let n3 = n_points.checked_mul(3).ok_or_else(|| {
+            Failure::new(
+                CgcError::LengthMismatch,
+                format!("points: {n_points} points do not fit in memory"),
+            )
+        })?;
+        let given = |ptr: bool, len: usize| if ptr { 0 } else { len };
+        raw::disjoint(&[
+            raw::region(points, n3, "points")?,
+            raw::region(gap, given(gap.is_null(), n_points), "gap")?,
+            raw::region(closest, given(closest.is_null(), n3), "closest")?,
+            raw::region(normal, given(normal.is_null(), n3), "normal")?,
+            raw::region(face_cell, given(face_cell.is_null(), n_points), "face_cell")?,
+            raw::region(face, given(face.is_null(), n_points), "face")?,
+        ])?;
+        // SAFETY: the caller guarantees a live handle and arrays of the stated lengths, which
+        // were just checked not to overlap.
         let (locator, points, gap, closest, normal, face_cell, face) = unsafe {
             (
                 raw::handle(locator, "locator")?,

@@ -224,8 +224,9 @@ pub(crate) const PIECE: usize = 2048;
 /// writing every answer (the message names the first such point).
 ///
 /// # Safety
-/// `locator` must be a live handle or NULL; the arrays must hold the stated lengths, and the
-/// output arrays must not overlap each other or `points`.
+/// `locator` must be a live handle or NULL; the arrays must hold the stated lengths. Output arrays
+/// that overlap each other or `points` are refused (`CGC_ERROR_INVALID_ARGUMENT`), before
+/// anything is written.
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn cgc_locate(
     locator: *const CgcLocator,
@@ -236,14 +237,30 @@ pub unsafe extern "C" fn cgc_locate(
     status: *mut u8,
 ) -> CgcError {
     guard(|| {
-        // SAFETY: the caller guarantees a live handle and arrays of the stated lengths, outputs
-        // not overlapping anything else.
+        let n3 = n_points.checked_mul(3).ok_or_else(|| {
+            Failure::new(
+                CgcError::LengthMismatch,
+                format!("points: {n_points} points do not fit in memory"),
+            )
+        })?;
+        raw::disjoint(&[
+            raw::region(points, n3, "points")?,
+            raw::region(cells, n_points, "cells")?,
+            raw::region(xi, n3, "xi")?,
+            raw::region(
+                status,
+                if status.is_null() { 0 } else { n_points },
+                "status",
+            )?,
+        ])?;
+        // SAFETY: the caller guarantees a live handle and arrays of the stated lengths, which
+        // were just checked not to overlap.
         let (locator, points, cells, xi) = unsafe {
             (
                 raw::handle(locator, "locator")?,
                 raw::points(points, n_points, "points")?,
                 raw::slice_mut(cells, n_points, "cells")?,
-                raw::slice_mut(xi, n_points.saturating_mul(3), "xi")?,
+                raw::slice_mut(xi, n3, "xi")?,
             )
         };
         let status = if status.is_null() {

@@ -41,6 +41,56 @@ fn check<T>(ptr: *const T, len: usize, what: &str) -> Result<(), Failure> {
     Ok(())
 }
 
+/// Where an array argument lies in memory: its name and its bytes `start..end`.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Region<'a> {
+    what: &'a str,
+    start: usize,
+    end: usize,
+}
+
+/// The memory of `len` values of `T` at `ptr`, checked as [`slice`] checks it (an empty region
+/// when `ptr` is NULL and `len` is 0), for [`disjoint`] to compare before any slice is made.
+pub(crate) fn region<'a, T>(
+    ptr: *const T,
+    len: usize,
+    what: &'a str,
+) -> Result<Region<'a>, Failure> {
+    if len == 0 {
+        return Ok(Region {
+            what,
+            start: 0,
+            end: 0,
+        });
+    }
+    check(ptr, len, what)?;
+    let start = ptr as usize;
+    // `check` bounded the bytes by isize::MAX; an allocation cannot wrap the address space.
+    let end = start.saturating_add(len * size_of::<T>());
+    Ok(Region { what, start, end })
+}
+
+/// An error when two of `regions` share a byte: an output written over an input, or two outputs
+/// over each other, would give answers that depend on the order of the writes (and Rust's
+/// slices of them would alias).
+pub(crate) fn disjoint(regions: &[Region<'_>]) -> Result<(), Failure> {
+    let filled = |r: &&Region<'_>| r.start < r.end;
+    for (k, a) in regions.iter().enumerate().filter(|(_, r)| filled(r)) {
+        for b in regions[k + 1..].iter().filter(filled) {
+            if a.start < b.end && b.start < a.end {
+                return Err(Failure::new(
+                    CgcError::InvalidArgument,
+                    format!(
+                        "{} and {} overlap in memory ({:#x}..{:#x} and {:#x}..{:#x}): outputs must not overlap each other or the inputs",
+                        a.what, b.what, a.start, a.end, b.start, b.end
+                    ),
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
 /// `len` values of `T` read from `ptr`; an empty slice when `len` is 0, whatever `ptr` is.
 ///
 /// # Safety

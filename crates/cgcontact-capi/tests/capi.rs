@@ -697,3 +697,143 @@ fn masked_lattice_body_answers_only_active_cells() {
         }
     }
 }
+
+/// Outputs written over the points or over each other answered wrong without an error (cells
+/// written as int64 over ξ: a third of the ξ values were garbage); now refused before writing.
+#[test]
+fn overlapping_outputs_are_refused_before_anything_is_written() {
+    let body = block();
+    let handles = lattice_handles(&body);
+    let (points, _) = known_points(&body);
+    let n = points.len();
+    let mut given = flat(&points);
+    let before = bits(&given);
+    let mut buffer = vec![7.0f64; 4 * n];
+    let mut cells = vec![7i64; n];
+    let mut status = vec![9u8; n];
+    let (base, xi_alone) = (buffer.as_mut_ptr(), vec![7.0f64; 3 * n]);
+    let mut xi_alone = xi_alone;
+    // SAFETY: every array holds the length passed; the overlaps are what is tested, and the
+    // library refuses them before it makes a slice of any.
+    unsafe {
+        let cases: [(*mut i64, *mut f64, *mut u8, &str); 4] = [
+            // ξ in place over the points.
+            (
+                cells.as_mut_ptr(),
+                given.as_mut_ptr(),
+                ptr::null_mut(),
+                "points and xi",
+            ),
+            // The cells over the points' first values.
+            (
+                given.as_mut_ptr().cast(),
+                xi_alone.as_mut_ptr(),
+                ptr::null_mut(),
+                "points and cells",
+            ),
+            // The cells over ξ's last n values.
+            (
+                base.add(3 * n - 1).cast(),
+                base,
+                ptr::null_mut(),
+                "cells and xi",
+            ),
+            // The status bytes inside the cells.
+            (
+                cells.as_mut_ptr(),
+                xi_alone.as_mut_ptr(),
+                cells.as_mut_ptr().cast(),
+                "cells and status",
+            ),
+        ];
+        for (c, x, s, names) in cases {
+            let code = cgc_locate(handles.locator, given.as_ptr(), n, c, x, s);
+            assert_eq!(code, CgcError::InvalidArgument, "{names}");
+            assert!(last_error().starts_with(names), "{names}: {}", last_error());
+        }
+        assert_eq!(bits(&given), before, "the points were written");
+        assert!(
+            buffer.iter().chain(&xi_alone).all(|&v| v == 7.0),
+            "an output was written"
+        );
+        assert!(cells.iter().all(|&c| c == 7) && status.iter().all(|&s| s == 9));
+        // Adjacent, not overlapping: answered.
+        let (c, x) = (base.cast::<i64>(), base.add(n));
+        assert_eq!(
+            cgc_locate(
+                handles.locator,
+                given.as_ptr(),
+                n,
+                c,
+                x,
+                status.as_mut_ptr()
+            ),
+            CgcError::Ok
+        );
+        let expected = locate(handles.locator, &given);
+        assert_eq!(std::slice::from_raw_parts(c, n), &expected.1[..]);
+        assert_eq!(
+            bits(std::slice::from_raw_parts(x, 3 * n)),
+            bits(&expected.2)
+        );
+        // The gap's outputs likewise: gap over closest, closest over the points, face in face_cell.
+        let (mut gap, mut closest, mut face_cell) = (vec![7.0; n], vec![7.0; 3 * n], vec![7i64; n]);
+        let null_f = ptr::null_mut::<f64>();
+        let gap_cases: [(*mut f64, *mut f64, *mut i64, *mut i32, &str); 3] = [
+            (
+                closest.as_mut_ptr(),
+                closest.as_mut_ptr(),
+                ptr::null_mut(),
+                ptr::null_mut(),
+                "gap and closest",
+            ),
+            (
+                null_f,
+                given.as_mut_ptr(),
+                ptr::null_mut(),
+                ptr::null_mut(),
+                "points and closest",
+            ),
+            (
+                gap.as_mut_ptr(),
+                null_f,
+                face_cell.as_mut_ptr(),
+                face_cell.as_mut_ptr().cast(),
+                "face_cell and face",
+            ),
+        ];
+        for (g, c, fc, f, names) in gap_cases {
+            let code = cgc_gap(handles.locator, given.as_ptr(), n, 0.5, g, c, null_f, fc, f);
+            assert_eq!(code, CgcError::InvalidArgument, "{names}");
+            assert!(last_error().starts_with(names), "{names}: {}", last_error());
+        }
+        assert_eq!(bits(&given), before, "the points were written");
+        assert!(gap.iter().chain(&closest).all(|&v| v == 7.0));
+        assert!(face_cell.iter().all(|&c| c == 7));
+    }
+}
+
+/// A NULL mask with a length was read as "every cell active": the caller's flags were dropped.
+#[test]
+fn a_null_active_mask_with_a_length_is_refused() {
+    let (origin, h, counts) = ([0.0; 3], [1.0; 3], [2u32, 2, 2]);
+    let mut body = ptr::null_mut();
+    // SAFETY: origin, h and counts hold 3 values; NULL with a length is what is tested.
+    let code = unsafe {
+        cgc_body_from_lattice(
+            origin.as_ptr(),
+            h.as_ptr(),
+            counts.as_ptr(),
+            ptr::null(),
+            8,
+            &mut body,
+        )
+    };
+    assert_eq!(code, CgcError::NullPointer);
+    assert!(
+        last_error().contains("active is NULL (for 8 flags)"),
+        "{}",
+        last_error()
+    );
+    assert!(body.is_null());
+}
