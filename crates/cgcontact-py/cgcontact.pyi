@@ -2,8 +2,9 @@
 
 Find the hexahedron of a deformed body holding each point and its local coordinates xi in
 [-1, 1]^3 (VTK corner 0 at (-1, -1, -1)), every cell holding a point, and signed gaps to the
-body's deformed boundary surface. Queries release the GIL; C-contiguous float64 (n, 3) arrays are
-read in place, anything else array-like is converted once.
+body's deformed boundary surface. Queries release the GIL; C-contiguous, aligned float64 (n, 3)
+arrays are read in place, anything else array-like is converted once. Complex, date and time
+arrays, and masked arrays with masked values, raise ValueError rather than being cast.
 """
 
 import os
@@ -29,7 +30,8 @@ class Body:
         counts: Sequence[int],
         active: Optional[npt.ArrayLike] = None,
     ) -> None:
-        """A body on a lattice of `counts` cells per axis. `active`: one flag per lattice cell
+        """A body on a lattice of `counts` cells per axis (MemoryError, before allocating,
+        when its 48 bytes a node cannot be had). `active`: one flag per lattice cell
         (booleans, or 0s and 1s), x fastest (flat, or shape (nz, ny, nx)); None for every cell.
         Other shapes and values raise ValueError. Cells are numbered
         i + nx (j + ny k); `set_displacements` takes one row per lattice node,
@@ -80,8 +82,9 @@ class Locator:
         """(cell int64[n], xi float64[n, 3]) for points (n, 3): -1 and NaN where no cell holds
         the point. Cells are numbered as the body's input (rows of `hexes`, cells of the file,
         or lattice cells). A NaN or infinite point raises ValueError naming its row. With
-        `out=(cell, xi)` (C-contiguous int64[n] and float64[n, 3]) the answers are written
-        there and `out` is returned."""
+        `out=(cell, xi)` (C-contiguous, aligned, writeable int64[n] and float64[n, 3] arrays
+        sharing no memory with `points` or each other) the answers are written there and `out`
+        is returned."""
     @overload
     def locate_owners(self, x: Sequence[float]) -> List[Tuple[int, Xi]]: ...
     @overload

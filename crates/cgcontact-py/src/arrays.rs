@@ -4,10 +4,11 @@
 use std::borrow::Cow;
 
 use cgcontact::glam::DVec3;
-use numpy::{PyReadonlyArray2, PyUntypedArrayMethods};
+use numpy::{PyArray, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use pyo3::types::PyTuple;
+use pyo3::sync::PyOnceLock;
+use pyo3::types::{PyTuple, PyType};
 
 /// An `(n, 3)` float64 array borrowed from Python (read-only for as long as this lives).
 pub struct Rows<'py> {
@@ -15,8 +16,8 @@ pub struct Rows<'py> {
 }
 
 impl<'py> Rows<'py> {
-    /// The rows as vectors: the array's own memory when it is C-contiguous and 8-byte aligned
-    /// (always, for arrays numpy allocated), else a copy.
+    /// The rows as vectors, in the array's own memory (`rows` gives C-contiguous, aligned arrays
+    /// only); a copy if bytemuck would refuse the cast.
     pub fn vectors(&self) -> PyResult<Cow<'_, [DVec3]>> {
         let flat = self
             .array
@@ -31,10 +32,18 @@ impl<'py> Rows<'py> {
     }
 }
 
-/// `numpy.ascontiguousarray(obj, dtype)`: the same object when it already is one.
+/// `obj` as a C-contiguous, aligned array of `dtype`: the same object when it already is one
+/// (`numpy.require(obj, dtype, "CA")`). numpy's `ascontiguousarray` keeps a misaligned array (a
+/// view at an odd offset of a byte buffer), whose slice would be undefined behaviour in Rust.
 fn contiguous<'py>(obj: &Bound<'py, PyAny>, dtype: &str) -> PyResult<Bound<'py, PyAny>> {
     let numpy = obj.py().import("numpy")?;
-    numpy.call_method1("ascontiguousarray", (obj, numpy.getattr(dtype)?))
+    numpy.call_method1("require", (obj, numpy.getattr(dtype)?, "CA"))
+}
+
+/// Whether an array's data pointer is aligned for its element type: numpy allocates aligned
+/// arrays, but a view into a byte buffer (`numpy.frombuffer(b, offset=1)`) need not be.
+fn aligned<T, D>(array: &Bound<'_, PyArray<T, D>>) -> bool {
+    array.data().is_aligned()
 }
 
 fn shape_of(obj: &Bound<'_, PyAny>) -> String {
@@ -43,28 +52,70 @@ fn shape_of(obj: &Bound<'_, PyAny>) -> String {
         .unwrap_or_else(|_| "?".to_owned())
 }
 
-/// `what` as an `(n, 3)` float64 array: read in place when it is a C-contiguous float64 array,
-/// else converted once. With `single`, a single point of shape `(3,)` is taken as one row; the
-/// flag returned says whether it was one.
+/// An error when `obj` is a numpy masked array with masked values: numpy's conversions, and
+/// reading its buffer in place, would take the values under the mask as data.
+pub fn refuse_masked(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<()> {
+    static MASKED_ARRAY: PyOnceLock<Py<PyType>> = PyOnceLock::new();
+    let py = obj.py();
+    if !obj.is_instance(MASKED_ARRAY.import(py, "numpy.ma", "MaskedArray")?)? {
+        return Ok(());
+    }
+    let mask = py
+        .import("numpy.ma")?
+        .call_method1("getmaskarray", (obj,))?;
+    if mask.call_method0("any")?.extract()? {
+        return Err(PyValueError::new_err(format!(
+            "{what} is a masked array with masked values: fill them (numpy.ma.filled) or drop \
+             them, since the values under the mask would be read as data"
+        )));
+    }
+    Ok(())
+}
+
+/// An error when `given` (a numpy array) holds values that are not real numbers: complex values
+/// (whose imaginary part numpy's float conversion drops with only a warning), dates and times.
+fn refuse_unreal(given: &Bound<'_, PyAny>, what: &str) -> PyResult<()> {
+    let dtype = given.getattr("dtype")?;
+    let kind: String = dtype.getattr("kind")?.extract()?;
+    if matches!(kind.as_str(), "c" | "M" | "m" | "V") {
+        return Err(PyValueError::new_err(format!(
+            "{what} must hold real numbers, got dtype {}",
+            dtype.str()?
+        )));
+    }
+    Ok(())
+}
+
+/// `what` as an `(n, 3)` float64 array: read in place when it is a C-contiguous, aligned float64
+/// array, else converted once (from any real dtype: complex values, dates and masked values are
+/// refused, not reinterpreted). With `single`, a single point of shape `(3,)` is taken as one
+/// row; the flag returned says whether it was one.
 pub fn rows<'py>(obj: &Bound<'py, PyAny>, what: &str, single: bool) -> PyResult<(Rows<'py>, bool)> {
+    refuse_masked(obj, what)?;
     if let Ok(array) = obj.extract::<PyReadonlyArray2<'py, f64>>()
         && array.is_c_contiguous()
+        && aligned(&array)
     {
         return check(Rows { array }, what).map(|r| (r, false));
     }
-    let converted = contiguous(obj, "float64")?;
-    let ndim: usize = converted.getattr("ndim")?.extract()?;
-    let (converted, was_single) = if single && ndim == 1 {
+    let numpy = obj.py().import("numpy")?;
+    let given = numpy.call_method1("asarray", (obj,))?;
+    let shape: Vec<usize> = given.getattr("shape")?.extract()?;
+    let was_single = single && shape == [3];
+    if !(was_single || (shape.len() == 2 && shape[1] == 3)) {
+        let wanted = if single { "(3,) or (n, 3)" } else { "(n, 3)" };
+        return Err(PyValueError::new_err(format!(
+            "{what} must have shape {wanted}, got {}",
+            shape_of(&given)
+        )));
+    }
+    refuse_unreal(&given, what)?;
+    let converted = contiguous(&given, "float64")?;
+    let converted = if was_single {
         let shape = PyTuple::new(obj.py(), [1usize, 3])?;
-        let reshaped = converted.call_method1("reshape", (shape,)).map_err(|_| {
-            PyValueError::new_err(format!(
-                "{what} must have shape (3,) or (n, 3), got {}",
-                shape_of(&converted)
-            ))
-        })?;
-        (reshaped, true)
+        converted.call_method1("reshape", (shape,))?
     } else {
-        (converted, false)
+        converted
     };
     let array = converted
         .extract::<PyReadonlyArray2<'py, f64>>()
@@ -112,6 +163,7 @@ fn same_values(converted: &Bound<'_, PyAny>, given: &Bound<'_, PyAny>) -> PyResu
 /// (2.5, NaN, or beyond int64) are refused: numpy's conversion would truncate or wrap them into
 /// other nodes' numbers.
 pub fn hexes(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<[i64; 8]>> {
+    refuse_masked(obj, what)?;
     let numpy = obj.py().import("numpy")?;
     let given = numpy.call_method1("asarray", (obj,))?;
     // NaN and out-of-range floats are refused below; numpy's warning on casting them is noise.
@@ -153,6 +205,7 @@ pub fn hexes(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<[i64; 8]>> {
 /// shapes of as many values ((nx, ny, nz) would be read transposed) and other values (2 is no
 /// flag) are refused.
 pub fn flags(obj: &Bound<'_, PyAny>, what: &str, counts: [u32; 3]) -> PyResult<Vec<bool>> {
+    refuse_masked(obj, what)?;
     let numpy = obj.py().import("numpy")?;
     let given = numpy.call_method1("asarray", (obj,))?;
     let shape: Vec<usize> = given.getattr("shape")?.extract()?;

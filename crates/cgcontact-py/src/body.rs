@@ -7,7 +7,7 @@ use cgcontact::glam::DVec3;
 use cgcontact::{AdaptiveBody, Body, CellId, Lattice};
 use cgcontact_baseline::BodyRef;
 use cgcontact_io::{CellMap, HexMesh, LATTICE_TOLERANCE, MeshBody};
-use pyo3::exceptions::PyValueError;
+use pyo3::exceptions::{PyMemoryError, PyValueError};
 use pyo3::prelude::*;
 
 use crate::arrays;
@@ -299,6 +299,18 @@ fn adaptive_state(mesh: &HexMesh, body: AdaptiveBody, cells: CellMap) -> BodySta
     }
 }
 
+/// An error, before the allocation, when a body of `nodes` nodes with every cell active cannot be
+/// allocated: its displacements and this binding's copy take 48 bytes a node, and a failed
+/// allocation would abort the interpreter (as the C API checks, `cgc_body_from_lattice`).
+fn probe_memory(nodes: usize) -> PyResult<()> {
+    let mut probe = Vec::<[DVec3; 2]>::new();
+    probe.try_reserve_exact(nodes).map_err(|_| {
+        PyMemoryError::new_err(format!(
+            "a body of {nodes} lattice nodes does not fit in memory (48 bytes a node)"
+        ))
+    })
+}
+
 /// An input node no cell uses.
 const UNSET: usize = usize::MAX;
 
@@ -373,7 +385,10 @@ impl PyBody {
         }
         let lattice = Lattice::new(origin, h, counts).map_err(value_error)?;
         let body = match active {
-            None => Body::full(lattice),
+            None => {
+                probe_memory(lattice.node_count())?;
+                Body::full(lattice)
+            }
             Some(active) => {
                 let flags = arrays::flags(active, "active", counts)?;
                 let ids = flags.iter().enumerate().filter(|(_, f)| **f);

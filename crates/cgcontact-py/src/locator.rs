@@ -9,10 +9,13 @@ use cgcontact::{AdaptiveLocator, Answer, GapAnswer, GapFinder, LatticeLocator, L
 use cgcontact_baseline::{
     BodyRef, BruteForce, CentroidRadius, Inversion, NodeRadius, NodeRadiusOptions, RTree,
 };
-use numpy::{IntoPyArray, PyArray1, PyArray2, PyArrayMethods, PyUntypedArrayMethods};
+use numpy::{
+    BorrowError, IntoPyArray, PyArray1, PyArray2, PyArrayMethods, PyUntypedArray,
+    PyUntypedArrayMethods,
+};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyList};
+use pyo3::types::{PyDict, PyList, PyTuple};
 use rayon::prelude::*;
 
 use crate::arrays;
@@ -97,10 +100,10 @@ impl Strategy {
     }
 }
 
-/// The error for the first point a query refused (a NaN or infinite coordinate).
-fn refused(points: &[DVec3], row: usize) -> PyErr {
+/// The error for the first point of `what` a query refused (a NaN or infinite coordinate).
+fn refused(what: &str, points: &[DVec3], row: usize) -> PyErr {
     PyValueError::new_err(format!(
-        "points row {row} (0-based) is not finite: {}",
+        "{what} row {row} (0-based) is not finite: {}",
         points[row]
     ))
 }
@@ -206,9 +209,10 @@ impl PyLocator {
     /// Locates every point of `points` (n, 3). Returns `(cell, xi)`: int64[n], the cell holding
     /// each point (-1 where none does), and float64[n, 3], its local coordinates in [-1, 1]^3
     /// (NaN where not found). Cells are numbered as the body's input: rows of `hexes`, cells of
-    /// the VTK file, or lattice cells. A C-contiguous float64 array is read in place. With
-    /// `out=(cell, xi)`, C-contiguous int64[n] and float64[n, 3] arrays, the answers are written
-    /// there and `out` is returned (a solver loop then allocates nothing per query).
+    /// the VTK file, or lattice cells. A C-contiguous, aligned float64 array is read in place.
+    /// With `out=(cell, xi)`, C-contiguous, aligned int64[n] and float64[n, 3] arrays sharing no
+    /// memory with the points or each other, the answers are written there and `out` is returned
+    /// (a solver loop then allocates nothing per query).
     #[pyo3(signature = (points, out = None))]
     fn locate<'py>(
         &self,
@@ -221,48 +225,25 @@ impl PyLocator {
         let points: &[DVec3] = &vectors;
         let n = points.len();
         let (cells, xi) = match out {
-            // Arrays of another dtype (int32 cells, float32 ξ) are named, not converted: the
-            // answers must land in the caller's arrays.
-            Some(out) => out.extract::<Located<'py>>().map_err(|_| {
-                let dtypes = out
-                    .try_iter()
-                    .and_then(|items| {
-                        items
-                            .map(|item| Ok(item?.getattr("dtype")?.str()?.to_string()))
-                            .collect::<PyResult<Vec<String>>>()
-                    })
-                    .map_or_else(|_| "?".to_owned(), |d| d.join(" and "));
-                PyValueError::new_err(format!(
-                    "out must be a tuple (cell, xi) of an int64[{n}] and a float64[{n}, 3] \
-                     array, got dtypes {dtypes}"
-                ))
-            })?,
+            Some(out) => out_arrays(out, n)?,
             None => (
                 PyArray1::<i64>::zeros(py, n, false),
                 PyArray2::<f64>::zeros(py, [n, 3], false),
             ),
         };
         {
-            let mut cells_out = cells.try_readwrite().map_err(value_error)?;
-            let mut xi_out = xi.try_readwrite().map_err(value_error)?;
-            let (cells_slice, xi_slice) = match (cells_out.as_slice_mut(), xi_out.as_slice_mut()) {
-                (Ok(c), Ok(x)) if c.len() == n && x.len() == 3 * n && xi_out_shape_ok(&xi) => {
-                    (c, x)
-                }
-                _ => {
-                    return Err(PyValueError::new_err(format!(
-                        "out must be C-contiguous arrays of shapes ({n},) and ({n}, 3), got {:?} and {:?}",
-                        cells.shape(),
-                        xi.shape()
-                    )));
-                }
-            };
+            let mut cells_out = cells.try_readwrite().map_err(|e| out_borrow(e, "cell"))?;
+            let mut xi_out = xi.try_readwrite().map_err(|e| out_borrow(e, "xi"))?;
+            // `out_arrays` checked both C-contiguous (so `as_slice_mut` reads x, y, z rows),
+            // aligned and of the points' length.
+            let cells_slice = cells_out.as_slice_mut().map_err(value_error)?;
+            let xi_slice = xi_out.as_slice_mut().map_err(value_error)?;
             py.detach(|| {
                 self.with(|locator, state| {
                     locate_into(locator, state, points, cells_slice, xi_slice)
                 })
             })?
-            .map_err(|row| refused(points, row))?;
+            .map_err(|row| refused("points", points, row))?;
         }
         Ok((cells, xi))
     }
@@ -294,7 +275,7 @@ impl PyLocator {
                         .collect::<Result<Vec<_>, usize>>()
                 })
             })?
-            .map_err(|row| refused(points, row))?;
+            .map_err(|row| refused("x", points, row))?;
         if single {
             let one = owners.into_iter().next().unwrap_or_default();
             return PyList::new(py, one);
@@ -348,7 +329,7 @@ impl PyLocator {
                     }
                 }
                 if let Some(row) = gaps.iter().position(Result::is_err) {
-                    return Err(refused(points, row));
+                    return Err(refused("points", points, row));
                 }
                 Ok(GapArrays::of(&gaps, &state))
             })
@@ -413,10 +394,81 @@ fn locate_into(
     }
 }
 
-/// Whether `xi` is C-contiguous of shape (n, 3) (its length is checked with the cells'):
-/// `as_slice_mut` takes Fortran order too, whose rows are not (x, y, z).
-fn xi_out_shape_ok(xi: &Bound<'_, PyArray2<f64>>) -> bool {
-    xi.shape()[1] == 3 && xi.is_c_contiguous()
+/// The caller's `out=(cell, xi)` for `n` points: an int64 array of shape (n,) and a float64 array
+/// of shape (n, 3), both C-contiguous (a Fortran-order xi's memory is not x, y, z rows) and
+/// aligned (a misaligned slice would be undefined behaviour). Arrays of another dtype (int32
+/// cells, float32 xi) are refused, not converted: the answers must land in the caller's arrays.
+fn out_arrays<'py>(out: &Bound<'py, PyAny>, n: usize) -> PyResult<Located<'py>> {
+    let fits = |(cells, xi): &Located<'py>| {
+        cells.len() == n
+            && cells.is_c_contiguous()
+            && cells.data().is_aligned()
+            && xi.shape() == [n, 3]
+            && xi.is_c_contiguous()
+            && xi.data().is_aligned()
+    };
+    match out.extract::<Located<'py>>() {
+        Ok(located) if fits(&located) => Ok(located),
+        _ => Err(PyValueError::new_err(format!(
+            "out must be a tuple (cell, xi) of C-contiguous, aligned arrays: int64 of shape \
+             ({n},) and float64 of shape ({n}, 3); got {}",
+            describe_out(out)
+        ))),
+    }
+}
+
+/// What the caller gave as `out`, for an error message: each item's dtype, shape and layout.
+fn describe_out(out: &Bound<'_, PyAny>) -> String {
+    let describe = |item: &Bound<'_, PyAny>| -> PyResult<String> {
+        let Ok(array) = item.cast::<PyUntypedArray>() else {
+            return Ok(format!("{} object", item.get_type().name()?));
+        };
+        let shape: Vec<String> = array.shape().iter().map(usize::to_string).collect();
+        let comma = if shape.len() == 1 { "," } else { "" };
+        let mut text = format!(
+            "{} array of shape ({}{comma})",
+            array.dtype().str()?,
+            shape.join(", ")
+        );
+        if !array.is_c_contiguous() {
+            text.push_str(", not C-contiguous");
+        }
+        if !item
+            .getattr("flags")?
+            .getattr("aligned")?
+            .extract::<bool>()?
+        {
+            text.push_str(", misaligned");
+        }
+        Ok(text)
+    };
+    let items = if out.is_instance_of::<PyTuple>() {
+        out.try_iter().and_then(|items| {
+            items
+                .map(|item| describe(&item?))
+                .collect::<PyResult<Vec<String>>>()
+        })
+    } else {
+        Err(PyValueError::new_err("not a tuple"))
+    };
+    match items {
+        Ok(items) => format!("({})", items.join("; ")),
+        Err(_) => describe(out).unwrap_or_else(|_| "?".to_owned()),
+    }
+}
+
+/// The error for an `out` array that cannot be written: read-only, or sharing memory with the
+/// points (read in place) or with the other `out` array.
+fn out_borrow(e: BorrowError, name: &str) -> PyErr {
+    match e {
+        BorrowError::NotWriteable => {
+            PyValueError::new_err(format!("out: the {name} array is read-only"))
+        }
+        _ => PyValueError::new_err(format!(
+            "out: the {name} array shares memory with the points or with the other out array; \
+             give arrays of their own"
+        )),
+    }
 }
 
 /// Gap answers as flat arrays.

@@ -351,7 +351,7 @@ def test_queries_release_the_gil():
                                                          lattice_hexes()[1])),
          "whole node numbers"),
         (lambda l, b: l.locate(np.zeros((2, 3)), out=(np.zeros(2, np.int32), np.zeros((2, 3)))),
-         "got dtypes int32 and float64"),
+         r"got \(int32 array of shape \(2,\); float64 array of shape \(2, 3\)\)"),
         (lambda l, b: cgcontact.Body((np.nan, 0, 0), (1, 1, 1), (1, 1, 1)), "not finite"),
         (lambda l, b: cgcontact.Body.from_hexes(lattice_hexes()[0], lattice_hexes()[1] + 100),
          "hexes row 0 corner 0"),
@@ -369,3 +369,129 @@ def test_bad_input_raises_value_error(call, message):
     body = cgcontact.Body(ORIGIN, SPACING, COUNTS)
     with pytest.raises(ValueError, match=message):
         call(cgcontact.Locator(body), body)
+
+
+# Inputs numpy would silently reinterpret, and arrays Rust must not read in place.
+
+
+def misaligned(values):
+    """A C-contiguous copy of `values` one byte past an aligned address (numpy's ALIGNED flag off),
+    as a view into a byte buffer at an odd offset gives."""
+    values = np.ascontiguousarray(values)
+    raw = np.zeros(values.nbytes + values.itemsize, dtype=np.uint8)
+    array = raw[1:1 + values.nbytes].view(values.dtype).reshape(values.shape)
+    array[...] = values
+    assert not array.flags.aligned and array.flags.c_contiguous
+    return array
+
+
+def test_complex_and_date_arrays_are_refused_not_cast():
+    """numpy's float conversion drops imaginary parts with only a ComplexWarning."""
+    points, _, _ = cell_points()
+    body = cgcontact.Body(ORIGIN, SPACING, COUNTS)
+    locator = cgcontact.Locator(body)
+    for given in [points + 0.5j, points.astype(complex), np.zeros((2, 3), "datetime64[s]"),
+                  np.zeros((2, 3), "timedelta64[s]")]:
+        with pytest.raises(ValueError, match="must hold real numbers"):
+            locator.locate(given)
+    with pytest.raises(ValueError, match="must hold real numbers"):
+        locator.locate_owners(points[0] + 1j)
+    with pytest.raises(ValueError, match="must hold real numbers"):
+        body.set_displacements(np.zeros((body.node_count, 3)) + 1j)
+    with pytest.raises(ValueError, match="must hold real numbers"):
+        cgcontact.Body.from_hexes(lattice_hexes()[0] + 0j, lattice_hexes()[1])
+
+
+def test_masked_values_are_refused_not_read_as_data():
+    """A masked array's buffer holds values the caller marked as missing."""
+    points, cells, _ = cell_points()
+    body = cgcontact.Body(ORIGIN, SPACING, COUNTS)
+    locator = cgcontact.Locator(body)
+    masked = np.ma.masked_array(points, mask=np.zeros(points.shape, dtype=bool))
+    np.testing.assert_array_equal(locator.locate(masked)[0], cells)  # no value masked: fine
+    masked[1, 2] = np.ma.masked
+    for call in [lambda: locator.locate(masked), lambda: locator.locate_owners(masked),
+                 lambda: locator.gap(masked, 1.0),
+                 lambda: body.set_displacements(np.ma.masked_array(
+                     np.zeros((body.node_count, 3)), mask=np.eye(body.node_count, 3)))]:
+        with pytest.raises(ValueError, match="masked values"):
+            call()
+    active = np.ma.masked_array(np.ones(12), mask=[True] + [False] * 11)
+    with pytest.raises(ValueError, match="active is a masked array"):
+        cgcontact.Body(ORIGIN, SPACING, COUNTS, active)
+    nodes, hexes = lattice_hexes()
+    with pytest.raises(ValueError, match="hexes is a masked array"):
+        cgcontact.Body.from_hexes(nodes, np.ma.masked_array(hexes, mask=hexes == 3))
+
+
+def test_misaligned_arrays_are_copied_or_refused_not_read_in_place():
+    """A misaligned slice is undefined behaviour in Rust (a debug build aborts the interpreter)."""
+    points, cells, xi = cell_points()
+    locator = cgcontact.Locator(cgcontact.Body(ORIGIN, SPACING, COUNTS))
+    given = misaligned(points)
+    assert cgcontact._data_address(given) != given.__array_interface__["data"][0]
+    cell, got = locator.locate(given)
+    np.testing.assert_array_equal(cell, cells)
+    np.testing.assert_allclose(got, np.tile(xi, (len(cells), 1)), atol=1e-12)
+    nodes, hexes = lattice_hexes()
+    body = cgcontact.Body.from_hexes(misaligned(nodes), misaligned(hexes))
+    np.testing.assert_array_equal(cgcontact.Locator(body).locate(points)[0], cells)
+    n = len(points)
+    for out in [(misaligned(np.zeros(n, np.int64)), np.zeros((n, 3))),
+                (np.zeros(n, np.int64), misaligned(np.zeros((n, 3))))]:
+        with pytest.raises(ValueError, match="misaligned"):
+            locator.locate(points, out=out)
+
+
+def test_out_errors_name_what_is_wrong():
+    points, _, _ = cell_points()
+    n = len(points)
+    locator = cgcontact.Locator(cgcontact.Body(ORIGIN, SPACING, COUNTS))
+    cells, xi = np.zeros(n, np.int64), np.zeros((n, 3))
+    cases = [
+        ((cells.reshape(n, 1), xi), rf"int64 array of shape \({n}, 1\); float64"),
+        ((cells, xi.reshape(3 * n)), rf"float64 array of shape \({3 * n},\)"),
+        ([cells, xi], "got list object"),
+        ((cells, np.zeros((n, 6))[:, ::2]), "not C-contiguous"),
+    ]
+    for out, message in cases:
+        with pytest.raises(ValueError, match=message):
+            locator.locate(points, out=out)
+    readonly = np.zeros((n, 3))
+    readonly.setflags(write=False)
+    with pytest.raises(ValueError, match="xi array is read-only"):
+        locator.locate(points, out=(cells, readonly))
+    given = points.copy()
+    with pytest.raises(ValueError, match="xi array shares memory with the points"):
+        locator.locate(given, out=(cells, given))
+    both = np.zeros(3 * n)
+    with pytest.raises(ValueError, match="shares memory"):
+        locator.locate(points, out=(both[:n].view(np.int64), both.reshape(n, 3)))
+
+
+def test_shape_errors_name_the_shape_given():
+    """numpy.ascontiguousarray made None and scalars arrays of shape (1,)."""
+    locator = cgcontact.Locator(cgcontact.Body(ORIGIN, SPACING, COUNTS))
+    for given in [None, 1.0]:
+        with pytest.raises(ValueError, match=r"points must have shape \(n, 3\), got \(\)"):
+            locator.locate(given)
+        with pytest.raises(ValueError, match=r"x must have shape \(3,\) or \(n, 3\), got \(\)"):
+            locator.locate_owners(given)
+    with pytest.raises(ValueError, match="x row 1"):
+        locator.locate_owners([[0, 0, 0], [0, np.nan, 0]])
+
+
+def test_a_lattice_too_large_for_memory_is_an_error_not_a_killed_interpreter():
+    """1625^3 nodes (just under 2^32) take 206 GB: refused before allocating, where the kernel
+    refuses such an allocation (Linux's default heuristic overcommit, under 206 GB of memory)."""
+    try:
+        overcommit = pathlib.Path("/proc/sys/vm/overcommit_memory").read_text().strip()
+        meminfo = dict(line.split(":") for line in pathlib.Path("/proc/meminfo").read_text()
+                       .splitlines() if ":" in line)
+        total_kb = sum(int(meminfo[key].split()[0]) for key in ["MemTotal", "SwapTotal"])
+    except (OSError, ValueError, KeyError):
+        pytest.skip("not Linux: the allocation probe depends on the kernel's overcommit policy")
+    if overcommit != "0" or total_kb > 150 * 2**20:
+        pytest.skip("the kernel may grant 206 GB here: the probe cannot refuse it")
+    with pytest.raises(MemoryError, match="does not fit in memory"):
+        cgcontact.Body((0, 0, 0), (1, 1, 1), (1624, 1624, 1624))
