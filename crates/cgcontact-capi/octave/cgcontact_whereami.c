@@ -11,7 +11,8 @@
  *     E         1 x n   1-based element holding each point, 0 when none
  *     PosL      3 x n   local coordinates in [-1, 1]^3 (NaN when none)
  *     Options   struct, any of: precision ('f64' or 'f32'), tol (Newton step), max_iter, threads,
- *               fill_hanging (true: hanging nodes take their constraint's value, U's is ignored)
+ *               fill_hanging (true: hanging nodes take their constraint's value, U's is ignored);
+ *               any other field is an error (a misspelt option would be ignored otherwise)
  *
  * Adaptive meshes work as uniform ones: elements of several sizes, each a dyadic refinement of
  * one lattice (edges h/2^l), with the hanging nodes (nodes of finer elements on an edge or a face
@@ -23,7 +24,7 @@
  * Handles, for solver loops (build once, update displacements, locate):
  *
  *   H = cgcontact_whereami('new', XYZ_N0, Topology [, Options])
- *   cgcontact_whereami('update', H, U)
+ *   cgcontact_whereami('update', H, U)                        % U m x 3 ([] is an error)
  *   [E, PosL] = cgcontact_whereami('locate', H, XYZ)
  *   [G, C, N, FE, F] = cgcontact_whereami('gap', H, XYZ, D)    % gaps to the surface, within D
  *   S = cgcontact_whereami('query_seconds', H, XYZ, Repeats)   % the library's own query time
@@ -44,10 +45,11 @@
  * cgcontact_body.m (beside the MEX file) wraps these in a handle object that frees its body when
  * cleared: B = cgcontact_body(XYZ_N0, Topology); update(B, U); [E, PosL] = locate(B, XYZ).
  *
- * H is a number naming an entry of this MEX file's table. Every entry still live is freed when
- * Octave or MATLAB exits (mexAtExit); 'free' frees one earlier. The MEX file locks itself in
- * memory (mexLock) so that `clear all` cannot unload it while handles or the library's worker
- * threads are alive; handles stay valid across `clear`.
+ * H is a number naming an entry of this MEX file's table; a freed handle's number is never given
+ * again, so that using it is an error (cgcontact:badHandle), not another body's answers. Every
+ * entry still live is freed when Octave or MATLAB exits (mexAtExit); 'free' frees one earlier.
+ * The MEX file locks itself in memory (mexLock) so that `clear all` cannot unload it while
+ * handles or the library's worker threads are alive; handles stay valid across `clear`.
  *
  * Copies: XYZ and XYZ_N0 are read in place (a 3 x n double array is x y z per point, the layout
  * the C ABI reads); U is read in place too (component-major). PosL is written in place by the
@@ -80,7 +82,14 @@ typedef struct {
     cgc_locator *locator;
     size_t n_nodes;
     uint32_t fill; /* CGC_FILL_HANGING or 0, OR-ed into every update's layout */
+    double generation; /* how many handles this slot gave before: part of the handle's number */
 } entry;
+
+/* A handle is slot + 1 + generation * SLOTS: a slot freed and given again gets a new number, so
+ * that a freed handle still held is refused rather than answering for another body. Whole
+ * numbers up to 2^53 are exact doubles: 2^20 slots and 2^33 generations each. */
+#define SLOTS 1048576.0
+#define GENERATIONS 8589934592.0
 
 static entry *table = NULL;
 static size_t table_len = 0;
@@ -137,9 +146,21 @@ static void settings_from(const mxArray *options, cgc_settings *s, uint32_t *fil
     if (!options || mxIsEmpty(options)) return;
     if (!mxIsStruct(options) || mxGetNumberOfElements(options) != 1)
         FAIL("badInput", "Options must be a scalar struct");
+    /* A misspelt field (Precision, maxiter, fillHanging) would be ignored without a word. */
+    static const char *known[] = {"precision", "tol", "max_iter", "threads", "fill_hanging"};
+    for (int k = 0; k < mxGetNumberOfFields(options); k++) {
+        const char *name = mxGetFieldNameByNumber(options, k);
+        int found = 0;
+        for (size_t j = 0; j < sizeof known / sizeof *known; j++) found |= !strcmp(name, known[j]);
+        if (!found)
+            FAIL("badInput",
+                 "Options.%s is not an option (precision, tol, max_iter, threads, fill_hanging)",
+                 name);
+    }
     const mxArray *f = mxGetField(options, 0, "fill_hanging");
     if (f) {
-        if (!(mxIsLogical(f) || mxIsDouble(f)) || mxIsComplex(f) || mxGetNumberOfElements(f) != 1)
+        if (!(mxIsLogical(f) || mxIsDouble(f)) || mxIsComplex(f) || mxGetNumberOfElements(f) != 1 ||
+            isnan(mxGetScalar(f)))
             FAIL("badInput", "Options.fill_hanging must be true or false");
         *fill = mxGetScalar(f) != 0 ? CGC_FILL_HANGING : 0;
     }
@@ -191,7 +212,7 @@ static entry build(const mxArray *nodes, const mxArray *topology, const mxArray 
                  (int)(i / 8) + 1, t[i]);
         cells[i] = (int64_t)t[i];
     }
-    entry made = {NULL, NULL, m, fill};
+    entry made = {NULL, NULL, m, fill, 0};
     cgc_error code = cgc_body_from_mesh(mxGetPr(nodes), m, cells, e, 1, &made.body);
     mxFree(cells);
     if (code != CGC_ERROR_OK) fail_cgc(code, "XYZ_N0 and Topology");
@@ -203,9 +224,11 @@ static entry build(const mxArray *nodes, const mxArray *topology, const mxArray 
     return made;
 }
 
-/* Sets U (m x 3) on the entry's body; on failure frees the entry when `owned`. */
+/* Sets U (m x 3) on the entry's body; on failure frees the entry when `owned`. An empty double U
+ * leaves a body `owned` by the call (just built) undeformed; 'update' refuses it, since it would
+ * keep the last displacements rather than make the body undeformed. */
 static void update(entry *e, const mxArray *u, int owned) {
-    if (mxIsEmpty(u)) return;
+    if (owned && mxIsDouble(u) && mxIsEmpty(u)) return;
     if (!mxIsDouble(u) || mxIsComplex(u) || mxIsSparse(u) || mxGetNumberOfDimensions(u) != 2 ||
         mxGetM(u) != e->n_nodes || mxGetN(u) != 3) {
         if (owned) free_entry(e);
@@ -306,25 +329,34 @@ static entry *lookup(const mxArray *h) {
     if (!mxIsDouble(h) || mxIsComplex(h) || mxGetNumberOfElements(h) != 1)
         FAIL("badHandle", "H must be a handle from cgcontact_whereami('new', ...)");
     double v = mxGetScalar(h);
-    if (!(v >= 1 && v <= (double)table_len && v == floor(v)) || !table[(size_t)v - 1].body)
-        FAIL("badHandle", "%g is not a live handle (freed, or never made)", v);
-    return &table[(size_t)v - 1];
+    if (!(v >= 1 && v <= SLOTS * GENERATIONS && v == floor(v)))
+        FAIL("badHandle", "%.16g is not a live handle (freed, or never made)", v);
+    double generation = floor((v - 1) / SLOTS);
+    size_t slot = (size_t)(v - 1 - generation * SLOTS);
+    if (slot >= table_len || !table[slot].body || table[slot].generation != generation)
+        FAIL("badHandle", "%.16g is not a live handle (freed, or never made)", v);
+    return &table[slot];
 }
 
 static double keep(entry made) {
+    /* A free slot whose generations are not all spent, else a new slot. */
     size_t slot = 0;
-    while (slot < table_len && table[slot].body) slot++;
+    while (slot < table_len &&
+           (table[slot].body || table[slot].generation >= GENERATIONS - 1))
+        slot++;
     if (slot == table_len) {
-        entry *grown = realloc(table, (table_len + 1) * sizeof *table);
+        entry *grown =
+            (double)table_len < SLOTS ? realloc(table, (table_len + 1) * sizeof *table) : NULL;
         if (!grown) {
             free_entry(&made);
-            FAIL("outOfMemory", "no memory for a new handle");
+            FAIL("outOfMemory", "no memory for a new handle (%d live)", (int)table_len);
         }
         table = grown;
-        table[table_len++] = (entry){NULL, NULL, 0, 0};
+        table[table_len++] = (entry){NULL, NULL, 0, 0, -1};
     }
+    made.generation = table[slot].generation + 1;
     table[slot] = made;
-    return (double)(slot + 1);
+    return (double)slot + 1 + made.generation * SLOTS;
 }
 
 static void args(int nrhs, int lo, int hi, const char *usage) {
@@ -341,7 +373,12 @@ void mexFunction(int nlhs, mxArray *plhs[], int nrhs, const mxArray *prhs[]) {
     }
     if (nrhs >= 1 && mxIsChar(prhs[0])) {
         char command[16] = {0};
-        mxGetString(prhs[0], command, sizeof command);
+        if (mxGetNumberOfElements(prhs[0]) >= sizeof command || mxGetM(prhs[0]) > 1 ||
+            mxGetString(prhs[0], command, sizeof command) != 0)
+            FAIL("usage",
+                 "unknown command: a row of at most %d characters (new, update, locate, gap, "
+                 "query_seconds, free, handles)",
+                 (int)sizeof command - 1);
         if (!strcmp(command, "new")) {
             args(nrhs, 3, 4, "H = cgcontact_whereami('new', XYZ_N0, Topology [, Options])");
             entry made = build(prhs[1], prhs[2], nrhs > 3 ? prhs[3] : NULL);
@@ -360,8 +397,12 @@ void mexFunction(int nlhs, mxArray *plhs[], int nrhs, const mxArray *prhs[]) {
             args(nrhs, 3, 4, "S = cgcontact_whereami('query_seconds', H, XYZ [, Repeats])");
             entry *e = lookup(prhs[1]);
             size_t n = matrix(prhs[2], "XYZ", 3, "3 x n, one point per column");
+            if (nrhs > 3 && (!mxIsDouble(prhs[3]) || mxIsComplex(prhs[3]) ||
+                             mxGetNumberOfElements(prhs[3]) != 1))
+                FAIL("badInput", "Repeats must be a real double scalar");
             double repeats = nrhs > 3 ? mxGetScalar(prhs[3]) : 0;
-            if (!(repeats >= 0 && repeats < 1e6)) FAIL("badInput", "Repeats must be in [0, 1e6)");
+            if (!(repeats >= 0 && repeats < 1e6 && repeats == floor(repeats)))
+                FAIL("badInput", "Repeats must be a whole number in [0, 1e6)");
             double seconds = 0;
             cgc_error code = cgc_locator_query_seconds(e->locator, mxGetPr(prhs[2]), n, (uint32_t)repeats, &seconds);
             if (code != CGC_ERROR_OK) fail_cgc(code, "XYZ");

@@ -341,8 +341,33 @@ expect_error('cgcontact:usage', @() cgcontact_whereami('frobnicate'), 'unknown c
 expect_error('cgcontact:badHandle', @() cgcontact_whereami('locate', 99, XYZ), 'a handle never made');
 expect_error('cgcontact:badSize', @() cgcontact_whereami('update', H, U'), 'update with U'' (3 x m)');
 expect_error('cgcontact:nonFinitePoint', @() cgcontact_whereami('locate', H, nanX), 'locate NaN');
+% Inputs that were ignored or reinterpreted without a word: a misspelt option, an empty U to
+% 'update' (it kept the last displacements), fill_hanging = NaN (read as true), a command name
+% too long to read (named '' in the message), Repeats as text (its character code).
+expect_error('cgcontact:badInput', @() cgcontact_whereami(XYZ, N0, T, U, struct('Precision', 'f32')), 'Options.Precision (misspelt)');
+expect_error('cgcontact:badInput', @() cgcontact_whereami(XYZ, N0, T, U, struct('maxiter', 5)), 'Options.maxiter (misspelt)');
+expect_error('cgcontact:badInput', @() cgcontact_whereami(XYZ, N0, T, U, struct('fill_hanging', NaN)), 'Options.fill_hanging NaN');
+expect_error('cgcontact:badSize', @() cgcontact_whereami('update', H, []), 'update with U = []');
+expect_error('cgcontact:badSize', @() cgcontact_whereami(XYZ, N0, T, {}), 'U = {}');
+expect_error('cgcontact:usage', @() cgcontact_whereami('locate_every_point_please', H, XYZ), 'a long command');
+expect_error('cgcontact:badInput', @() cgcontact_whereami('query_seconds', H, XYZ, 'abc'), 'Repeats as text');
+expect_error('cgcontact:badInput', @() cgcontact_whereami('query_seconds', H, XYZ, 2.5), 'Repeats 2.5');
+try
+  cgcontact_whereami('locate_every_point_please', H, XYZ);
+catch err
+  check(isempty(strfind(err.message, "''")), 'a long command named as empty: %s', err.message);
+end
 cgcontact_whereami('free', H);
 expect_error('cgcontact:badHandle', @() cgcontact_whereami('locate', H, XYZ), 'a freed handle');
+check(cgcontact_whereami('handles') == 0, 'no live handle');
+% A freed handle stays freed when its slot is given again: it answered for the new body before.
+Hnext = cgcontact_whereami('new', N0, T);
+check(Hnext ~= H, 'a freed handle''s number given again (%g)', Hnext);
+expect_error('cgcontact:badHandle', @() cgcontact_whereami('locate', H, XYZ), 'a freed handle, its slot given again');
+[E2, PosL2] = cgcontact_whereami('locate', Hnext, XYZ);
+[E1, PosL1] = cgcontact_whereami(XYZ, N0, T, []);
+check(isequal(E2, E1) && isequaln(PosL2, PosL1), 'the new handle answers as its body');
+cgcontact_whereami('free', Hnext);
 check(cgcontact_whereami('handles') == 0, 'no live handle');
 % Still working after all those errors, and after `clear all` (the MEX file stays loaded).
 clear all;
