@@ -4,8 +4,8 @@
 use cgcontact::glam::DVec3;
 use cgcontact::hex8::{Hex8Map, Hex8Map32, Kernel, NewtonOptions, Status};
 use cgcontact::{
-    AdaptiveBody, Body, CORNER_OFFSETS, CellId, Error, Hit, InsideTolerance, Lattice, Owners,
-    PointError, Precision, Settings,
+    AdaptiveBody, Body, CORNER_OFFSETS, CellId, Error, Frame, Hit, InsideTolerance, Lattice,
+    Owners, PointError, Precision, Settings,
 };
 
 /// The body a strategy searches: a uniform lattice body or an h-adaptive one.
@@ -94,13 +94,26 @@ impl<'a> BodyRef<'a> {
         }
     }
 
+    /// The frame of the settings' kernel, as the core's locator of this kind of body takes it
+    /// (f32: shifted by the displacements' common translation in whole cells, of the finest
+    /// level for an adaptive body).
+    #[must_use]
+    pub fn frame(&self, settings: &Settings) -> Frame {
+        let (u, h) = match self {
+            Self::Uniform(body) => (body.displacements(), body.lattice().h()),
+            Self::Adaptive(body) => (body.displacements(), body.spacing(body.finest_level())),
+        };
+        Frame::of_displacements(settings.precision, u, h)
+    }
+
     /// The inside tolerance's constants, as the core's locator of this kind of body computes them
     /// (for an adaptive body: from the finest spacing, as [`cgcontact::AdaptiveLocator::new`]), so
     /// that every strategy agrees with it on what "inside" means.
     #[must_use]
     pub fn inside_tolerance(&self, settings: &Settings) -> InsideTolerance {
-        // Bodies refuse non-finite displacements (every entry point), so the bound is finite.
-        let u_max = self.max_displacement().max_element();
+        // Bodies refuse non-finite displacements (every entry point), so the bound is finite: the
+        // kernel's rounding grows with |u − T| (|u| with f64).
+        let u_max = self.frame(settings).reach().max_element();
         match self {
             Self::Uniform(body) => InsideTolerance::new(settings, body.lattice(), u_max),
             Self::Adaptive(body) => InsideTolerance::with_spacing(
@@ -129,6 +142,8 @@ pub(crate) struct Cells<'a> {
     newton: NewtonOptions,
     /// The inside tolerance's per-body constants (shared definition with the lattice locator).
     inside: InsideTolerance,
+    /// The kernel's frame (shared definition with the lattice locator).
+    frame: Frame,
 }
 
 impl<'a> Cells<'a> {
@@ -140,6 +155,7 @@ impl<'a> Cells<'a> {
             settings,
             newton: settings.newton(),
             inside: body.inside_tolerance(&settings),
+            frame: body.frame(&settings),
         })
     }
 
@@ -237,7 +253,8 @@ impl<'a> Cells<'a> {
         options: &NewtonOptions,
     ) -> Option<Hit> {
         let (low, h, u) = self.local(cell);
-        let map = K::lattice_cell(h, &u);
+        let map: K = self.frame.corners::<K, _>(&u, |u| K::lattice_cell(h, u));
+        let x_local = self.frame.point::<K>(x) - low;
         // A leaf coarser than the finest has its own tolerance, as the core's locator gives it.
         let leaf_options;
         let options = match self.body {
@@ -255,14 +272,14 @@ impl<'a> Cells<'a> {
             }
             BodyRef::Uniform(_) => options,
         };
-        let mut inversion = map.invert_f64(x - low, DVec3::ZERO, options);
+        let mut inversion = map.invert_f64(x_local, DVec3::ZERO, options);
         if inversion.status == Status::NotConverged && may_hold(h, &u, x - low, options.inside_tol)
         {
             let patient = NewtonOptions {
                 max_iter: options.max_iter.saturating_mul(PATIENT_ITERATIONS),
                 ..*options
             };
-            inversion = map.invert_f64(x - low, DVec3::ZERO, &patient);
+            inversion = map.invert_f64(x_local, DVec3::ZERO, &patient);
         }
         (inversion.status == Status::Inside).then(|| Hit {
             cell,

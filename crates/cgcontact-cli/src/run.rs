@@ -37,9 +37,11 @@ pub enum StrategyName {
 /// The most worker threads per available core `--threads` starts.
 pub const THREADS_PER_CORE: usize = 4;
 
-/// The rounding of the displacements in f32, as a share of a cell (ε₃₂ |u| / h), above which
-/// `--precision f32` gets a warning: about 840 cells of displacement (a rigid translation of the
-/// body, say), where f32's ξ error grows past 1e-4.
+/// The rounding of the displacements in f32, as a share of a cell (ε₃₂ |u − T| / h, T the
+/// displacements' common translation that the f32 kernel takes out), above which
+/// `--precision f32` gets a warning: displacements about 840 cells away from their common
+/// translation (a body rotated or strained over many cells; a rigid translation costs nothing),
+/// where f32's ξ error grows past 1e-4.
 const F32_ROUNDING_WARNING: f64 = 1e-4;
 
 /// Newton step tolerances (ξ units) above which `--tol` gets a warning.
@@ -326,10 +328,10 @@ impl Summary {
             && !args.quiet
         {
             eprintln!(
-                "cgcontact: warning: f32: the displacements ({:.1e} at most) are {:.0} cells, which \
-                 f32 rounds by {rounding:.0e} of a cell: ξ is good to about that, and a point that \
-                 close to a face may be put in the cell beside it (--precision f64 is exact)",
-                DVec3::from_array(self.max_displacement).max_element(),
+                "cgcontact: warning: f32: the displacements reach {:.0} cells away from their \
+                 common translation, which f32 rounds by {rounding:.0e} of a cell: ξ is good to \
+                 about that, and a point that close to a face may be put in the cell beside it \
+                 (--precision f64 is exact)",
                 rounding / f64::from(f32::EPSILON)
             );
         }
@@ -510,7 +512,7 @@ pub fn search_listing_owners(
                 BodyRef::Uniform(b) => b.lattice().h(),
                 BodyRef::Adaptive(b) => b.spacing(b.finest_level()),
             };
-            (f64::from(f32::EPSILON) * body.max_displacement() / h).max_element()
+            (f64::from(f32::EPSILON) * body.frame(&settings).reach() / h).max_element()
         }),
         displacement: Some("generated".to_owned()),
         inverted_cells: match body {

@@ -57,7 +57,7 @@ pub use glam;
 pub use lattice::{CORNER_OFFSETS, CellId, Lattice};
 pub use locate::{Answer, Hit, LatticeLocator, Locator, Owners};
 pub use schedule::Schedule;
-pub use settings::{CandidateOrder, InsideTolerance, Precision, Settings};
+pub use settings::{CandidateOrder, Frame, InsideTolerance, Precision, Settings};
 
 /// The README's examples, compiled and run as doctests so that it cannot drift from the code.
 #[cfg(doctest)]

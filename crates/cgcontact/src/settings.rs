@@ -4,7 +4,7 @@ use glam::DVec3;
 
 use crate::lanes::{Lanes, V3};
 
-use crate::hex8::NewtonOptions;
+use crate::hex8::{Kernel, NewtonOptions};
 use crate::{Error, Lattice, Schedule};
 
 /// Floating-point precision of the Newton kernel.
@@ -14,12 +14,107 @@ pub enum Precision {
     #[default]
     F64,
     /// f32 in the cell's local frame (glam's SIMD `Vec3A` one point at a time; 8 lanes per AVX2
-    /// register in `locate_all`): ξ error ≈ 1e-6, growing as ε₃₂ |u| / h with the displacements
-    /// (about 1e-2 for a body translated 7e4 cells: use f64 there). Its speed-up over f64 depends
+    /// register in `locate_all`): ξ error ≈ 1e-6, growing as ε₃₂ |u − T| / h with the
+    /// displacements' spread about their common translation T, which the kernel takes out
+    /// ([`Frame`]): a rigid translation of any size costs nothing, a body rotated or strained over
+    /// 1e5 cells loses about 1e-2 of a cell (use f64 there). Its speed-up over f64 depends
     /// on the scene: about 1.5× where the displacements stay in cache, 1.2–1.3× on random-order
     /// points of a large body, whose time goes to waiting on memory (docs/benchmarks.md has the
     /// measured figures).
     F32,
+}
+
+/// The frame a precision's kernel works in.
+///
+/// f32 rounds each displacement by ε₃₂ |u|, so a body moved rigidly by many cells would lose its
+/// cells' shape to the rounding. The f32 kernel works on displacements and points shifted by a
+/// common translation T instead: the mid-range of the displacements per axis, rounded to whole
+/// cells (0 while it is under half a cell, so that bodies moved less answer as before). Its
+/// rounding then grows with |u − T| only. The trilinear weights sum to 1, so x(ξ) − T is the map
+/// of the corners shifted by T: the same cell and ξ. The shift is applied in f64, before any
+/// rounding to f32: corner displacements u − T, points x − T, and T added back to an
+/// interpolated displacement. f64 works unshifted. The locators and the baselines share it, so
+/// that every strategy agrees on what f32 computes.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Frame {
+    shift: DVec3,
+    /// The largest |u − T| per axis.
+    reach: DVec3,
+}
+
+impl Frame {
+    /// The frame of `precision` for displacements within [`low`, `high`] (per axis) on cells
+    /// of spacing `h` (an adaptive body's finest). An empty range (`low` > `high`) gets no shift.
+    #[must_use]
+    pub fn new(precision: Precision, low: DVec3, high: DVec3, h: DVec3) -> Self {
+        let shift = match precision {
+            Precision::F64 => DVec3::ZERO,
+            Precision::F32 => ((low + high) * 0.5 / h).round() * h,
+        };
+        let shift = if shift.is_finite() {
+            shift
+        } else {
+            DVec3::ZERO
+        };
+        Self {
+            shift,
+            reach: (high - shift).max(shift - low).max(DVec3::ZERO),
+        }
+    }
+
+    /// [`Frame::new`] for the displacements `u` (one pass over them).
+    #[must_use]
+    pub fn of_displacements(precision: Precision, u: &[DVec3], h: DVec3) -> Self {
+        let (low, high) = u
+            .iter()
+            .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(low, high), &u| {
+                (low.min(u), high.max(u))
+            });
+        Self::new(precision, low, high, h)
+    }
+
+    /// The common translation T (zero with f64).
+    #[must_use]
+    pub fn shift(&self) -> DVec3 {
+        self.shift
+    }
+
+    /// The largest |u − T| per axis: what the kernel's rounding of the displacements grows with
+    /// (with f64, the largest |u|), and so what [`InsideTolerance`] is given.
+    #[must_use]
+    pub fn reach(&self) -> DVec3 {
+        self.reach
+    }
+
+    /// `f` of corner displacements `u` in the frame of kernel `K`: u − T where it is shifted,
+    /// `u` itself (not copied) where it is not.
+    #[inline(always)]
+    pub fn corners<K: Kernel, R>(&self, u: &[DVec3; 8], f: impl FnOnce(&[DVec3; 8]) -> R) -> R {
+        if K::SHIFTED {
+            let mut shifted = *u;
+            for u in &mut shifted {
+                *u -= self.shift;
+            }
+            f(&shifted)
+        } else {
+            f(u)
+        }
+    }
+
+    /// A point `x` in the frame of kernel `K`: x − T where it is shifted.
+    #[inline(always)]
+    #[must_use]
+    pub fn point<K: Kernel>(&self, x: DVec3) -> DVec3 {
+        if K::SHIFTED { x - self.shift } else { x }
+    }
+
+    /// A displacement `v` interpolated in the frame of kernel `K`, back in the body's frame:
+    /// v + T where it is shifted.
+    #[inline(always)]
+    #[must_use]
+    pub fn displacement<K: Kernel>(&self, v: DVec3) -> DVec3 {
+        if K::SHIFTED { v + self.shift } else { v }
+    }
 }
 
 /// Order in which the lattice locator tries candidate cells.

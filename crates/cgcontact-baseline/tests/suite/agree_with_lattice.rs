@@ -31,7 +31,11 @@ fn check_body(
     let lattice = LatticeLocator::new(&body, settings).unwrap();
     let brute = BruteForce::new(&body, settings).unwrap();
     let rtree = RTree::new(&body, settings).unwrap();
-    let u_max = body.max_displacement().max_element();
+    // What the kernel's rounding grows with: |u − T| in f32's frame, |u| in f64.
+    let u_max = cgcontact_baseline::BodyRef::Uniform(&body)
+        .frame(&settings)
+        .reach()
+        .max_element();
     let mut located = 0;
     for (index, (x, kind)) in common::points(&body, points_per_kind, spec.seed + 1)
         .into_iter()
@@ -211,6 +215,22 @@ fn rigid_translation_of_ten_cells_agrees_and_costs_one_inversion() {
         .collect();
     let per_point = inversions_per_point(&locator, &points);
     assert!(per_point < 1.5, "{per_point} inversions per point");
+}
+
+/// f32 on a body moved rigidly by 1e5 cells (plus the scene's mild field): f32 used to round each
+/// displacement by 1e-2 of a cell. The kernel's frame takes the common translation out, in every
+/// strategy alike, so they agree with each other and with the known ξ to 1e-4, as unmoved.
+#[test]
+fn rigid_translation_of_1e5_cells_in_f32_agrees() {
+    let spec = Spec {
+        holes: 0.1,
+        seed: 61,
+        ..MILD
+    };
+    let mut body = common::body(&spec);
+    body.update_displacements(|_, _, u| *u += 1e5 * spec.h)
+        .unwrap();
+    assert!(check_body(&body, &spec, 300, Settings::f32(), 1e-4) > 600);
 }
 
 /// Large shears (up to 4 cells): the per-block displacement ranges are built and the search visits

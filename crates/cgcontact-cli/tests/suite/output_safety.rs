@@ -291,29 +291,65 @@ fn mesh_read_without_displacement_says_so() {
     assert_eq!(summary["displacement"], "displacement", "{summary}");
 }
 
-/// f32 rounds a displacement of 1e5 cells (a rigid translation) by about 1e-2 of a cell: points
-/// near faces landed in the neighbouring cell without a word. Now `--precision f32` warns when the
-/// rounding passes 1e-4 of a cell, and `--json` says how much it is; f64, and f32 on small
-/// displacements, say nothing.
+/// f32 rounded a displacement of 1e5 cells by about 1e-2 of a cell: points near faces landed in
+/// the neighbouring cell without a word. Now the f32 kernel takes the displacements' common
+/// translation out, so a body moved rigidly by 1e5 cells rounds nothing (no warning, ξ to f32's
+/// precision); displacements that spread over 1e5 cells about it (two cells moved apart) still
+/// round by ε₃₂ · 1e5, and `--precision f32` warns when that passes 1e-4 of a cell, with the
+/// value in `--json`. f64, and f32 on small displacements, say nothing.
 #[test]
 fn f32_on_displacements_of_many_cells_is_warned() {
     let dir = tempfile::tempdir().unwrap();
-    let mesh = dir.path().join("moved.vtk");
-    let mut text = String::from(
-        "# vtk DataFile Version 4.2\nmoved\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS 8 double\n",
-    );
-    for k in 0..2 {
-        for (i, j) in [(0, 0), (1, 0), (1, 1), (0, 1)] {
-            text += &format!("{i} {j} {k}\n");
+    // Cells at x = 0 and x = 10 (unit spacing), moved by `moves`.
+    let mesh_moved = |name: &str, moves: [f64; 2]| {
+        let mesh = dir.path().join(name);
+        let mut text = String::from(
+            "# vtk DataFile Version 4.2\nmoved\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS 16 double\n",
+        );
+        for x0 in [0, 10] {
+            for k in 0..2 {
+                for (i, j) in [(0, 0), (1, 0), (1, 1), (0, 1)] {
+                    text += &format!("{} {j} {k}\n", x0 + i);
+                }
+            }
         }
-    }
-    text += "CELLS 1 9\n8 0 1 2 3 4 5 6 7\nCELL_TYPES 1\n12\n";
-    text += "POINT_DATA 8\nVECTORS displacement double\n";
-    text += &"100000 0 0\n".repeat(8);
-    std::fs::write(&mesh, text).unwrap();
+        text += "CELLS 2 18\n8 0 1 2 3 4 5 6 7\n8 8 9 10 11 12 13 14 15\nCELL_TYPES 2\n12\n12\n";
+        text += "POINT_DATA 16\nVECTORS displacement double\n";
+        for u in moves {
+            text += &format!("{u} 0 0\n").repeat(8);
+        }
+        std::fs::write(&mesh, text).unwrap();
+        mesh
+    };
     let points = dir.path().join("points.csv");
-    std::fs::write(&points, "x,y,z\n100000.5,0.5,0.5\n").unwrap();
-    let run = locate(&mesh, &points, &["--precision", "f32", "--json"]);
+    std::fs::write(&points, "x,y,z\n100000.75,0.5,0.5\n100010.25,0.5,0.5\n").unwrap();
+    let out = dir.path().join("results.csv");
+    // Both cells moved 1e5 cells: nothing rounds, both points found where they are.
+    let moved = mesh_moved("moved.vtk", [1e5, 1e5]);
+    let run = locate(
+        &moved,
+        &points,
+        &["--precision", "f32", "--json", "--out", s(&out)],
+    );
+    assert!(run.status.success(), "{}", stderr(&run));
+    assert!(stderr(&run).is_empty(), "{}", stderr(&run));
+    let summary: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    assert_eq!(summary["f32_rounding"].as_f64(), Some(0.0), "{summary}");
+    let results = std::fs::read_to_string(&out).unwrap();
+    let rows: Vec<Vec<f64>> = results
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+        .collect();
+    // point, cell, ξ, η, ζ: ξ = 0.5 in cell 0 and −0.5 in cell 1, to f32's precision.
+    for (row, (cell, xi)) in rows.iter().zip([(0.0, 0.5), (1.0, -0.5)]) {
+        assert_eq!(row[1], cell, "{results}");
+        assert!((row[2] - xi).abs() < 1e-6, "{results}");
+        assert!(row[3].abs() < 1e-6 && row[4].abs() < 1e-6, "{results}");
+    }
+    // One cell left in place, the other moved 2e5 cells: 1e5 cells each way about their mid-range.
+    let spread = mesh_moved("spread.vtk", [0.0, 2e5]);
+    let run = locate(&spread, &points, &["--precision", "f32", "--json"]);
     assert!(run.status.success(), "{}", stderr(&run));
     assert!(stderr(&run).contains("warning: f32"), "{}", stderr(&run));
     let summary: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
@@ -322,7 +358,7 @@ fn f32_on_displacements_of_many_cells_is_warned() {
         (rounding - 1e5 * f64::from(f32::EPSILON)).abs() < 1e-9,
         "{summary}"
     );
-    let exact = locate(&mesh, &points, &["--json"]);
+    let exact = locate(&spread, &points, &["--json"]);
     assert!(stderr(&exact).is_empty(), "{}", stderr(&exact));
     let summary: serde_json::Value = serde_json::from_slice(&exact.stdout).unwrap();
     assert!(summary.get("f32_rounding").is_none(), "{summary}");

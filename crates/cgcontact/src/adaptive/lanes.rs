@@ -216,7 +216,10 @@ impl AdaptiveLocator<'_> {
             // `guess`: ũ interpolated at x in x's leaf (`undeformed_xi`, clamped).
             let xi = ((t_x.scale(leaf.scale) - leaf.ijk).scale(two) - splat(DVec3::ONE))
                 .clamp(-1.0, 1.0);
-            t_guess = t_x - maps.map(V3::narrow(xi)).widen().mul_each(self.inv_h);
+            t_guess = t_x
+                - self
+                    .displacement_lanes::<V>(maps.map(V3::narrow(xi)).widen())
+                    .mul_each(self.inv_h);
             // The leaf at the guess: x's own where the guess lies in its half-open box (the leaf
             // `leaf_at` finds there: the box's bounds are exact multiples of 2^−level), else
             // looked up.
@@ -231,7 +234,7 @@ impl AdaptiveLocator<'_> {
             // `visit`: the leaf's spacing h · 2^−level and lowest corner, the guess's ξ there.
             let spacing = splat(lattice.h()).scale(leaf.size);
             maps.add_lattice_lanes(V3::narrow(spacing.scale(V::Wide::splat(0.5))));
-            let x_local = x - (splat(lattice.origin()) + spacing * leaf.ijk);
+            let x_local = self.point_lanes::<V>(x) - (splat(lattice.origin()) + spacing * leaf.ijk);
             let xi0 = (t_guess.scale(leaf.scale) - leaf.ijk).scale(two) - splat(DVec3::ONE);
             // Each lane's tolerance for its leaf's level (`leaf_tol`): 2^level · 2^−finest.
             let ratio = leaf.scale * V::Wide::splat(level_size(self.body.finest));

@@ -27,7 +27,7 @@ use crate::locate::Isa;
 use crate::locate::{Answer, Collect, Hit, Locator, Owners, warm_start, write_hits};
 use crate::reach::{self, Range};
 use crate::schedule::{Layout, Scheduler};
-use crate::settings::{CandidateOrder, InsideTolerance, Precision, Settings};
+use crate::settings::{CandidateOrder, Frame, InsideTolerance, Precision, Settings};
 use crate::{Error, PointError};
 
 /// The locator of an [`AdaptiveBody`]: complete, exact, one inversion for most points. Built in
@@ -44,8 +44,11 @@ pub struct AdaptiveLocator<'a> {
     /// Which points can be held at all (the base lattice's box shifted by the displacement
     /// range), and the inside tolerance's constants, from the finest spacing.
     pub(super) admit: reach::Admit,
-    /// With f32 precision, the displacements rounded to f32 in node order (16 bytes per node),
-    /// as the f32 lanes read them. Empty with f64.
+    /// The frame the kernel works in (f32: shifted by the displacements' common translation,
+    /// in whole cells of the finest level).
+    frame: Frame,
+    /// With f32 precision, the displacements in the kernel's frame (u − T) rounded to f32, in
+    /// node order (16 bytes per node), as the f32 lanes read them. Empty with f64.
     u_f32: Vec<Vec3A>,
     /// The batched queries' schedule and its sort's buffers.
     scheduler: Scheduler,
@@ -59,9 +62,9 @@ impl<'a> AdaptiveLocator<'a> {
             low: r.low.min(u),
             high: r.high.max(u),
         });
-        let u_max = u_range.high.max(-u_range.low);
         let lattice = body.lattice();
         let h_finest = body.spacing(body.finest);
+        let frame = Frame::new(settings.precision, u_range.low, u_range.high, h_finest);
         Ok(Self {
             body,
             settings,
@@ -73,13 +76,19 @@ impl<'a> AdaptiveLocator<'a> {
                     &settings,
                     lattice.origin(),
                     h_finest,
-                    u_max.max_element(),
+                    // The kernel rounds u − T (|u| with f64).
+                    frame.reach().max_element(),
                 ),
                 lattice,
                 u_range,
             ),
+            frame,
             u_f32: match settings.precision {
-                Precision::F32 => body.u.iter().map(|u| u.as_vec3a()).collect(),
+                Precision::F32 => body
+                    .u
+                    .iter()
+                    .map(|&u| (u - frame.shift()).as_vec3a())
+                    .collect(),
                 Precision::F64 => Vec::new(),
             },
             scheduler: Scheduler::new(settings.schedule),
@@ -120,6 +129,44 @@ impl<'a> AdaptiveLocator<'a> {
     #[must_use]
     pub fn max_displacement(&self) -> DVec3 {
         self.u_range.high.max(-self.u_range.low)
+    }
+
+    /// The common translation T the kernel's frame is shifted by, as
+    /// [`crate::LatticeLocator::frame_shift`]: with f32, the displacements' mid-range per axis
+    /// rounded to whole cells of the finest level; zero with f64.
+    #[must_use]
+    pub fn frame_shift(&self) -> DVec3 {
+        self.frame.shift()
+    }
+
+    /// The map of a leaf of `level` with corner displacements `u`, in the kernel's frame.
+    #[inline(always)]
+    fn leaf_map<K: Kernel>(&self, level: u8, u: &[DVec3; 8]) -> K {
+        let h = self.body.spacing(level);
+        self.frame.corners::<K, _>(u, |u| K::lattice_cell(h, u))
+    }
+
+    /// The displacement map of corner displacements `u`, in the kernel's frame.
+    #[inline(always)]
+    fn u_map<K: Kernel>(&self, u: &[DVec3; 8]) -> K {
+        self.frame.corners::<K, _>(u, K::displacement_map)
+    }
+
+    /// `x` in the local frame of `leaf` (its lowest corner undeformed at the origin), shifted as
+    /// the kernel's frame is.
+    #[inline(always)]
+    fn local<K: Kernel>(&self, x: DVec3, leaf: Leaf) -> DVec3 {
+        self.frame.point::<K>(x) - self.body.leaf_origin(leaf)
+    }
+
+    /// `local` for the kernel of lanes whose displacements are `N`.
+    #[inline(always)]
+    fn local_lanes<N: LaneNodes>(&self, x: DVec3, leaf: Leaf) -> DVec3 {
+        if N::SHIFTED {
+            self.local::<Hex8Map32>(x, leaf)
+        } else {
+            self.local::<Hex8Map>(x, leaf)
+        }
     }
 
     /// The inside tolerance `tol` that [`reach::Admit::admit`] gave (the finest leaves') for a
@@ -178,16 +225,12 @@ impl<'a> AdaptiveLocator<'a> {
         if let Ok(Some(hint)) = previous
             && let Some(leaf) = body.leaves.get(hint.cell.index())
         {
-            let map = K::lattice_cell(
-                body.spacing(leaf.level),
-                &body.leaf_displacements(hint.cell.0),
-            );
+            let map = self.leaf_map::<K>(leaf.level, &body.leaf_displacements(hint.cell.0));
             let options = NewtonOptions {
                 inside_tol: self.leaf_tol(options.inside_tol, leaf.level),
                 ..*options
             };
-            let inversion =
-                map.invert_f64(x - body.leaf_origin(leaf), warm_start(hint.xi), &options);
+            let inversion = map.invert_f64(self.local::<K>(x, leaf), warm_start(hint.xi), &options);
             *tried += 1;
             if inversion.status == Status::Inside {
                 return Some(Hit {
@@ -222,9 +265,10 @@ impl<'a> AdaptiveLocator<'a> {
             return (t_x, None);
         };
         let u = self.body.leaf_displacements(id);
-        let u_map = K::displacement_map(&u);
+        let u_map = self.u_map::<K>(&u);
         let xi = Self::undeformed_xi(t_at, leaf.level, leaf.ijk).clamp(DVec3::NEG_ONE, DVec3::ONE);
-        (t_x - u_map.map_f64(xi) * self.inv_h, Some((id, leaf, u)))
+        let u_at = self.frame.displacement::<K>(u_map.map_f64(xi));
+        (t_x - u_at * self.inv_h, Some((id, leaf, u)))
     }
 
     /// Invert leaf `id` for `x` from the guess `t_guess` and collect the hit: `Some` when the
@@ -242,13 +286,13 @@ impl<'a> AdaptiveLocator<'a> {
         collect: &mut Collect<'_>,
         inversions: &mut u32,
     ) -> Option<Hit> {
-        let map = K::lattice_cell(self.body.spacing(leaf.level), u);
+        let map = self.leaf_map::<K>(leaf.level, u);
         let xi0 = Self::undeformed_xi(t_guess, leaf.level, leaf.ijk);
         let options = NewtonOptions {
             inside_tol: self.leaf_tol(options.inside_tol, leaf.level),
             ..*options
         };
-        let inversion = map.invert_f64(x - self.body.leaf_origin(leaf), xi0, &options);
+        let inversion = map.invert_f64(self.local::<K>(x, leaf), xi0, &options);
         *inversions += 1;
         if inversion.status != Status::Inside {
             return None;
@@ -497,10 +541,10 @@ impl AdaptiveLocator<'_> {
                 continue;
             }
             if let Some((_, leaf)) = at_x[l] {
-                let u_map = K::displacement_map(&u[l]);
+                let u_map = self.u_map::<K>(&u[l]);
                 let xi = Self::undeformed_xi(t_x[l], leaf.level, leaf.ijk)
                     .clamp(DVec3::NEG_ONE, DVec3::ONE);
-                t_guess[l] = t_x[l] - u_map.map_f64(xi) * self.inv_h;
+                t_guess[l] = t_x[l] - self.frame.displacement::<K>(u_map.map_f64(xi)) * self.inv_h;
             }
             first[l] = body.forest.leaf_at(t_guess[l]);
         }
@@ -633,7 +677,10 @@ impl AdaptiveLocator<'_> {
                 Self::undeformed_xi(t_x[l], leaf.level, leaf.ijk).clamp(DVec3::NEG_ONE, DVec3::ONE)
             });
             let t_x_lanes = lanes3::<V::Wide>(|l| t_x[l]);
-            let t_guess = t_x_lanes - maps.map(V3::narrow(xi)).widen().mul_each(self.inv_h);
+            let t_guess = t_x_lanes
+                - self
+                    .displacement_lanes::<V>(maps.map(V3::narrow(xi)).widen())
+                    .mul_each(self.inv_h);
             // The leaf at the guess, per lane; its map is x's leaf's unless the lane moved, and
             // only the lanes that moved get their corners anew.
             let mut first = at;
@@ -658,7 +705,7 @@ impl AdaptiveLocator<'_> {
             }
             if take != 0 {
                 maps.add_lattice_lanes(lanes3::<V>(|l| body.spacing(first[l].1.level) * 0.5));
-                let x_local = lanes3::<V>(|l| xs[l] - body.leaf_origin(first[l].1));
+                let x_local = lanes3::<V>(|l| self.local_lanes::<V::Node>(xs[l], first[l].1));
                 let xi0 = lanes3::<V>(|l| {
                     let leaf = first[l].1;
                     Self::undeformed_xi(t_guess.lane(l), leaf.level, leaf.ijk)
@@ -752,7 +799,7 @@ impl AdaptiveLocator<'_> {
             cell[l] = hint.cell;
             rows[l] = body.leaf_nodes(hint.cell.index() as u32, leaf);
             half[l] = body.spacing(leaf.level) * 0.5;
-            x_local[l] = xs[l] - body.leaf_origin(leaf);
+            x_local[l] = self.local_lanes::<V::Node>(xs[l], leaf);
             xi0[l] = warm_start(hint.xi);
             take |= 1 << l;
         }
@@ -781,10 +828,42 @@ impl AdaptiveLocator<'_> {
 
 /// The displacements as the lanes read them: the body's f64 ones, or the locator's f32 copy.
 pub(crate) trait LaneNodes: Copy + 'static {
+    /// Whether these displacements are in the shifted frame of the f32 kernel (u − T).
+    const SHIFTED: bool;
     fn of<'l>(locator: &'l AdaptiveLocator<'_>) -> &'l [Self];
 }
 
+impl AdaptiveLocator<'_> {
+    /// A displacement interpolated in lanes of `V` (in the frame of its kernel), back in the
+    /// body's frame, as [`Frame::displacement`] does one at a time.
+    #[inline(always)]
+    pub(super) fn displacement_lanes<V: Lanes>(&self, u: V3<V::Wide>) -> V3<V::Wide>
+    where
+        V::Node: LaneNodes,
+    {
+        if V::Node::SHIFTED {
+            u + V3::splat(self.frame.shift())
+        } else {
+            u
+        }
+    }
+
+    /// A point in lanes of `V`, in the frame of its kernel, as [`Frame::point`] does.
+    #[inline(always)]
+    pub(super) fn point_lanes<V: Lanes>(&self, x: V3<V::Wide>) -> V3<V::Wide>
+    where
+        V::Node: LaneNodes,
+    {
+        if V::Node::SHIFTED {
+            x - V3::splat(self.frame.shift())
+        } else {
+            x
+        }
+    }
+}
+
 impl LaneNodes for DVec3 {
+    const SHIFTED: bool = false;
     #[inline(always)]
     fn of<'l>(locator: &'l AdaptiveLocator<'_>) -> &'l [Self] {
         &locator.body.u
@@ -792,6 +871,7 @@ impl LaneNodes for DVec3 {
 }
 
 impl LaneNodes for Vec3A {
+    const SHIFTED: bool = true;
     #[inline(always)]
     fn of<'l>(locator: &'l AdaptiveLocator<'_>) -> &'l [Self] {
         &locator.u_f32

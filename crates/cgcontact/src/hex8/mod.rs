@@ -101,6 +101,10 @@ pub struct Inversion {
 /// A hex8 kernel of one precision, seen through f64 at its boundary so that locators can be written
 /// once for both precisions.
 pub trait Kernel: Copy + Send + Sync {
+    /// Whether this kernel works in a frame shifted by the locator's common translation
+    /// ([`crate::LatticeLocator::frame_shift`]): f32, whose rounding of each displacement grows
+    /// with its size, so that a rigid translation costs no precision. False for f64.
+    const SHIFTED: bool;
     /// The map of a lattice cell of spacing `h` whose corners are displaced by `u` (VTK order),
     /// in the cell's local frame (lowest undeformed node at the origin).
     fn lattice_cell(h: DVec3, u: &[DVec3; 8]) -> Self;
@@ -181,7 +185,7 @@ where
 }
 
 macro_rules! stamp_hex8 {
-    ($(#[$doc:meta])* $name:ident, $S:ty, $V:ty, $to_v:expr, $from_v:expr) => {
+    ($(#[$doc:meta])* $name:ident, $S:ty, $V:ty, $shifted:expr, $to_v:expr, $from_v:expr) => {
         $(#[$doc])*
         #[derive(Clone, Copy, Debug, PartialEq)]
         pub struct $name {
@@ -335,6 +339,7 @@ macro_rules! stamp_hex8 {
         }
 
         impl Kernel for $name {
+            const SHIFTED: bool = $shifted;
 
             #[inline]
             fn lattice_cell(h: DVec3, u: &[DVec3; 8]) -> Self {
@@ -382,11 +387,11 @@ macro_rules! stamp_hex8 {
 
 stamp_hex8!(
     /// The trilinear map of one hexahedron in f64 (`DVec3`).
-    Hex8Map, f64, DVec3, |v: DVec3| v, |v: DVec3| v
+    Hex8Map, f64, DVec3, false, |v: DVec3| v, |v: DVec3| v
 );
 stamp_hex8!(
     /// The trilinear map of one hexahedron in f32 (glam's SIMD `Vec3A`); use it in a local frame.
-    Hex8Map32, f32, Vec3A, |v: DVec3| v.as_vec3a(), |v: Vec3A| v.as_dvec3()
+    Hex8Map32, f32, Vec3A, true, |v: DVec3| v.as_vec3a(), |v: Vec3A| v.as_dvec3()
 );
 
 /// Smallest Jacobian determinant over the 8 corners of a hexahedron (corners in VTK order).

@@ -13,14 +13,22 @@ use crate::settings::{CandidateOrder, Precision};
 
 /// The displacements as the batched path reads them: the body's f64 ones, or the locator's f32 copy.
 pub(super) trait Nodes: Copy + 'static {
-    const ZERO: Self;
+    /// A node without a displacement (a corner of inactive cells only), undisplaced: zero in the
+    /// body's frame, −T in the f32 kernel's.
+    fn zero(locator: &LatticeLocator<'_>) -> Self;
+    /// Whether these displacements are in the shifted frame of the f32 kernel (u − T).
+    const SHIFTED: bool;
     fn of<'l>(locator: &'l LatticeLocator<'_>) -> &'l [Self];
     /// The locator's copy over the box of the body's nodes, and its data, if it keeps one.
     fn boxed<'l>(locator: &'l LatticeLocator<'_>) -> Option<(&'l Boxed, &'l [Self])>;
 }
 
 impl Nodes for DVec3 {
-    const ZERO: Self = DVec3::ZERO;
+    const SHIFTED: bool = false;
+    #[inline(always)]
+    fn zero(_: &LatticeLocator<'_>) -> Self {
+        DVec3::ZERO
+    }
     #[inline(always)]
     fn of<'l>(locator: &'l LatticeLocator<'_>) -> &'l [Self] {
         locator.body.displacements()
@@ -32,7 +40,11 @@ impl Nodes for DVec3 {
 }
 
 impl Nodes for Vec3A {
-    const ZERO: Self = Vec3A::ZERO;
+    const SHIFTED: bool = true;
+    #[inline(always)]
+    fn zero(locator: &LatticeLocator<'_>) -> Self {
+        locator.zero_f32
+    }
     #[inline(always)]
     fn of<'l>(locator: &'l LatticeLocator<'_>) -> &'l [Self] {
         &locator.u_f32
@@ -145,7 +157,7 @@ impl LatticeLocator<'_> {
     where
         V::Node: Nodes,
     {
-        let zero = V::Node::ZERO;
+        let zero = V::Node::zero(self);
         // Chosen per chunk (`BOXED`), not per batch: a test here cost the full block 8 %.
         if BOXED && let Some((boxed, data)) = V::Node::boxed(self) {
             return self.maps_boxed::<V>(cell, boxed, data);
@@ -173,7 +185,7 @@ impl LatticeLocator<'_> {
             return Maps::from_nodes(|l, c| &data[base[l] + boxed.corner[c]]);
         }
         let global = lane_indices(cell, self.body.lattice().nodes());
-        let (nodes, zero) = (V::Node::of(self), V::Node::ZERO);
+        let (nodes, zero) = (V::Node::of(self), V::Node::zero(self));
         Maps::from_nodes(|l, c| {
             if outside & (1 << l) == 0 {
                 &data[base[l] + boxed.corner[c]]
@@ -227,7 +239,11 @@ impl LatticeLocator<'_> {
             CandidateOrder::Predicted => {
                 let two = V::Wide::splat(2.0);
                 let xi = ((t_x - cell_x).scale(two) - splat(DVec3::ONE)).clamp(-1.0, 1.0);
-                t_x - maps.map(V3::narrow(xi)).widen().mul_each(self.inv_h)
+                let mut u = maps.map(V3::narrow(xi)).widen();
+                if V::Node::SHIFTED {
+                    u = u + splat(self.frame.shift());
+                }
+                t_x - u.mul_each(self.inv_h)
             }
             CandidateOrder::Undeformed => t_x,
         };
@@ -246,6 +262,11 @@ impl LatticeLocator<'_> {
             maps = self.maps_of::<V, BOXED>(&first);
         }
         maps.add_lattice(lattice.h());
+        let x = if V::Node::SHIFTED {
+            x - splat(self.frame.shift())
+        } else {
+            x
+        };
         let x_local = x - (splat(lattice.origin()) + first.mul_each(lattice.h()));
         let xi0 = (t_guess - first).scale(V::Wide::splat(2.0)) - splat(DVec3::ONE);
         let inside = V3::<V>::splat(DVec3::ONE) + V3::narrow(inside_tol);

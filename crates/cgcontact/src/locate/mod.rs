@@ -41,7 +41,7 @@ use crate::hex8::NewtonOptions;
 use crate::lattice::CellId;
 use crate::reach::{self, Pyramid, Range};
 use crate::schedule::{Layout, Scheduler};
-use crate::settings::{InsideTolerance, Precision, Settings};
+use crate::settings::{Frame, InsideTolerance, Precision, Settings};
 use crate::{Error, PointError};
 
 pub(crate) use scalar::Collect;
@@ -211,9 +211,15 @@ pub struct LatticeLocator<'a> {
     /// Per-block displacement ranges, built only where the displacements spread over more than a
     /// few cells: the search then visits only cells whose own shifted box holds the point.
     pyramid: Option<Pyramid>,
-    /// With f32 precision, the displacements rounded to f32, in the body's slot order (16 bytes per
-    /// node): the batched path reads them as they are. Empty with f64.
+    /// The frame the kernel works in (f32: shifted by the displacements' common translation).
+    frame: Frame,
+    /// With f32 precision, the displacements in the kernel's frame (u − T) rounded to f32, in the
+    /// body's slot order (16 bytes per node): the batched path reads them as they are. Empty with
+    /// f64.
     u_f32: Vec<Vec3A>,
+    /// An undisplaced node in the f32 kernel's frame, −T (the batched path's corners without a
+    /// displacement).
+    zero_f32: Vec3A,
     /// With f64 on a body with a slot table whose nodes fill their box densely, the displacements
     /// over that box: the batched path's gather loads each corner at once instead of through the
     /// table (see [`Boxed`]).
@@ -234,6 +240,10 @@ impl<'a> LatticeLocator<'a> {
         let u_max = u_range.high.max(-u_range.low);
         let lattice = body.lattice();
         let spread = u_range.high - u_range.low;
+        let frame = Frame::new(settings.precision, u_range.low, u_range.high, lattice.h());
+        // The kernel rounds the displacements in its frame: its share of the inside tolerance
+        // grows with |u − T| (|u| with f64).
+        let u_kernel = frame.reach().max_element();
         Ok(Self {
             body,
             settings,
@@ -242,19 +252,25 @@ impl<'a> LatticeLocator<'a> {
             u_range,
             inv_h: lattice.h().recip(),
             admit: reach::Admit::new(
-                InsideTolerance::new(&settings, lattice, u_max.max_element()),
+                InsideTolerance::new(&settings, lattice, u_kernel),
                 lattice,
                 u_range,
             ),
+            frame,
             // Not on a sparse body whose lattice dwarfs it: the pyramid is dense over the lattice
             // (48 bytes per 8 cells), and the body's memory must grow with its cells.
             pyramid: (reach::pyramid_pays(spread, lattice.h())
                 && lattice.cell_count() <= 64 * body.active_count())
             .then(|| Pyramid::new(body)),
             u_f32: match settings.precision {
-                Precision::F32 => body.displacements().iter().map(|u| u.as_vec3a()).collect(),
+                Precision::F32 => body
+                    .displacements()
+                    .iter()
+                    .map(|&u| (u - frame.shift()).as_vec3a())
+                    .collect(),
                 Precision::F64 => Vec::new(),
             },
+            zero_f32: (DVec3::ZERO - frame.shift()).as_vec3a(),
             all_active: body.active_count() == lattice.cell_count(),
             boxed: match settings.precision {
                 Precision::F64 => Boxed::new(body),
@@ -294,6 +310,15 @@ impl<'a> LatticeLocator<'a> {
     #[must_use]
     pub fn max_displacement(&self) -> DVec3 {
         self.u_max
+    }
+
+    /// The common translation T the kernel's frame is shifted by: with f32, the displacements'
+    /// mid-range per axis rounded to whole cells, so that f32 rounds u − T instead of u and a
+    /// rigid translation costs no precision; zero with f64, and wherever the mid-range is under
+    /// half a cell. docs/numerics.md has the measured effect.
+    #[must_use]
+    pub fn frame_shift(&self) -> DVec3 {
+        self.frame.shift()
     }
 
     /// Bytes this locator keeps on the heap besides the body (the f32 copy of the displacements,

@@ -57,7 +57,7 @@ impl LatticeLocator<'_> {
             candidates.sort_unstable_by_key(|(key, _)| *key);
             for (_, ijk) in candidates {
                 let u = self.body.corner_displacements(ijk);
-                let map = Some(K::displacement_map(&u));
+                let map = Some(self.u_map::<K>(&u));
                 let hit = self.visit(x, ijk, map, t_guess, options, collect, inversions);
                 if hit.is_some() {
                     return hit;
@@ -73,7 +73,7 @@ impl LatticeLocator<'_> {
             if !reaches(ijk, &u) {
                 continue;
             }
-            let map = Some(K::displacement_map(&u));
+            let map = Some(self.u_map::<K>(&u));
             let hit = self.visit(x, ijk, map, t_guess, options, collect, inversions);
             if hit.is_some() {
                 return hit;

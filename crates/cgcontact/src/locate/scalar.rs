@@ -84,10 +84,31 @@ impl LatticeLocator<'_> {
                 map.add_lattice(lattice.h());
                 map
             }
-            None => K::lattice_cell(lattice.h(), &self.body.corner_displacements(ijk)),
+            None => self.cell_map::<K>(ijk),
         };
         let xi0 = undeformed_xi(t_guess, ijk);
-        map.invert_f64(x - lattice.node_position(ijk), xi0, options)
+        map.invert_f64(self.local::<K>(x, ijk), xi0, options)
+    }
+
+    /// The map of cell `ijk` (active) in the kernel's frame.
+    #[inline(always)]
+    pub(super) fn cell_map<K: Kernel>(&self, ijk: [u32; 3]) -> K {
+        let h = self.body.lattice().h();
+        let u = self.body.corner_displacements(ijk);
+        self.frame.corners::<K, _>(&u, |u| K::lattice_cell(h, u))
+    }
+
+    /// The displacement map of corner displacements `u` in the kernel's frame.
+    #[inline(always)]
+    pub(super) fn u_map<K: Kernel>(&self, u: &[DVec3; 8]) -> K {
+        self.frame.corners::<K, _>(u, K::displacement_map)
+    }
+
+    /// `x` in the local frame of cell `ijk` (its lowest undeformed node at the origin), shifted
+    /// as the kernel's frame is.
+    #[inline(always)]
+    pub(super) fn local<K: Kernel>(&self, x: DVec3, ijk: [u32; 3]) -> DVec3 {
+        self.frame.point::<K>(x) - self.body.lattice().node_position(ijk)
     }
 
     /// The guess x − ũ in lattice coordinates, ũ the displacement map `u_map` of `cell` evaluated at
@@ -95,7 +116,7 @@ impl LatticeLocator<'_> {
     #[inline]
     fn guess<K: Kernel>(&self, t_x: DVec3, cell: [u32; 3], t_at: DVec3, u_map: &K) -> DVec3 {
         let xi = undeformed_xi(t_at, cell).clamp(DVec3::NEG_ONE, DVec3::ONE);
-        t_x - u_map.map_f64(xi) * self.inv_h
+        t_x - self.frame.displacement::<K>(u_map.map_f64(xi)) * self.inv_h
     }
 
     /// Two steps of the fixed point X ← x − ũ(X) in lattice coordinates (ũ interpolated on the
@@ -104,7 +125,7 @@ impl LatticeLocator<'_> {
         let lattice = self.body.lattice();
         for _ in 0..2 {
             let cell = lattice.clamped_cell(t_guess);
-            let u_map = K::displacement_map(&self.body.corner_displacements_or_zero(cell));
+            let u_map = self.u_map::<K>(&self.body.corner_displacements_or_zero(cell));
             t_guess = self.guess(t_x, cell, t_guess, &u_map);
         }
         t_guess
@@ -159,7 +180,7 @@ impl LatticeLocator<'_> {
         // The displacement map of the cell holding x (corners of inactive cells count as undisplaced:
         // it only serves the guess), and the predicted undeformed position x − ũ, ũ interpolated at x.
         // Kept in one place, never moved: it is 192 bytes, and moves cost a memcpy call each.
-        let u_map_x = K::displacement_map(&self.body.corner_displacements_or_zero(cell_x));
+        let u_map_x = self.u_map::<K>(&self.body.corner_displacements_or_zero(cell_x));
         let t_guess = match self.settings.order {
             CandidateOrder::Predicted => self.guess(t_x, cell_x, t_x, &u_map_x),
             CandidateOrder::Undeformed => t_x,

@@ -72,9 +72,8 @@ impl LatticeLocator<'_> {
     /// options: the hit when it ends inside.
     #[inline(always)]
     fn invert_hint<K: Kernel>(&self, x: DVec3, hint: Hint, options: &NewtonOptions) -> Option<Hit> {
-        let lattice = self.body.lattice();
-        let map = K::lattice_cell(lattice.h(), &self.body.corner_displacements(hint.ijk));
-        let inversion = map.invert_f64(x - lattice.node_position(hint.ijk), hint.xi0, options);
+        let map = self.cell_map::<K>(hint.ijk);
+        let inversion = map.invert_f64(self.local::<K>(x, hint.ijk), hint.xi0, options);
         (inversion.status == Status::Inside).then(|| Hit {
             cell: hint.cell,
             xi: inversion.xi.clamp(DVec3::NEG_ONE, DVec3::ONE),
@@ -159,7 +158,11 @@ impl LatticeLocator<'_> {
             };
             front.tol[l] = inside_tol;
             front.cell[l] = hint.cell;
-            front.x_local[l] = xs[l] - lattice.node_position(hint.ijk);
+            front.x_local[l] = if V::Node::SHIFTED {
+                self.local::<Hex8Map32>(xs[l], hint.ijk)
+            } else {
+                self.local::<Hex8Map>(xs[l], hint.ijk)
+            };
             front.xi0[l] = hint.xi0;
             base[l] = lattice.node_index(hint.ijk);
             front.take |= 1 << l;
@@ -168,7 +171,7 @@ impl LatticeLocator<'_> {
             // The corners of each lane's hinted cell (active: every corner has a displacement;
             // lanes not taken read the lattice's first cell, and are ignored).
             let nodes = V::Node::of(self);
-            let zero = V::Node::ZERO;
+            let zero = V::Node::zero(self);
             front.maps = Maps::from_nodes(|l, c| self.body.corner_entry(nodes, base[l], c, &zero));
         }
     }

@@ -7,8 +7,8 @@ use std::collections::BTreeSet;
 use cgcontact::adaptive::MAX_LEVEL;
 use cgcontact::hex8::{NewtonOptions, Status};
 use cgcontact::{
-    AdaptiveBody, AdaptiveLocator, Body, CellId, Error, InsideTolerance, Lattice, LatticeLocator,
-    Leaf, Locator, Settings,
+    AdaptiveBody, AdaptiveLocator, Answer, Body, CellId, Error, Frame, InsideTolerance, Lattice,
+    LatticeLocator, Leaf, Locator, Settings,
 };
 use glam::DVec3;
 
@@ -133,11 +133,13 @@ fn deform(body: &mut AdaptiveBody, strain: f64, jitter: f64, seed: u64) {
 
 /// Every leaf holding `x` by inverting each one (the oracle), ascending.
 fn brute_owners(body: &AdaptiveBody, settings: &Settings, x: DVec3) -> Vec<u32> {
+    let h = body.spacing(body.finest_level());
+    let frame = Frame::of_displacements(settings.precision, body.displacements(), h);
     let tol = InsideTolerance::with_spacing(
         settings,
         body.lattice().origin(),
-        body.spacing(body.finest_level()),
-        body.max_displacement().max_element(),
+        h,
+        frame.reach().max_element(),
     );
     (0..body.cell_count() as u32)
         .filter(|&c| {
@@ -211,6 +213,57 @@ fn known_points_are_found_in_their_leaf_with_exact_xi() {
                 "seed {seed}: {inversions} inversions"
             );
         }
+    }
+}
+
+/// f32 on an adaptive body moved rigidly by 1e5 base cells: the kernel's frame takes the
+/// translation out (whole finest cells), so every path finds the known leaf and ξ to f32's 1e-5,
+/// as on the unmoved body; without it the rounding was 1e-2 of a base cell.
+#[test]
+fn f32_on_an_adaptive_body_moved_1e5_cells_finds_the_known_leaf() {
+    for seed in [3, 8] {
+        let mut body = scene(seed % 2 == 0, 0.1, seed);
+        let moved = DVec3::new(1.0, -0.6, 0.3) * 1e5 * body.spacing(0);
+        let before = body.displacements().to_vec();
+        body.update_independent(|node, _, u| *u = before[node] + moved)
+            .unwrap();
+        let locator = AdaptiveLocator::new(&body, Settings::f32()).unwrap();
+        let fine = body.spacing(body.finest_level());
+        let shift = locator.frame_shift() / fine;
+        assert!(
+            shift == shift.round() && (shift - moved / fine).abs().max_element() < 1.0,
+            "seed {seed}: frame {shift}"
+        );
+        let mut rng = Rng(seed + 500);
+        let known: Vec<(CellId, DVec3)> = (0..600)
+            .map(|_| {
+                let cell = CellId(rng.below(body.cell_count()) as u32);
+                (cell, rng.vec(-0.999, 0.999))
+            })
+            .collect();
+        let points: Vec<DVec3> = known
+            .iter()
+            .map(|&(cell, xi)| body.point_at(cell, xi).unwrap())
+            .collect();
+        let mut answers = locator.locate_all(&points);
+        let check = |answers: &[Answer], path: &str| {
+            for (answer, &(cell, xi)) in answers.iter().zip(&known) {
+                let hit = answer
+                    .unwrap()
+                    .unwrap_or_else(|| panic!("seed {seed} {path}: {cell} missed"));
+                assert_eq!(hit.cell, cell, "seed {seed} {path}");
+                assert!(
+                    (hit.xi - xi).abs().max_element() <= 1e-5,
+                    "seed {seed} {path}: ξ {} vs {xi}",
+                    hit.xi
+                );
+            }
+        };
+        check(&answers, "locate_all");
+        let each: Vec<Answer> = points.iter().map(|&x| locator.locate(x)).collect();
+        assert_eq!(each, answers, "seed {seed}: locate against locate_all");
+        locator.relocate_all(&points, &mut answers);
+        check(&answers, "relocate_all");
     }
 }
 

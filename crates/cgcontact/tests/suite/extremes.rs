@@ -795,3 +795,70 @@ fn f32_finds_points_near_a_corner_with_det_ratio_1e_3() {
         .unwrap();
     assert_eq!(f32_hit.map(|h| h.cell), Some(cell), "f32 lost the point");
 }
+
+/// f32 rounds each displacement by ε₃₂ |u|: on a body moved rigidly by 1e5 cells that was 1e-2 of
+/// a cell, and points near faces landed in the neighbouring cell. The f32 kernel now works in a
+/// frame shifted by the displacements' common translation (`LatticeLocator::frame_shift`), so a
+/// rigid translation of any size costs nothing: the known cell and ξ to f32's 1e-5, batched,
+/// point by point and warm-started, as on the unmoved body. The frame is whole cells and absent
+/// where the translation is under half a cell (answers bitwise as before).
+#[test]
+fn f32_rigid_translations_of_1e3_to_1e6_cells_known_cell_and_xi() {
+    let lattice = Lattice::new(
+        DVec3::new(3.0, -2.0, 7.0),
+        DVec3::new(0.5, 0.25, 0.4),
+        [5, 4, 3],
+    )
+    .unwrap();
+    for exponent in 3..=6 {
+        let cells = DVec3::new(1.0, -0.7, 0.4) * 10f64.powi(exponent);
+        let body = body(lattice, 0.1, 0.1, cells, 0.05, exponent as u64);
+        let settings = Settings::f32();
+        let locator = LatticeLocator::new(&body, settings).unwrap();
+        let shift = locator.frame_shift() / lattice.h();
+        assert!(
+            (shift - cells).abs().max_element() <= 0.5 && shift == shift.round(),
+            "the frame is whole cells near the translation: {shift}"
+        );
+        let known = random_known(&body, 2000, 0.999, 40 + exponent as u64);
+        let case = format!("rigid 1e{exponent} h + smooth 0.1 h");
+        let m = check_known(&case, &body, settings, &known, 1.0);
+        report(
+            "f32_rigid_translations_of_1e3_to_1e6_cells_known_cell_and_xi",
+            &case,
+            "f32",
+            &m,
+        );
+        // Point by point and warm-started from the batched answers: the same answers.
+        let points: Vec<DVec3> = known
+            .iter()
+            .map(|&(c, xi)| point_at(&body, c, xi))
+            .collect();
+        let mut answers = locator.locate_all(&points);
+        for (&x, answer) in points.iter().zip(&answers) {
+            assert_eq!(locator.locate(x), *answer, "{case}: locate at {x}");
+        }
+        let batched = answers.clone();
+        locator.relocate_all(&points, &mut answers);
+        for ((answer, cold), &(cell, xi)) in answers.iter().zip(&batched).zip(&known) {
+            let hit = answer.unwrap().unwrap();
+            assert_eq!(hit.cell, cell, "{case}: warm");
+            assert!(
+                (hit.xi - xi).abs().max_element() <= 1e-5,
+                "{case}: warm ξ {}",
+                hit.xi
+            );
+            assert_eq!(hit.inversions, 1, "{case}: the hint holds it ({cold:?})");
+        }
+    }
+    // Under half a cell: no frame.
+    let body = body(lattice, 0.1, 0.1, DVec3::splat(0.45), 0.0, 3);
+    let locator = LatticeLocator::new(&body, Settings::f32()).unwrap();
+    assert_eq!(locator.frame_shift(), DVec3::ZERO);
+    assert_eq!(
+        LatticeLocator::new(&body, Settings::default())
+            .unwrap()
+            .frame_shift(),
+        DVec3::ZERO
+    );
+}
