@@ -211,8 +211,11 @@ impl BodyState {
                 ));
             }
         }
+        let caller_nodes = |e| in_caller_nodes(e, &self.scratch, self.source_of_slot.as_deref());
         match &mut self.body {
-            AnyBody::Uniform(body) => body.set_displacements(&self.scratch)?,
+            AnyBody::Uniform(body) => body
+                .set_displacements(&self.scratch)
+                .map_err(caller_nodes)?,
             AnyBody::Adaptive(body) => {
                 if !fill {
                     check_hanging(
@@ -222,7 +225,8 @@ impl BodyState {
                         self.source_of_slot.as_deref(),
                     )?;
                 }
-                body.set_displacements(&self.scratch)?;
+                body.set_displacements(&self.scratch)
+                    .map_err(caller_nodes)?;
                 if fill {
                     body.fill_hanging();
                 }
@@ -230,6 +234,26 @@ impl BodyState {
         }
         Ok(())
     }
+}
+
+/// The library's error for displacements `u` (slot order), with a displacement too large named
+/// by the caller's node (`source[slot]`): the library names its own node, a lattice node, which
+/// on a mesh is not the node the caller gave.
+fn in_caller_nodes(e: cgcontact::Error, u: &[DVec3], source: Option<&[u32]>) -> Failure {
+    if let cgcontact::Error::DisplacementTooLarge { limit, .. } = e
+        && let Some(slot) = u.iter().position(|v| v.abs().max_element() > limit)
+    {
+        let node = source.map_or(slot, |s| s[slot] as usize);
+        return Failure::new(
+            CgcError::InvalidArgument,
+            format!(
+                "the displacement of node {node} (0-based) is too large: {} (at most {limit:e} \
+                 per axis: displaced farther, coordinates cannot resolve this body's cells)",
+                u[slot]
+            ),
+        );
+    }
+    Failure::from(e)
 }
 
 /// An error naming how many hanging nodes of `body` break their constraint in `u` (slot order)

@@ -837,3 +837,40 @@ fn a_null_active_mask_with_a_length_is_refused() {
     );
     assert!(body.is_null());
 }
+
+/// A displacement too large was named by the library's lattice node, not by the caller's node of
+/// the mesh: node 0 for a mesh whose nodes come in reverse order named the caller's last node.
+#[test]
+fn a_displacement_too_large_is_named_by_the_callers_node() {
+    // Two unit cubes along x, their 12 nodes given in reverse lattice order.
+    let m = 12;
+    let lattice_node = |k: usize| m - 1 - k;
+    let nodes: Vec<f64> = (0..m)
+        .flat_map(|k| {
+            let n = lattice_node(k);
+            [(n % 3) as f64, ((n / 3) % 2) as f64, (n / 6) as f64]
+        })
+        .collect();
+    let corners = |i: usize| [i, i + 1, i + 4, i + 3, i + 6, i + 7, i + 10, i + 9];
+    let cells: Vec<i64> = (0..2)
+        .flat_map(|i| corners(i).map(|n| lattice_node(n) as i64))
+        .collect();
+    let mut body = ptr::null_mut();
+    let mut u = vec![0.0; 3 * m];
+    u[3 * 2 + 1] = 1e300; // the caller's node 2, lattice node 9
+    // SAFETY: every array holds the length passed; the handle is freed once.
+    unsafe {
+        assert_eq!(
+            cgc_body_from_mesh(nodes.as_ptr(), m, cells.as_ptr(), 2, 0, &mut body),
+            CgcError::Ok
+        );
+        let code = cgc_body_set_displacements(body, u.as_ptr(), m, CGC_LAYOUT_NODE_MAJOR);
+        assert_eq!(code, CgcError::InvalidArgument);
+        let message = last_error();
+        assert!(
+            message.contains("node 2 (0-based) is too large"),
+            "{message}"
+        );
+        cgc_body_free(body);
+    }
+}

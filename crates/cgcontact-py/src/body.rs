@@ -197,7 +197,7 @@ impl BodyState {
         match &mut self.body {
             AnyBody::Uniform(body) => body
                 .set_displacements(&self.scratch)
-                .map_err(|e| e.to_string())?,
+                .map_err(|e| in_caller_rows(e, &self.scratch, self.source_of_slot.as_deref()))?,
             AnyBody::Adaptive(body) => {
                 if !fill {
                     check_hanging(
@@ -207,8 +207,9 @@ impl BodyState {
                         self.source_of_slot.as_deref(),
                     )?;
                 }
-                body.set_displacements(&self.scratch)
-                    .map_err(|e| e.to_string())?;
+                body.set_displacements(&self.scratch).map_err(|e| {
+                    in_caller_rows(e, &self.scratch, self.source_of_slot.as_deref())
+                })?;
                 if fill {
                     body.fill_hanging();
                 }
@@ -216,6 +217,23 @@ impl BodyState {
         }
         Ok(())
     }
+}
+
+/// The library's error for displacements `u` (slot order), with a displacement too large named
+/// by the caller's row (`source[slot]`): the library names its own node, a lattice node, which
+/// on a mesh is not the row the caller gave.
+fn in_caller_rows(e: cgcontact::Error, u: &[DVec3], source: Option<&[u32]>) -> String {
+    if let cgcontact::Error::DisplacementTooLarge { limit, .. } = e
+        && let Some(slot) = u.iter().position(|v| v.abs().max_element() > limit)
+    {
+        let row = source.map_or(slot, |s| s[slot] as usize);
+        return format!(
+            "displacement row {row} (0-based) is too large: {} (at most {limit:e} per axis: \
+             displaced farther, coordinates cannot resolve this body's cells)",
+            u[slot]
+        );
+    }
+    e.to_string()
 }
 
 /// An error naming how many hanging nodes of `body` break their constraint in `u` (slot order)

@@ -495,3 +495,14 @@ def test_a_lattice_too_large_for_memory_is_an_error_not_a_killed_interpreter():
         pytest.skip("the kernel may grant 206 GB here: the probe cannot refuse it")
     with pytest.raises(MemoryError, match="does not fit in memory"):
         cgcontact.Body((0, 0, 0), (1, 1, 1), (1624, 1624, 1624))
+
+
+def test_a_displacement_too_large_is_named_by_the_callers_row():
+    """The library named its own lattice node: row 0 of nodes given in reverse was 'node 35'."""
+    nodes, hexes = lattice_hexes()
+    reverse = np.arange(len(nodes))[::-1]
+    body = cgcontact.Body.from_hexes(nodes[reverse], reverse[hexes])
+    u = np.zeros((body.node_count, 3))
+    u[0, 1] = 1e300
+    with pytest.raises(ValueError, match=r"displacement row 0 \(0-based\) is too large"):
+        body.set_displacements(u)
