@@ -124,7 +124,7 @@ impl<'l, L: Surface> GapFinder<'l, L> {
     pub fn new(surface: &'l L, distance: f64) -> Result<Self, Error> {
         if !(0.0..=crate::MAX_DISPLACEMENT).contains(&distance) {
             return Err(Error::InvalidSettings(format!(
-                "the gap search distance must be at least 0 and at most {:e}, got {distance}",
+                "the gap search distance must be at least 0 and at most {:e}, got {distance:e}",
                 crate::MAX_DISPLACEMENT
             )));
         }
