@@ -644,3 +644,24 @@ fn displacements_too_large_for_squared_distances_are_refused() {
     // answered an infinite gap.
     assert!(GapFinder::new(&locator, 1e200).is_err());
 }
+
+/// A search distance out of range is refused naming the value in e notation: 1e300 printed in
+/// full was a 300-digit message from every binding.
+#[test]
+fn a_search_distance_out_of_range_is_named_briefly() {
+    let body = stepped_body(DVec3::ZERO, DVec3::ONE, 0.0);
+    let locator = LatticeLocator::new(&body, Settings::default()).unwrap();
+    for (distance, shown) in [
+        (1e300, "got 1e300"),
+        (-2.5, "got -2.5e0"),
+        (f64::NAN, "got NaN"),
+    ] {
+        let message = GapFinder::new(&locator, distance)
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(message.contains(shown), "{message}");
+        assert!(message.len() < 200, "{message}");
+    }
+    assert!(GapFinder::new(&locator, 1e150).is_ok());
+}
