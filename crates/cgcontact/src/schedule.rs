@@ -54,7 +54,8 @@ impl Schedule {
     /// Fewer points than this are answered in input order by [`Schedule::Auto`]: the sort's
     /// fixed costs (a histogram per pass and thread) would not pay.
     pub const AUTO_MIN_POINTS: usize = 16_384;
-    /// Pairs of consecutive points [`Schedule::Auto`] samples, evenly spread over the input, to
+    /// Pairs of consecutive points [`Schedule::Auto`] samples, one in each of as many even
+    /// strides of the input (where in the stride, a fixed hash decides), to
     /// tell whether the points already come in an order the caches follow.
     pub const AUTO_SAMPLES: usize = 1024;
     /// [`Schedule::Auto`] keeps the input order when at most this share of the sampled pairs of
@@ -123,7 +124,7 @@ impl Blocks {
 
     /// Whether the points already come in an order the caches follow: at most
     /// [`Schedule::AUTO_FAR_SHARE`] of [`Schedule::AUTO_SAMPLES`] pairs of consecutive points,
-    /// evenly spread over the input, lie more than a layer of blocks apart (their keys differ by
+    /// one in each even stride of the input, lie more than a layer of blocks apart (their keys differ by
     /// more than a layer's blocks; a NaN point is clamped into block 0 as the sort does).
     fn coherent(&self, points: &[DVec3]) -> bool {
         let n = points.len();
@@ -134,8 +135,13 @@ impl Blocks {
         let layer = self.counts[0] as usize * self.counts[1] as usize;
         let far = (0..samples)
             .filter(|&s| {
-                // Evenly spread: pair (i, i + 1) with i from 0 to n − 2.
-                let i = s * (n - 1) / samples;
+                // Pair (i, i + 1), i anywhere in the s-th of `samples` even strides of 0..n − 1:
+                // a fixed hash of s picks where, so that inputs made of groups of a few points
+                // are not sampled at the same place in every group (evenly spaced samples on a
+                // power-of-two count took only the pairs inside pairs of points).
+                let (low, high) = (s * (n - 1) / samples, (s + 1) * (n - 1) / samples);
+                let hash = (s as u64 + 1).wrapping_mul(0x9e37_79b9_7f4a_7c15) >> 32;
+                let i = low + hash as usize % (high - low).max(1);
                 self.key(points[i]).abs_diff(self.key(points[i + 1])) > layer
             })
             .count();
@@ -663,18 +669,33 @@ mod tests {
             let (lattice, points) = lattice_ordered(swapped);
             assert!(!blocks(&lattice).coherent(&points), "{swapped}");
         }
-        // Points in z order then x order: consecutive points a layer or less apart, kept; in
-        // x-major order (each step a layer or more): sorted; alternating between two far
-        // regions: sorted.
+        // Points y-major, then x-major: consecutive points a layer or less apart but for the
+        // ends of columns (one step in 64), whose next column reads the lines beside: kept;
+        // alternating between the lower and the upper half of the layers: sorted.
         let (lattice, mut points) = lattice_ordered(0.0);
         let b = blocks(&lattice);
         points.sort_by(|p, q| (p.y, p.z, p.x).partial_cmp(&(q.y, q.z, q.x)).unwrap());
         assert!(b.coherent(&points));
         points.sort_by(|p, q| (p.x, p.y, p.z).partial_cmp(&(q.x, q.y, q.z)).unwrap());
-        assert!(!b.coherent(&points));
+        assert!(b.coherent(&points));
+        let (_, points) = lattice_ordered(0.0);
         let (lo, hi) = points.split_at(points.len() / 2);
         let alternating: Vec<DVec3> = lo.iter().zip(hi).flat_map(|(a, b)| [*a, *b]).collect();
         assert!(!b.coherent(&alternating));
+        // Groups of 2, 4 and 8 near points (a face's Gauss points) in random group order, on
+        // input sizes that are powers of two, where evenly spaced samples could all fall inside
+        // a group: 1/2 and 1/4 of the consecutive pairs jump far, sorted; 1/8, kept.
+        let (lattice, shuffled) = lattice_ordered(1.0);
+        let b = blocks(&lattice);
+        for (group, kept) in [(2, false), (4, false), (8, true)] {
+            for n in [1 << 16, 1 << 17, (1 << 17) + group] {
+                let grouped: Vec<DVec3> = shuffled[..n / group]
+                    .iter()
+                    .flat_map(|&x| std::iter::repeat_n(x, group))
+                    .collect();
+                assert_eq!(b.coherent(&grouped), kept, "groups of {group}, {n} points");
+            }
+        }
         // NaN points fall in block 0, as the sort puts them; a single point is in order, two
         // far apart are not.
         assert!(b.coherent(&vec![DVec3::NAN; 40_000]));
