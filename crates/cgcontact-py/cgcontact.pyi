@@ -45,6 +45,12 @@ class Body:
         """Sets every displacement in place: one row (ux, uy, uz) per node (`node_count`). On an
         adaptive body a hanging node's row must be its constraint's value unless `fill_hanging`.
         On error (ValueError) the body keeps its displacements."""
+    def inverted_cells(self) -> npt.NDArray[np.int64]:
+        """The cells the current displacements invert (det J <= 0 at a corner: a node moved
+        through its neighbours), ascending, numbered as `Locator.locate` numbers cells; empty
+        when none. Answers in or near them are not to be trusted (a point in one may be found in
+        no cell). Updates do not check for them: this costs one pass over every cell, so call it
+        when wanted, not on every update. `cgcontact locate --json` reports the same cells."""
     @property
     def node_count(self) -> int:
         """Rows `set_displacements` takes."""

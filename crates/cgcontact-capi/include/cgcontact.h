@@ -6,7 +6,9 @@
  * uniform (one lattice) or h-adaptive (cells halved per level, hanging nodes constrained to their
  * coarse neighbour: cgc_body_from_mesh detects which). cgc_gap gives the signed gap of points to
  * the body's deformed boundary surface within a search distance, the closest point there, the
- * outward normal and the face.
+ * outward normal and the face. cgc_body_inverted_cells lists the cells the displacements invert
+ * (det J <= 0 at a corner), where answers are not to be trusted; updates do not check for them,
+ * so call it when wanted (one pass over the cells).
  *
  *   cgc_body *body;  cgc_locator *loc;
  *   cgc_body_from_lattice(origin, h, counts, NULL, 0, &body);      // or cgc_body_from_mesh
@@ -234,6 +236,29 @@ cgc_error cgc_body_node_count(const cgc_body *body, size_t *n_nodes);
 // # Safety
 // `body` must be a live handle or NULL; `n_hanging` writable or NULL.
 cgc_error cgc_body_hanging_count(const cgc_body *body, size_t *n_hanging);
+
+// Lists the cells that the current displacements invert: those whose Jacobian determinant is
+// not positive at some corner (a node moved through its neighbours, or a collapsed cell).
+// Answers in or near such a cell are not to be trusted: a point in it may be found in no cell
+// (`cgc_locate` answers −1). The search does not check for them on each update: this call costs
+// one pass over every cell, so call it when wanted (after an update, or when a point is not
+// found).
+//
+// Writes to `*count` how many cells are inverted, and, when they fit in `capacity`, their
+// numbers to `cells[0 .. *count]`, ascending and numbered as `cgc_locate` numbers cells (0-based
+// places in the mesh's `cells`, or lattice cell numbers). Two calls: `cells` NULL with
+// `capacity` 0 writes the count alone, then a buffer of `*count` values gets the list (a buffer
+// with room for every cell of the body does it in one call). A `capacity` from 1 to
+// `*count − 1` returns `CGC_ERROR_LENGTH_MISMATCH`, with `*count` written and `cells` left as it
+// was (another thread's update between the two calls can change the count).
+//
+// # Safety
+// `body` must be a live handle or NULL; `cells` must point to `capacity` writable int64 or be
+// NULL; `count` writable or NULL.
+cgc_error cgc_body_inverted_cells(const cgc_body *body,
+                                  int64_t *cells,
+                                  size_t capacity,
+                                  size_t *count);
 
 // Frees a body handle (NULL is a no-op). Locators made from it stay valid: they share the body,
 // which is freed with the last of them.

@@ -5,8 +5,9 @@
 %   update(B, U);                           % m x 3 displacements, each iteration
 %   [E, PosL] = locate(B, XYZ);             % as cgcontact_whereami(XYZ, XYZ_N0, Topology, U)
 %   [G, C, N, FE, F] = gap(B, XYZ, D);      % gaps to the surface within D (cgcontact_whereami 'gap')
+%   Inverted = inverted_cells(B);           % 1-based elements U inverts (det J <= 0 at a corner)
 %
-% A handle object over cgcontact_whereami's 'new', 'update', 'locate', 'gap' and 'free' (build.sh puts it
+% A handle object over cgcontact_whereami's 'new', 'update', 'locate', 'gap', 'inverted_cells' and 'free' (build.sh puts it
 % beside cgcontact_whereami.mex). Options as for cgcontact_whereami.
 classdef cgcontact_body < handle
   properties (SetAccess = private)
@@ -25,6 +26,9 @@ classdef cgcontact_body < handle
     end
     function [G, C, N, FE, F] = gap(obj, XYZ, D)
       [G, C, N, FE, F] = cgcontact_whereami('gap', obj.id, XYZ, D);
+    end
+    function Inverted = inverted_cells(obj)
+      Inverted = cgcontact_whereami('inverted_cells', obj.id);
     end
     function delete(obj)
       if obj.id > 0

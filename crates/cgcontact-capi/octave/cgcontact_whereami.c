@@ -3,6 +3,7 @@
  *
  *   [E, PosL] = cgcontact_whereami(XYZ, XYZ_N0, Topology, U)
  *   [E, PosL] = cgcontact_whereami(XYZ, XYZ_N0, Topology, U, Options)
+ *   [E, PosL, Inverted] = cgcontact_whereami(XYZ, XYZ_N0, Topology, U [, Options])
  *
  *     XYZ       3 x n   points
  *     XYZ_N0    3 x m   undeformed nodes (on a lattice)
@@ -10,6 +11,8 @@
  *     U         m x 3   nodal displacements ([] or omitted: undeformed)
  *     E         1 x n   1-based element holding each point, 0 when none
  *     PosL      3 x n   local coordinates in [-1, 1]^3 (NaN when none)
+ *     Inverted  1 x k   1-based elements that U inverts (see 'inverted_cells'), ascending; only
+ *                       computed when asked for
  *     Options   struct, any of: precision ('f64' or 'f32'), tol (Newton step), max_iter, threads,
  *               fill_hanging (true: hanging nodes take their constraint's value, U's is ignored);
  *               any other field is an error (a misspelt option would be ignored otherwise)
@@ -27,6 +30,7 @@
  *   cgcontact_whereami('update', H, U)                        % U m x 3 ([] is an error)
  *   [E, PosL] = cgcontact_whereami('locate', H, XYZ)
  *   [G, C, N, FE, F] = cgcontact_whereami('gap', H, XYZ, D)    % gaps to the surface, within D
+ *   Inverted = cgcontact_whereami('inverted_cells', H)         % elements U inverts, 1 x k
  *   S = cgcontact_whereami('query_seconds', H, XYZ, Repeats)   % the library's own query time
  *   cgcontact_whereami('free', H)                               % optional
  *   N = cgcontact_whereami('handles')                           % how many are live
@@ -41,6 +45,11 @@
  *                 zeta) = -1 for even f, +1 for odd f (5 is the top, zeta = +1); -1 when none
  * G, C and N are NaN, FE 0 and F -1 where the surface is farther than D (outside or deep inside).
  * cgcontact_gap(H or B, XYZ, D) (beside the MEX file) is the same call.
+ *
+ * 'inverted_cells' lists the elements the current displacements turn inside out (det J <= 0 at a
+ * corner: a node moved through its neighbours), 1-based and ascending, 1 x 0 when none. Answers
+ * in or near them are not to be trusted (a point in one may get E = 0). 'update' does not check
+ * for them: the check is one pass over every element, so ask when wanted.
  *
  * cgcontact_body.m (beside the MEX file) wraps these in a handle object that frees its body when
  * cleared: B = cgcontact_body(XYZ_N0, Topology); update(B, U); [E, PosL] = locate(B, XYZ).
@@ -283,6 +292,28 @@ static void locate(entry *e, const mxArray *points, mxArray **out, int n_out, in
     else mxDestroyArray(local);
 }
 
+/* The 1-based elements the body's displacements invert, 1 x k ascending. On failure frees the
+ * entry when `owned`. */
+static mxArray *inverted_cells(entry *e, int owned) {
+    size_t count = 0;
+    cgc_error code = cgc_body_inverted_cells(e->body, NULL, 0, &count);
+    mxArray *out = code == CGC_ERROR_OK ? mxCreateUninitNumericMatrix(1, count, mxDOUBLE_CLASS, mxREAL) : NULL;
+    /* As in locate: the int64 cells are written into the output's memory, converted in place. */
+    if (out) code = cgc_body_inverted_cells(e->body, (int64_t *)mxGetData(out), count, &count);
+    if (code != CGC_ERROR_OK) {
+        if (out) mxDestroyArray(out);
+        if (owned) free_entry(e);
+        fail_cgc(code, "inverted_cells");
+    }
+    const int64_t *cells = (const int64_t *)mxGetData(out);
+    double *E = mxGetPr(out);
+    for (size_t i = 0; i < count; i++) {
+        int64_t cell = cells[i]; /* read as written, then overwritten as a double */
+        E[i] = (double)(cell + 1);
+    }
+    return out;
+}
+
 /* [G, C, N, FE, F] for points XYZ (3 x n) within D. */
 static void gap(entry *e, const mxArray *points, const mxArray *distance, mxArray **out, int n_out) {
     size_t n = matrix(points, "XYZ", 3, "3 x n, one point per column");
@@ -377,7 +408,7 @@ void mexFunction(int nlhs, mxArray *plhs[], int nrhs, const mxArray *prhs[]) {
             mxGetString(prhs[0], command, sizeof command) != 0)
             FAIL("usage",
                  "unknown command: a row of at most %d characters (new, update, locate, gap, "
-                 "query_seconds, free, handles)",
+                 "inverted_cells, query_seconds, free, handles)",
                  (int)sizeof command - 1);
         if (!strcmp(command, "new")) {
             args(nrhs, 3, 4, "H = cgcontact_whereami('new', XYZ_N0, Topology [, Options])");
@@ -393,6 +424,9 @@ void mexFunction(int nlhs, mxArray *plhs[], int nrhs, const mxArray *prhs[]) {
             args(nrhs, 4, 4, "[G, C, N, FE, F] = cgcontact_whereami('gap', H, XYZ, D)");
             if (nlhs > 5) FAIL("usage", "at most five outputs: [G, C, N, FE, F]");
             gap(lookup(prhs[1]), prhs[2], prhs[3], plhs, nlhs);
+        } else if (!strcmp(command, "inverted_cells")) {
+            args(nrhs, 2, 2, "Inverted = cgcontact_whereami('inverted_cells', H)");
+            plhs[0] = inverted_cells(lookup(prhs[1]), 0);
         } else if (!strcmp(command, "query_seconds")) {
             args(nrhs, 3, 4, "S = cgcontact_whereami('query_seconds', H, XYZ [, Repeats])");
             entry *e = lookup(prhs[1]);
@@ -415,15 +449,17 @@ void mexFunction(int nlhs, mxArray *plhs[], int nrhs, const mxArray *prhs[]) {
             for (size_t i = 0; i < table_len; i++) live += table[i].body != NULL;
             plhs[0] = mxCreateDoubleScalar(live);
         } else {
-            FAIL("usage", "unknown command '%s' (new, update, locate, gap, query_seconds, free, handles)", command);
+            FAIL("usage", "unknown command '%s' (new, update, locate, gap, inverted_cells, query_seconds, free, handles)", command);
         }
         return;
     }
-    args(nrhs, 3, 5, "[E, PosL] = cgcontact_whereami(XYZ, XYZ_N0, Topology, U [, Options])");
-    if (nlhs > 2) FAIL("usage", "at most two outputs: [E, PosL]");
+    args(nrhs, 3, 5, "[E, PosL, Inverted] = cgcontact_whereami(XYZ, XYZ_N0, Topology, U [, Options])");
+    if (nlhs > 3) FAIL("usage", "at most three outputs: [E, PosL, Inverted]");
     /* Check the points before building anything, so that a bad XYZ costs nothing. */
     matrix(prhs[0], "XYZ", 3, "3 x n, one point per column");
     entry made = build(prhs[1], prhs[2], nrhs > 4 ? prhs[4] : NULL);
     if (nrhs > 3) update(&made, prhs[3], 1);
+    /* Only when asked for: the check is a pass over every element. */
+    if (nlhs > 2) plhs[2] = inverted_cells(&made, 1);
     locate(&made, prhs[0], plhs, nlhs, 1);
 }

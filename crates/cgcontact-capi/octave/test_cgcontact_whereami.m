@@ -4,9 +4,11 @@
 %
 % Builds a lattice block with a smooth displacement here in Octave, writes it as a legacy ASCII
 % .vtk mesh and a points CSV, runs `cgcontact locate` on them, and checks that the MEX file gives
-% the same answers: the same cells, xi within 1e-12. Then the same for an adaptive block (three
-% refinement levels, hanging nodes set by the Q1 rule), and the hanging-node error. Then the
-% gaps of points to a 2 x 2 x 2 block (known answers), and that bad inputs raise errors.
+% the same answers: the same cells, xi within 1e-12. A node moved through its neighbour inverts
+% the elements known by construction, which 'inverted_cells' lists as `cgcontact locate --json`
+% does. Then the same for an adaptive block (three refinement levels, hanging nodes set by the
+% Q1 rule), and the hanging-node error. Then the gaps of points to a 2 x 2 x 2 block (known
+% answers), and that bad inputs raise errors.
 % Any failure ends Octave with a non-zero exit status.
 1;
 
@@ -203,6 +205,49 @@ clear B;
 check(cgcontact_whereami('handles') == 1, 'clear frees the cgcontact_body''s handle');
 printf('handles: new, update, locate agree with the one-shot call; f32 within 1e-4; cgcontact_body frees itself\n');
 
+% --- inverted elements: a node moved through its neighbour ---------------------------------
+% Lattice node (5, 4, 3) moved 1.5 cells in x, through its neighbour (6, 4, 3): the four elements
+% with it at their -x corners, cells (5, 3..4, 2..3), are inverted there; the four at i = 4 only
+% stretch. The scene numbers nodes and elements in reverse (node n is m + 1 - n, element c is
+% e + 1 - c, counting i fastest from 1).
+check(isequal(cgcontact_whereami('inverted_cells', H), zeros(1, 0)), ...
+      'the smoothly deformed block has inverted elements: %s', ...
+      mat2str(cgcontact_whereami('inverted_cells', H)));
+m = columns(N0); e = columns(T);
+moved = m + 1 - (1 + 5 + (nc(1) + 1) * (4 + (nc(2) + 1) * 3));
+check(isequal(N0(:, moved), origin(:) + h(:) .* [5; 4; 3]), 'the node to move is not (5, 4, 3)');
+[cj, ck] = ndgrid(3:4, 2:3);
+expected = sort(e + 1 - (1 + 5 + nc(1) * (cj(:)' + nc(2) * ck(:)')));
+Ui = U; Ui(moved, 1) = Ui(moved, 1) + 1.5 * h(1);
+cgcontact_whereami('update', H, Ui);
+inverted = cgcontact_whereami('inverted_cells', H);
+check(isequal(inverted, expected), 'inverted elements %s, expected %s', mat2str(inverted), ...
+      mat2str(expected));
+[~, ~, inverted1] = cgcontact_whereami(XYZ, N0, T, Ui);
+check(isequal(inverted1, expected), 'one-shot: inverted elements %s', mat2str(inverted1));
+[~, ~, none] = cgcontact_whereami(XYZ, N0, T, U);
+check(isequal(none, zeros(1, 0)), 'one-shot: inverted elements of the smooth block %s', mat2str(none));
+B = cgcontact_body(N0, T);
+update(B, Ui);
+check(isequal(inverted_cells(B), expected), 'cgcontact_body: inverted elements %s', ...
+      mat2str(inverted_cells(B)));
+clear B;
+% The command line's list for the same mesh: `inverted_cells` of its --json summary, 0-based.
+write_vtk(fullfile(work, 'inverted.vtk'), N0, T, Ui);
+cmd = sprintf('"%s" locate --mesh "%s" --points "%s" --json --quiet', cli, ...
+              fullfile(work, 'inverted.vtk'), fullfile(work, 'points.csv'));
+[status, output] = system(cmd);
+check(status == 0, 'cgcontact locate (inverted) failed (%d): %s', status, output);
+summary = jsondecode(output);
+cli_inverted = sort(summary.inverted_cells(:)') + 1;
+check(isequal(inverted, cli_inverted), 'inverted elements %s, cgcontact locate %s', ...
+      mat2str(inverted), mat2str(cli_inverted));
+cgcontact_whereami('update', H, U);
+check(isequal(cgcontact_whereami('inverted_cells', H), zeros(1, 0)), 'the list follows the displacements');
+expect_error('cgcontact:usage', @() cgcontact_whereami('inverted_cells', H, U), 'inverted_cells with U');
+printf('inverted: elements %s, as constructed and as cgcontact locate --json; none when undone\n', ...
+       mat2str(inverted));
+
 % --- an adaptive mesh: the same calls, the same answers as cgcontact locate -----------------
 ha = [0.6 0.5 0.4]; oa = [-3 1 2];
 [N0a, Ta, Ua, hanging] = adaptive_scene(ha, oa);
@@ -359,6 +404,7 @@ catch err
 end
 cgcontact_whereami('free', H);
 expect_error('cgcontact:badHandle', @() cgcontact_whereami('locate', H, XYZ), 'a freed handle');
+expect_error('cgcontact:badHandle', @() cgcontact_whereami('inverted_cells', H), 'inverted_cells, a freed handle');
 check(cgcontact_whereami('handles') == 0, 'no live handle');
 % A freed handle stays freed when its slot is given again: it answered for the new body before.
 Hnext = cgcontact_whereami('new', N0, T);

@@ -148,6 +148,22 @@ impl BodyState {
         }
     }
 
+    /// The caller's numbers of the cells whose Jacobian determinant is not positive at some
+    /// corner (inverted or degenerate), ascending: one pass over every cell.
+    fn inverted_cells(&self) -> Vec<i64> {
+        let found = match &self.body {
+            AnyBody::Uniform(body) => body.inverted_cells(),
+            AnyBody::Adaptive(body) => body.inverted_cells(),
+        };
+        // A mesh body's input order is not the lattice's: sort in the caller's numbering.
+        let mut cells: Vec<i64> = found
+            .iter()
+            .map(|&(cell, _)| self.cell_number(cell))
+            .collect();
+        cells.sort_unstable();
+        cells
+    }
+
     /// The caller's node that gives slot `slot`.
     fn source(&self, slot: usize) -> usize {
         self.source_of_slot
@@ -655,6 +671,64 @@ pub unsafe extern "C" fn cgc_body_hanging_count(
             )
         };
         out[0] = CgcBody::read(&body.state).hanging.rows.len();
+        Ok(())
+    })
+}
+
+/// Lists the cells that the current displacements invert: those whose Jacobian determinant is
+/// not positive at some corner (a node moved through its neighbours, or a collapsed cell).
+/// Answers in or near such a cell are not to be trusted: a point in it may be found in no cell
+/// (`cgc_locate` answers −1). The search does not check for them on each update: this call costs
+/// one pass over every cell, so call it when wanted (after an update, or when a point is not
+/// found).
+///
+/// Writes to `*count` how many cells are inverted, and, when they fit in `capacity`, their
+/// numbers to `cells[0 .. *count]`, ascending and numbered as `cgc_locate` numbers cells (0-based
+/// places in the mesh's `cells`, or lattice cell numbers). Two calls: `cells` NULL with
+/// `capacity` 0 writes the count alone, then a buffer of `*count` values gets the list (a buffer
+/// with room for every cell of the body does it in one call). A `capacity` from 1 to
+/// `*count − 1` returns `CGC_ERROR_LENGTH_MISMATCH`, with `*count` written and `cells` left as it
+/// was (another thread's update between the two calls can change the count).
+///
+/// # Safety
+/// `body` must be a live handle or NULL; `cells` must point to `capacity` writable int64 or be
+/// NULL; `count` writable or NULL.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn cgc_body_inverted_cells(
+    body: *const CgcBody,
+    cells: *mut i64,
+    capacity: usize,
+    count: *mut usize,
+) -> CgcError {
+    guard(|| {
+        raw::disjoint(&[
+            raw::region(cells.cast_const(), capacity, "cells")?,
+            raw::region(count.cast_const(), 1, "count")?,
+        ])?;
+        // SAFETY: the caller guarantees a live handle and the stated writable lengths; the two
+        // outputs do not overlap (checked above).
+        let (body, out, count) = unsafe {
+            (
+                raw::handle(body, "body")?,
+                raw::slice_mut(cells, capacity, "cells")?,
+                raw::slice_mut(count, 1, "count")?,
+            )
+        };
+        let inverted = CgcBody::read(&body.state).inverted_cells();
+        count[0] = inverted.len();
+        if capacity == 0 {
+            return Ok(());
+        }
+        let Some(out) = out.get_mut(..inverted.len()) else {
+            return Err(Failure::new(
+                CgcError::LengthMismatch,
+                format!(
+                    "cells: the body has {} inverted cells, room for {capacity} (*count holds the number needed)",
+                    inverted.len()
+                ),
+            ));
+        };
+        out.copy_from_slice(&inverted);
         Ok(())
     })
 }

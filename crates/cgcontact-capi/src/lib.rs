@@ -12,6 +12,7 @@
 //! | [`cgc_body_from_mesh`] | a body from nodes and hexahedra (VTK order); the lattice is detected, with its refinement levels on an adaptive mesh |
 //! | [`cgc_body_set_displacements`] | every nodal displacement, in place, node- or component-major; hanging nodes checked or filled ([`CGC_FILL_HANGING`]) |
 //! | [`cgc_body_hanging_count`] | how many nodes hang on a coarser neighbour (0 for a uniform body) |
+//! | [`cgc_body_inverted_cells`] | the cells the displacements invert (det J ≤ 0 at a corner), where no point is found: one pass over the cells, on demand |
 //! | [`cgc_settings_init`], [`cgc_locator_new`] | a locator with settings (strategy, precision, tolerances, threads) |
 //! | [`cgc_locate`] | n points → cell (−1 none), ξ (n × 3), a status per point |
 //! | [`cgc_gap`] | n points → signed gap to the deformed boundary surface within a distance, closest point, outward normal, face (cell and local face) |
@@ -56,8 +57,8 @@ mod raw;
 
 pub use body::{
     CGC_FILL_HANGING, CGC_LAYOUT_COMPONENT_MAJOR, CGC_LAYOUT_NODE_MAJOR, CgcBody, cgc_body_free,
-    cgc_body_from_lattice, cgc_body_from_mesh, cgc_body_hanging_count, cgc_body_node_count,
-    cgc_body_set_displacements,
+    cgc_body_from_lattice, cgc_body_from_mesh, cgc_body_hanging_count, cgc_body_inverted_cells,
+    cgc_body_node_count, cgc_body_set_displacements,
 };
 pub use error::{CgcError, cgc_last_error};
 pub use gap::cgc_gap;

@@ -7,6 +7,7 @@ use cgcontact::glam::DVec3;
 use cgcontact::{AdaptiveBody, Body, CellId, Lattice};
 use cgcontact_baseline::BodyRef;
 use cgcontact_io::{CellMap, HexMesh, LATTICE_TOLERANCE, MeshBody};
+use numpy::{IntoPyArray, PyArray1};
 use pyo3::exceptions::{PyMemoryError, PyValueError};
 use pyo3::prelude::*;
 
@@ -143,6 +144,22 @@ impl BodyState {
             None => i64::from(cell.0),
             Some(map) => map.input_cell(cell).map_or(-1, |c| c as i64),
         }
+    }
+
+    /// The caller's numbers of the cells whose Jacobian determinant is not positive at some
+    /// corner (inverted or degenerate), ascending: one pass over every cell.
+    fn inverted_cells(&self) -> Vec<i64> {
+        let found = match &self.body {
+            AnyBody::Uniform(body) => body.inverted_cells(),
+            AnyBody::Adaptive(body) => body.inverted_cells(),
+        };
+        // A mesh body's input order is not the lattice's: sort in the caller's numbering.
+        let mut cells: Vec<i64> = found
+            .iter()
+            .map(|&(cell, _)| self.cell_number(cell))
+            .collect();
+        cells.sort_unstable();
+        cells
     }
 
     /// The caller's node that gives slot `slot`.
@@ -478,6 +495,16 @@ impl PyBody {
             state.set_displacements(u, fill_hanging)
         })
         .map_err(PyValueError::new_err)
+    }
+
+    /// The cells the current displacements invert (det J <= 0 at a corner: a node moved through
+    /// its neighbours), ascending, numbered as `Locator.locate` numbers cells; empty when none.
+    /// Answers in or near them are not to be trusted (a point in one may be found in no cell).
+    /// Updates do not check for them: this costs one pass over every cell, so call it when
+    /// wanted (after an update, or when a point is not found).
+    fn inverted_cells<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<i64>> {
+        let cells = py.detach(|| Self::read(&self.state).inverted_cells());
+        cells.into_pyarray(py)
     }
 
     /// How many rows `set_displacements` takes: the lattice's nodes for a lattice body, the nodes

@@ -506,3 +506,99 @@ def test_a_displacement_too_large_is_named_by_the_callers_row():
     u[0, 1] = 1e300
     with pytest.raises(ValueError, match=r"displacement row 0 \(0-based\) is too large"):
         body.set_displacements(u)
+
+
+# Inverted cells: a node moved through its neighbour turns the cells beyond it inside out.
+
+NX, NY, NZ = COUNTS
+# Interior node (1, 1, 1) moved 1.5 cells in x, through its neighbour (2, 1, 1): the four cells
+# with it at their -x corners, (1, j, k), are inverted there; the four at i = 0 only stretch.
+MOVED_NODE = 1 + (NX + 1) * (1 + (NY + 1) * 1)
+INVERTED = [1 + NX * (j + NY * k) for k in range(2) for j in range(2)]
+
+
+def through_neighbour(node_count):
+    u = np.zeros((node_count, 3))
+    u[MOVED_NODE, 0] = 1.5 * SPACING[0]
+    return u
+
+
+def write_vtk(path, nodes, hexes, u):
+    """A legacy ASCII .vtk mesh of hexahedra with its displacement, for `cgcontact locate`."""
+    with open(path, "w") as f:
+        f.write("# vtk DataFile Version 3.0\ncgcontact python test\nASCII\n"
+                "DATASET UNSTRUCTURED_GRID\n")
+        f.write(f"POINTS {len(nodes)} double\n")
+        f.writelines(f"{x!r} {y!r} {z!r}\n" for x, y, z in nodes.tolist())
+        f.write(f"CELLS {len(hexes)} {9 * len(hexes)}\n")
+        f.writelines("8 " + " ".join(map(str, corners)) + "\n" for corners in hexes.tolist())
+        f.write(f"CELL_TYPES {len(hexes)}\n" + "12\n" * len(hexes))
+        f.write(f"POINT_DATA {len(nodes)}\nVECTORS displacement double\n")
+        f.writelines(f"{x!r} {y!r} {z!r}\n" for x, y, z in u.tolist())
+
+
+def cli_inverted_cells(cli, folder, nodes, hexes, u):
+    """The `inverted_cells` that `cgcontact locate --json` reports for the mesh, sorted."""
+    write_vtk(folder / "mesh.vtk", nodes, hexes, u)
+    np.savetxt(folder / "points.csv", nodes[:4], delimiter=",", header="x,y,z", comments="")
+    out = subprocess.run([cli, "locate", "--mesh", str(folder / "mesh.vtk"), "--points",
+                          str(folder / "points.csv"), "--json", "-q"],
+                         check=True, capture_output=True, text=True).stdout
+    return sorted(json.loads(out)["inverted_cells"])
+
+
+def test_no_cell_is_inverted_undeformed_or_mildly_deformed():
+    nodes, hexes = lattice_hexes()
+    for body in [cgcontact.Body(ORIGIN, SPACING, COUNTS), cgcontact.Body.from_hexes(nodes, hexes)]:
+        cells = body.inverted_cells()
+        assert cells.dtype == np.int64 and cells.shape == (0,)
+        # Every node moved by up to 0.2 of the smallest spacing.
+        t = np.arange(body.node_count, dtype=float)[:, None]
+        body.set_displacements(0.2 * min(SPACING) * np.sin([0.7, 1.1, 0.3] * t + [0, 1, 2]))
+        assert body.inverted_cells().tolist() == []
+
+
+def test_a_node_moved_through_its_neighbour_inverts_the_cells_beyond_it(cli, tmp_path):
+    """Lattice numbering, then the same mesh with nodes and cells shuffled (cells named by their
+    row in `hexes`), both against the construction and `cgcontact locate --json`."""
+    body = cgcontact.Body(ORIGIN, SPACING, COUNTS)
+    body.set_displacements(through_neighbour(body.node_count))
+    assert body.inverted_cells().dtype == np.int64
+    assert body.inverted_cells().tolist() == INVERTED == [1, 4, 7, 10]
+    body.set_displacements(np.zeros((body.node_count, 3)))
+    assert body.inverted_cells().tolist() == [], "the list follows the displacements"
+
+    nodes, hexes = lattice_hexes()
+    rng = np.random.default_rng(7)
+    node_order, cell_order = rng.permutation(len(nodes)), rng.permutation(len(hexes))
+    new_node = np.argsort(node_order)       # old node n is new node new_node[n]
+    shuffled_nodes, shuffled_hexes = nodes[node_order], new_node[hexes[cell_order]]
+    u = through_neighbour(len(nodes))[node_order]
+    mesh = cgcontact.Body.from_hexes(shuffled_nodes, shuffled_hexes)
+    mesh.set_displacements(u)
+    expected = sorted(np.argsort(cell_order)[INVERTED].tolist())  # old cell c is row ...[c]
+    assert expected != INVERTED
+    assert mesh.inverted_cells().tolist() == expected
+    assert cli_inverted_cells(cli, tmp_path, shuffled_nodes, shuffled_hexes, u) == expected
+
+
+def test_an_inverted_adaptive_leaf_is_named_by_its_row(cli, tmp_path):
+    """Base cells (0, 0, 0) and (1, 0, 0) of a unit lattice, the coarse one first and the other
+    halved into 8 leaves (5 hanging nodes on the shared face). The body's corner node at the
+    origin, in the leaf at row 1 only, moved 0.75 in x through its neighbour at 0.5: that leaf
+    alone is inverted."""
+    boxes = [((2, 0, 0), 2)] + [((c & 1, (c >> 1) & 1, (c >> 2) & 1), 1) for c in range(8)]
+    corners = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0],
+                        [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]])
+    positions = np.concatenate([np.array(low) + size * corners for low, size in boxes])
+    half_steps, index = np.unique(positions, axis=0, return_inverse=True)
+    nodes, hexes = 0.5 * half_steps.astype(float), index.reshape(-1, 8)
+    body = cgcontact.Body.from_hexes(nodes, hexes)
+    assert body.is_adaptive and body.hanging_count == 5
+    assert body.inverted_cells().tolist() == []
+    u = np.zeros((len(nodes), 3))
+    u[hexes[1, 0], 0] = 0.75
+    assert nodes[hexes[1, 0]].tolist() == [0, 0, 0]
+    body.set_displacements(u)
+    assert body.inverted_cells().tolist() == [1]
+    assert cli_inverted_cells(cli, tmp_path, nodes, hexes, u) == [1]

@@ -1,6 +1,6 @@
 /*
  * cgcontact from C: build a lattice body, deform it, locate points and measure gaps to its
- * surface, print and check the answers.
+ * surface, list the cells a node moved too far inverts, print and check the answers.
  *
  * The points are made from known (cell, xi): the deformed point at xi of a chosen cell, computed
  * here with the trilinear map, so the program checks the library against an answer it constructed
@@ -163,6 +163,37 @@ int main(void) {
         printf("a negative distance: code %d, \"%s\"\n", (int)bad, cgc_last_error());
         if (bad != CGC_ERROR_INVALID_ARGUMENT) wrong++;
     }
+
+    /* Inverted cells: none under the smooth displacement. Node (2, 1, 1) moved 1.5 cells in x,
+     * through its neighbour (3, 1, 1), turns the four cells (2, j, k) inside out. Updates do not
+     * check for them (a pass over every cell): ask when wanted, the count first, then the cells. */
+    size_t n_inverted = 1;
+    if (!check(cgc_body_inverted_cells(body, NULL, 0, &n_inverted), "cgc_body_inverted_cells") ||
+        n_inverted != 0)
+        wrong++;
+    double *moved = &u[3 * (2 + (NX + 1) * (1 + (NY + 1) * 1))];
+    moved[0] += 1.5 * H[0];
+    if (!check(cgc_body_set_displacements(body, u, n_nodes, CGC_LAYOUT_NODE_MAJOR),
+               "cgc_body_set_displacements") ||
+        !check(cgc_body_inverted_cells(body, NULL, 0, &n_inverted), "cgc_body_inverted_cells"))
+        return 1;
+    int64_t *inverted = malloc((n_inverted ? n_inverted : 1) * sizeof *inverted);
+    if (!check(cgc_body_inverted_cells(body, inverted, n_inverted, &n_inverted),
+               "cgc_body_inverted_cells"))
+        return 1;
+    const int64_t expected[4] = {2, 2 + NX, 2 + NX * NY, 2 + NX * (1 + NY)}; /* cells (2, j, k) */
+    printf("node (2, 1, 1) moved through (3, 1, 1): %zu inverted cells:", n_inverted);
+    for (size_t c = 0; c < n_inverted; c++) {
+        printf(" %lld", (long long)inverted[c]);
+        if (n_inverted != 4 || inverted[c] != expected[c]) wrong++;
+    }
+    printf("\n");
+    if (n_inverted != 4) wrong++;
+    free(inverted);
+    moved[0] -= 1.5 * H[0];
+    if (!check(cgc_body_set_displacements(body, u, n_nodes, CGC_LAYOUT_NODE_MAJOR),
+               "cgc_body_set_displacements"))
+        return 1;
 
     /* Errors are codes with a message, never crashes. */
     points[1] = NAN;
