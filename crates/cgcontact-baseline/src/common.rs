@@ -94,16 +94,45 @@ impl<'a> BodyRef<'a> {
         }
     }
 
+    /// The cells whose Jacobian determinant is not positive at some corner, with the smallest
+    /// corner determinant over the undeformed one, ascending by cell ([`Body::inverted_cells`],
+    /// [`AdaptiveBody::inverted_cells`]).
+    #[must_use]
+    pub fn inverted_cells(&self) -> Vec<(CellId, f64)> {
+        match self {
+            Self::Uniform(body) => body.inverted_cells(),
+            Self::Adaptive(body) => body.inverted_cells(),
+        }
+    }
+
     /// The frame of the settings' kernel, as the core's locator of this kind of body takes it
     /// (f32: shifted by the displacements' common translation in whole cells, of the finest
     /// level for an adaptive body).
     #[must_use]
     pub fn frame(&self, settings: &Settings) -> Frame {
-        let (u, h) = match self {
-            Self::Uniform(body) => (body.displacements(), body.lattice().h()),
-            Self::Adaptive(body) => (body.displacements(), body.spacing(body.finest_level())),
-        };
-        Frame::of_displacements(settings.precision, u, h)
+        Frame::of_displacements(
+            settings.precision,
+            self.displacements(),
+            self.finest_spacing(),
+        )
+    }
+
+    /// The nodes' displacements.
+    #[must_use]
+    pub fn displacements(&self) -> &'a [DVec3] {
+        match self {
+            Self::Uniform(body) => body.displacements(),
+            Self::Adaptive(body) => body.displacements(),
+        }
+    }
+
+    /// The spacing of the smallest cells: the lattice's, or an adaptive body's finest level's.
+    #[must_use]
+    pub fn finest_spacing(&self) -> DVec3 {
+        match self {
+            Self::Uniform(body) => body.lattice().h(),
+            Self::Adaptive(body) => body.spacing(body.finest_level()),
+        }
     }
 
     /// The inside tolerance's constants, as the core's locator of this kind of body computes them
@@ -114,15 +143,12 @@ impl<'a> BodyRef<'a> {
         // Bodies refuse non-finite displacements (every entry point), so the bound is finite: the
         // kernel's rounding grows with |u − T| (|u| with f64).
         let u_max = self.frame(settings).reach().max_element();
-        match self {
-            Self::Uniform(body) => InsideTolerance::new(settings, body.lattice(), u_max),
-            Self::Adaptive(body) => InsideTolerance::with_spacing(
-                settings,
-                body.lattice().origin(),
-                body.spacing(body.finest_level()),
-                u_max,
-            ),
-        }
+        InsideTolerance::with_spacing(
+            settings,
+            self.lattice().origin(),
+            self.finest_spacing(),
+            u_max,
+        )
     }
 }
 

@@ -5,6 +5,7 @@ use std::sync::{Arc, PoisonError, RwLock, RwLockReadGuard, RwLockWriteGuard};
 
 use cgcontact::glam::DVec3;
 use cgcontact::{AdaptiveBody, Body, CellId, Lattice};
+use cgcontact_baseline::BodyRef;
 use cgcontact_io::{CellMap, HexMesh, LATTICE_TOLERANCE, MeshBody};
 
 use crate::error::{CgcError, Failure, guard};
@@ -41,6 +42,14 @@ pub(crate) enum AnyBody {
 }
 
 impl AnyBody {
+    /// The body as the baselines take it.
+    fn as_ref(&self) -> BodyRef<'_> {
+        match self {
+            Self::Uniform(body) => body.into(),
+            Self::Adaptive(body) => body.into(),
+        }
+    }
+
     fn lattice(&self) -> &Lattice {
         match self {
             Self::Uniform(body) => body.lattice(),
@@ -151,10 +160,7 @@ impl BodyState {
     /// The caller's numbers of the cells whose Jacobian determinant is not positive at some
     /// corner (inverted or degenerate), ascending: one pass over every cell.
     fn inverted_cells(&self) -> Vec<i64> {
-        let found = match &self.body {
-            AnyBody::Uniform(body) => body.inverted_cells(),
-            AnyBody::Adaptive(body) => body.inverted_cells(),
-        };
+        let found = self.body.as_ref().inverted_cells();
         // A mesh body's input order is not the lattice's: sort in the caller's numbering.
         let mut cells: Vec<i64> = found
             .iter()

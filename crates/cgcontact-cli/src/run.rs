@@ -508,20 +508,15 @@ pub fn search_listing_owners(
         },
         max_displacement: body.max_displacement().to_array(),
         f32_rounding: (settings.precision == Precision::F32).then(|| {
-            let h = match body {
-                BodyRef::Uniform(b) => b.lattice().h(),
-                BodyRef::Adaptive(b) => b.spacing(b.finest_level()),
-            };
-            (f64::from(f32::EPSILON) * body.frame(&settings).reach() / h).max_element()
+            let reach = body.frame(&settings).reach();
+            (f64::from(f32::EPSILON) * reach / body.finest_spacing()).max_element()
         }),
         displacement: Some("generated".to_owned()),
-        inverted_cells: match body {
-            BodyRef::Uniform(b) => b.inverted_cells(),
-            BodyRef::Adaptive(b) => b.inverted_cells(),
-        }
-        .iter()
-        .map(|(cell, _)| cell.index())
-        .collect(),
+        inverted_cells: body
+            .inverted_cells()
+            .iter()
+            .map(|(cell, _)| cell.index())
+            .collect(),
         files: Vec::new(),
         owners: owners
             .as_ref()

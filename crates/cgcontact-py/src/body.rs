@@ -149,10 +149,7 @@ impl BodyState {
     /// The caller's numbers of the cells whose Jacobian determinant is not positive at some
     /// corner (inverted or degenerate), ascending: one pass over every cell.
     fn inverted_cells(&self) -> Vec<i64> {
-        let found = match &self.body {
-            AnyBody::Uniform(body) => body.inverted_cells(),
-            AnyBody::Adaptive(body) => body.inverted_cells(),
-        };
+        let found = self.body.as_ref().inverted_cells();
         // A mesh body's input order is not the lattice's: sort in the caller's numbering.
         let mut cells: Vec<i64> = found
             .iter()

@@ -105,7 +105,14 @@ impl Frame {
     #[inline(always)]
     #[must_use]
     pub fn point<K: Kernel>(&self, x: DVec3) -> DVec3 {
-        if K::SHIFTED { x - self.shift } else { x }
+        self.point_if(K::SHIFTED, x)
+    }
+
+    /// [`Frame::point`] for a kernel known by whether it is `shifted` (the lanes, which name
+    /// their precision by their displacements' type, not by a kernel).
+    #[inline(always)]
+    pub(crate) fn point_if(&self, shifted: bool, x: DVec3) -> DVec3 {
+        if shifted { x - self.shift } else { x }
     }
 
     /// A displacement `v` interpolated in the frame of kernel `K`, back in the body's frame:

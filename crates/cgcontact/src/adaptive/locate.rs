@@ -162,11 +162,7 @@ impl<'a> AdaptiveLocator<'a> {
     /// `local` for the kernel of lanes whose displacements are `N`.
     #[inline(always)]
     fn local_lanes<N: LaneNodes>(&self, x: DVec3, leaf: Leaf) -> DVec3 {
-        if N::SHIFTED {
-            self.local::<Hex8Map32>(x, leaf)
-        } else {
-            self.local::<Hex8Map>(x, leaf)
-        }
+        self.frame.point_if(N::SHIFTED, x) - self.body.leaf_origin(leaf)
     }
 
     /// The inside tolerance `tol` that [`reach::Admit::admit`] gave (the finest leaves') for a

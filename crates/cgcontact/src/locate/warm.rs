@@ -158,11 +158,8 @@ impl LatticeLocator<'_> {
             };
             front.tol[l] = inside_tol;
             front.cell[l] = hint.cell;
-            front.x_local[l] = if V::Node::SHIFTED {
-                self.local::<Hex8Map32>(xs[l], hint.ijk)
-            } else {
-                self.local::<Hex8Map>(xs[l], hint.ijk)
-            };
+            front.x_local[l] = self.frame.point_if(V::Node::SHIFTED, xs[l])
+                - self.body.lattice().node_position(hint.ijk);
             front.xi0[l] = hint.xi0;
             base[l] = lattice.node_index(hint.ijk);
             front.take |= 1 << l;
