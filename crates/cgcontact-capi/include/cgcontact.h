@@ -15,7 +15,8 @@
  *   cgc_locator_new(body, NULL, &loc);                             // default settings
  *   for (each solver iteration) {
  *       cgc_body_set_displacements(body, u, n_nodes, CGC_LAYOUT_NODE_MAJOR);
- *       cgc_locate(loc, points, n, cells, xi, status);
+ *       cgc_locate(loc, points, n, cells, xi, status);  // or, from the second iteration on:
+ *       cgc_relocate(loc, points, n, cells, xi, status);  // cells, xi: last answers, overwritten
  *       cgc_gap(loc, points, n, distance, gap, closest, normal, face_cell, face);  // any NULL
  *   }
  *   cgc_locator_free(loc);  cgc_body_free(body);
@@ -23,8 +24,8 @@
  * Errors: every call returns a cgc_error; CGC_ERROR_OK (0) is success. cgc_last_error() gives the
  * message of the calling thread's last failure. NULL pointers, wrong lengths, misaligned arrays and
  * NaN/infinite values are reported as errors, never crashes, and a failed call changes nothing
- * (except cgc_locate and cgc_gap with a non-finite point, which answer every point and say so). A bug inside
- * the library (a Rust panic) is caught and returned as CGC_ERROR_PANIC: nothing unwinds into C.
+ * (except cgc_locate, cgc_relocate and cgc_gap with a non-finite point, which answer every point
+ * and say so). A bug inside the library (a Rust panic) is caught and returned as CGC_ERROR_PANIC: nothing unwinds into C.
  *
  * Arrays: points and node coordinates are x, y, z per point (3 n doubles, 8-byte aligned), read in
  * place. Displacements are node-major or component-major (cgc_layout constants). Outputs are
@@ -34,8 +35,8 @@
  * (an overlap is refused with CGC_ERROR_INVALID_ARGUMENT, naming the two arrays).
  *
  * Threads: every function may be called from any thread, and the same handles may be used from
- * several threads at once. cgc_locate, cgc_gap and cgc_locator_query_seconds only read the body
- * (any number run together, each on the locator's threads); cgc_body_set_displacements waits
+ * several threads at once. cgc_locate, cgc_relocate, cgc_gap and cgc_locator_query_seconds only
+ * read the body (any number run together, each on the locator's threads); cgc_body_set_displacements waits
  * until no query of that body is running, and queries wait for it, so an answer never mixes old
  * and new displacements. cgc_last_error is per thread. Not allowed (undefined behaviour, as for any C
  * handle): using a handle after freeing it, or freeing it while another thread uses it. A locator
@@ -54,8 +55,8 @@
 
 // The version of the C ABI: it changes whenever a signature, a struct or a constant of
 // `cgcontact.h` changes incompatibly. Compare with `cgc_abi_version()` at run time. New
-// functions are compatible and leave it unchanged: `cgc_gap` was added within ABI 1, so a
-// program that may load an older library of ABI 1 looks it up with `dlsym`.
+// functions are compatible and leave it unchanged: `cgc_gap` and `cgc_relocate` were added within
+// ABI 1, so a program that may load an older library of ABI 1 looks them up with `dlsym`.
 #define CGC_ABI_VERSION 1
 
 // Displacements given node by node: x, y, z of node 0, then of node 1, ... (an n × 3 row-major
@@ -352,6 +353,27 @@ cgc_error cgc_locate(const cgc_locator *locator,
                      int64_t *cells,
                      double *xi,
                      uint8_t *status);
+
+// `cgc_locate` warm started, for a solver loop: `cells` and `xi` hold each point's previous
+// answer (as `cgc_locate` or this call wrote it; cell −1 for none) and are overwritten with the
+// new one. A point whose previous cell still holds it costs one Newton inversion from its
+// previous ξ, with no search; the others are searched as `cgc_locate` does. The answers are
+// `cgc_locate`'s (the same cells, and ξ within the Newton tolerance: the inversion starts
+// elsewhere; on a face shared by two cells, either may answer, as in `cgc_locate`), whatever the
+// hints; a ξ that is not finite starts from the cell's centre.
+//
+// Returns `CGC_ERROR_INVALID_ARGUMENT`, before anything is written, when a previous cell is
+// neither −1 nor a cell of the body (the message names the first such point), and
+// `CGC_ERROR_NON_FINITE_POINT` as `cgc_locate` does.
+//
+// # Safety
+// As `cgc_locate`; `cells` and `xi` must also be readable (initialised).
+cgc_error cgc_relocate(const cgc_locator *locator,
+                       const double *points,
+                       size_t n_points,
+                       int64_t *cells,
+                       double *xi,
+                       uint8_t *status);
 
 // The library's own query time, for measuring what this API adds: runs the Rust library's
 // `locate_all_into` on the points `1 + repeats` times into one reused answer buffer (no

@@ -15,6 +15,7 @@
 //! | [`cgc_body_inverted_cells`] | the cells the displacements invert (det J ≤ 0 at a corner), where no point is found: one pass over the cells, on demand |
 //! | [`cgc_settings_init`], [`cgc_locator_new`] | a locator with settings (strategy, precision, tolerances, threads) |
 //! | [`cgc_locate`] | n points → cell (−1 none), ξ (n × 3), a status per point |
+//! | [`cgc_relocate`] | the same, warm started from each point's previous cell and ξ (a solver loop): one inversion where the cell still holds the point |
 //! | [`cgc_gap`] | n points → signed gap to the deformed boundary surface within a distance, closest point, outward normal, face (cell and local face) |
 //! | [`cgc_last_error`] | the message of the calling thread's last failure |
 //!
@@ -65,13 +66,14 @@ pub use gap::cgc_gap;
 pub use locate::{
     CGC_POINT_INSIDE, CGC_POINT_NON_FINITE, CGC_POINT_OUTSIDE, CGC_PRECISION_F32,
     CGC_PRECISION_F64, CGC_STRATEGY_BRUTE, CGC_STRATEGY_LATTICE, CgcLocator, CgcSettings,
-    cgc_locate, cgc_locator_free, cgc_locator_new, cgc_locator_query_seconds, cgc_settings_init,
+    cgc_locate, cgc_locator_free, cgc_locator_new, cgc_locator_query_seconds, cgc_relocate,
+    cgc_settings_init,
 };
 
 /// The version of the C ABI: it changes whenever a signature, a struct or a constant of
 /// `cgcontact.h` changes incompatibly. Compare with `cgc_abi_version()` at run time. New
-/// functions are compatible and leave it unchanged: `cgc_gap` was added within ABI 1, so a
-/// program that may load an older library of ABI 1 looks it up with `dlsym`.
+/// functions are compatible and leave it unchanged: `cgc_gap` and `cgc_relocate` were added within
+/// ABI 1, so a program that may load an older library of ABI 1 looks them up with `dlsym`.
 pub const CGC_ABI_VERSION: u32 = 1;
 
 /// The ABI version of the library loaded: `CGC_ABI_VERSION` of its build.

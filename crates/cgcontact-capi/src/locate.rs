@@ -5,7 +5,7 @@ use std::sync::{Arc, RwLock};
 use std::time::Instant;
 
 use cgcontact::glam::DVec3;
-use cgcontact::{AdaptiveLocator, Answer, LatticeLocator, Locator, Precision, Settings};
+use cgcontact::{AdaptiveLocator, Answer, Hit, LatticeLocator, Locator, Precision, Settings};
 use cgcontact_baseline::BruteForce;
 use rayon::prelude::*;
 
@@ -236,91 +236,156 @@ pub unsafe extern "C" fn cgc_locate(
     xi: *mut f64,
     status: *mut u8,
 ) -> CgcError {
-    guard(|| {
-        let n3 = n_points.checked_mul(3).ok_or_else(|| {
-            Failure::new(
-                CgcError::LengthMismatch,
-                format!("points: {n_points} points do not fit in memory"),
-            )
-        })?;
-        raw::disjoint(&[
-            raw::region(points, n3, "points")?,
-            raw::region(cells, n_points, "cells")?,
-            raw::region(xi, n3, "xi")?,
-            raw::region(
-                status,
-                if status.is_null() { 0 } else { n_points },
-                "status",
-            )?,
-        ])?;
-        // SAFETY: the caller guarantees a live handle and arrays of the stated lengths, which
-        // were just checked not to overlap.
-        let (locator, points, cells, xi) = unsafe {
-            (
-                raw::handle(locator, "locator")?,
-                raw::points(points, n_points, "points")?,
-                raw::slice_mut(cells, n_points, "cells")?,
-                raw::slice_mut(xi, n3, "xi")?,
-            )
-        };
-        let status = if status.is_null() {
-            None
-        } else {
-            // SAFETY: as above.
-            Some(unsafe { raw::slice_mut(status, n_points, "status") }?)
-        };
-        let first_bad = AtomicUsize::new(usize::MAX);
-        locator.with(|search, state| {
-            let write = |start: usize,
-                         points: &[DVec3],
-                         cells: &mut [i64],
-                         xi: &mut [f64],
-                         mut status: Option<&mut [u8]>,
-                         answers: &mut Vec<Answer>| {
-                search.locate_all_into(points, answers);
-                for (i, answer) in answers.iter().enumerate() {
-                    let (cell, local, code) = match answer {
-                        Ok(Some(hit)) => (state.cell_number(hit.cell), hit.xi, CGC_POINT_INSIDE),
-                        Ok(None) => (-1, DVec3::NAN, CGC_POINT_OUTSIDE),
-                        Err(_) => {
-                            first_bad.fetch_min(start + i, Ordering::Relaxed);
-                            (-1, DVec3::NAN, CGC_POINT_NON_FINITE)
-                        }
-                    };
-                    cells[i] = cell;
-                    local.write_to_slice(&mut xi[3 * i..3 * i + 3]);
-                    if let Some(status) = status.as_deref_mut() {
-                        status[i] = code;
-                    }
-                }
-            };
-            let pieces = points
-                .par_chunks(PIECE)
-                .zip(cells.par_chunks_mut(PIECE))
-                .zip(xi.par_chunks_mut(3 * PIECE))
-                .enumerate();
-            match status {
-                Some(status) => pieces
-                    .zip(status.par_chunks_mut(PIECE))
-                    .for_each_init(Vec::new, |answers, ((k, ((p, c), x)), s)| {
-                        write(k * PIECE, p, c, x, Some(s), answers)
-                    }),
-                None => pieces.for_each_init(Vec::new, |answers, (k, ((p, c), x))| {
-                    write(k * PIECE, p, c, x, None, answers)
-                }),
-            }
-        })?;
-        match first_bad.into_inner() {
-            usize::MAX => Ok(()),
-            i => Err(Failure::new(
-                CgcError::NonFinitePoint,
+    // SAFETY: forwarded from the caller.
+    guard(|| unsafe { locate(locator, points, n_points, cells, xi, status, false) })
+}
+
+/// `cgc_locate` warm started, for a solver loop: `cells` and `xi` hold each point's previous
+/// answer (as `cgc_locate` or this call wrote it; cell −1 for none) and are overwritten with the
+/// new one. A point whose previous cell still holds it costs one Newton inversion from its
+/// previous ξ, with no search; the others are searched as `cgc_locate` does. The answers are
+/// `cgc_locate`'s (the same cells, and ξ within the Newton tolerance: the inversion starts
+/// elsewhere; on a face shared by two cells, either may answer, as in `cgc_locate`), whatever the
+/// hints; a ξ that is not finite starts from the cell's centre.
+///
+/// Returns `CGC_ERROR_INVALID_ARGUMENT`, before anything is written, when a previous cell is
+/// neither −1 nor a cell of the body (the message names the first such point), and
+/// `CGC_ERROR_NON_FINITE_POINT` as `cgc_locate` does.
+///
+/// # Safety
+/// As `cgc_locate`; `cells` and `xi` must also be readable (initialised).
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn cgc_relocate(
+    locator: *const CgcLocator,
+    points: *const f64,
+    n_points: usize,
+    cells: *mut i64,
+    xi: *mut f64,
+    status: *mut u8,
+) -> CgcError {
+    // SAFETY: forwarded from the caller.
+    guard(|| unsafe { locate(locator, points, n_points, cells, xi, status, true) })
+}
+
+/// `cgc_locate` (`warm` false) and `cgc_relocate` (`warm` true).
+///
+/// # Safety
+/// As `cgc_relocate` when `warm`, else as `cgc_locate`.
+unsafe fn locate(
+    locator: *const CgcLocator,
+    points: *const f64,
+    n_points: usize,
+    cells: *mut i64,
+    xi: *mut f64,
+    status: *mut u8,
+    warm: bool,
+) -> Result<(), Failure> {
+    let n3 = n_points.checked_mul(3).ok_or_else(|| {
+        Failure::new(
+            CgcError::LengthMismatch,
+            format!("points: {n_points} points do not fit in memory"),
+        )
+    })?;
+    raw::disjoint(&[
+        raw::region(points, n3, "points")?,
+        raw::region(cells, n_points, "cells")?,
+        raw::region(xi, n3, "xi")?,
+        raw::region(
+            status,
+            if status.is_null() { 0 } else { n_points },
+            "status",
+        )?,
+    ])?;
+    // SAFETY: the caller guarantees a live handle and arrays of the stated lengths, which were
+    // just checked not to overlap.
+    let (locator, points, cells, xi) = unsafe {
+        (
+            raw::handle(locator, "locator")?,
+            raw::points(points, n_points, "points")?,
+            raw::slice_mut(cells, n_points, "cells")?,
+            raw::slice_mut(xi, n3, "xi")?,
+        )
+    };
+    let status = if status.is_null() {
+        None
+    } else {
+        // SAFETY: as above.
+        Some(unsafe { raw::slice_mut(status, n_points, "status") }?)
+    };
+    let first_bad = AtomicUsize::new(usize::MAX);
+    locator.with(|search, state| {
+        if warm && let Some(i) = cells.iter().position(|&c| state.hint_cell(c).is_err()) {
+            return Err(Failure::new(
+                CgcError::InvalidArgument,
                 format!(
-                    "point {i} (0-based) has a NaN or infinite coordinate: {}",
-                    points[i]
+                    "cells[{i}] = {} is not a previous answer: the cells are numbered 0 to {} \
+                     (-1 for none)",
+                    cells[i],
+                    state.cell_numbers() as i64 - 1
                 ),
-            )),
+            ));
         }
-    })
+        let write = |start: usize,
+                     points: &[DVec3],
+                     cells: &mut [i64],
+                     xi: &mut [f64],
+                     mut status: Option<&mut [u8]>,
+                     answers: &mut Vec<Answer>| {
+            if warm {
+                answers.clear();
+                answers.extend(cells.iter().zip(xi.chunks_exact(3)).map(|(&c, x)| {
+                    match state.hint_cell(c) {
+                        Ok(Some(cell)) => Hit::hint(cell, DVec3::from_slice(x)),
+                        _ => Ok(None),
+                    }
+                }));
+                search.relocate_all(points, answers);
+            } else {
+                search.locate_all_into(points, answers);
+            }
+            for (i, answer) in answers.iter().enumerate() {
+                let (cell, local, code) = match answer {
+                    Ok(Some(hit)) => (state.cell_number(hit.cell), hit.xi, CGC_POINT_INSIDE),
+                    Ok(None) => (-1, DVec3::NAN, CGC_POINT_OUTSIDE),
+                    Err(_) => {
+                        first_bad.fetch_min(start + i, Ordering::Relaxed);
+                        (-1, DVec3::NAN, CGC_POINT_NON_FINITE)
+                    }
+                };
+                cells[i] = cell;
+                local.write_to_slice(&mut xi[3 * i..3 * i + 3]);
+                if let Some(status) = status.as_deref_mut() {
+                    status[i] = code;
+                }
+            }
+        };
+        let pieces = points
+            .par_chunks(PIECE)
+            .zip(cells.par_chunks_mut(PIECE))
+            .zip(xi.par_chunks_mut(3 * PIECE))
+            .enumerate();
+        match status {
+            Some(status) => pieces
+                .zip(status.par_chunks_mut(PIECE))
+                .for_each_init(Vec::new, |answers, ((k, ((p, c), x)), s)| {
+                    write(k * PIECE, p, c, x, Some(s), answers)
+                }),
+            None => pieces.for_each_init(Vec::new, |answers, (k, ((p, c), x))| {
+                write(k * PIECE, p, c, x, None, answers)
+            }),
+        }
+        Ok(())
+    })??;
+    match first_bad.into_inner() {
+        usize::MAX => Ok(()),
+        i => Err(Failure::new(
+            CgcError::NonFinitePoint,
+            format!(
+                "point {i} (0-based) has a NaN or infinite coordinate: {}",
+                points[i]
+            ),
+        )),
+    }
 }
 
 /// The library's own query time, for measuring what this API adds: runs the Rust library's

@@ -164,13 +164,11 @@ fn lattice_body_answers_known_cells_and_as_the_library_does() {
     assert!(xi[3 * last..].iter().all(|v| v.is_nan()));
 }
 
-/// The same body given as a mesh: nodes renumbered, cells reordered, 1-based, displacements
-/// component-major (as MATLAB passes them): cell numbers are the mesh's.
-#[test]
-fn mesh_body_numbers_cells_as_the_mesh_and_reads_both_layouts() {
-    let body = block();
-    let (points, known) = known_points(&body);
-    let mesh = HexMesh::from_body(&body);
+/// `body` given as a mesh: nodes renumbered, cells listed in reverse (mesh cell e − 1 − c is
+/// lattice cell c), 1-based, displacements component-major (as MATLAB passes them). Returns the
+/// handles, the cell count e, the node count m and the displacements as passed.
+fn reversed_mesh_handles(body: &Body) -> (Handles, usize, usize, Vec<f64>) {
+    let mesh = HexMesh::from_body(body);
     let m = mesh.points.len();
     let e = mesh.cells.len();
     // Node k of the mesh becomes node new_of[k]; cells are listed in reverse.
@@ -233,6 +231,15 @@ fn mesh_body_numbers_cells_as_the_mesh_and_reads_both_layouts() {
             CgcError::Ok
         );
     }
+    (handles, e, m, u_component_major)
+}
+
+/// The same body given as a mesh ([`reversed_mesh_handles`]): cell numbers are the mesh's.
+#[test]
+fn mesh_body_numbers_cells_as_the_mesh_and_reads_both_layouts() {
+    let body = block();
+    let (points, known) = known_points(&body);
+    let (handles, e, m, u_component_major) = reversed_mesh_handles(&body);
     let (code, cells, xi, _) = locate(handles.locator, &flat(&points));
     assert_eq!(code, CgcError::Ok, "{}", last_error());
     for (i, &(cell, expected)) in known.iter().enumerate() {
@@ -872,5 +879,140 @@ fn a_displacement_too_large_is_named_by_the_callers_node() {
             "{message}"
         );
         cgc_body_free(body);
+    }
+}
+
+/// `cgc_relocate` from `cells` and `xi` (the previous answers, overwritten).
+fn relocate(
+    locator: *const CgcLocator,
+    points: &[f64],
+    cells: &mut [i64],
+    xi: &mut [f64],
+) -> (CgcError, Vec<u8>) {
+    let n = points.len() / 3;
+    assert_eq!((cells.len(), xi.len()), (n, 3 * n));
+    let mut status = vec![9u8; n];
+    // SAFETY: the arrays hold n, 3 n and n values and do not overlap.
+    let code = unsafe {
+        cgc_relocate(
+            locator,
+            points.as_ptr(),
+            n,
+            cells.as_mut_ptr(),
+            xi.as_mut_ptr(),
+            status.as_mut_ptr(),
+        )
+    };
+    (code, status)
+}
+
+/// A solver loop: answers for one field are the hints for the next, and the warm answers are the
+/// known cells and ξ of the new field, whatever the hints (the previous answers, none, wrong
+/// cells, NaN ξ); without hints they are `cgc_locate`'s bitwise.
+#[test]
+fn relocate_answers_the_known_cells_from_any_hint() {
+    let mut body = block();
+    let handles = lattice_handles(&body);
+    let (points, _) = known_points(&body);
+    let (code, mut cells, mut xi, _) = locate(handles.locator, &flat(&points));
+    assert_eq!(code, CgcError::Ok);
+    // The next iteration: the field grown by a fifth, and points made in it.
+    body.update_displacements(|_, _, u| *u *= 1.2).unwrap();
+    let dense: Vec<f64> = (0..body.lattice().node_count())
+        .flat_map(|n| body.displacement(n).unwrap().to_array())
+        .collect();
+    // SAFETY: one displacement per lattice node.
+    let set = unsafe {
+        cgc_body_set_displacements(
+            handles.body,
+            dense.as_ptr(),
+            dense.len() / 3,
+            CGC_LAYOUT_NODE_MAJOR,
+        )
+    };
+    assert_eq!(set, CgcError::Ok);
+    let (points, known) = known_points(&body);
+    let points = flat(&points);
+    let n = points.len() / 3;
+    let cold = locate(handles.locator, &points);
+    let wrong: Vec<i64> = (0..n as i64).map(|i| (i * 37) % 120).collect();
+    let hints: [(&str, Vec<i64>, Vec<f64>); 4] = [
+        ("previous answers", cells.clone(), xi.clone()),
+        ("none", vec![-1; n], vec![f64::NAN; 3 * n]),
+        ("wrong cells", wrong.clone(), vec![0.3; 3 * n]),
+        ("NaN xi", cells.clone(), vec![f64::NAN; 3 * n]),
+    ];
+    for (what, mut c, mut x) in hints {
+        let (code, status) = relocate(handles.locator, &points, &mut c, &mut x);
+        assert_eq!(code, CgcError::Ok, "{what}: {}", last_error());
+        for (i, &(cell, expected)) in known.iter().enumerate() {
+            assert_eq!(c[i], i64::from(cell), "{what}: point {i}");
+            assert_eq!(status[i], CGC_POINT_INSIDE);
+            let got = DVec3::from_slice(&x[3 * i..]);
+            assert!(
+                (got - expected).abs().max_element() < 1e-12,
+                "{what}: point {i}: {got} vs {expected}"
+            );
+        }
+        assert_eq!((c[n - 1], status[n - 1]), (-1, CGC_POINT_OUTSIDE), "{what}");
+        if what == "none" {
+            assert_eq!((c.clone(), bits(&x)), (cold.1.clone(), bits(&cold.2)));
+        }
+    }
+    // A hint that is no cell is refused before anything is written.
+    for bad in [-2, 120, i64::MAX] {
+        cells[3] = bad;
+        let before = (cells.clone(), bits(&xi));
+        let (code, status) = relocate(handles.locator, &points, &mut cells, &mut xi);
+        assert_eq!(code, CgcError::InvalidArgument, "cell {bad}");
+        let message = last_error();
+        assert!(
+            message.contains(&format!("cells[3] = {bad}")) && message.contains("0 to 119"),
+            "{message}"
+        );
+        assert_eq!((cells.clone(), bits(&xi)), before, "nothing written");
+        assert!(status.iter().all(|&s| s == 9));
+    }
+}
+
+/// The hint is read in the caller's numbering and tried first: a point on the face between two
+/// cells is answered by whichever of them the hint names (each holds it), on a lattice body and
+/// on a mesh whose cells are numbered in reverse.
+#[test]
+fn relocate_tries_the_hinted_cell_in_the_callers_numbering() {
+    let body = block();
+    let lattice = *body.lattice();
+    let (left, right) = (lattice.cell_id([2, 2, 1]), lattice.cell_id([3, 2, 1]));
+    // On the face x = +1 of `left`, which is x = −1 of `right`.
+    let face = body.point_at(left, DVec3::new(1.0, 0.3, -0.4)).unwrap();
+    let points = flat(&[face]);
+    let lattice_handles = lattice_handles(&body);
+    let (mesh_handles, e, _, _) = reversed_mesh_handles(&body);
+    let numbers = [
+        (&lattice_handles, left.0 as i64, right.0 as i64),
+        (
+            &mesh_handles,
+            (e - 1 - left.index()) as i64,
+            (e - 1 - right.index()) as i64,
+        ),
+    ];
+    for (handles, l, r) in numbers {
+        let (_, cold, _, _) = locate(handles.locator, &points);
+        assert!(
+            cold[0] == l || cold[0] == r,
+            "cold {} not {l} or {r}",
+            cold[0]
+        );
+        for (hint, xi) in [(l, [1.0, 0.3, -0.4]), (r, [-1.0, 0.3, -0.4])] {
+            let (mut c, mut x) = ([hint], [0.0; 3]);
+            let (code, _) = relocate(handles.locator, &points, &mut c, &mut x);
+            assert_eq!(code, CgcError::Ok, "{}", last_error());
+            assert_eq!(c[0], hint, "the hinted owner answers");
+            let got = DVec3::from_array(x);
+            assert!(
+                (got - DVec3::from_array(xi)).abs().max_element() < 1e-12,
+                "{got}"
+            );
+        }
     }
 }

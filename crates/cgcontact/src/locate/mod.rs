@@ -61,6 +61,22 @@ pub struct Hit {
     pub inversions: u32,
 }
 
+impl Hit {
+    /// A previous answer made from only a cell and ξ, as a caller outside Rust keeps them between
+    /// solver iterations: the hint [`Locator::relocate`] tries first (a ξ that is not finite
+    /// starts from the cell's centre). Its counts and residual are zero; `relocate` reads only
+    /// the cell and ξ.
+    pub fn hint(cell: CellId, xi: DVec3) -> Answer {
+        Ok(Some(Self {
+            cell,
+            xi,
+            iterations: 0,
+            residual: 0.0,
+            inversions: 0,
+        }))
+    }
+}
+
 /// The answer for one point: a hit, `Ok(None)` when no cell holds it, or why the point was refused.
 pub type Answer = Result<Option<Hit>, PointError>;
 
