@@ -4,11 +4,12 @@
 %   B = cgcontact_body(XYZ_N0, Topology);   % 3 x m nodes, 8 x e 1-based topology (VTK order)
 %   update(B, U);                           % m x 3 displacements, each iteration
 %   [E, PosL] = locate(B, XYZ);             % as cgcontact_whereami(XYZ, XYZ_N0, Topology, U)
+%   [E, PosL] = relocate(B, XYZ, E, PosL);  % the next iteration, warm started from the last answers
 %   [G, C, N, FE, F] = gap(B, XYZ, D);      % gaps to the surface within D (cgcontact_whereami 'gap')
 %   Inverted = inverted_cells(B);           % 1-based elements U inverts (det J <= 0 at a corner)
 %
-% A handle object over cgcontact_whereami's 'new', 'update', 'locate', 'gap', 'inverted_cells' and 'free' (build.sh puts it
-% beside cgcontact_whereami.mex). Options as for cgcontact_whereami.
+% A handle object over cgcontact_whereami's 'new', 'update', 'locate', 'relocate', 'gap',
+% 'inverted_cells' and 'free' (build.sh puts it beside cgcontact_whereami.mex). Options as for cgcontact_whereami.
 classdef cgcontact_body < handle
   properties (SetAccess = private)
     % The cgcontact_whereami handle (0 when none).
@@ -23,6 +24,9 @@ classdef cgcontact_body < handle
     end
     function [E, PosL] = locate(obj, XYZ)
       [E, PosL] = cgcontact_whereami('locate', obj.id, XYZ);
+    end
+    function [E, PosL] = relocate(obj, XYZ, E0, PosL0)
+      [E, PosL] = cgcontact_whereami('relocate', obj.id, XYZ, E0, PosL0);
     end
     function [G, C, N, FE, F] = gap(obj, XYZ, D)
       [G, C, N, FE, F] = cgcontact_whereami('gap', obj.id, XYZ, D);

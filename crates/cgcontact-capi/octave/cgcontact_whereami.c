@@ -29,6 +29,7 @@
  *   H = cgcontact_whereami('new', XYZ_N0, Topology [, Options])
  *   cgcontact_whereami('update', H, U)                        % U m x 3 ([] is an error)
  *   [E, PosL] = cgcontact_whereami('locate', H, XYZ)
+ *   [E, PosL] = cgcontact_whereami('relocate', H, XYZ, E0, PosL0)  % warm start, see below
  *   [G, C, N, FE, F] = cgcontact_whereami('gap', H, XYZ, D)    % gaps to the surface, within D
  *   Inverted = cgcontact_whereami('inverted_cells', H)         % elements U inverts, 1 x k
  *   S = cgcontact_whereami('query_seconds', H, XYZ, Repeats)   % the library's own query time
@@ -45,6 +46,13 @@
  *                 zeta) = -1 for even f, +1 for odd f (5 is the top, zeta = +1); -1 when none
  * G, C and N are NaN, FE 0 and F -1 where the surface is farther than D (outside or deep inside).
  * cgcontact_gap(H or B, XYZ, D) (beside the MEX file) is the same call.
+ *
+ * 'relocate' is 'locate' warm started, for the next iteration of a solver loop: E0 and PosL0 are
+ * the previous answers (as 'locate' or 'relocate' gave them; E0 0 where none). A point whose
+ * element E0 still holds it costs one Newton inversion from PosL0, with no search; the others are
+ * searched as 'locate' does. The answers are 'locate''s (the same elements, PosL within the Newton
+ * tolerance; on a face shared by two elements either may answer), whatever the hints. An E0 that
+ * is not 0 or an element of the body is an error (cgcontact:badInput).
  *
  * 'inverted_cells' lists the elements the current displacements turn inside out (det J <= 0 at a
  * corner: a node moved through its neighbours), 1-based and ascending, 1 x 0 when none. Answers
@@ -90,6 +98,7 @@ typedef struct {
     cgc_body *body;
     cgc_locator *locator;
     size_t n_nodes;
+    size_t n_elements;
     uint32_t fill; /* CGC_FILL_HANGING or 0, OR-ed into every update's layout */
     double generation; /* how many handles this slot gave before: part of the handle's number */
 } entry;
@@ -221,7 +230,7 @@ static entry build(const mxArray *nodes, const mxArray *topology, const mxArray 
                  (int)(i / 8) + 1, t[i]);
         cells[i] = (int64_t)t[i];
     }
-    entry made = {NULL, NULL, m, fill, 0};
+    entry made = {.n_nodes = m, .n_elements = e, .fill = fill, .generation = 0};
     cgc_error code = cgc_body_from_mesh(mxGetPr(nodes), m, cells, e, 1, &made.body);
     mxFree(cells);
     if (code != CGC_ERROR_OK) fail_cgc(code, "XYZ_N0 and Topology");
@@ -257,8 +266,10 @@ static void update(entry *e, const mxArray *u, int owned) {
     }
 }
 
-/* [E, PosL] for points XYZ (3 x n). */
-static void locate(entry *e, const mxArray *points, mxArray **out, int n_out, int owned) {
+/* [E, PosL] for points XYZ (3 x n); warm started from the previous answers E0 (1 x n, 1-based, 0
+ * for none) and PosL0 (3 x n) when `e0` is not NULL. */
+static void locate(entry *e, const mxArray *points, const mxArray *e0, const mxArray *posl0,
+                   mxArray **out, int n_out, int owned) {
     if (!mxIsDouble(points) || mxIsComplex(points) || mxIsSparse(points) ||
         mxGetNumberOfDimensions(points) != 2 || (mxGetM(points) != 3 && !mxIsEmpty(points))) {
         if (owned) free_entry(e);
@@ -266,12 +277,45 @@ static void locate(entry *e, const mxArray *points, mxArray **out, int n_out, in
              mxGetClassName(points), (int)mxGetM(points), (int)mxGetN(points));
     }
     size_t n = mxIsEmpty(points) ? 0 : mxGetN(points);
+    if (e0) {
+        /* Checked before anything is allocated: a bad hint costs nothing. */
+        if (!mxIsDouble(e0) || mxIsComplex(e0) || mxIsSparse(e0))
+            FAIL("badInput", "E0 must be a real double vector (the last E), got %s", mxGetClassName(e0));
+        if (mxGetNumberOfDimensions(e0) != 2 || mxGetNumberOfElements(e0) != n ||
+            (n > 0 && mxGetM(e0) != 1 && mxGetN(e0) != 1))
+            FAIL("badSize", "E0 must be a vector of %d elements (XYZ's points), got %d x %d", (int)n,
+                 (int)mxGetM(e0), (int)mxGetN(e0));
+        if (!mxIsDouble(posl0) || mxIsComplex(posl0) || mxIsSparse(posl0))
+            FAIL("badInput", "PosL0 must be a real double matrix (the last PosL), got %s",
+                 mxGetClassName(posl0));
+        if (mxGetNumberOfDimensions(posl0) != 2 || mxGetNumberOfElements(posl0) != 3 * n ||
+            (n > 0 && mxGetM(posl0) != 3))
+            FAIL("badSize", "PosL0 must be 3 x %d, got %d x %d", (int)n, (int)mxGetM(posl0),
+                 (int)mxGetN(posl0));
+        const double *hint = mxGetPr(e0);
+        for (size_t i = 0; i < n; i++)
+            if (!(hint[i] >= 0 && hint[i] <= (double)e->n_elements && hint[i] == floor(hint[i])))
+                FAIL("badInput", "E0(%d) = %g is not an element number: 1 to %d, or 0 for none",
+                     (int)i + 1, hint[i], (int)e->n_elements);
+    }
     /* Uninitialised: the library writes every element. The cells (int64) go into E's own
      * memory, 8 bytes each as a double, and are converted in place: no temporary array. */
     mxArray *elements = mxCreateUninitNumericMatrix(1, n, mxDOUBLE_CLASS, mxREAL);
     mxArray *local = mxCreateUninitNumericMatrix(3, n, mxDOUBLE_CLASS, mxREAL);
     int64_t *cells = (int64_t *)mxGetData(elements);
-    cgc_error code = cgc_locate(e->locator, mxGetPr(points), n, cells, mxGetPr(local), NULL);
+    cgc_error code;
+    if (e0) {
+        /* The hints, 0-based, in the outputs' memory: the library reads and overwrites them. */
+        const double *hint = mxGetPr(e0);
+        for (size_t i = 0; i < n; i++) {
+            double h = hint[i]; /* read, then overwritten as an int64 */
+            cells[i] = (int64_t)h - 1;
+        }
+        if (n > 0) memcpy(mxGetPr(local), mxGetPr(posl0), 3 * n * sizeof(double));
+        code = cgc_relocate(e->locator, mxGetPr(points), n, cells, mxGetPr(local), NULL);
+    } else {
+        code = cgc_locate(e->locator, mxGetPr(points), n, cells, mxGetPr(local), NULL);
+    }
     if (owned) free_entry(e);
     if (code == CGC_ERROR_NON_FINITE_POINT) {
         /* The library counts from 0: name the column as Octave users count. */
@@ -383,7 +427,7 @@ static double keep(entry made) {
             FAIL("outOfMemory", "no memory for a new handle (%d live)", (int)table_len);
         }
         table = grown;
-        table[table_len++] = (entry){NULL, NULL, 0, 0, -1};
+        table[table_len++] = (entry){.body = NULL, .locator = NULL, .generation = -1};
     }
     made.generation = table[slot].generation + 1;
     table[slot] = made;
@@ -407,8 +451,8 @@ void mexFunction(int nlhs, mxArray *plhs[], int nrhs, const mxArray *prhs[]) {
         if (mxGetNumberOfElements(prhs[0]) >= sizeof command || mxGetM(prhs[0]) > 1 ||
             mxGetString(prhs[0], command, sizeof command) != 0)
             FAIL("usage",
-                 "unknown command: a row of at most %d characters (new, update, locate, gap, "
-                 "inverted_cells, query_seconds, free, handles)",
+                 "unknown command: a row of at most %d characters (new, update, locate, "
+                 "relocate, gap, inverted_cells, query_seconds, free, handles)",
                  (int)sizeof command - 1);
         if (!strcmp(command, "new")) {
             args(nrhs, 3, 4, "H = cgcontact_whereami('new', XYZ_N0, Topology [, Options])");
@@ -419,7 +463,10 @@ void mexFunction(int nlhs, mxArray *plhs[], int nrhs, const mxArray *prhs[]) {
             update(lookup(prhs[1]), prhs[2], 0);
         } else if (!strcmp(command, "locate")) {
             args(nrhs, 3, 3, "[E, PosL] = cgcontact_whereami('locate', H, XYZ)");
-            locate(lookup(prhs[1]), prhs[2], plhs, nlhs, 0);
+            locate(lookup(prhs[1]), prhs[2], NULL, NULL, plhs, nlhs, 0);
+        } else if (!strcmp(command, "relocate")) {
+            args(nrhs, 5, 5, "[E, PosL] = cgcontact_whereami('relocate', H, XYZ, E0, PosL0)");
+            locate(lookup(prhs[1]), prhs[2], prhs[3], prhs[4], plhs, nlhs, 0);
         } else if (!strcmp(command, "gap")) {
             args(nrhs, 4, 4, "[G, C, N, FE, F] = cgcontact_whereami('gap', H, XYZ, D)");
             if (nlhs > 5) FAIL("usage", "at most five outputs: [G, C, N, FE, F]");
@@ -449,7 +496,7 @@ void mexFunction(int nlhs, mxArray *plhs[], int nrhs, const mxArray *prhs[]) {
             for (size_t i = 0; i < table_len; i++) live += table[i].body != NULL;
             plhs[0] = mxCreateDoubleScalar(live);
         } else {
-            FAIL("usage", "unknown command '%s' (new, update, locate, gap, inverted_cells, query_seconds, free, handles)", command);
+            FAIL("usage", "unknown command '%s' (new, update, locate, relocate, gap, inverted_cells, query_seconds, free, handles)", command);
         }
         return;
     }
@@ -461,5 +508,5 @@ void mexFunction(int nlhs, mxArray *plhs[], int nrhs, const mxArray *prhs[]) {
     if (nrhs > 3) update(&made, prhs[3], 1);
     /* Only when asked for: the check is a pass over every element. */
     if (nlhs > 2) plhs[2] = inverted_cells(&made, 1);
-    locate(&made, prhs[0], plhs, nlhs, 1);
+    locate(&made, prhs[0], NULL, NULL, plhs, nlhs, 1);
 }

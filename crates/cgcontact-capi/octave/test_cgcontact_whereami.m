@@ -205,6 +205,50 @@ clear B;
 check(cgcontact_whereami('handles') == 1, 'clear frees the cgcontact_body''s handle');
 printf('handles: new, update, locate agree with the one-shot call; f32 within 1e-4; cgcontact_body frees itself\n');
 
+% --- warm starts: the next iteration from the last answers ----------------------------------
+% The field grows by a tenth; 'relocate' from the answers of the old field gives the elements
+% of a cold 'locate' of the new one, whatever the hints (the last answers, none, wrong ones).
+cgcontact_whereami('update', H, 1.1 * U);
+[Ec, Pc] = cgcontact_whereami('locate', H, XYZ);
+check(~isequal(Ec, E1), 'the grown field changed nothing');
+foundc = Ec > 0;
+wrong = mod((1:n) * 37, columns(T)) + 1;
+hints = {E1, P1, 'the last answers'; zeros(1, n), NaN(3, n), 'none'; wrong, zeros(3, n), 'wrong elements'};
+for k = 1:rows(hints)
+  [Ew, Pw] = cgcontact_whereami('relocate', H, XYZ, hints{k, 1}, hints{k, 2});
+  check(isequal(Ew, Ec), 'relocate (%s): elements differ from locate at %d points', hints{k, 3}, sum(Ew ~= Ec));
+  check(all(isnan(Pw(:, ~foundc))(:)), 'relocate (%s): points not found must have NaN PosL', hints{k, 3});
+  check(max(max(abs(Pw(:, foundc) - Pc(:, foundc)))) <= 1e-12, 'relocate (%s): PosL differs', hints{k, 3});
+end
+[Ew, Pw] = cgcontact_whereami('relocate', H, XYZ, zeros(n, 1), NaN(3, n));
+check(isequal(Ew, Ec) && isequaln(Pw, Pc), 'relocate without hints (a column E0): not locate''s answers');
+% The hint is tried first, in Octave's numbering: a deformed node shared by several elements is
+% answered by whichever of them E0 names.
+cgcontact_whereami('update', H, U);
+[~, node] = max(accumarray(T(:), 1));   % a node of the most elements (8 inside the block)
+owners = find(any(T == node, 1));
+check(numel(owners) == 8, 'node %d is in %d elements only', node, numel(owners));
+x = N0(:, node) + U(node, :)';
+for o = owners
+  [Eo, Po] = cgcontact_whereami('relocate', H, x, o, [0; 0; 0]);
+  check(Eo == o, 'relocate at a shared node: element %d answered, %d hinted', Eo, o);
+  check(all(abs(abs(Po) - 1) < 1e-12), 'relocate at a shared node: PosL %s is no corner', mat2str(Po'));
+end
+expect_error('cgcontact:badInput', @() cgcontact_whereami('relocate', H, XYZ, E1 .* (1:n ~= 3) - (1:n == 3), P1), 'relocate, E0 = -1');
+expect_error('cgcontact:badInput', @() cgcontact_whereami('relocate', H, XYZ, E1 + 0.5, P1), 'relocate, E0 not whole');
+expect_error('cgcontact:badInput', @() cgcontact_whereami('relocate', H, XYZ, E1 + columns(T) * (1:n == 4), P1), 'relocate, E0 past the last element');
+expect_error('cgcontact:badSize', @() cgcontact_whereami('relocate', H, XYZ, E1(1:end-1), P1), 'relocate, E0 short');
+expect_error('cgcontact:badSize', @() cgcontact_whereami('relocate', H, XYZ, E1, P1'), 'relocate, PosL0 n x 3');
+expect_error('cgcontact:badInput', @() cgcontact_whereami('relocate', H, XYZ, single(E1), P1), 'relocate, E0 single');
+expect_error('cgcontact:usage', @() cgcontact_whereami('relocate', H, XYZ, E1), 'relocate without PosL0');
+B = cgcontact_body(N0, T);
+update(B, U);
+[EB, PB] = locate(B, XYZ);
+[EB2, PB2] = relocate(B, XYZ, EB, PB);
+check(isequal(EB2, EB) && max(max(abs(PB2(:, EB > 0) - PB(:, EB > 0)))) <= 1e-12, 'cgcontact_body relocate');
+clear B;
+printf('relocate: from the last answers, none or wrong ones, the elements of locate; hints in 1-based numbering tried first\n');
+
 % --- inverted elements: a node moved through its neighbour ---------------------------------
 % Lattice node (5, 4, 3) moved 1.5 cells in x, through its neighbour (6, 4, 3): the four elements
 % with it at their -x corners, cells (5, 3..4, 2..3), are inverted there; the four at i = 4 only
