@@ -91,6 +91,16 @@ class Locator:
         `out=(cell, xi)` (C-contiguous, aligned, writeable int64[n] and float64[n, 3] arrays
         sharing no memory with `points` or each other) the answers are written there and `out`
         is returned."""
+    def relocate(
+        self,
+        points: npt.ArrayLike,
+        out: Tuple[npt.NDArray[np.int64], npt.NDArray[np.float64]],
+    ) -> Tuple[npt.NDArray[np.int64], npt.NDArray[np.float64]]:
+        """`locate` warm started, for a solver loop: `out=(cell, xi)` holds each point's previous
+        answer (cell -1 for none) and is overwritten with the new one, then returned. A point
+        whose previous cell still holds it costs one Newton inversion from its previous xi. The
+        answers are `locate`'s whatever the hints; a cell that is neither -1 nor a cell of the
+        body raises ValueError before anything is written."""
     @overload
     def locate_owners(self, x: Sequence[float]) -> List[Tuple[int, Xi]]: ...
     @overload

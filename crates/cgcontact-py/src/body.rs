@@ -146,6 +146,29 @@ impl BodyState {
         }
     }
 
+    /// The body's cell of the caller's cell number `number`, as a warm start's hint: `Ok(None)`
+    /// for -1 (no previous cell), `Err(())` for a number no cell has.
+    pub fn hint_cell(&self, number: i64) -> Result<Option<CellId>, ()> {
+        if number == -1 {
+            return Ok(None);
+        }
+        let index = usize::try_from(number).map_err(|_| ())?;
+        match &self.cells {
+            Some(map) => map.lattice_cell(index).map(Some).ok_or(()),
+            None => (index < self.body.as_ref().lattice().cell_count())
+                .then_some(Some(CellId(index as u32)))
+                .ok_or(()),
+        }
+    }
+
+    /// The number of cells the caller numbers (`hint_cell` takes 0 up to it).
+    pub fn cell_numbers(&self) -> usize {
+        match &self.cells {
+            Some(map) => map.len(),
+            None => self.body.as_ref().lattice().cell_count(),
+        }
+    }
+
     /// The caller's numbers of the cells whose Jacobian determinant is not positive at some
     /// corner (inverted or degenerate), ascending: one pass over every cell.
     fn inverted_cells(&self) -> Vec<i64> {

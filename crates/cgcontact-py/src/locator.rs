@@ -5,7 +5,9 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, RwLock};
 
 use cgcontact::glam::DVec3;
-use cgcontact::{AdaptiveLocator, Answer, GapAnswer, GapFinder, LatticeLocator, Locator, Settings};
+use cgcontact::{
+    AdaptiveLocator, Answer, GapAnswer, GapFinder, Hit, LatticeLocator, Locator, Settings,
+};
 use cgcontact_baseline::{
     BodyRef, BruteForce, CentroidRadius, Inversion, NodeRadius, NodeRadiusOptions, RTree,
 };
@@ -139,6 +141,54 @@ impl PyLocator {
         }
     }
 
+    /// `locate` (`warm` false) and `relocate` (`warm` true, the hints in `out`).
+    fn query<'py>(
+        &self,
+        py: Python<'py>,
+        points: &Bound<'py, PyAny>,
+        out: Option<&Bound<'py, PyAny>>,
+        warm: bool,
+    ) -> PyResult<Located<'py>> {
+        let (rows, _) = arrays::rows(points, "points", false)?;
+        let vectors = rows.vectors()?;
+        let points: &[DVec3] = &vectors;
+        let n = points.len();
+        let (cells, xi) = match out {
+            Some(out) => out_arrays(out, n)?,
+            None => (
+                PyArray1::<i64>::zeros(py, n, false),
+                PyArray2::<f64>::zeros(py, [n, 3], false),
+            ),
+        };
+        {
+            let mut cells_out = cells.try_readwrite().map_err(|e| out_borrow(e, "cell"))?;
+            let mut xi_out = xi.try_readwrite().map_err(|e| out_borrow(e, "xi"))?;
+            // `out_arrays` checked both C-contiguous (so `as_slice_mut` reads x, y, z rows),
+            // aligned and of the points' length.
+            let cells_slice = cells_out.as_slice_mut().map_err(value_error)?;
+            let xi_slice = xi_out.as_slice_mut().map_err(value_error)?;
+            py.detach(|| {
+                self.with(|locator, state| {
+                    if warm
+                        && let Some(row) = cells_slice
+                            .iter()
+                            .position(|&c| state.hint_cell(c).is_err())
+                    {
+                        return Err(PyValueError::new_err(format!(
+                            "out cell row {row} (0-based) is {}, not a previous answer: cells are \
+                             numbered 0 to {} (-1 for none)",
+                            cells_slice[row],
+                            state.cell_numbers() as i64 - 1
+                        )));
+                    }
+                    locate_into(locator, state, points, cells_slice, xi_slice, warm)
+                        .map_err(|row| refused("points", points, row))
+                })
+            })??;
+        }
+        Ok((cells, xi))
+    }
+
     /// Runs `f` on this locator's threads.
     fn on_threads<R: Send>(&self, f: impl FnOnce() -> R + Send) -> R {
         match &self.pool {
@@ -220,32 +270,24 @@ impl PyLocator {
         points: &Bound<'py, PyAny>,
         out: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Located<'py>> {
-        let (rows, _) = arrays::rows(points, "points", false)?;
-        let vectors = rows.vectors()?;
-        let points: &[DVec3] = &vectors;
-        let n = points.len();
-        let (cells, xi) = match out {
-            Some(out) => out_arrays(out, n)?,
-            None => (
-                PyArray1::<i64>::zeros(py, n, false),
-                PyArray2::<f64>::zeros(py, [n, 3], false),
-            ),
-        };
-        {
-            let mut cells_out = cells.try_readwrite().map_err(|e| out_borrow(e, "cell"))?;
-            let mut xi_out = xi.try_readwrite().map_err(|e| out_borrow(e, "xi"))?;
-            // `out_arrays` checked both C-contiguous (so `as_slice_mut` reads x, y, z rows),
-            // aligned and of the points' length.
-            let cells_slice = cells_out.as_slice_mut().map_err(value_error)?;
-            let xi_slice = xi_out.as_slice_mut().map_err(value_error)?;
-            py.detach(|| {
-                self.with(|locator, state| {
-                    locate_into(locator, state, points, cells_slice, xi_slice)
-                })
-            })?
-            .map_err(|row| refused("points", points, row))?;
-        }
-        Ok((cells, xi))
+        self.query(py, points, out, false)
+    }
+
+    /// `locate` warm started, for the next iteration of a solver loop: `out=(cell, xi)` holds
+    /// each point's previous answer (as `locate` or `relocate` wrote it; cell -1 for none) and
+    /// receives the new one, in place; `out` is returned. A point whose previous cell still holds
+    /// it costs one Newton inversion from its previous xi, with no search; the others are
+    /// searched as `locate` does. The answers are `locate`'s (the same cells, xi within the
+    /// Newton tolerance; on a face shared by two cells either may answer) whatever the hints; a
+    /// NaN xi starts from the cell's centre. A previous cell that is neither -1 nor a cell of the
+    /// body raises `ValueError` before anything is written.
+    fn relocate<'py>(
+        &self,
+        py: Python<'py>,
+        points: &Bound<'py, PyAny>,
+        out: &Bound<'py, PyAny>,
+    ) -> PyResult<Located<'py>> {
+        self.query(py, points, Some(out), true)
     }
 
     /// Every cell holding the point `x` (3 floats): a list of `(cell, xi)`, cells ascending, xi a
@@ -362,6 +404,7 @@ fn locate_into(
     points: &[DVec3],
     cells: &mut [i64],
     xi: &mut [f64],
+    warm: bool,
 ) -> Result<(), usize> {
     let first_refused = AtomicUsize::new(usize::MAX);
     cells
@@ -372,7 +415,19 @@ fn locate_into(
         .for_each_init(
             || Vec::with_capacity(PIECE),
             |answers: &mut Vec<Answer>, (k, ((cells, xi), points))| {
-                locator.locate_all_into(points, answers);
+                if warm {
+                    // The hints: each point's previous answer, as `relocate` reads it.
+                    answers.clear();
+                    answers.extend(cells.iter().zip(xi.chunks_exact(3)).map(|(&c, x)| {
+                        match state.hint_cell(c) {
+                            Ok(Some(cell)) => Hit::hint(cell, DVec3::from_slice(x)),
+                            _ => Ok(None),
+                        }
+                    }));
+                    locator.relocate_all(points, answers);
+                } else {
+                    locator.locate_all_into(points, answers);
+                }
                 let out = cells.iter_mut().zip(xi.chunks_exact_mut(3));
                 for (i, ((cell, xi), answer)) in out.zip(answers.iter()).enumerate() {
                     let (c, x) = match answer {

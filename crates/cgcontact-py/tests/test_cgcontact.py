@@ -602,3 +602,78 @@ def test_an_inverted_adaptive_leaf_is_named_by_its_row(cli, tmp_path):
     body.set_displacements(u)
     assert body.inverted_cells().tolist() == [1]
     assert cli_inverted_cells(cli, tmp_path, nodes, hexes, u) == [1]
+
+
+# Warm starts: relocate from the previous answers.
+
+
+def reversed_hexes_body():
+    """The lattice as hexes listed in reverse: caller's cell c is lattice cell count - 1 - c."""
+    nodes, hexes = lattice_hexes()
+    return cgcontact.Body.from_hexes(nodes, hexes[::-1].copy()), len(hexes)
+
+
+def test_relocate_answers_as_locate_from_any_hint():
+    points, cells, xi = cell_points()
+    n = len(points)
+    mesh, count = reversed_hexes_body()
+    for body, numbered in [(cgcontact.Body(ORIGIN, SPACING, COUNTS), cells),
+                           (mesh, count - 1 - cells)]:
+        locator = cgcontact.Locator(body)
+        previous = locator.locate(points)
+        # The next iteration: every node moved, the points with them.
+        shift = np.array([0.02, -0.01, 0.04])
+        body.set_displacements(np.tile(shift, (body.node_count, 1)))
+        moved = points + shift
+        cold = locator.locate(moved)
+        np.testing.assert_array_equal(cold[0], numbered)
+        hints = {
+            "previous answers": (previous[0].copy(), previous[1].copy()),
+            "none": (np.full(n, -1, dtype=np.int64), np.full((n, 3), np.nan)),
+            "wrong cells": ((np.arange(n, dtype=np.int64) * 5) % count, np.full((n, 3), 0.3)),
+            "NaN xi": (previous[0].copy(), np.full((n, 3), np.nan)),
+        }
+        for what, out in hints.items():
+            cell, got = locator.relocate(moved, out=out)
+            assert cell is out[0] and got is out[1], what
+            np.testing.assert_array_equal(cell, numbered, err_msg=what)
+            np.testing.assert_allclose(got, cold[1], atol=1e-12, err_msg=what)
+            np.testing.assert_allclose(got, np.tile(xi, (n, 1)), atol=1e-9, err_msg=what)
+            if what == "none":
+                np.testing.assert_array_equal(got, cold[1])
+
+
+def test_relocate_tries_the_hinted_cell_in_the_callers_numbering():
+    node = np.array(ORIGIN) + np.array(SPACING) * (1, 1, 1)  # a node of 8 cells
+    owners = [0, 1, 3, 4, 6, 7, 9, 10]
+    mesh, count = reversed_hexes_body()
+    for body, number in [(cgcontact.Body(ORIGIN, SPACING, COUNTS), lambda c: c),
+                         (mesh, lambda c: count - 1 - c)]:
+        locator = cgcontact.Locator(body)
+        for c in owners:
+            out = (np.array([number(c)], dtype=np.int64), np.zeros((1, 3)))
+            cell, got = locator.relocate(node[None, :], out=out)
+            assert cell[0] == number(c), (cell[0], number(c))
+            np.testing.assert_allclose(np.abs(got), 1, atol=1e-12)
+
+
+def test_relocate_refuses_hints_that_are_no_cell():
+    points, cells, _ = cell_points()
+    n = len(points)
+    locator = cgcontact.Locator(cgcontact.Body(ORIGIN, SPACING, COUNTS))
+    for bad in [-2, len(cells), np.iinfo(np.int64).max]:
+        out = (cells.astype(np.int64), np.zeros((n, 3)))
+        out[0][3] = bad
+        before = (out[0].copy(), out[1].copy())
+        with pytest.raises(ValueError, match=f"row 3 \\(0-based\\) is {bad}, not a previous answer: "
+                                             f"cells are numbered 0 to {len(cells) - 1}"):
+            locator.relocate(points, out=out)
+        np.testing.assert_array_equal(out[0], before[0])
+        np.testing.assert_array_equal(out[1], before[1])
+    with pytest.raises(TypeError):
+        locator.relocate(points)
+    with pytest.raises(ValueError, match="out must be"):
+        locator.relocate(points, out=(cells[:-1].astype(np.int64), np.zeros((n - 1, 3))))
+    with pytest.raises(ValueError, match="row 1 \\(0-based\\) is not finite"):
+        locator.relocate(np.vstack([points[:1], [np.nan, 0, 0]]),
+                         out=(np.full(2, -1, dtype=np.int64), np.zeros((2, 3))))
