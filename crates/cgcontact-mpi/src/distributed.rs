@@ -33,6 +33,7 @@
 //! local body lists its leaves in ascending id in the whole body, so its ties break as the serial
 //! body's do, and the answers name leaves by those ids.
 
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
 use cgcontact::adaptive::MAX_LEVEL;
@@ -47,9 +48,20 @@ use mpi::traits::*;
 
 use crate::error::Error;
 use crate::exchange::{
-    Traffic, all_reduce, counts_of, exchange, exchange_counts, exchange_words, from_order_key,
-    order_key,
+    Traffic, all_reduce, counts_of, exchange, exchange_keyed_counts, exchange_words, fingerprint,
+    from_order_key, order_key,
 };
+
+/// The highest id a setup on this process gave a body: each setup agrees with the other ranks on
+/// the next one, so that one body has one id on every rank whatever other communicators set up.
+static LAST_BODY_ID: AtomicU64 = AtomicU64::new(0);
+
+/// The key a rank whose own query check failed sends in place of its query's.
+const FAILED_KEY: u64 = u64::MAX;
+
+/// The kinds of query, in their keys.
+const LOCATE_QUERY: u64 = 1;
+const GAP_QUERY: u64 = 2;
 
 /// No rank is home to this block: no active cell is near enough to hold a point there.
 const NO_HOME: u32 = u32::MAX;
@@ -523,6 +535,9 @@ impl Blocks {
 /// holds what its points' serial searches read (see the module docs).
 #[derive(Clone, Debug)]
 pub struct DistributedBody {
+    /// The same on every rank for one collective setup, and different for another: what the
+    /// queries' keys compare.
+    id: u64,
     lattice: Lattice,
     settings: Settings,
     /// `Config::gap_distance`.
@@ -601,12 +616,23 @@ impl DistributedBody {
         words.extend(high);
         words.extend(low.map(|k| !k));
         words.push(u64::from(finest));
+        // The lattice and the config, which must be the same on every rank (else the maps of
+        // blocks differ, and the collectives sized by them): equal when the greatest key is the
+        // least (the complement of the greatest complement).
+        let key = setup_key(&lattice, &config);
+        words.extend([key, !key, LAST_BODY_ID.load(Ordering::Relaxed)]);
         let agreed = all_reduce(comm, &words, SystemOperation::max(), &mut traffic);
+        // Every rank takes the same id, and counts on from it.
+        let id = agreed[11] + 1;
+        LAST_BODY_ID.fetch_max(id, Ordering::Relaxed);
         if agreed[0] != 0 {
             scan?;
             return Err(Error::OnAnotherRank {
                 rank: (u64::MAX - agreed[0]) as i32,
             });
+        }
+        if agreed[9] != !agreed[10] {
+            return Err(Error::SetupMismatch);
         }
         if agreed[1] == 0 {
             return Err(Error::EmptyBody);
@@ -777,6 +803,7 @@ impl DistributedBody {
             body_bytes: body.as_ref().map_or(0, LocalBody::heap_bytes),
         };
         Ok(Self {
+            id,
             lattice,
             settings: config.settings,
             gap_distance: config.gap_distance,
@@ -891,14 +918,23 @@ impl DistributedLocator<'_> {
         }
     }
 
-    /// Collective: every rank calls it with its own points (any number, none included). Each
-    /// point is searched on its home rank and its answer comes back here, in input order,
-    /// bitwise the serial locator's on the whole body. Runs the local search on the current rayon
-    /// pool.
-    pub fn locate_all<C: Communicator>(&self, comm: &C, points: &[DVec3]) -> Located {
+    /// Collective: every rank calls it with its own points (any number, none included), on a
+    /// locator of the same [`DistributedBody`]. Each point is searched on its home rank and its
+    /// answer comes back here, in input order, bitwise the serial locator's on the whole body.
+    /// Runs the local search on the current rayon pool.
+    ///
+    /// # Errors
+    /// [`Error::QueryMismatch`] on every rank when some rank queries another body, or makes
+    /// another kind of query at the same time: found in the routing's first exchange, before any
+    /// point travels.
+    pub fn locate_all<C: Communicator>(
+        &self,
+        comm: &C,
+        points: &[DVec3],
+    ) -> Result<Located, Error> {
         let mut located = Located::default();
-        self.locate_all_into(comm, points, &mut located);
-        located
+        self.locate_all_into(comm, points, &mut located)?;
+        Ok(located)
     }
 
     /// [`DistributedLocator::locate_all`] into `out`, whose buffers (answers, counts and the
@@ -909,14 +945,30 @@ impl DistributedLocator<'_> {
     /// for a solver asking about points in its own part), all of them are searched where they
     /// lie, with no copy, and the answers of the few that left are replaced by those that come
     /// back. Otherwise the points are grouped by home first.
-    pub fn locate_all_into<C: Communicator>(&self, comm: &C, points: &[DVec3], out: &mut Located) {
+    ///
+    /// # Errors
+    /// As [`DistributedLocator::locate_all`]; `out` is then left with no answers.
+    pub fn locate_all_into<C: Communicator>(
+        &self,
+        comm: &C,
+        points: &[DVec3],
+        out: &mut Located,
+    ) -> Result<(), Error> {
         let Located {
             answers,
             tried,
             stats,
             scratch,
         } = out;
-        let route = self.route(comm, points, scratch, stats);
+        let key = Ok(self.query_key(LOCATE_QUERY, 0.0));
+        let route = match self.route(comm, points, scratch, stats, key) {
+            Ok(route) => route,
+            Err(e) => {
+                answers.clear();
+                tried.clear();
+                return Err(e);
+            }
+        };
         let Scratch {
             slots,
             work,
@@ -1040,20 +1092,20 @@ impl DistributedLocator<'_> {
         }
         stats.search_seconds = search.as_secs_f64();
         stats.return_seconds = start.elapsed().as_secs_f64() - stats.search_seconds;
+        Ok(())
     }
 
-    /// Collective: the signed gap, closest point and normal of each of this rank's points within
-    /// `distance` (the same on every rank, at most the body's `Config::gap_distance`), each
-    /// searched on its home by the core's [`GapFinder`], answers in input order, bitwise the
-    /// serial `GapFinder::gap_all_into`'s on the whole body. The points travel as for
-    /// [`DistributedLocator::locate_all_into`], whose buffers `out` keeps likewise.
-    pub fn gap_all_into<C: Communicator>(
-        &self,
-        comm: &C,
-        points: &[DVec3],
-        distance: f64,
-        out: &mut Gaps,
-    ) -> Result<(), Error> {
+    /// The key of a query of `kind` at `distance` on this body: every rank's must be the same.
+    fn query_key(&self, kind: u64, distance: f64) -> u64 {
+        match fingerprint([self.body.id, kind, distance.to_bits()]) {
+            // Never the failed rank's key.
+            FAILED_KEY => FAILED_KEY - 1,
+            key => key,
+        }
+    }
+
+    /// The local gap finder at `distance`, or why this rank refuses the query.
+    fn finder(&self, distance: f64) -> Result<Option<LocalFinder<'_>>, Error> {
         if !(distance.is_finite() && distance >= 0.0) {
             return Err(Error::GapDistance(distance));
         }
@@ -1063,9 +1115,35 @@ impl DistributedLocator<'_> {
                 set_up: self.body.gap_distance,
             });
         }
-        let finder = match &self.local {
-            Some(local) => Some(local.finder(distance)?),
-            None => None,
+        self.local
+            .as_ref()
+            .map(|local| local.finder(distance))
+            .transpose()
+    }
+
+    /// Collective: the signed gap, closest point and normal of each of this rank's points within
+    /// `distance` (the same on every rank, at most the body's `Config::gap_distance`), each
+    /// searched on its home by the core's [`GapFinder`], answers in input order, bitwise the
+    /// serial `GapFinder::gap_all_into`'s on the whole body. The points travel as for
+    /// [`DistributedLocator::locate_all_into`], whose buffers `out` keeps likewise.
+    ///
+    /// # Errors
+    /// On every rank, with `out` left with no answers: [`Error::GapDistance`] or
+    /// [`Error::GapBeyondSetup`] on a rank given such a distance ([`Error::OnAnotherRank`] on
+    /// the others), and [`Error::QueryMismatch`] when the ranks ask for different distances,
+    /// query different bodies or make different kinds of query at the same time. Each rank
+    /// learns of the others' in the routing's first exchange, before any point travels.
+    pub fn gap_all_into<C: Communicator>(
+        &self,
+        comm: &C,
+        points: &[DVec3],
+        distance: f64,
+        out: &mut Gaps,
+    ) -> Result<(), Error> {
+        let finder = self.finder(distance);
+        let key = match &finder {
+            Ok(_) => Ok(self.query_key(GAP_QUERY, distance)),
+            Err(e) => Err(e.clone()),
         };
         let Gaps {
             answers,
@@ -1073,7 +1151,14 @@ impl DistributedLocator<'_> {
             scratch,
             found,
         } = out;
-        let route = self.route(comm, points, scratch, stats);
+        let route = match self.route(comm, points, scratch, stats, key) {
+            Ok(route) => route,
+            Err(e) => {
+                answers.clear();
+                return Err(e);
+            }
+        };
+        let finder = finder.expect("agreed: no rank refused the query");
         let (own, leaving, recv) = (route.own, route.leaving, route.recv);
         let Scratch {
             slots,
@@ -1142,13 +1227,18 @@ impl DistributedLocator<'_> {
     /// that notes where each one's answer will be; the groups sent as f64 words straight from,
     /// and received straight into, `work`, whose tail is the batch the local search reads. Starts
     /// `stats` afresh and fills its routing half.
+    ///
+    /// The count exchange also carries this rank's `key` (the query's, or its own refusal of
+    /// it): every rank sees every rank's, and all stop before any point travels when a rank
+    /// refused (its own error there, [`Error::OnAnotherRank`] elsewhere) or the keys differ.
     fn route<C: Communicator>(
         &self,
         comm: &C,
         points: &[DVec3],
         scratch: &mut Scratch,
         stats: &mut QueryStats,
-    ) -> Route {
+        key: Result<u64, Error>,
+    ) -> Result<Route, Error> {
         let start = Instant::now();
         *stats = QueryStats {
             points: points.len(),
@@ -1175,7 +1265,20 @@ impl DistributedLocator<'_> {
             .map(|r| if r == me { 0 } else { per[r] })
             .collect();
         let send_counts = counts_of(&sent.iter().map(|&n| 3 * n).collect::<Vec<_>>());
-        let recv_counts = exchange_counts(comm, &send_counts, &mut stats.routing);
+        let (recv_counts, keys) = exchange_keyed_counts(
+            comm,
+            &send_counts,
+            *key.as_ref().unwrap_or(&FAILED_KEY),
+            &mut stats.routing,
+        );
+        if let Some(first) = keys.iter().position(|&k| k == FAILED_KEY) {
+            key?;
+            return Err(Error::OnAnotherRank { rank: first as i32 });
+        }
+        let key = key.expect("agreed: no rank refused the query");
+        if keys.iter().any(|&k| k != key) {
+            return Err(Error::QueryMismatch);
+        }
         let from: Vec<usize> = recv_counts.iter().map(|&c| c as usize / 3).collect();
         let recv: usize = from.iter().sum();
         // When few points leave (none, on one rank or for a solver asking about its own part),
@@ -1246,14 +1349,14 @@ impl DistributedLocator<'_> {
         }
         stats.searched = own + recv;
         stats.routing_seconds = start.elapsed().as_secs_f64();
-        Route {
+        Ok(Route {
             own,
             leaving,
             recv,
             in_place,
             sent,
             from,
-        }
+        })
     }
 }
 
@@ -1373,6 +1476,20 @@ fn gather_words<C: Communicator>(comm: &C, root: i32, words: &[u64]) -> Option<V
         process.gather_varcount_into(words);
         None
     }
+}
+
+/// The fingerprint of what every rank must pass a setup alike: the lattice and the config.
+fn setup_key(lattice: &Lattice, config: &Config) -> u64 {
+    let vector = |v: DVec3| v.to_array().map(f64::to_bits);
+    let settings = format!("{:?}", config.settings);
+    fingerprint(
+        vector(lattice.origin())
+            .into_iter()
+            .chain(vector(lattice.h()))
+            .chain(lattice.cells().map(u64::from))
+            .chain([u64::from(config.block), config.gap_distance.to_bits()])
+            .chain(settings.bytes().map(u64::from)),
+    )
 }
 
 /// One rank's cells, checked: each one's lattice coordinates, and the order keys of the lowest and

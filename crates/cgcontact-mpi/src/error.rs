@@ -72,6 +72,20 @@ pub enum Error {
         /// `Config::gap_distance` at setup.
         set_up: f64,
     },
+    /// The ranks were given different lattices or configs: a collective setup needs the same on
+    /// every rank (else the ranks' maps of blocks differ, and their collectives with them).
+    #[error(
+        "the ranks were given different lattices or configs (block, gap distance, settings): \
+         every rank must pass the same"
+    )]
+    SetupMismatch,
+    /// The ranks' queries differ: another body (or none set up with the others), another kind
+    /// of query or another gap distance on some rank.
+    #[error(
+        "the ranks' queries differ (another body, another kind of query or another gap distance \
+         on some rank): every rank must make the same query on the same body"
+    )]
+    QueryMismatch,
     /// The core library refused the settings or the local body.
     #[error(transparent)]
     Core(#[from] cgcontact::Error),

@@ -85,6 +85,42 @@ pub(crate) fn exchange_counts<C: Communicator>(
     recv_counts
 }
 
+/// Collective: [`exchange_counts`] with this rank's `key` beside each count, so that every rank
+/// receives every rank's key (one per rank, in rank order) and all reach the same verdict on
+/// them, in the same all-to-all: a query's check costs no collective of its own.
+pub(crate) fn exchange_keyed_counts<C: Communicator>(
+    comm: &C,
+    send_counts: &[Count],
+    key: u64,
+    traffic: &mut Traffic,
+) -> (Vec<Count>, Vec<u64>) {
+    // Each count, then the key's low and high halves (their bits as counts).
+    let halves = [key as u32 as Count, (key >> 32) as u32 as Count];
+    let send: Vec<Count> = send_counts
+        .iter()
+        .flat_map(|&n| [n, halves[0], halves[1]])
+        .collect();
+    let mut received: Vec<Count> = vec![0; send.len()];
+    comm.all_to_all_into(&send[..], &mut received[..]);
+    traffic.collectives += 1;
+    received
+        .chunks_exact(3)
+        .map(|w| (w[0], u64::from(w[1] as u32) | u64::from(w[2] as u32) << 32))
+        .unzip()
+}
+
+/// A 64-bit FNV-1a hash of `words`: a fingerprint the ranks compare (the same on every rank for
+/// the same words, whatever the build).
+pub(crate) fn fingerprint(words: impl IntoIterator<Item = u64>) -> u64 {
+    let mut hash = 0xcbf2_9ce4_8422_2325u64;
+    for word in words {
+        for byte in word.to_le_bytes() {
+            hash = (hash ^ u64::from(byte)).wrapping_mul(0x0100_0000_01b3);
+        }
+    }
+    hash
+}
+
 /// Collective: sends `send`, `send_counts[r]` words to rank r in rank order, and receives
 /// `recv_counts[r]` words from rank r into `received` (exactly their sum), in rank order (an
 /// all-to-all-v).

@@ -34,7 +34,7 @@
 //! let distributed = DistributedBody::new(&world, lattice, &mine, Config::default())?;
 //! let locator = distributed.locator()?;
 //! let points = [DVec3::new(0.6, 1.1, 0.2)]; // each rank its own points
-//! let located = locator.locate_all(&world, &points);
+//! let located = locator.locate_all(&world, &points)?;
 //! assert!(located.answers[0].unwrap().is_some());
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```

@@ -144,6 +144,15 @@ fn agree<T>(world: &SimpleCommunicator, step: Result<T>) -> Result<T, Failure> {
     }
 }
 
+/// The failure of a collective call of the library, which fails on every rank alike: the rank
+/// that met the error prints it, the others stop with it.
+fn collective<T>(result: Result<T, Error>, step: &str) -> Result<T, Failure> {
+    result.map_err(|e| match e {
+        Error::OnAnotherRank { .. } => Failure::Elsewhere,
+        e => Failure::Here(anyhow!(e).context(step.to_owned())),
+    })
+}
+
 /// What one rank reports to rank 0 (f64 each, in this order).
 const REPORT: [&str; 14] = [
     "setup_seconds",
@@ -283,10 +292,7 @@ fn locate(world: &SimpleCommunicator, args: &LocateArgs) -> Result<(), Failure> 
         Mine::Leaves(leaves) => DistributedBody::new_adaptive(world, lattice, leaves, config),
     };
     drop(mine);
-    let distributed = distributed.map_err(|e| match e {
-        Error::OnAnotherRank { .. } => Failure::Elsewhere,
-        e => Failure::Here(anyhow!(e).context("setup")),
-    })?;
+    let distributed = collective(distributed, "setup")?;
     let locator = agree(world, distributed.locator().map_err(anyhow::Error::from))?;
     let mut best: Option<(f64, QueryStats)> = None;
     // One set of buffers for every repeat, as a solver loop would keep it.
@@ -294,7 +300,10 @@ fn locate(world: &SimpleCommunicator, args: &LocateArgs) -> Result<(), Failure> 
     for _ in 0..=args.repeat {
         world.barrier();
         let query_start = Instant::now();
-        locator.locate_all_into(world, my_points, &mut located);
+        collective(
+            locator.locate_all_into(world, my_points, &mut located),
+            "query",
+        )?;
         let local = query_start.elapsed().as_secs_f64();
         // The query's time is the slowest rank's.
         let mut slowest = 0.0f64;
@@ -312,11 +321,9 @@ fn locate(world: &SimpleCommunicator, args: &LocateArgs) -> Result<(), Failure> 
             world.barrier();
             let gap_start = Instant::now();
             let mut gaps = Gaps::default();
-            agree(
-                world,
-                locator
-                    .gap_all_into(world, my_points, d, &mut gaps)
-                    .map_err(anyhow::Error::from),
+            collective(
+                locator.gap_all_into(world, my_points, d, &mut gaps),
+                "gap query",
             )?;
             let local = gap_start.elapsed().as_secs_f64();
             let mut slowest = 0.0f64;

@@ -194,6 +194,7 @@ fn rank() {
     }
     refusals_agree(&world);
     adaptive_refusals_agree(&world);
+    collective_misuse_fails_on_every_rank(&world);
     let mut total = 0usize;
     world.all_reduce_into(
         &checked,
@@ -286,8 +287,12 @@ fn check(
     // the points themselves into the same `Located`.
     let mut located = Located::default();
     let reversed: Vec<DVec3> = points.iter().rev().copied().collect();
-    locator.locate_all_into(world, &reversed, &mut located);
-    locator.locate_all_into(world, points, &mut located);
+    locator
+        .locate_all_into(world, &reversed, &mut located)
+        .unwrap_or_else(|e| fail(world, &format!("{what}: query: {e}")));
+    locator
+        .locate_all_into(world, points, &mut located)
+        .unwrap_or_else(|e| fail(world, &format!("{what}: query: {e}")));
 
     // The serial answers on the whole body: the oracle.
     let serial = LatticeLocator::new(&case.body, Settings::default()).expect("default settings");
@@ -553,6 +558,149 @@ fn refusals_agree(world: &SimpleCommunicator) {
     }
 }
 
+/// Ranks that disagree on a collective call: each gets an error (the same kind on every rank, or
+/// its own refusal and `OnAnotherRank` on the others), none hangs, crashes or answers with
+/// another rank's body or distance, and a correct query afterwards gets the serial answers.
+/// Before, a setup with another block size on one rank died in MPI, other settings or another
+/// body gave answers silently wrong, and a gap distance refused on one rank left the others
+/// waiting in the routing.
+fn collective_misuse_fails_on_every_rank(world: &SimpleCommunicator) {
+    let (rank, size) = (world.rank() as usize, world.size() as usize);
+    let last = size - 1;
+    let case = &cases()[4];
+    assert_eq!(case.name, "tiny");
+    let lattice = *case.body.lattice();
+    let mine = cells_of(case, Partition::Slabs, rank, size);
+    let h = lattice.h().max_element();
+    let config = Config {
+        gap_distance: h,
+        ..Config::default()
+    };
+    // Another block size, settings or lattice on the last rank.
+    let odd_settings = Settings {
+        max_iter: 1,
+        ..Settings::default()
+    };
+    let other_lattice =
+        Lattice::new(lattice.origin() + 0.1, lattice.h(), lattice.cells()).expect("a lattice");
+    for (name, odd, odd_lattice) in [
+        ("block", Config { block: 2, ..config }, lattice),
+        (
+            "settings",
+            Config {
+                settings: odd_settings,
+                ..config
+            },
+            lattice,
+        ),
+        ("lattice", config, other_lattice),
+    ] {
+        let (config, lattice) = if rank == last {
+            (odd, odd_lattice)
+        } else {
+            (config, lattice)
+        };
+        match DistributedBody::new(world, lattice, &mine, config) {
+            Err(Error::SetupMismatch) if size > 1 => {}
+            Ok(_) if size == 1 => {}
+            other => fail(
+                world,
+                &format!(
+                    "another {name} on rank {last}: rank {rank} got {:?}",
+                    other.map(|_| ())
+                ),
+            ),
+        }
+    }
+    let body = DistributedBody::new(world, lattice, &mine, config)
+        .unwrap_or_else(|e| fail(world, &format!("misuse: setup: {e}")));
+    let mut moved = case.body.clone();
+    moved
+        .update_displacements(|_, _, u| *u += DVec3::new(0.3 * h, 0.0, -0.2 * h))
+        .expect("finite");
+    let mine_moved = cells_of(
+        &Case {
+            name: "moved",
+            body: moved.clone(),
+            points: Vec::new(),
+        },
+        Partition::Slabs,
+        rank,
+        size,
+    );
+    let other = DistributedBody::new(world, lattice, &mine_moved, config)
+        .unwrap_or_else(|e| fail(world, &format!("misuse: setup: {e}")));
+    let locator = body
+        .locator()
+        .unwrap_or_else(|e| fail(world, &format!("misuse: locator: {e}")));
+    let other_locator = other
+        .locator()
+        .unwrap_or_else(|e| fail(world, &format!("misuse: locator: {e}")));
+    // Every point on every rank: most of them leave it.
+    let points = &case.points[..];
+    let mut gaps = Gaps::default();
+    let mut located = Located::default();
+    // A distance refused on the last rank (beyond the setup's), then on rank 0 (NaN).
+    for (bad_rank, bad) in [(last, 2.0 * h), (0, f64::NAN)] {
+        let distance = if rank == bad_rank { bad } else { h };
+        match locator.gap_all_into(world, points, distance, &mut gaps) {
+            Err(Error::GapBeyondSetup { .. } | Error::GapDistance(_)) if rank == bad_rank => {}
+            Err(Error::OnAnotherRank { rank: r }) if rank != bad_rank && r as usize == bad_rank => {
+            }
+            other => fail(
+                world,
+                &format!("gap distance {bad} on rank {bad_rank}: rank {rank} got {other:?}"),
+            ),
+        }
+        if !gaps.answers.is_empty() {
+            fail(world, "a refused gap query left answers");
+        }
+    }
+    // What differs on the last rank: the gap distance, the body, the kind of query.
+    let mismatch = |what: &str, result: Result<(), Error>| match result {
+        Err(Error::QueryMismatch) if size > 1 => {}
+        Ok(()) if size == 1 => {}
+        other => fail(
+            world,
+            &format!("another {what} on rank {last}: rank {rank} got {other:?}"),
+        ),
+    };
+    let distance = if rank == last { 0.5 * h } else { h };
+    mismatch(
+        "gap distance",
+        locator.gap_all_into(world, points, distance, &mut gaps),
+    );
+    let which = if rank == last {
+        &other_locator
+    } else {
+        &locator
+    };
+    mismatch("body", which.locate_all_into(world, points, &mut located));
+    mismatch(
+        "body (gaps)",
+        which.gap_all_into(world, points, h, &mut gaps),
+    );
+    if rank == last {
+        mismatch(
+            "kind of query",
+            locator.gap_all_into(world, points, h, &mut gaps),
+        );
+    } else {
+        mismatch(
+            "kind of query",
+            locator.locate_all_into(world, points, &mut located),
+        );
+    }
+    // The ranks are still in step: a query agreed on gets the serial answers, on either body.
+    for (locator, whole) in [(&locator, &case.body), (&other_locator, &moved)] {
+        locator
+            .locate_all_into(world, points, &mut located)
+            .unwrap_or_else(|e| fail(world, &format!("misuse: query: {e}")));
+        let serial = LatticeLocator::new(whole, Settings::default()).expect("default settings");
+        expect_located(world, "after misuse", points, &located, &serial);
+    }
+}
+
 /// One adaptive test scene: a body and every query point (all ranks build the same).
 struct AdaptiveCase {
     name: &'static str,
@@ -648,8 +796,12 @@ fn check_adaptive(
         return points.len();
     }
     let mut located = Located::default();
-    locator.locate_all_into(world, &reversed, &mut located);
-    locator.locate_all_into(world, &points, &mut located);
+    locator
+        .locate_all_into(world, &reversed, &mut located)
+        .unwrap_or_else(|e| fail(world, &format!("{what}: query: {e}")));
+    locator
+        .locate_all_into(world, &points, &mut located)
+        .unwrap_or_else(|e| fail(world, &format!("{what}: query: {e}")));
     expect_located(world, &what, &points, &located, &serial);
     // Every local body has the whole body's finest level, on which the search's tolerance
     // depends, even where no leaf near its points is that fine.
