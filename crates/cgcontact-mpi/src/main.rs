@@ -465,12 +465,23 @@ fn check_args(args: &LocateArgs) -> Result<()> {
     Ok(())
 }
 
-/// Whether two paths name one file (by canonical path; a missing output is no input).
+/// Whether two paths name one file, as `cgcontact locate` compares them: by canonical path
+/// (symbolic links), or on Unix by device and inode (hard links, which the rename of the
+/// results would otherwise split silently); a missing output is no input.
 fn same_file(a: &Path, b: &Path) -> bool {
-    match (a.canonicalize(), b.canonicalize()) {
-        (Ok(a), Ok(b)) => a == b,
-        _ => false,
+    if let (Ok(x), Ok(y)) = (a.canonicalize(), b.canonicalize())
+        && x == y
+    {
+        return true;
     }
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        if let (Ok(x), Ok(y)) = (std::fs::metadata(a), std::fs::metadata(b)) {
+            return x.dev() == y.dev() && x.ino() == y.ino();
+        }
+    }
+    false
 }
 
 struct Summary<'a> {

@@ -353,3 +353,51 @@ fn bad_input_stops_every_rank_with_one_message() {
     }
     assert!(!out.exists());
 }
+
+/// `--out` a hard link of `--points` (or of `--mesh`): refused before any work with one message,
+/// as `cgcontact locate` refuses it, both names left one file with its content. Before, the
+/// canonical paths differed, the run went on and the results' rename split the link.
+#[test]
+fn an_output_hard_linked_to_an_input_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let points = d.join("points.csv");
+    let text = "x,y,z\n0.1,0.2,0.3\n";
+    std::fs::write(&points, text).unwrap();
+    let mesh = d.join("mesh.vtk");
+    std::fs::write(&mesh, "not read: the check comes first\n").unwrap();
+    for input in [&points, &mesh] {
+        let link = d.join("results.csv");
+        std::fs::hard_link(input, &link).unwrap();
+        let before = std::fs::read(input).unwrap();
+        let result = mpirun(
+            2,
+            &[
+                "locate",
+                "--mesh",
+                mesh.to_str().unwrap(),
+                "--points",
+                points.to_str().unwrap(),
+                "--out",
+                link.to_str().unwrap(),
+            ],
+        );
+        let stderr = String::from_utf8_lossy(&result.stderr);
+        assert!(!result.status.success(), "{input:?}: the run went on");
+        assert_eq!(
+            stderr.matches("cgcontact-mpi:").count(),
+            1,
+            "one message, from one rank: {stderr}"
+        );
+        assert!(stderr.contains("would be overwritten"), "{stderr}");
+        use std::os::unix::fs::MetadataExt;
+        let (a, b) = (
+            std::fs::metadata(input).unwrap(),
+            std::fs::metadata(&link).unwrap(),
+        );
+        assert_eq!((a.dev(), a.ino()), (b.dev(), b.ino()), "the link was split");
+        assert_eq!(std::fs::read(input).unwrap(), before);
+        std::fs::remove_file(&link).unwrap();
+    }
+    assert_eq!(std::fs::read_to_string(&points).unwrap(), text);
+}
