@@ -48,8 +48,8 @@ use mpi::traits::*;
 
 use crate::error::Error;
 use crate::exchange::{
-    Traffic, all_reduce, counts_of, exchange, exchange_keyed_counts, exchange_words, fingerprint,
-    from_order_key, order_key,
+    Traffic, all_reduce, counts_of, displacements, exchange, exchange_keyed_counts, exchange_words,
+    fingerprint, from_order_key, order_key,
 };
 
 /// The highest id a setup on this process gave a body: each setup agrees with the other ranks on
@@ -1459,13 +1459,9 @@ fn gather_words<C: Communicator>(comm: &C, root: i32, words: &[u64]) -> Option<V
     if comm.rank() == root {
         let mut counts = vec![0 as mpi::Count; comm.size() as usize];
         process.gather_into_root(&count, &mut counts[..]);
-        let mut displs = Vec::with_capacity(counts.len());
-        let mut total = 0;
-        for &c in &counts {
-            displs.push(total);
-            total += c;
-        }
-        let mut all = vec![0u64; total as usize];
+        let displs = displacements(&counts);
+        let total: usize = counts.iter().map(|&c| c as usize).sum();
+        let mut all = vec![0u64; total];
         {
             let mut into = PartitionMut::new(&mut all[..], &counts[..], &displs[..]);
             process.gather_varcount_into_root(words, &mut into);

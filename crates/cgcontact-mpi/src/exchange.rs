@@ -148,12 +148,16 @@ pub(crate) fn exchange_words<C: Communicator, T: Equivalence>(
 }
 
 /// Each partition's offset: the running sum of the counts before it.
-fn displacements(counts: &[Count]) -> Vec<Count> {
+/// MPI takes them as 32-bit counts: past 2^31 − 1 words before a partition, which a wrapping sum
+/// would have turned into a negative or wrong offset (MPI then reading or writing outside the
+/// buffer), it panics, as the counts do.
+pub(crate) fn displacements(counts: &[Count]) -> Vec<Count> {
     counts
         .iter()
-        .scan(0, |at, &c| {
-            let here = *at;
-            *at += c;
+        .scan(0i64, |at, &c| {
+            let here = Count::try_from(*at)
+                .expect("under 2^31 words before any rank's share in one exchange");
+            *at += i64::from(c);
             Some(here)
         })
         .collect()
@@ -184,6 +188,20 @@ pub(crate) fn from_order_key(key: u64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn displacements_are_the_running_sums_up_to_the_largest_count() {
+        assert_eq!(displacements(&[3, 0, 5, 2]), vec![0, 3, 3, 8]);
+        // The last share may start at 2^31 − 1 (the buffer's end is no offset).
+        assert_eq!(displacements(&[Count::MAX, 1]), vec![0, Count::MAX]);
+    }
+
+    /// Before, the running sum wrapped in a release build: a third share at −2^31.
+    #[test]
+    #[should_panic(expected = "under 2^31 words")]
+    fn displacements_past_2_31_words_panic_rather_than_wrap() {
+        let _ = displacements(&[Count::MAX, 1, 1]);
+    }
 
     #[test]
     fn order_keys_sort_as_the_total_order_and_invert() {
