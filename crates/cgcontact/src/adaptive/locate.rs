@@ -24,7 +24,9 @@ use crate::lanes::{Lanes, MAX_W, Real as _, V3};
 use crate::lattice::CellId;
 #[cfg(target_arch = "x86_64")]
 use crate::locate::Isa;
-use crate::locate::{Answer, Collect, Hit, Locator, Owners, warm_start, write_hits};
+use crate::locate::{
+    Answer, Collect, Hit, Locator, Owners, relocate_split, warm_start, write_hits,
+};
 use crate::reach::{self, Range};
 use crate::schedule::{Layout, Scheduler};
 use crate::settings::{CandidateOrder, Frame, InsideTolerance, Precision, Settings};
@@ -910,7 +912,12 @@ impl Locator for AdaptiveLocator<'_> {
         }
         self.scheduler
             .run(self.layout(), points, answers, true, |points, answers| {
-                self.relocate_chunk(points, answers)
+                relocate_split(
+                    points,
+                    answers,
+                    |p, a| self.relocate_chunk(p, a),
+                    |p, o| self.locate_chunk(p, o),
+                );
             });
     }
 

@@ -45,7 +45,7 @@ use crate::settings::{Frame, InsideTolerance, Precision, Settings};
 use crate::{Error, PointError};
 
 pub(crate) use scalar::Collect;
-pub(crate) use warm::start as warm_start;
+pub(crate) use warm::{relocate_split, start as warm_start};
 /// A located point: the cell holding it and its local coordinates there.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Hit {
@@ -403,7 +403,12 @@ impl Locator for LatticeLocator<'_> {
         }
         self.scheduler
             .run(self.layout(), points, answers, true, |points, answers| {
-                self.relocate_chunk(points, answers)
+                warm::relocate_split(
+                    points,
+                    answers,
+                    |p, a| self.relocate_chunk(p, a),
+                    |p, o| self.locate_chunk(p, o),
+                );
             });
     }
 }
