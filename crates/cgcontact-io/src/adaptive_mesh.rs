@@ -37,10 +37,13 @@ pub struct AdaptiveMesh {
     /// Whether the input carried a displacement array (otherwise the body is undeformed).
     pub has_displacement: bool,
     /// How the hanging nodes' displacements, as read, obey their constraints (within
-    /// `constraint_tolerance`): the body keeps them as read.
+    /// `constraint_tolerance_by_axis`): the body keeps them as read.
     pub constraints: ConstraintReport,
-    /// The tolerance of `constraints`, length units: 1e-9 of the finest spacing plus the rounding
-    /// of the largest displacement.
+    /// The tolerance of `constraints` per axis, length units: 1e-9 of the finest spacing along
+    /// that axis plus the rounding of the largest displacement.
+    pub constraint_tolerance_by_axis: DVec3,
+    /// The smallest of `constraint_tolerance_by_axis` (the shortest axis's), for messages that
+    /// give one number.
     pub constraint_tolerance: f64,
 }
 
@@ -57,8 +60,8 @@ pub enum MeshBody {
 
 impl AdaptiveMesh {
     /// What is wrong with the hanging nodes as read, for the mesh read from `path`: how many
-    /// break their constraint by more than [`AdaptiveMesh::constraint_tolerance`], and the worst
-    /// one's position and offset; `None` when every one obeys it.
+    /// break their constraint by more than [`AdaptiveMesh::constraint_tolerance_by_axis`], and the
+    /// worst one's position and offset; `None` when every one obeys it.
     #[must_use]
     pub fn constraint_problem(&self, path: &std::path::Path) -> Option<String> {
         let report = self.constraints;
@@ -67,11 +70,18 @@ impl AdaptiveMesh {
         };
         let position = self.body.node_position(node).unwrap_or_default();
         Some(format!(
-            "{}: {} of {} hanging nodes break their constraint by more than {:.1e}; the worst, at {}, by {by:.3e}: the deformed mesh gaps or overlaps there",
+            "{}: {} of {} hanging nodes break their constraint by more than {}; the worst, at {}, by {by:.3e}: the deformed mesh gaps or overlaps there",
             path.display(),
             report.violating,
             report.hanging,
-            self.constraint_tolerance,
+            {
+                let t = self.constraint_tolerance_by_axis;
+                if t.x == t.y && t.y == t.z {
+                    format!("{:.1e}", t.x)
+                } else {
+                    format!("[{:.1e}, {:.1e}, {:.1e}] along x, y, z", t.x, t.y, t.z)
+                }
+            },
             position,
         ))
     }
@@ -393,7 +403,10 @@ impl HexMesh {
         })?;
 
         // Displacements: each body node from the input nodes at it (which must agree).
-        let mut constraint_tolerance = LATTICE_TOLERANCE * h_fine.min_element();
+        // Per axis: an offset is a share of the cell's edge along its own axis (on a 1 : 1e-3
+        // lattice the shortest axis's tolerance warned of offsets of 1e-12 of a cell along x,
+        // as VTK's legacy ASCII writer leaves at its 11 digits).
+        let mut constraint_tolerance = LATTICE_TOLERANCE * h_fine;
         if let Some(u) = &self.displacement {
             let by_node: Vec<(usize, usize)> = used
                 .iter_ones()
@@ -416,12 +429,13 @@ impl HexMesh {
             } else {
                 ROUNDING_SLACK
             };
-            constraint_tolerance += slack * body.max_displacement().max_element();
+            constraint_tolerance += DVec3::splat(slack * body.max_displacement().max_element());
         }
         let cells = CellMap::identity(self.cells.len());
         Ok(AdaptiveMesh {
-            constraints: body.check_constraints(constraint_tolerance),
-            constraint_tolerance,
+            constraints: body.check_constraints_per_axis(constraint_tolerance),
+            constraint_tolerance_by_axis: constraint_tolerance,
+            constraint_tolerance: constraint_tolerance.min_element(),
             body,
             cells,
             point_count: self.points.len(),

@@ -12,3 +12,4 @@ mod regression_corrupt_block_header_aborted;
 mod regression_corrupt_displacement_dropped;
 mod vtk_round_trip;
 mod written_by_vtk;
+mod written_by_vtk_adaptive;

@@ -451,6 +451,44 @@ fn one_refined_cell_beside_a_coarse_one_has_five_hanging_nodes() {
 }
 
 #[test]
+fn constraints_checked_per_axis_on_an_anisotropic_lattice() {
+    // Spacings 1 : 1e-3 : 0.1, base cell 1 split against base cell 0: 5 hanging nodes on x = 1.
+    let h = DVec3::new(1.0, 1e-3, 0.1);
+    let lattice = Lattice::new(DVec3::ZERO, h, [2, 1, 1]).unwrap();
+    let mut leaves = vec![Leaf::new(0, [0, 0, 0])];
+    leaves.extend(Leaf::new(0, [1, 0, 0]).children());
+    let mut body = AdaptiveBody::from_leaves(lattice, leaves).unwrap();
+    deform(&mut body, 0.01, 0.0, 5);
+    let tol = 1e-9 * body.spacing(1);
+    assert!(body.check_constraints_per_axis(tol).holds());
+    let node = body.hanging_nodes().nth(1).unwrap();
+    // 1e-12 along x is 2e-12 of a fine cell's x edge: within its axis's tolerance, although
+    // beyond the shortest axis's (5e-13), which the one-number check can only take.
+    let mut u = body.displacements().to_vec();
+    u[node].x += 1e-12;
+    body.set_displacements(&u).unwrap();
+    assert!(body.check_constraints_per_axis(tol).holds());
+    assert_eq!(body.check_constraints(tol.min_element()).violating, 1);
+    // 1e-12 along y is 2e-9 of the y edge: off, and the worst, by that component.
+    u[node].y += 1e-12;
+    let other = body.hanging_nodes().nth(3).unwrap();
+    u[other].x += 3e-10;
+    body.set_displacements(&u).unwrap();
+    let report = body.check_constraints_per_axis(tol);
+    assert_eq!(report.violating, 1);
+    let (worst, by) = report.worst.unwrap();
+    assert_eq!(worst, node);
+    assert!((by - 1e-12).abs() < 1e-15, "{by}");
+    // A splat tolerance judges as the one-number check.
+    for t in [0.0, 1e-13, 1e-11, 1e-9] {
+        assert_eq!(
+            body.check_constraints_per_axis(DVec3::splat(t)),
+            body.check_constraints(t)
+        );
+    }
+}
+
+#[test]
 fn a_level_jump_of_two_constrains_to_the_coarsest_leaf() {
     // Base cell 1 split twice in its corner against base cell 0: nodes of the level-2 leaves on the
     // shared face interpolate base cell 0's corners (weights of 1/4, 3/4 · 1/4 ...), summing to 1.
