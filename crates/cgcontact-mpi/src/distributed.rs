@@ -538,6 +538,9 @@ pub struct DistributedBody {
     /// The same on every rank for one collective setup, and different for another: what the
     /// queries' keys compare.
     id: u64,
+    /// This rank and the size of the setup's communicator: the homes name its ranks.
+    rank: i32,
+    size: i32,
     lattice: Lattice,
     settings: Settings,
     /// `Config::gap_distance`.
@@ -804,6 +807,8 @@ impl DistributedBody {
         };
         Ok(Self {
             id,
+            rank,
+            size: size as i32,
             lattice,
             settings: config.settings,
             gap_distance: config.gap_distance,
@@ -926,7 +931,8 @@ impl DistributedLocator<'_> {
     /// # Errors
     /// [`Error::QueryMismatch`] on every rank when some rank queries another body, or makes
     /// another kind of query at the same time: found in the routing's first exchange, before any
-    /// point travels.
+    /// point travels. [`Error::Communicator`] on a rank whose `comm` is not the setup's
+    /// ([`Error::OnAnotherRank`] on the others).
     pub fn locate_all<C: Communicator>(
         &self,
         comm: &C,
@@ -960,7 +966,9 @@ impl DistributedLocator<'_> {
             stats,
             scratch,
         } = out;
-        let key = Ok(self.query_key(LOCATE_QUERY, 0.0));
+        let key = self
+            .check_communicator(comm)
+            .map(|()| self.query_key(LOCATE_QUERY, 0.0));
         let route = match self.route(comm, points, scratch, stats, key) {
             Ok(route) => route,
             Err(e) => {
@@ -1095,6 +1103,22 @@ impl DistributedLocator<'_> {
         Ok(())
     }
 
+    /// Whether `comm` has the setup's ranks (a query on another communicator would read its
+    /// homes as other ranks, or as none).
+    fn check_communicator<C: Communicator>(&self, comm: &C) -> Result<(), Error> {
+        let (rank, size) = (comm.rank(), comm.size());
+        if (rank, size) == (self.body.rank, self.body.size) {
+            Ok(())
+        } else {
+            Err(Error::Communicator {
+                rank,
+                size,
+                setup_rank: self.body.rank,
+                setup_size: self.body.size,
+            })
+        }
+    }
+
     /// The key of a query of `kind` at `distance` on this body: every rank's must be the same.
     fn query_key(&self, kind: u64, distance: f64) -> u64 {
         match fingerprint([self.body.id, kind, distance.to_bits()]) {
@@ -1131,7 +1155,8 @@ impl DistributedLocator<'_> {
     /// On every rank, with `out` left with no answers: [`Error::GapDistance`] or
     /// [`Error::GapBeyondSetup`] on a rank given such a distance ([`Error::OnAnotherRank`] on
     /// the others), and [`Error::QueryMismatch`] when the ranks ask for different distances,
-    /// query different bodies or make different kinds of query at the same time. Each rank
+    /// query different bodies or make different kinds of query at the same time;
+    /// [`Error::Communicator`] as for [`DistributedLocator::locate_all`]. Each rank
     /// learns of the others' in the routing's first exchange, before any point travels.
     pub fn gap_all_into<C: Communicator>(
         &self,
@@ -1142,7 +1167,9 @@ impl DistributedLocator<'_> {
     ) -> Result<(), Error> {
         let finder = self.finder(distance);
         let key = match &finder {
-            Ok(_) => Ok(self.query_key(GAP_QUERY, distance)),
+            Ok(_) => self
+                .check_communicator(comm)
+                .map(|()| self.query_key(GAP_QUERY, distance)),
             Err(e) => Err(e.clone()),
         };
         let Gaps {

@@ -86,6 +86,22 @@ pub enum Error {
          on some rank): every rank must make the same query on the same body"
     )]
     QueryMismatch,
+    /// A query on a communicator other than the setup's: its ranks are not the setup's ranks
+    /// (the homes name ranks of the setup's communicator).
+    #[error(
+        "queried as rank {rank} of {size}, but set up as rank {setup_rank} of {setup_size}: \
+         query on the communicator the body was set up on"
+    )]
+    Communicator {
+        /// This rank in the query's communicator.
+        rank: i32,
+        /// The query's communicator's size.
+        size: i32,
+        /// This rank in the setup's communicator.
+        setup_rank: i32,
+        /// The setup's communicator's size.
+        setup_size: i32,
+    },
     /// The core library refused the settings or the local body.
     #[error(transparent)]
     Core(#[from] cgcontact::Error),

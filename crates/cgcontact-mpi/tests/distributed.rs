@@ -563,7 +563,7 @@ fn refusals_agree(world: &SimpleCommunicator) {
 /// another rank's body or distance, and a correct query afterwards gets the serial answers.
 /// Before, a setup with another block size on one rank died in MPI, other settings or another
 /// body gave answers silently wrong, and a gap distance refused on one rank left the others
-/// waiting in the routing.
+/// waiting in the routing; a query on another communicator crashed.
 fn collective_misuse_fails_on_every_rank(world: &SimpleCommunicator) {
     let (rank, size) = (world.rank() as usize, world.size() as usize);
     let last = size - 1;
@@ -690,6 +690,28 @@ fn collective_misuse_fails_on_every_rank(world: &SimpleCommunicator) {
             "kind of query",
             locator.locate_all_into(world, points, &mut located),
         );
+    }
+    // A query on a communicator of other ranks (the world split in two): the homes name the
+    // world's ranks. Before, ranks panicked in the return's exchange or read homes beyond the
+    // split's size as none ("not found"). Each rank refuses it on its own.
+    let half = world
+        .split_by_color(mpi::topology::Color::with_value((rank % 2) as i32))
+        .expect("every rank has a colour");
+    match locator.locate_all_into(&half, points, &mut located) {
+        Err(Error::Communicator { .. }) if size > 1 => {}
+        Ok(()) if size == 1 => {}
+        other => fail(
+            world,
+            &format!("a query on a split communicator: rank {rank} got {other:?}"),
+        ),
+    }
+    match locator.gap_all_into(&half, points, h, &mut gaps) {
+        Err(Error::Communicator { .. }) if size > 1 => {}
+        Ok(()) if size == 1 => {}
+        other => fail(
+            world,
+            &format!("a gap query on a split communicator: rank {rank} got {other:?}"),
+        ),
     }
     // The ranks are still in step: a query agreed on gets the serial answers, on either body.
     for (locator, whole) in [(&locator, &case.body), (&other_locator, &moved)] {
