@@ -205,9 +205,37 @@ impl HexMesh {
             let s = shape(e);
             (0..2).any(|k| (s[k] - typical[k]).abs() > 0.25 * typical[k])
         });
+        // Coordinates all 32-bit floats round by more (checked against the cells below).
+        let point_slack = if all_f32(&self.points) {
+            F32_ROUNDING_SLACK
+        } else {
+            ROUNDING_SLACK
+        };
+        // How far cell c's edges may be from their size, relative: 1e-6 plus the rounding of the
+        // coordinates (far from the origin a tiny cell's edge carries |x| ε), at most a twentieth.
+        let relative_slack = |c: usize, expected: f64| {
+            let magnitude = self.points[self.cells[c][0] as usize].abs().max_element();
+            1e-6 + (4.0 * point_slack * magnitude / expected).min(1.0 / 20.0)
+        };
+        // The cells whose x edge is the median cell's times a power of two: the others cannot
+        // set the base spacing, or a cell 1.5 times the coarsest would have made every other
+        // cell look wrong, and the first listed was named.
+        let reference = {
+            let mut order: Vec<usize> = (0..cell_edges.len()).collect();
+            let mid = order.len() / 2;
+            *order
+                .select_nth_unstable_by(mid, |&p, &q| cell_edges[p][0].total_cmp(&cell_edges[q][0]))
+                .1
+        };
+        let dyadic = |c: usize| {
+            let ratio = cell_edges[c][0] / cell_edges[reference][0];
+            let off = (ratio / ratio.log2().round().exp2() - 1.0).abs();
+            off <= relative_slack(c, cell_edges[c][0])
+                + relative_slack(reference, cell_edges[reference][0])
+        };
         let mut base = [0.0f64; 3];
         for (c, e) in cell_edges.iter().enumerate() {
-            if Some(c) != odd {
+            if Some(c) != odd && dyadic(c) {
                 for a in 0..3 {
                     base[a] = base[a].max(e[a]);
                 }
@@ -220,12 +248,6 @@ impl HexMesh {
                 base,
             });
         }
-        // Coordinates all 32-bit floats round by more (checked against the cells below).
-        let point_slack = if all_f32(&self.points) {
-            F32_ROUNDING_SLACK
-        } else {
-            ROUNDING_SLACK
-        };
         let mut levels = Vec::with_capacity(self.cells.len());
         for (c, e) in cell_edges.iter().enumerate() {
             let bad = || ErrorKind::CellSize {
@@ -253,14 +275,11 @@ impl HexMesh {
                 return Err(bad());
             }
             let scale = 0.5f64.powi(level as i32);
-            // Within 1e-6 of the expected size plus the rounding of the coordinates themselves
-            // (far from the origin a tiny cell's edge carries |x| ε): far tighter than a level
-            // apart. The lattice checks below are the exact ones.
-            let magnitude = self.points[self.cells[c][0] as usize].abs().max_element();
-            let slack = 4.0 * point_slack * magnitude;
+            // Within `relative_slack` of the expected size: far tighter than a level apart. The
+            // lattice checks below are the exact ones.
             if (0..3).any(|a| {
                 let expected = base[a] * scale;
-                (e[a] - expected).abs() > 1e-6 * expected + slack.min(expected / 20.0)
+                (e[a] - expected).abs() > relative_slack(c, expected) * expected
             }) {
                 return Err(bad());
             }

@@ -510,6 +510,42 @@ fn the_odd_cell_is_named_wherever_it_is_listed() {
     }
 }
 
+/// A cell larger than the coarsest by a factor that is no power of two (1.25, 1.5, 3) had set
+/// the base spacing, the largest edge, and the first cell listed was named instead: "cell 0:
+/// edges [0.5, 0.5, 0.5] are not the coarsest cells' edges [1.5, 1.5, 1.5] halved". Made with
+/// VTK in `make.py --hostile` (`h-size-three-halves`, `h-size-triple`, `h-size-five-quarters`).
+/// A cell twice the base, on the doubled lattice, is a valid coarser level.
+#[test]
+fn regression_an_oversized_cell_is_named_not_the_first() {
+    let body = body(DVec3::ZERO, DVec3::ONE, [3, 2, 2], 2, 4);
+    let good = mesh_of(&body);
+    for factor in [1.25, 1.5, 3.0, 1.0 + 1e-4] {
+        for first in [false, true] {
+            let mut big = good.clone();
+            push_cube(&mut big, DVec3::new(10.0, 0.0, 0.0), factor);
+            let last = big.cells.len() - 1;
+            let named = if first {
+                big.cells.swap(0, last);
+                0
+            } else {
+                last
+            };
+            assert!(
+                matches!(big.to_body(), Err(ErrorKind::CellSize { cell, base, .. }) if cell == named && base == [1.0; 3]),
+                "factor {factor}, first {first}: {:?}",
+                big.to_body().err()
+            );
+        }
+    }
+    let mut double = good.clone();
+    push_cube(&mut double, DVec3::new(10.0, 0.0, 0.0), 2.0);
+    let MeshBody::Adaptive(read) = double.to_body().unwrap() else {
+        panic!("read as uniform");
+    };
+    assert_eq!(read.body.finest_level(), 3);
+    assert_eq!(read.body.spacing(0), DVec3::splat(2.0));
+}
+
 /// A mesh whose finest lattice would exceed 2^21 − 1 cells along an axis says so: two unit
 /// cubes 3,000 apart and one cube of level 10 (3,001 · 1,024 finest cells along x).
 #[test]
