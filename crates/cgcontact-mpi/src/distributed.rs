@@ -120,6 +120,10 @@ pub struct OwnedLeaf {
 trait Record: Copy + std::fmt::Debug {
     /// Words of its record on the wire.
     const WORDS: usize;
+    /// Whether the caller names each record (a leaf's id in the whole body), so that the ranks
+    /// must check that the names are the body's ids, each once; a lattice cell's name is where
+    /// it lies, and a cell given twice meets itself at its block's home.
+    const NAMED: bool;
     /// The cell errors and answers name.
     fn name(&self) -> CellId;
     /// Its corners' displacements, VTK order.
@@ -143,6 +147,7 @@ trait Record: Copy + std::fmt::Debug {
 
 impl Record for OwnedCell {
     const WORDS: usize = CELL_WORDS;
+    const NAMED: bool = false;
 
     fn name(&self) -> CellId {
         self.cell
@@ -186,6 +191,7 @@ impl Record for OwnedCell {
 
 impl Record for OwnedLeaf {
     const WORDS: usize = LEAF_WORDS;
+    const NAMED: bool = true;
 
     fn name(&self) -> CellId {
         self.id
@@ -639,6 +645,9 @@ impl DistributedBody {
         }
         if agreed[1] == 0 {
             return Err(Error::EmptyBody);
+        }
+        if R::NAMED {
+            check_names(comm, cells, &mut traffic)?;
         }
         let scan = scan.expect("agreed: no rank failed");
         let high_key: [u64; 3] = [agreed[2], agreed[3], agreed[4]];
@@ -1499,6 +1508,46 @@ fn gather_words<C: Communicator>(comm: &C, root: i32, words: &[u64]) -> Option<V
         process.gather_varcount_into(words);
         None
     }
+}
+
+/// Collective: whether the ranks' records are named 0, 1, …, n − 1 (n records in all), each
+/// name once, as the leaves of the whole body are. The count, the greatest name and the sums of
+/// the names' first three powers (wrapping) must be those of 0..n: a name out of range, every
+/// rank numbering its own leaves from 0, or a name given twice (and so another missing) changes
+/// them. Leaves named twice far apart never meet on one rank, where the local body would find
+/// them: their answers would name one id for two leaves.
+fn check_names<C: Communicator, R: Record>(
+    comm: &C,
+    records: &[R],
+    traffic: &mut Traffic,
+) -> Result<(), Error> {
+    let mut sums = [records.len() as u64, 0, 0, 0];
+    let mut greatest = 0u64;
+    for record in records {
+        let id = u64::from(record.name().0);
+        greatest = greatest.max(id);
+        let square = id.wrapping_mul(id);
+        sums[1] = sums[1].wrapping_add(id);
+        sums[2] = sums[2].wrapping_add(square);
+        sums[3] = sums[3].wrapping_add(square.wrapping_mul(id));
+    }
+    let sums = all_reduce(comm, &sums, SystemOperation::sum(), traffic);
+    let greatest = all_reduce(comm, &[greatest], SystemOperation::max(), traffic)[0];
+    let n = u128::from(sums[0]);
+    // Σ i, Σ i², Σ i³ over 0..n, exactly, then modulo 2^64 as the wrapping sums are.
+    let expected = [
+        n * n.saturating_sub(1) / 2,
+        n.saturating_sub(1) * n * (2 * n).saturating_sub(1) / 6,
+        (n * n.saturating_sub(1) / 2).pow(2),
+    ]
+    .map(|v| v as u64);
+    if greatest + 1 != sums[0] || sums[1..] != expected {
+        return Err(Error::LeafIds {
+            leaves: sums[0],
+            greatest,
+        });
+    }
+    Ok(())
 }
 
 /// The fingerprint of what every rank must pass a setup alike: the lattice and the config.

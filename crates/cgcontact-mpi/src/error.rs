@@ -72,6 +72,19 @@ pub enum Error {
         /// `Config::gap_distance` at setup.
         set_up: f64,
     },
+    /// The ranks' leaf ids are not 0, 1, …, n − 1 each once (n leaves in all): an id given
+    /// twice, out of range, or counted from 0 on each rank.
+    #[error(
+        "the ranks' {leaves} leaves do not have the ids 0 to {} each once (the greatest is \
+         {greatest}): each leaf's id is its place in the whole body",
+        leaves.saturating_sub(1)
+    )]
+    LeafIds {
+        /// The leaves on all ranks.
+        leaves: u64,
+        /// The greatest id given.
+        greatest: u64,
+    },
     /// The ranks were given different lattices or configs: a collective setup needs the same on
     /// every rank (else the ranks' maps of blocks differ, and their collectives with them).
     #[error(

@@ -926,6 +926,52 @@ fn adaptive_refusals_agree(world: &SimpleCommunicator) {
             ),
         ),
     }
+    // Leaf ids that are not the whole body's 0..n each once. Every rank numbering its own
+    // leaves from 0: before, refused only on the ranks where two such leaves met. And on a
+    // bar of 12 cells in blocks of 1, in runs of cells, the last rank's last leaf (cell 11)
+    // given the id of leaf 0 (cell 0, on rank 0): with more than one rank the two never meet on
+    // one rank (the halos reach 3 cells, and leaf 0 travels as an extreme but is not added
+    // where its id is), so before it set up and answered with one id for two leaves.
+    let local_ids: Vec<OwnedLeaf> = mine(None)
+        .into_iter()
+        .enumerate()
+        .map(|(at, leaf)| OwnedLeaf {
+            id: CellId(at as u32),
+            ..leaf
+        })
+        .collect();
+    let bar = Lattice::new(DVec3::ZERO, DVec3::ONE, [12, 1, 1]).expect("a lattice");
+    let mut twice: Vec<OwnedLeaf> = (0..12)
+        .filter(|c| c * size / 12 == rank)
+        .map(|c| owned(c, Leaf::new(0, [c as u32, 0, 0])))
+        .collect();
+    if rank == last {
+        twice.last_mut().expect("a leaf on every rank").id = CellId(0);
+    }
+    let block_1 = Config {
+        block: 1,
+        ..Config::default()
+    };
+    for (what, lattice, given, config, count, wrong) in [
+        (
+            "local ids",
+            lattice,
+            local_ids,
+            Config::default(),
+            leaves.len(),
+            size > 1,
+        ),
+        ("an id twice", bar, twice, block_1, 12, true),
+    ] {
+        match DistributedBody::new_adaptive(world, lattice, &given, config) {
+            Err(Error::LeafIds { leaves, .. }) if wrong && leaves == count as u64 => {}
+            Ok(_) if !wrong => {}
+            other => fail(
+                world,
+                &format!("{what}: rank {rank} got {:?}", other.map(|_| ())),
+            ),
+        }
+    }
     // Without the extra leaf, the body sets up on every rank.
     if let Err(e) = DistributedBody::new_adaptive(world, lattice, &mine(None), Config::default()) {
         fail(
