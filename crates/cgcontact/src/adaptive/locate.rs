@@ -767,50 +767,67 @@ impl AdaptiveLocator<'_> {
         }
     }
 
-    /// One batch of `V::W` points of [`AdaptiveLocator::relocate_chunk_lanes`].
+    /// One batch of `V::W` points of [`AdaptiveLocator::relocate_chunk_lanes`]: the admission,
+    /// the hinted leaves' spacings, local coordinates and tolerances in lanes, as the cold
+    /// batch's visit computes them (`lanes.rs`); only the hints and the corner nodes per lane.
     #[inline(always)]
     fn relocate_batch<V: Lanes>(&self, xs: &[DVec3], answers: &mut [Answer])
     where
         V::Node: LaneNodes,
     {
         let body = self.body;
+        let lattice = body.lattice();
+        let x = V::Wide::transpose(|l| &xs[l]);
+        // Lanes refused or out of reach, and lanes without a usable hint, go to `relocate`.
+        let (inside_tol, _, admitted) = self.admit.lanes(x);
         let mut take = 0u32;
-        let mut tol = [DVec3::ZERO; MAX_W];
         let mut cell = [CellId(0); MAX_W];
         // Lanes not taken read leaf 0's corners (there is one: a lane took a leaf), and are ignored.
         let mut rows = [[0u32; 8]; MAX_W];
-        let mut half = [DVec3::ZERO; MAX_W];
-        let mut x_local = [DVec3::ZERO; MAX_W];
+        let mut leaves = [Leaf::new(0, [0; 3]); MAX_W];
         let mut xi0 = [DVec3::ZERO; MAX_W];
         for l in 0..V::W {
-            // Lanes refused or out of reach, and lanes without a usable hint, go to `relocate`.
-            let Ok(Some(inside_tol)) = self.admit.admit(xs[l]) else {
+            if admitted & (1 << l) == 0 {
                 continue;
-            };
+            }
             let Ok(Some(hint)) = &answers[l] else {
                 continue;
             };
             let Some(leaf) = body.leaves.get(hint.cell.index()) else {
                 continue;
             };
-            tol[l] = self.leaf_tol(inside_tol, leaf.level);
             cell[l] = hint.cell;
             rows[l] = body.leaf_nodes(hint.cell.index() as u32, leaf);
-            half[l] = body.spacing(leaf.level) * 0.5;
-            x_local[l] = self.local_lanes::<V::Node>(xs[l], leaf);
+            leaves[l] = leaf;
             xi0[l] = warm_start(hint.xi);
             take |= 1 << l;
         }
         let mut found = 0;
         if take != 0 {
+            let splat = V3::<V::Wide>::splat;
+            let level = |l: usize| leaves[l].level;
+            let (scale, size) = (
+                V::Wide::from_fn(|l| level_scale(level(l))),
+                V::Wide::from_fn(|l| level_size(level(l))),
+            );
+            let index = |a: usize| V::Wide::from_fn(|l| f64::from(leaves[l].ijk[a]));
+            let ijk = V3 {
+                x: index(0),
+                y: index(1),
+                z: index(2),
+            };
+            // `visit`'s: the leaf's spacing h · 2^−level, its lowest corner, and its tolerance.
+            let spacing = splat(lattice.h()).scale(size);
             let nodes = V::Node::of(self);
             let mut maps = Maps::<V>::from_nodes(|l, c| &nodes[rows[l][c] as usize]);
-            maps.add_lattice_lanes(lanes3::<V>(|l| half[l]));
-            let inside = V3::<V>::splat(DVec3::ONE) + lanes3::<V>(|l| tol[l]);
+            maps.add_lattice_lanes(V3::narrow(spacing.scale(V::Wide::splat(0.5))));
+            let x_local = self.point_lanes::<V>(x) - (splat(lattice.origin()) + spacing * ijk);
+            let ratio = scale * V::Wide::splat(level_size(body.finest));
+            let inside_tol = self.admit.inside_tol.for_cells(inside_tol, ratio);
             let inverted = maps.invert(
-                lanes3::<V>(|l| x_local[l]),
+                V3::narrow(x_local),
                 lanes3::<V>(|l| xi0[l]),
-                inside,
+                V3::<V>::splat(DVec3::ONE) + V3::narrow(inside_tol),
                 V::mask_from_bits(take),
                 &self.newton,
             );
@@ -1161,6 +1178,49 @@ mod tests {
                 one += usize::from(matches!(answer, Ok(Some(hit)) if hit.inversions == 1));
             }
             assert!(one > 100, "{one}");
+        }
+    }
+
+    /// Points just beyond a face of their hinted leaf, by 1e-15 to 1e-4 in ξ: each leaf's
+    /// inside tolerance shrinks with its level, so the lanes must give each lane its own leaf's
+    /// tolerance to accept and refuse exactly the points the scalar `relocate` does.
+    #[test]
+    fn warm_lanes_take_each_leafs_own_tolerance() {
+        let (body, _) = scene();
+        let mut points = Vec::new();
+        let mut hints = Vec::new();
+        for leaf in 0..body.cell_count() as u32 {
+            for e in 0..=44 {
+                let over = 1e-15 * 10f64.powf(f64::from(e) / 4.0);
+                let xi = DVec3::new(1.0 + over, 0.3, -0.2);
+                points.push(body.point_at(CellId(leaf), xi).unwrap());
+                hints.push(Hit::hint(CellId(leaf), DVec3::new(1.0, 0.3, -0.2)));
+            }
+        }
+        for settings in [Settings::default(), Settings::f32()] {
+            let locator = AdaptiveLocator::new(&body, settings).unwrap();
+            let mut kept = 0;
+            let mut out = hints.clone();
+            locator.relocate_chunk(&points, &mut out);
+            let mut lanes = hints.clone();
+            match settings.precision {
+                Precision::F64 => locator.relocate_chunk_lanes::<f64>(&points, &mut lanes),
+                Precision::F32 => locator.relocate_chunk_lanes::<glam::Vec4>(&points, &mut lanes),
+            }
+            for (((&x, hint), a), b) in points.iter().zip(&hints).zip(&out).zip(&lanes) {
+                let scalar = locator.relocate(x, hint);
+                assert_eq!(bits(a), bits(&scalar), "dispatched, at {x}");
+                assert_eq!(bits(b), bits(&scalar), "portable lanes, at {x}");
+                kept += usize::from(
+                    matches!((a, hint), (Ok(Some(a)), Ok(Some(h))) if a.cell == h.cell),
+                );
+            }
+            // Some points stay in their hinted leaf (within its tolerance), some do not.
+            assert!(
+                kept > 0 && kept < points.len(),
+                "{kept} of {}",
+                points.len()
+            );
         }
     }
 
