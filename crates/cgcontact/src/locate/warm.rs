@@ -184,32 +184,48 @@ impl LatticeLocator<'_> {
     }
 
     /// The first half of a warm batch: which lanes have a usable hint (and are admitted), and
-    /// their hinted cells' displacement maps.
+    /// their hinted cells' displacement maps. The admission and the local coordinates in lanes, as
+    /// the cold batch computes them; only the hints per lane.
     #[inline(always)]
     fn warm_front<V: Lanes>(&self, xs: &[DVec3], hints: &[Answer], front: &mut WarmFront<V>)
     where
         V::Node: Nodes,
     {
         let lattice = self.body.lattice();
+        let x = V::Wide::transpose(|l| &xs[l]);
+        // Lanes refused or out of reach, and lanes without a usable hint, go to `relocate`.
+        let (inside_tol, _, admitted) = self.admit.lanes(x);
         let mut base = [0usize; MAX_W];
+        let mut ijk = [[0u32; 3]; MAX_W];
         front.take = 0;
         for l in 0..V::W {
-            // Lanes refused or out of reach, and lanes without a usable hint, go to `relocate`.
-            let Ok(Some(inside_tol)) = self.admit.admit(xs[l]) else {
+            if admitted & (1 << l) == 0 {
                 continue;
-            };
+            }
             let Some(hint) = self.hint(&hints[l]) else {
                 continue;
             };
-            front.tol[l] = inside_tol;
             front.cell[l] = hint.cell;
-            front.x_local[l] = self.frame.point_if(V::Node::SHIFTED, xs[l])
-                - self.body.lattice().node_position(hint.ijk);
             front.xi0[l] = hint.xi0;
+            ijk[l] = hint.ijk;
             base[l] = lattice.node_index(hint.ijk);
             front.take |= 1 << l;
         }
         if front.take != 0 {
+            let splat = V3::<V::Wide>::splat;
+            let index = |a: usize| V::Wide::from_fn(|l| f64::from(ijk[l][a]));
+            let cell = V3 {
+                x: index(0),
+                y: index(1),
+                z: index(2),
+            };
+            let x = if V::Node::SHIFTED {
+                x - splat(self.frame.shift())
+            } else {
+                x
+            };
+            front.x_local = x - (splat(lattice.origin()) + cell.mul_each(lattice.h()));
+            front.inside_tol = inside_tol;
             // The corners of each lane's hinted cell (active: every corner has a displacement;
             // lanes not taken read the lattice's first cell, and are ignored).
             let nodes = V::Node::of(self);
@@ -230,15 +246,15 @@ impl LatticeLocator<'_> {
         if take != 0 {
             let mut maps = front.maps;
             maps.add_lattice(self.body.lattice().h());
-            let lanes3 = |v: &[DVec3; MAX_W]| V3::<V> {
-                x: V::from_fn(|l| V::S::of(v[l].x)),
-                y: V::from_fn(|l| V::S::of(v[l].y)),
-                z: V::from_fn(|l| V::S::of(v[l].z)),
+            let xi0 = V3::<V> {
+                x: V::from_fn(|l| V::S::of(front.xi0[l].x)),
+                y: V::from_fn(|l| V::S::of(front.xi0[l].y)),
+                z: V::from_fn(|l| V::S::of(front.xi0[l].z)),
             };
-            let inside = V3::<V>::splat(DVec3::ONE) + lanes3(&front.tol);
+            let inside = V3::<V>::splat(DVec3::ONE) + V3::narrow(front.inside_tol);
             let inverted = maps.invert(
-                lanes3(&front.x_local),
-                lanes3(&front.xi0),
+                V3::narrow(front.x_local),
+                xi0,
                 inside,
                 V::mask_from_bits(take),
                 &self.newton,
@@ -254,13 +270,14 @@ impl LatticeLocator<'_> {
 }
 
 /// The first half of a warm batch of W points ([`LatticeLocator::relocate_chunk_with`]): per lane
-/// its inside tolerance, hinted cell, position in that cell's local frame and starting ξ (valid
-/// in the lanes `take` has), and the hinted cells' displacement maps.
+/// its hinted cell and starting ξ, and in lanes the inside tolerances and the points in their
+/// hinted cells' local frames (valid in the lanes `take` has), and the hinted cells'
+/// displacement maps.
 struct WarmFront<V: Lanes> {
     take: u32,
-    tol: [DVec3; MAX_W],
+    inside_tol: V3<V::Wide>,
     cell: [CellId; MAX_W],
-    x_local: [DVec3; MAX_W],
+    x_local: V3<V::Wide>,
     xi0: [DVec3; MAX_W],
     maps: Maps<V>,
 }
@@ -268,11 +285,12 @@ struct WarmFront<V: Lanes> {
 impl<V: Lanes> WarmFront<V> {
     #[inline(always)]
     fn new() -> Self {
+        let zero = V3::splat(DVec3::ZERO);
         Self {
             take: 0,
-            tol: [DVec3::ZERO; MAX_W],
+            inside_tol: zero,
             cell: [CellId(0); MAX_W],
-            x_local: [DVec3::ZERO; MAX_W],
+            x_local: zero,
             xi0: [DVec3::ZERO; MAX_W],
             maps: Maps {
                 a: [V3::splat(DVec3::ZERO); 8],
