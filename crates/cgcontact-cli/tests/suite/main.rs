@@ -5,3 +5,4 @@ mod bad_input;
 mod end_to_end;
 mod output_safety;
 mod tradeoff_quick;
+mod vtk_written_adaptive;

@@ -1,0 +1,133 @@
+//! `cgcontact locate --all-owners` on adaptive meshes written by VTK 9.7.2
+//! (fixtures/vtk-written-adaptive, made by its make.py, which computed every owner of each point
+//! and its ξ): the rows name the file's cells, every owner of a point on a shared node, edge or
+//! face, and a hanging node's coarse cell among them.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use cgcontact_io::read_results;
+
+fn folder() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/vtk-written-adaptive")
+}
+
+/// Per point: (x, y, z) as written, and its owners (file cell, ξ).
+type Row = (String, Vec<(usize, [f64; 3])>);
+
+/// Rows of a results file by point: (cell, ξ) of each owner.
+type Found = BTreeMap<usize, Vec<(usize, [f64; 3])>>;
+
+fn expected(scene: &str) -> Vec<Row> {
+    std::fs::read_to_string(folder().join(format!("{scene}.expected.csv")))
+        .unwrap()
+        .lines()
+        .skip(2)
+        .map(|line| {
+            let f: Vec<&str> = line.split(',').collect();
+            let owners = f[3]
+                .split('|')
+                .filter(|e| !e.is_empty())
+                .map(|e| {
+                    let v: Vec<f64> = e.split(' ').map(|v| v.parse().unwrap()).collect();
+                    (v[0] as usize, [v[1], v[2], v[3]])
+                })
+                .collect();
+            (f[..3].join(","), owners)
+        })
+        .collect()
+}
+
+/// Runs `locate --all-owners` with `flags` on `mesh`; the exit status, stderr and rows by point.
+fn locate(mesh: &str, rows: &[Row], flags: &[&str]) -> (std::process::Output, Found) {
+    let dir = tempfile::tempdir().unwrap();
+    let points = dir.path().join("points.csv");
+    let text: String = rows.iter().map(|(x, _)| format!("{x}\n")).collect();
+    std::fs::write(&points, format!("x,y,z\n{text}")).unwrap();
+    let out = dir.path().join("owners.csv");
+    let mut args = vec![
+        "locate".to_string(),
+        "--mesh".into(),
+        folder().join(mesh).to_str().unwrap().into(),
+        "--points".into(),
+        points.to_str().unwrap().into(),
+        "--out".into(),
+        out.to_str().unwrap().into(),
+        "--all-owners".into(),
+    ];
+    args.extend(flags.iter().map(|f| f.to_string()));
+    let run = Command::new(env!("CARGO_BIN_EXE_cgcontact"))
+        .args(&args)
+        .output()
+        .unwrap();
+    let mut found = Found::new();
+    if run.status.success() {
+        for row in read_results(&out).unwrap() {
+            let entry = found.entry(row.point).or_default();
+            if let Some(cell) = row.cell {
+                entry.push((cell, row.xi.to_array()));
+            }
+        }
+    }
+    (run, found)
+}
+
+#[test]
+fn every_owner_of_every_point_in_the_files_numbering() {
+    for (scene, mesh) in [
+        ("jumps", "jumps.appended-zlib.vtu"),
+        ("balanced", "balanced.legacy-binary.vtk"),
+        ("all-refined", "all-refined.appended.vtu"),
+    ] {
+        let rows = expected(scene);
+        for threads in ["1", "3"] {
+            let (run, found) = locate(mesh, &rows, &["--threads", threads, "--strict"]);
+            assert!(
+                run.status.success() && run.stderr.is_empty(),
+                "{mesh}: {}",
+                String::from_utf8_lossy(&run.stderr)
+            );
+            assert_eq!(found.len(), rows.len(), "{mesh}");
+            for (p, (x, owners)) in rows.iter().enumerate() {
+                let got = &found[&p];
+                let cells: Vec<usize> = got.iter().map(|g| g.0).collect();
+                let want: Vec<usize> = owners.iter().map(|o| o.0).collect();
+                assert_eq!(cells, want, "{mesh}: point {p} at {x}");
+                let magnitude = x
+                    .split(',')
+                    .map(|v| v.parse::<f64>().unwrap().abs())
+                    .fold(0.0, f64::max);
+                for ((_, xi), (_, known)) in got.iter().zip(owners) {
+                    // The rounding of the point's coordinates, in ξ of a finest cell at most.
+                    let bound = 1e-10 + 64.0 * f64::EPSILON * magnitude / 0.0625;
+                    assert!(
+                        (0..3).all(|a| (xi[a] - known[a]).abs() <= bound),
+                        "{mesh}: point {p}: {xi:?} vs {known:?}"
+                    );
+                }
+            }
+        }
+    }
+}
+
+/// Spacings 1 : 1e-3 : 0.1 as VTK's legacy ASCII writer rounds them (11 digits): `--strict`
+/// accepts the file (its hanging nodes are within 1e-9 of a cell along each axis), where the
+/// check with the shortest axis's tolerance everywhere had refused it.
+#[test]
+fn regression_strict_accepts_an_anisotropic_legacy_ascii_mesh() {
+    let rows = expected("aniso-1e3");
+    let (run, found) = locate("aniso-1e3.legacy-ascii.vtk", &rows, &["--strict"]);
+    assert!(
+        run.status.success() && run.stderr.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    // Points inside one cell are found there, whatever the rounding of the file.
+    for (p, (x, owners)) in rows.iter().enumerate() {
+        if owners.len() == 1 && owners[0].1.iter().all(|v| v.abs() < 1.0) {
+            let cells: Vec<usize> = found[&p].iter().map(|g| g.0).collect();
+            assert_eq!(cells, [owners[0].0], "point {p} at {x}");
+        }
+    }
+}
