@@ -6,7 +6,9 @@ The Rust side is `cgcontact locate --repeat R --json`: the library's `locate_all
 caches into a reused buffer, the fastest of R. The Python side is `Locator.locate` on the same
 points (a C-contiguous float64 array, read in place), the fastest of R: its time includes the
 strategy's setup at each query and the answers' conversion to arrays; it is measured with fresh
-result arrays, and with `out=` arrays reused as the Rust side reuses its buffer.
+result arrays, and with `out=` arrays reused as the Rust side reuses its buffer. Last, the warm
+start of a settled solver loop: `Locator.relocate` from the previous answers in `out=`, against
+`locate` into the same arrays.
 """
 
 import argparse
@@ -58,6 +60,7 @@ def main():
 
     python, python_median = timed(lambda: locator.locate(points))
     reused, reused_median = timed(lambda: locator.locate(points, out=out))
+    warm, warm_median = timed(lambda: locator.relocate(points, out=out))
     cell = out[0]
     assert (cell >= 0).sum() == rust["located"], "Python and the CLI disagree"
     rust_rate = rust["points"] / rust["query_seconds_min"]
@@ -69,6 +72,9 @@ def main():
     reused_rate = len(points) / reused
     print(f"python, out= reused:  {reused * 1e3:.1f} ms, {reused_rate:.3e} points/s, "
           f"{reused_rate / rust_rate:.3f} x rust (median {reused_median * 1e3:.1f} ms)")
+    warm_rate = len(points) / warm
+    print(f"python, relocate:     {warm * 1e3:.1f} ms, {warm_rate:.3e} points/s, "
+          f"{warm_rate / reused_rate:.3f} x locate with out= (median {warm_median * 1e3:.1f} ms)")
 
 
 if __name__ == "__main__":
