@@ -47,23 +47,15 @@ fn read_mesh(
             Ok::<_, cgcontact_io::IoError>((mesh, found))
         })
         .map_err(value_error)?;
-    if let MeshBody::Adaptive(adaptive) = &found {
-        let report = adaptive.constraints;
-        if let (false, Some((node, by))) = (report.holds(), report.worst) {
-            let position = adaptive.body.node_position(node).unwrap_or_default();
-            let message = format!(
-                "{}: {} of {} hanging nodes break their constraint by more than {:.1e}; the worst, at {position}, by {by:.3e}: the deformed mesh gaps or overlaps there",
-                path.display(),
-                report.violating,
-                report.hanging,
-                adaptive.constraint_tolerance,
-            );
-            if strict {
-                return Err(PyValueError::new_err(message));
-            }
-            let message = CString::new(message).unwrap_or_default();
-            PyErr::warn(py, &py.get_type::<PyUserWarning>(), &message, 1)?;
+    // The command line's message and per-axis tolerance, word for word.
+    if let MeshBody::Adaptive(adaptive) = &found
+        && let Some(message) = adaptive.constraint_problem(&path)
+    {
+        if strict {
+            return Err(PyValueError::new_err(message));
         }
+        let message = CString::new(message).unwrap_or_default();
+        PyErr::warn(py, &py.get_type::<PyUserWarning>(), &message, 1)?;
     }
     Ok(PyBody::from_mesh(&mesh, found))
 }

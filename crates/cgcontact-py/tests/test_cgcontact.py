@@ -10,6 +10,7 @@ import os
 import pathlib
 import subprocess
 import threading
+import warnings
 
 import numpy as np
 import pytest
@@ -677,3 +678,61 @@ def test_relocate_refuses_hints_that_are_no_cell():
     with pytest.raises(ValueError, match="row 1 \\(0-based\\) is not finite"):
         locator.relocate(np.vstack([points[:1], [np.nan, 0, 0]]),
                          out=(np.full(2, -1, dtype=np.int64), np.zeros((2, 3))))
+
+
+# Hanging nodes off their constraint: the command line's message, warning or error.
+
+
+def coarse_beside_refined():
+    """A unit cell at x in [0, 1] beside one split in 8: nodes, hexes, and the 5 hanging nodes."""
+    fine = [(x, y, z) for z in (0, 0.5, 1) for y in (0, 0.5, 1) for x in (1, 1.5, 2)]
+    nodes = np.array([(0.0, y, z) for z in (0, 1) for y in (0, 1)] + fine, dtype=float)
+    index = {tuple(p): i for i, p in enumerate(nodes.tolist())}
+    corners = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (0, 0, 1), (1, 0, 1), (1, 1, 1), (0, 1, 1)]
+    hexes = [[index[(float(a), float(b), float(c))] for a, b, c in corners]]
+    for k in range(2):
+        for j in range(2):
+            for i in range(2):
+                low = (1 + 0.5 * i, 0.5 * j, 0.5 * k)
+                hexes.append([index[(low[0] + 0.5 * a, low[1] + 0.5 * b, low[2] + 0.5 * c)]
+                              for a, b, c in corners])
+    hanging = [index[p] for p in [(1.0, 0.5, 0.0), (1.0, 0.0, 0.5), (1.0, 0.5, 0.5),
+                                  (1.0, 1.0, 0.5), (1.0, 0.5, 1.0)]]
+    return nodes, np.array(hexes), hanging
+
+
+def test_a_hanging_node_off_its_constraint_is_warned_or_refused_as_the_cli_does(cli, tmp_path):
+    nodes, hexes, hanging = coarse_beside_refined()
+    u = np.zeros_like(nodes)
+    u[hanging[2], 0] = 0.01  # the face centre leaves the coarse face
+    mesh = tmp_path / "mesh.vtk"
+    write_vtk(mesh, nodes, hexes, u)
+    np.savetxt(tmp_path / "points.csv", nodes[:1], delimiter=",", header="x,y,z", comments="")
+    cli_run = subprocess.run([cli, "locate", "--mesh", str(mesh), "--points",
+                              str(tmp_path / "points.csv"), "--out", str(tmp_path / "out.csv")],
+                             capture_output=True, text=True)
+    assert cli_run.returncode == 0
+    with pytest.warns(UserWarning) as caught:
+        body = cgcontact.read_mesh(mesh)
+    message = str(caught[0].message)
+    assert "1 of 5 hanging nodes break their constraint" in message and "by 1.000e-2" in message
+    assert message in cli_run.stderr, (message, cli_run.stderr)
+    assert body.cell_count == 9
+    with pytest.raises(ValueError, match="1 of 5 hanging nodes break their constraint"):
+        cgcontact.read_mesh(mesh, strict=True)
+    # On the constraint (the mean of the face's corners): read without a word, strict or not.
+    u[hanging[2], 0] = 0.0
+    write_vtk(mesh, nodes, hexes, u)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        cgcontact.read_mesh(mesh, strict=True)
+
+
+def test_an_anisotropic_mesh_vtk_wrote_reads_strictly():
+    """Cells of 1 : 1e-3 : 0.1 written by VTK's legacy ASCII writer (11 digits): each axis's
+    constraint is checked against its own spacing, so the rounding is not a broken node."""
+    path = ROOT / "fixtures" / "vtk-written-adaptive" / "aniso-1e3.legacy-ascii.vtk"
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        body = cgcontact.read_mesh(path, strict=True)
+    assert body.cell_count > 0
