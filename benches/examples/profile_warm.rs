@@ -3,7 +3,7 @@
 //! every piece is located again cold (`locate`) or warm from its hints (`relocate`), on one
 //! thread.
 //!
-//! Run: `cargo run --release -p cgcontact-benches --example profile_warm [block|adaptive-block|sphere|sphere-adaptive] [locate|relocate]`
+//! Run: `cargo run --release -p cgcontact-benches --example profile_warm [block|adaptive-block|sphere|sphere-adaptive|gaps] [locate|relocate|gap|regap]`
 //! (`block`: the seed's fine block and 100,000 known points; `adaptive-block`: the `adaptive`
 //! bench's block refined twice, 100,000 known points; `sphere`, `sphere-adaptive`: the seed's
 //! scenes, uniform or refined, with 100,000 random points over the box of their contact and
@@ -12,6 +12,10 @@
 //! `valgrind --tool=callgrind --toggle-collect='cgcontact::schedule::Scheduler::run*'
 //! target/release/examples/profile_warm adaptive-block relocate`, less the same without
 //! `relocate`.
+//!
+//! `gaps [gap|regap]`: the seed's 6,700 sphere points on its fine block, their gaps within h
+//! measured cold (`gap_all_into`) or warm from the faces of a first pass (`regap_all`), ten
+//! times over, in the same pieces.
 
 use cgcontact::glam::DVec3;
 use cgcontact::{AdaptiveLocator, LatticeLocator, Locator, Settings};
@@ -64,8 +68,38 @@ fn run(locator: &dyn Locator, points: &[DVec3], mode: Option<&str>) {
 fn main() -> Result<(), cgcontact::Error> {
     let args: Vec<String> = std::env::args().collect();
     let has = |flag: &str| args.iter().any(|a| a == flag);
-    let mode = ["locate", "relocate"].into_iter().find(|m| has(m));
+    let mode = ["locate", "relocate", "gap", "regap"]
+        .into_iter()
+        .find(|m| has(m));
     let settings = Settings::default();
+    if has("gaps") {
+        let scene = SphereOnBlock::fine().build("sphere")?;
+        let locator = LatticeLocator::new(&scene.body, settings)?;
+        let finder = cgcontact::GapFinder::new(&locator, scene.body.lattice().h().z)?;
+        let points = &scene.contact_points;
+        let one = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .expect("pool");
+        let mut hints = Vec::new();
+        one.install(|| finder.gap_all_into(points, &mut hints));
+        let found = hints.iter().filter(|a| matches!(a, Ok(Some(_)))).count();
+        println!("{found} of {} points within the distance", points.len());
+        let mut out = Vec::with_capacity(PIECE);
+        for _ in 0..10 {
+            for (piece, hints) in points.chunks(PIECE).zip(hints.chunks(PIECE)) {
+                out.clear();
+                out.extend_from_slice(hints);
+                let piece = std::hint::black_box(piece);
+                match mode {
+                    Some("gap") => one.install(|| finder.gap_all_into(piece, &mut out)),
+                    Some("regap") => one.install(|| finder.regap_all(piece, &mut out)),
+                    _ => {}
+                }
+            }
+        }
+        return Ok(());
+    }
     if has("adaptive-block") {
         let scene = adaptive_block([20, 40, 20], DVec3::splat(0.25), 2, 1.5, POINTS, 7)?;
         let points: Vec<DVec3> = scene.known.iter().map(|k| k.x).collect();
