@@ -1002,6 +1002,15 @@ mod tests {
                 points.push(body.point_at(CellId(cell), xi).unwrap());
             }
         }
+        // Just beyond a face of each leaf, by 1e-15 to 1e-4 in ξ: each leaf's inside tolerance
+        // shrinks with its level, so a path must give each point its own leaf's tolerance.
+        for cell in 0..body.cell_count() as u32 {
+            for e in (0..=44).step_by(2) {
+                let over = 1e-15 * 10f64.powf(f64::from(e) / 4.0);
+                let xi = DVec3::new(1.0 + over, 0.3, -0.2);
+                points.push(body.point_at(CellId(cell), xi).unwrap());
+            }
+        }
         let (low, high) = (lattice.origin() - 0.3, lattice.upper() + 0.3);
         for _ in 0..200 {
             points.push(low + (high - low) * DVec3::new(next(), next(), next()));
