@@ -6,7 +6,7 @@ use std::sync::{Arc, PoisonError, RwLock, RwLockReadGuard, RwLockWriteGuard};
 use cgcontact::glam::DVec3;
 use cgcontact::{AdaptiveBody, Body, CellId, Lattice};
 use cgcontact_baseline::BodyRef;
-use cgcontact_io::{CellMap, HexMesh, LATTICE_TOLERANCE, MeshBody};
+use cgcontact_io::{CellMap, CellNumbering, HexMesh, LATTICE_TOLERANCE, MeshBody};
 
 use crate::error::{CgcError, Failure, guard};
 use crate::raw;
@@ -113,9 +113,8 @@ impl Hanging {
 #[derive(Debug)]
 pub(crate) struct BodyState {
     pub body: AnyBody,
-    /// The mesh's cell numbering, for bodies given as nodes and cells; `None` for lattice bodies,
-    /// whose cells are numbered as the lattice's.
-    cells: Option<CellMap>,
+    /// How the caller numbers the cells: the mesh's input order, or the lattice's cell ids.
+    pub cells: CellNumbering,
     /// Number of displacement entries the caller passes (lattice nodes, or input nodes).
     source_count: usize,
     /// For each of the body's displacement slots, the caller's node that gives it; `None` when slot
@@ -142,41 +141,10 @@ impl BodyState {
             source_of_slot,
             duplicates: Vec::new(),
             hanging: Hanging::default(),
-            cells: None,
+            cells: CellNumbering::Lattice {
+                cells: lattice.cell_count(),
+            },
             body: AnyBody::Uniform(body),
-        }
-    }
-
-    /// The caller's cell number of the body's cell `cell` (−1 if the caller has no such cell,
-    /// which a locator never returns).
-    #[inline]
-    pub fn cell_number(&self, cell: CellId) -> i64 {
-        match &self.cells {
-            None => i64::from(cell.0),
-            Some(map) => map.input_cell(cell).map_or(-1, |c| c as i64),
-        }
-    }
-
-    /// The body's cell of the caller's cell number `number`, as a warm start's hint: `Ok(None)`
-    /// for −1 (no previous cell), `Err(())` for a number no cell has.
-    pub fn hint_cell(&self, number: i64) -> Result<Option<CellId>, ()> {
-        if number == -1 {
-            return Ok(None);
-        }
-        let index = usize::try_from(number).map_err(|_| ())?;
-        match &self.cells {
-            Some(map) => map.lattice_cell(index).map(Some).ok_or(()),
-            None => (index < self.body.lattice().cell_count())
-                .then_some(Some(CellId(index as u32)))
-                .ok_or(()),
-        }
-    }
-
-    /// The number of cells the caller numbers (`hint_cell` takes 0 up to it).
-    pub fn cell_numbers(&self) -> usize {
-        match &self.cells {
-            Some(map) => map.len(),
-            None => self.body.lattice().cell_count(),
         }
     }
 
@@ -184,13 +152,8 @@ impl BodyState {
     /// corner (inverted or degenerate), ascending: one pass over every cell.
     fn inverted_cells(&self) -> Vec<i64> {
         let found = self.body.as_ref().inverted_cells();
-        // A mesh body's input order is not the lattice's: sort in the caller's numbering.
-        let mut cells: Vec<i64> = found
-            .iter()
-            .map(|&(cell, _)| self.cell_number(cell))
-            .collect();
-        cells.sort_unstable();
-        cells
+        self.cells
+            .sorted_numbers(found.iter().map(|&(cell, _)| cell))
     }
 
     /// The caller's node that gives slot `slot`.
@@ -557,7 +520,7 @@ fn uniform_state(mesh: &HexMesh, body: Body, cells: CellMap) -> BodyState {
         source_of_slot: Some(source_of_slot),
         duplicates,
         hanging: Hanging::default(),
-        cells: Some(cells),
+        cells: CellNumbering::Mesh(cells),
         body: AnyBody::Uniform(body),
     }
 }
@@ -581,7 +544,7 @@ fn adaptive_state(mesh: &HexMesh, body: AdaptiveBody, cells: CellMap) -> BodySta
         source_of_slot: Some(source_of_slot),
         duplicates,
         hanging: Hanging::of(&body),
-        cells: Some(cells),
+        cells: CellNumbering::Mesh(cells),
         body: AnyBody::Adaptive(body),
     }
 }

@@ -30,7 +30,7 @@ impl Out<'_> {
                 contact.gap,
                 contact.point,
                 contact.normal,
-                state.cell_number(contact.face.cell),
+                state.cells.number(contact.face.cell),
                 i32::from(contact.face.local),
             ),
             Ok(None) | Err(_) => (f64::NAN, DVec3::NAN, DVec3::NAN, -1, -1),
@@ -214,15 +214,6 @@ pub unsafe extern "C" fn cgc_gap(
                 }
             })
         })?;
-        match first_bad {
-            usize::MAX => Ok(()),
-            i => Err(Failure::new(
-                CgcError::NonFinitePoint,
-                format!(
-                    "point {i} (0-based) has a NaN or infinite coordinate: {}",
-                    points[i]
-                ),
-            )),
-        }
+        crate::locate::first_non_finite(points, first_bad)
     })
 }

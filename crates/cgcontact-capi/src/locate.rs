@@ -5,7 +5,7 @@ use std::sync::{Arc, RwLock};
 use std::time::Instant;
 
 use cgcontact::glam::DVec3;
-use cgcontact::{AdaptiveLocator, Answer, Hit, LatticeLocator, Locator, Precision, Settings};
+use cgcontact::{AdaptiveLocator, Answer, LatticeLocator, Locator, Precision, Settings};
 use cgcontact_baseline::BruteForce;
 use rayon::prelude::*;
 
@@ -314,14 +314,14 @@ unsafe fn locate(
     };
     let first_bad = AtomicUsize::new(usize::MAX);
     locator.with(|search, state| {
-        if warm && let Some(i) = cells.iter().position(|&c| state.hint_cell(c).is_err()) {
+        if warm && let Some(i) = cells.iter().position(|&c| state.cells.cell(c).is_err()) {
             return Err(Failure::new(
                 CgcError::InvalidArgument,
                 format!(
                     "cells[{i}] = {} is not a previous answer: the cells are numbered 0 to {} \
                      (-1 for none)",
                     cells[i],
-                    state.cell_numbers() as i64 - 1
+                    state.cells.len() as i64 - 1
                 ),
             ));
         }
@@ -332,20 +332,14 @@ unsafe fn locate(
                      mut status: Option<&mut [u8]>,
                      answers: &mut Vec<Answer>| {
             if warm {
-                answers.clear();
-                answers.extend(cells.iter().zip(xi.chunks_exact(3)).map(|(&c, x)| {
-                    match state.hint_cell(c) {
-                        Ok(Some(cell)) => Hit::hint(cell, DVec3::from_slice(x)),
-                        _ => Ok(None),
-                    }
-                }));
+                state.cells.previous_answers(cells, xi, answers);
                 search.relocate_all(points, answers);
             } else {
                 search.locate_all_into(points, answers);
             }
             for (i, answer) in answers.iter().enumerate() {
                 let (cell, local, code) = match answer {
-                    Ok(Some(hit)) => (state.cell_number(hit.cell), hit.xi, CGC_POINT_INSIDE),
+                    Ok(Some(hit)) => (state.cells.number(hit.cell), hit.xi, CGC_POINT_INSIDE),
                     Ok(None) => (-1, DVec3::NAN, CGC_POINT_OUTSIDE),
                     Err(_) => {
                         first_bad.fetch_min(start + i, Ordering::Relaxed);
@@ -376,7 +370,13 @@ unsafe fn locate(
         }
         Ok(())
     })??;
-    match first_bad.into_inner() {
+    first_non_finite(points, first_bad.into_inner())
+}
+
+/// `CGC_ERROR_NON_FINITE_POINT` naming point `first` (0-based), the first a query refused, or
+/// success when it refused none (`usize::MAX`).
+pub(crate) fn first_non_finite(points: &[DVec3], first: usize) -> Result<(), Failure> {
+    match first {
         usize::MAX => Ok(()),
         i => Err(Failure::new(
             CgcError::NonFinitePoint,

@@ -64,7 +64,7 @@ pub use csv_io::{
 };
 pub use error::{ErrorKind, IoError};
 pub use input::{DEFAULT_MAX_INPUT_BYTES, MAX_INPUT_BYTES_VAR, max_input_bytes};
-pub use mesh::{CellMap, HexMesh, LATTICE_TOLERANCE, LatticeMesh};
+pub use mesh::{CellMap, CellNumbering, HexMesh, LATTICE_TOLERANCE, LatticeMesh};
 pub use vtk_read::{
     DEFAULT_DISPLACEMENT, DisplacementArray, parse_hex_mesh, read_body, read_hex_mesh, read_mesh,
 };

@@ -2,7 +2,7 @@
 //! [`Body`] while keeping the map between the input's cell order and lattice cells.
 
 use bitvec::vec::BitVec;
-use cgcontact::{Body, CORNER_OFFSETS, CellId, Lattice};
+use cgcontact::{Answer, Body, CORNER_OFFSETS, CellId, Hit, Lattice};
 use glam::DVec3;
 
 use crate::ErrorKind;
@@ -186,6 +186,89 @@ impl CellMap {
     #[must_use]
     pub fn is_empty(&self) -> bool {
         self.lattice_of_input.is_empty()
+    }
+}
+
+/// A body's cells as a caller outside Rust numbers them: the input mesh's order, or, for a body
+/// built on a lattice, the lattice's own cell ids. The C and Python bindings write answers in it
+/// and read a warm start's previous cells from it.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum CellNumbering {
+    /// Lattice cell ids, 0 up to `cells`.
+    Lattice {
+        /// The lattice's cell count.
+        cells: usize,
+    },
+    /// The input mesh's cell order.
+    Mesh(CellMap),
+}
+
+impl CellNumbering {
+    /// The caller's number of the body's cell `cell` (−1 if the caller has no such cell, which a
+    /// locator never returns).
+    #[inline]
+    #[must_use]
+    pub fn number(&self, cell: CellId) -> i64 {
+        match self {
+            Self::Lattice { .. } => i64::from(cell.0),
+            Self::Mesh(map) => map.input_cell(cell).map_or(-1, |c| c as i64),
+        }
+    }
+
+    /// The body's cell of the caller's `number`, as a warm start's previous answer: `Ok(None)`
+    /// for −1 (none), `Err(())` for a number no cell has.
+    #[inline]
+    #[allow(clippy::result_unit_err)]
+    pub fn cell(&self, number: i64) -> Result<Option<CellId>, ()> {
+        if number == -1 {
+            return Ok(None);
+        }
+        let index = usize::try_from(number).map_err(|_| ())?;
+        match self {
+            Self::Lattice { cells } => (index < *cells)
+                .then_some(Some(CellId(index as u32)))
+                .ok_or(()),
+            Self::Mesh(map) => map.lattice_cell(index).map(Some).ok_or(()),
+        }
+    }
+
+    /// The caller's numbers of `cells`, ascending (a mesh's input order is not the lattice's).
+    #[must_use]
+    pub fn sorted_numbers(&self, cells: impl IntoIterator<Item = CellId>) -> Vec<i64> {
+        let mut numbers: Vec<i64> = cells.into_iter().map(|c| self.number(c)).collect();
+        numbers.sort_unstable();
+        numbers
+    }
+
+    /// How many cells the caller numbers (0 up to this).
+    #[must_use]
+    pub fn len(&self) -> usize {
+        match self {
+            Self::Lattice { cells } => *cells,
+            Self::Mesh(map) => map.len(),
+        }
+    }
+
+    /// Whether the caller numbers no cell.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// The previous answers of a warm start, made from the caller's `cells` and `xi` (three per
+    /// point), into `out`: a hit to try first where the cell is one of the body's, none where it
+    /// is −1 or no cell (the caller checks those first).
+    pub fn previous_answers(&self, cells: &[i64], xi: &[f64], out: &mut Vec<Answer>) {
+        out.clear();
+        out.extend(
+            cells
+                .iter()
+                .zip(xi.chunks_exact(3))
+                .map(|(&c, x)| match self.cell(c) {
+                    Ok(Some(cell)) => Hit::hint(cell, DVec3::from_slice(x)),
+                    _ => Ok(None),
+                }),
+        );
     }
 }
 

@@ -6,7 +6,7 @@ use std::sync::{Arc, PoisonError, RwLock, RwLockReadGuard};
 use cgcontact::glam::DVec3;
 use cgcontact::{AdaptiveBody, Body, CellId, Lattice};
 use cgcontact_baseline::BodyRef;
-use cgcontact_io::{CellMap, HexMesh, LATTICE_TOLERANCE, MeshBody};
+use cgcontact_io::{CellMap, CellNumbering, HexMesh, LATTICE_TOLERANCE, MeshBody};
 use numpy::{IntoPyArray, PyArray1};
 use pyo3::exceptions::{PyMemoryError, PyValueError};
 use pyo3::prelude::*;
@@ -95,9 +95,8 @@ impl Hanging {
 #[derive(Debug)]
 pub struct BodyState {
     pub body: AnyBody,
-    /// The mesh's cell numbering, for bodies given as nodes and cells; `None` for lattice bodies,
-    /// whose cells are numbered as the lattice's.
-    cells: Option<CellMap>,
+    /// How the caller numbers the cells: the mesh's input order, or the lattice's cell ids.
+    pub cells: CellNumbering,
     /// Number of displacement rows the caller passes (lattice nodes, or input nodes).
     pub source_count: usize,
     /// For each of the body's displacement slots, the caller's node that gives it; `None` when slot
@@ -123,7 +122,9 @@ impl BodyState {
             source_of_slot,
             duplicates: Vec::new(),
             hanging: Hanging::default(),
-            cells: None,
+            cells: CellNumbering::Lattice {
+                cells: lattice.cell_count(),
+            },
             body: AnyBody::Uniform(body),
         }
     }
@@ -136,50 +137,12 @@ impl BodyState {
         }
     }
 
-    /// The caller's cell number of the body's cell `cell`: the input cell for a mesh (as the
-    /// command line's `cell` column), the lattice cell for a lattice body.
-    #[inline]
-    pub fn cell_number(&self, cell: CellId) -> i64 {
-        match &self.cells {
-            None => i64::from(cell.0),
-            Some(map) => map.input_cell(cell).map_or(-1, |c| c as i64),
-        }
-    }
-
-    /// The body's cell of the caller's cell number `number`, as a warm start's hint: `Ok(None)`
-    /// for -1 (no previous cell), `Err(())` for a number no cell has.
-    pub fn hint_cell(&self, number: i64) -> Result<Option<CellId>, ()> {
-        if number == -1 {
-            return Ok(None);
-        }
-        let index = usize::try_from(number).map_err(|_| ())?;
-        match &self.cells {
-            Some(map) => map.lattice_cell(index).map(Some).ok_or(()),
-            None => (index < self.body.as_ref().lattice().cell_count())
-                .then_some(Some(CellId(index as u32)))
-                .ok_or(()),
-        }
-    }
-
-    /// The number of cells the caller numbers (`hint_cell` takes 0 up to it).
-    pub fn cell_numbers(&self) -> usize {
-        match &self.cells {
-            Some(map) => map.len(),
-            None => self.body.as_ref().lattice().cell_count(),
-        }
-    }
-
     /// The caller's numbers of the cells whose Jacobian determinant is not positive at some
     /// corner (inverted or degenerate), ascending: one pass over every cell.
     fn inverted_cells(&self) -> Vec<i64> {
         let found = self.body.as_ref().inverted_cells();
-        // A mesh body's input order is not the lattice's: sort in the caller's numbering.
-        let mut cells: Vec<i64> = found
-            .iter()
-            .map(|&(cell, _)| self.cell_number(cell))
-            .collect();
-        cells.sort_unstable();
-        cells
+        self.cells
+            .sorted_numbers(found.iter().map(|&(cell, _)| cell))
     }
 
     /// The caller's node that gives slot `slot`.
@@ -325,7 +288,7 @@ fn uniform_state(mesh: &HexMesh, body: Body, cells: CellMap) -> BodyState {
         source_of_slot: Some(source_of_slot),
         duplicates,
         hanging: Hanging::default(),
-        cells: Some(cells),
+        cells: CellNumbering::Mesh(cells),
         body: AnyBody::Uniform(body),
     }
 }
@@ -349,7 +312,7 @@ fn adaptive_state(mesh: &HexMesh, body: AdaptiveBody, cells: CellMap) -> BodySta
         source_of_slot: Some(source_of_slot),
         duplicates,
         hanging: Hanging::of(&body),
-        cells: Some(cells),
+        cells: CellNumbering::Mesh(cells),
         body: AnyBody::Adaptive(body),
     }
 }

@@ -5,9 +5,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, RwLock};
 
 use cgcontact::glam::DVec3;
-use cgcontact::{
-    AdaptiveLocator, Answer, GapAnswer, GapFinder, Hit, LatticeLocator, Locator, Settings,
-};
+use cgcontact::{AdaptiveLocator, Answer, GapAnswer, GapFinder, LatticeLocator, Locator, Settings};
 use cgcontact_baseline::{
     BodyRef, BruteForce, CentroidRadius, Inversion, NodeRadius, NodeRadiusOptions, RTree,
 };
@@ -172,13 +170,13 @@ impl PyLocator {
                     if warm
                         && let Some(row) = cells_slice
                             .iter()
-                            .position(|&c| state.hint_cell(c).is_err())
+                            .position(|&c| state.cells.cell(c).is_err())
                     {
                         return Err(PyValueError::new_err(format!(
                             "out cell row {row} (0-based) is {}, not a previous answer: cells are \
                              numbered 0 to {} (-1 for none)",
                             cells_slice[row],
-                            state.cell_numbers() as i64 - 1
+                            state.cells.len() as i64 - 1
                         )));
                     }
                     locate_into(locator, state, points, cells_slice, xi_slice, warm)
@@ -311,7 +309,7 @@ impl PyLocator {
                             let owners = locator.locate_owners(x).map_err(|_| row)?;
                             Ok(owners
                                 .iter()
-                                .map(|hit| (state.cell_number(hit.cell), hit.xi.to_array().into()))
+                                .map(|hit| (state.cells.number(hit.cell), hit.xi.to_array().into()))
                                 .collect::<Vec<(i64, (f64, f64, f64))>>())
                         })
                         .collect::<Result<Vec<_>, usize>>()
@@ -417,13 +415,7 @@ fn locate_into(
             |answers: &mut Vec<Answer>, (k, ((cells, xi), points))| {
                 if warm {
                     // The hints: each point's previous answer, as `relocate` reads it.
-                    answers.clear();
-                    answers.extend(cells.iter().zip(xi.chunks_exact(3)).map(|(&c, x)| {
-                        match state.hint_cell(c) {
-                            Ok(Some(cell)) => Hit::hint(cell, DVec3::from_slice(x)),
-                            _ => Ok(None),
-                        }
-                    }));
+                    state.cells.previous_answers(cells, xi, answers);
                     locator.relocate_all(points, answers);
                 } else {
                     locator.locate_all_into(points, answers);
@@ -431,7 +423,7 @@ fn locate_into(
                 let out = cells.iter_mut().zip(xi.chunks_exact_mut(3));
                 for (i, ((cell, xi), answer)) in out.zip(answers.iter()).enumerate() {
                     let (c, x) = match answer {
-                        Ok(Some(hit)) => (state.cell_number(hit.cell), hit.xi),
+                        Ok(Some(hit)) => (state.cells.number(hit.cell), hit.xi),
                         Ok(None) => (-1, DVec3::NAN),
                         Err(_) => {
                             first_refused.fetch_min(k * PIECE + i, Ordering::Relaxed);
@@ -551,7 +543,7 @@ impl GapArrays {
                     contact.gap,
                     contact.point,
                     contact.normal,
-                    state.cell_number(contact.face.cell),
+                    state.cells.number(contact.face.cell),
                     i32::from(contact.face.local),
                 ),
                 Ok(None) | Err(_) => (f64::NAN, DVec3::NAN, DVec3::NAN, -1, -1),
