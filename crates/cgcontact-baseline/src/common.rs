@@ -142,7 +142,7 @@ impl<'a> BodyRef<'a> {
     pub fn inside_tolerance(&self, settings: &Settings) -> InsideTolerance {
         // Bodies refuse non-finite displacements (every entry point), so the bound is finite: the
         // kernel's rounding grows with |u − T| (|u| with f64).
-        let u_max = self.frame(settings).reach().max_element();
+        let u_max = self.frame(settings).reach();
         InsideTolerance::with_spacing(
             settings,
             self.lattice().origin(),
@@ -179,7 +179,7 @@ impl<'a> Cells<'a> {
         Ok(Self {
             body,
             settings,
-            newton: settings.newton(),
+            newton: body.inside_tolerance(&settings).newton(&settings),
             inside: body.inside_tolerance(&settings),
             frame: body.frame(&settings),
         })
@@ -200,7 +200,8 @@ impl<'a> Cells<'a> {
         &self.settings
     }
 
-    /// Inside tolerance (ξ units) for a query at `x`: the one definition every strategy shares.
+    /// Inside tolerance (ξ units) for a query at `x` in an undeformed cell of the finest spacing:
+    /// what the filters widen by ([`InsideTolerance::at`]).
     #[inline]
     pub(crate) fn inside_tolerance(&self, x: DVec3) -> DVec3 {
         self.inside.at(x)
@@ -213,7 +214,7 @@ impl<'a> Cells<'a> {
             return Err(PointError::NonFinite);
         }
         Ok(NewtonOptions {
-            inside_tol: self.inside_tolerance(x),
+            inside_length: self.inside.length(x),
             ..self.newton
         })
     }
@@ -281,25 +282,9 @@ impl<'a> Cells<'a> {
         let (low, h, u) = self.local(cell);
         let map: K = self.frame.corners::<K, _>(&u, |u| K::lattice_cell(h, u));
         let x_local = self.frame.point::<K>(x) - low;
-        // A leaf coarser than the finest has its own tolerance, as the core's locator gives it.
-        let leaf_options;
-        let options = match self.body {
-            BodyRef::Adaptive(body) => {
-                let level = body.leaves().get(cell.index()).expect("a leaf").level;
-                leaf_options = NewtonOptions {
-                    inside_tol: self.inside.for_leaf(
-                        options.inside_tol,
-                        level,
-                        body.finest_level(),
-                    ),
-                    ..*options
-                };
-                &leaf_options
-            }
-            BodyRef::Uniform(_) => options,
-        };
         let mut inversion = map.invert_f64(x_local, DVec3::ZERO, options);
-        if inversion.status == Status::NotConverged && may_hold(h, &u, x - low, options.inside_tol)
+        if inversion.status == Status::NotConverged
+            && may_hold(h, &u, x - low, self.inside.undeformed(x, h))
         {
             let patient = NewtonOptions {
                 max_iter: options.max_iter.saturating_mul(PATIENT_ITERATIONS),

@@ -3,9 +3,9 @@
 //! Every strategy the lattice locator ([`cgcontact::LatticeLocator`]) is measured against, behind the
 //! same [`Locator`](cgcontact::Locator) trait, so that one benchmark and one test harness treat them
 //! all alike. All of them invert candidates with the core's hex8 kernel ([`cgcontact::hex8`]) in the
-//! candidate cell's local frame, with the inside tolerance of
-//! [`Settings::inside_tolerance`](cgcontact::Settings::inside_tolerance), so they agree with the
-//! lattice locator on what "inside" means; only [`Inversion::SeedFaithful`] uses the seed's own
+//! candidate cell's local frame, with the allowances of
+//! [`InsideTolerance`](cgcontact::InsideTolerance), so they agree with the lattice locator on
+//! what "inside" means; only [`Inversion::SeedFaithful`] uses the seed's own
 //! Newton ([`seed_eval_loc_coords`]).
 //!
 //! Every strategy searches a uniform [`Body`](cgcontact::Body) or an h-adaptive

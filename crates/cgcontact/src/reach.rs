@@ -20,6 +20,7 @@ use smallvec::SmallVec;
 
 use crate::PointError;
 use crate::body::Body;
+use crate::hex8::NewtonOptions;
 use crate::lanes::{V3, Wide};
 use crate::lattice::{CORNER_OFFSETS, Lattice};
 use crate::settings::InsideTolerance;
@@ -106,34 +107,49 @@ impl Admit {
         }
     }
 
-    /// The inside tolerance (per axis) for `x` when some cell can hold it, `Ok(None)` when it lies
-    /// outside the shifted box (widened by the largest of those tolerances, as every filter is),
-    /// an error when it is not finite.
+    /// The rounding length of `x` ([`InsideTolerance::length`]) when some cell can hold it,
+    /// `Ok(None)` when it lies outside the shifted box (widened by [`InsideTolerance::tau`], as
+    /// every filter is), an error when it is not finite.
     #[inline(always)]
     pub(crate) fn admit(&self, x: DVec3) -> Result<Option<DVec3>, PointError> {
         if !x.is_finite() {
             return Err(PointError::NonFinite);
         }
-        let inside_tol = self.inside_tol.at(x);
-        let slack = self.pad * inside_tol.max_element();
+        let length = self.inside_tol.length(x);
+        let slack = self.pad * self.inside_tol.tau(length);
         if x.cmplt(self.low - slack).any() || x.cmpgt(self.high + slack).any() {
             return Ok(None);
         }
-        Ok(Some(inside_tol))
+        Ok(Some(length))
     }
 
-    /// [`Admit::admit`] for W points in f64 lanes, the same operations: each lane's inside
-    /// tolerance, the lanes whose point is finite, and those within reach (bits).
+    /// [`Admit::admit`] for W points in f64 lanes, the same operations: each lane's rounding
+    /// length, the lanes whose point is finite, and those within reach (bits).
     #[inline(always)]
     pub(crate) fn lanes<D: Wide>(&self, x: V3<D>) -> (V3<D>, u32, u32) {
         let splat = V3::<D>::splat;
-        let inside_tol = self.inside_tol.at_magnitude(x.abs().max_element());
-        let slack = splat(self.pad).scale(inside_tol.max_element());
+        let length = self.inside_tol.length_lanes(x);
+        let slack = splat(self.pad).scale(self.inside_tol.tau_lanes(length));
         let (low, high) = (splat(self.low) - slack, splat(self.high) + slack);
         let outside = x.x.lt(low.x) | x.y.lt(low.y) | x.z.lt(low.z);
         let outside = outside | x.x.gt(high.x) | x.y.gt(high.y) | x.z.gt(high.z);
         let finite = x.is_finite();
-        (inside_tol, D::bits(finite), D::bits(finite & !outside))
+        (length, D::bits(finite), D::bits(finite & !outside))
+    }
+
+    /// The Newton options for a point `admit` gave `length`: `base` with this body's allowances.
+    #[inline(always)]
+    pub(crate) fn options(&self, base: &NewtonOptions, length: DVec3) -> NewtonOptions {
+        NewtonOptions {
+            inside_length: length,
+            ..*base
+        }
+    }
+
+    /// The filters' widening, ξ units, for a search with `options` ([`InsideTolerance::tau`]).
+    #[inline(always)]
+    pub(crate) fn tau(&self, options: &NewtonOptions) -> f64 {
+        self.inside_tol.tau(options.inside_length)
     }
 }
 

@@ -225,17 +225,13 @@ impl Settings {
         }
     }
 
-    /// Inside tolerance (ξ units, per axis) for a query at `x` on `lattice` with largest
-    /// displacement component `u_max`: the setting plus the rounding carried by the data. A point
-    /// given on a face of a cell far from the origin is only known to `eps · |x|`, and the kernel
-    /// rounds at its own precision, so the allowance along axis k is
-    /// `8 ε₆₄ max(|x|∞, |origin|∞) / h_k + 8 ε_kernel (2 + u_max / h_k)` (the lattice's origin
-    /// counts too: a cell's corners are computed from it). Closed cells stay closed at any offset,
-    /// and no more, whatever the anisotropy: with the smallest spacing on every axis, a point
-    /// 5e-4 h outside a face of a 1000 : 1 cell at 1e9 was found inside. Every strategy uses this,
-    /// so that they agree on what "inside" means.
+    /// Inside tolerance (ξ units, per axis) for a query at `x` on `lattice` whose displacements
+    /// reach `u_max` per component, in an *undeformed* cell of the lattice: the setting plus the
+    /// rounding carried by the data, `16 ε_kernel + 8 ε₆₄ max(|x_k|, |origin_k|) / h_k +
+    /// 8 ε_kernel u_max_k / h_k` along axis k. In a deformed cell the rounding is carried into ξ
+    /// through that cell's J⁻¹ instead ([`InsideTolerance`]).
     #[must_use]
-    pub fn inside_tolerance(&self, lattice: &Lattice, u_max: f64, x: DVec3) -> DVec3 {
+    pub fn inside_tolerance(&self, lattice: &Lattice, u_max: DVec3, x: DVec3) -> DVec3 {
         InsideTolerance::new(self, lattice, u_max).at(x)
     }
 
@@ -249,100 +245,130 @@ impl Settings {
     }
 }
 
-/// [`Settings::inside_tolerance`] with its per-body constants computed once, so that a query costs
-/// one multiply-add and no division.
+/// What every locator and strategy calls inside, with its per-body constants computed once.
+///
+/// A point x is inside a cell when the Newton inversion converges to a ξ with, on every axis k,
+/// `|ξ_k| ≤ 1 + t + Σ_j |J⁻¹_kj| L_j`:
+/// - `t` (ξ units, [`InsideTolerance::xi`]) is the setting plus the kernel's own rounding of ξ,
+///   16 ε_kernel;
+/// - `L` (a length per component, [`InsideTolerance::length`]) is how far x and the cell's map
+///   may be off by rounding: a point given on a face of a cell far from the origin is only known
+///   to ε₆₄ |x_j| in component j (the lattice's origin counts too: a cell's corners are computed
+///   from it), and the kernel rounds the displacements at its own precision, so
+///   `L_j = 4 ε₆₄ max(|x_j|, |origin_j|) + 4 ε_kernel u_max_j`.
+///
+/// A perturbation of at most L_j in each component j moves ξ_k by at most Σ_j |J⁻¹_kj| L_j,
+/// whatever the cell's shape; J is the Jacobian of the last Newton step. In an undeformed cell
+/// that is 2 L_k / h_k, so closed cells stay closed at any offset and no more, whatever the
+/// anisotropy (with the smallest spacing on every axis, a point 5e-4 h outside a face of a
+/// 1000 : 1 cell at 1e9 was found inside). In a sheared or rotated cell a rounding along one
+/// axis moves ξ along another: with 2 L_k / h_k alone, nodes of a 4 × 0.25 × 0.002 lattice at
+/// 1e5 sheared by x += 10 z lost some of their owners. A coarse leaf of an adaptive body gets its
+/// own, smaller allowance the same way, from its own J.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct InsideTolerance {
-    /// The setting plus the kernel's allowance, per axis.
-    base: DVec3,
-    /// The part of `base` that does not depend on the spacing: the setting plus 16 ε_kernel.
-    fixed: DVec3,
-    /// 8 ε₆₄ / h_k.
-    per_magnitude: DVec3,
-    /// |origin|∞ of the lattice.
-    origin_magnitude: f64,
+    /// The setting plus 16 ε_kernel (ξ units).
+    xi: f64,
+    /// 4 ε_kernel u_max_j: the kernel's rounding of the displacements (a length per component).
+    kernel: DVec3,
+    /// |origin_j| of the lattice.
+    origin: DVec3,
+    /// 2 / h_k of the spacing these constants were made with: ξ per unit length in an undeformed
+    /// cell of it.
+    per_length: DVec3,
 }
 
 impl InsideTolerance {
-    /// The constants of [`Settings::inside_tolerance`] for a body on `lattice` with `u_max`.
+    /// The constants for a body on `lattice` whose displacements reach `u_max` per component in
+    /// the kernel's frame.
     #[must_use]
-    pub fn new(settings: &Settings, lattice: &Lattice, u_max: f64) -> Self {
+    pub fn new(settings: &Settings, lattice: &Lattice, u_max: DVec3) -> Self {
         Self::with_spacing(settings, lattice.origin(), lattice.h(), u_max)
     }
 
     /// The same constants for a body whose lattice starts at `origin` and whose smallest cell
-    /// edges are `h` per axis (an adaptive body's finest spacing).
+    /// edges are `h` per axis (an adaptive body's finest spacing): the filters widen by the
+    /// allowance of an undeformed cell of that spacing, the largest of any cell's.
     #[must_use]
-    pub fn with_spacing(settings: &Settings, origin: DVec3, h: DVec3, u_max: f64) -> Self {
-        let eps = 8.0 * settings.epsilon();
+    pub fn with_spacing(settings: &Settings, origin: DVec3, h: DVec3, u_max: DVec3) -> Self {
         Self {
-            base: h
-                .to_array()
-                .map(|h| settings.inside_tol + eps * (2.0 + u_max / h))
-                .into(),
-            fixed: DVec3::splat(settings.inside_tol + eps * 2.0),
-            per_magnitude: h.to_array().map(|h| 8.0 * f64::EPSILON / h).into(),
-            origin_magnitude: origin.abs().max_element(),
+            xi: settings.inside_tol + 16.0 * settings.epsilon(),
+            kernel: 4.0 * settings.epsilon() * u_max.abs(),
+            origin: origin.abs(),
+            per_length: 2.0 / h,
         }
     }
 
-    /// `tol`, a tolerance [`InsideTolerance::at`] gave, for a cell whose edges are 1/`ratio` times
-    /// the spacing these constants were made with: an adaptive body's leaf of level `level` has
-    /// `ratio` 2^(level − finest) ≤ 1, a power of two. The allowance's terms in 1/h (the rounding
-    /// of x and of the displacements, measured in the cell's ξ) shrink by `ratio`; the setting and
-    /// the kernel's own rounding do not. With the finest spacing's tolerance on every leaf, a point
-    /// 3e-7 outside a level-0 leaf at x = 1e5 beside a level-15 one was found inside it (ξ clamped
-    /// to 1, residual 0). Unchanged at `ratio` 1.
+    /// The allowance in ξ units, the same on every axis: the setting plus the kernel's rounding.
     #[inline]
     #[must_use]
-    pub fn for_cell(&self, tol: DVec3, ratio: f64) -> DVec3 {
-        if ratio < 1.0 {
-            self.fixed + (tol - self.fixed) * ratio
-        } else {
-            tol
-        }
+    pub fn xi(&self) -> f64 {
+        self.xi
     }
 
-    /// [`InsideTolerance::for_cell`] for an adaptive body's leaf of `level` when these constants
-    /// were made with the spacing of its `finest` level: `ratio` 2^(level − finest).
+    /// The rounding length L (per component) for a query at `x`.
     #[inline]
     #[must_use]
-    pub fn for_leaf(&self, tol: DVec3, level: u8, finest: u8) -> DVec3 {
-        self.for_cell(tol, 0.5f64.powi(i32::from(finest - level)))
+    pub fn length(&self, x: DVec3) -> DVec3 {
+        self.kernel + 4.0 * f64::EPSILON * x.abs().max(self.origin)
     }
 
-    /// [`InsideTolerance::for_cell`] in lanes, each lane with its cell's `ratio`: the same
-    /// operations.
+    /// [`InsideTolerance::length`] in lanes (the batched search): the same operations.
     #[inline(always)]
-    pub(crate) fn for_cells<D: Lanes<S = f64>>(&self, tol: V3<D>, ratio: D) -> V3<D> {
-        let finer = ratio.lt(D::splat(1.0));
-        let scaled = |t: D, fixed: f64| {
-            let fixed = D::splat(fixed);
-            D::select(finer, fixed + (t - fixed) * ratio, t)
-        };
-        V3 {
-            x: scaled(tol.x, self.fixed.x),
-            y: scaled(tol.y, self.fixed.y),
-            z: scaled(tol.z, self.fixed.z),
+    pub(crate) fn length_lanes<D: Lanes<S = f64>>(&self, x: V3<D>) -> V3<D> {
+        let splat = V3::<D>::splat;
+        splat(self.kernel)
+            + x.abs()
+                .max(splat(self.origin))
+                .scale(D::splat(4.0 * f64::EPSILON))
+    }
+
+    /// The Newton options of `settings` with the ξ allowance above, for a query of length 0 (a
+    /// locator's base, completed per point).
+    #[must_use]
+    pub fn newton(&self, settings: &Settings) -> NewtonOptions {
+        NewtonOptions {
+            inside_tol: DVec3::splat(self.xi),
+            ..settings.newton()
         }
     }
 
-    /// The inside tolerance (ξ units, per axis) for a query at `x`.
+    /// The Newton options of `settings` for a query at `x`: both allowances above.
+    #[must_use]
+    pub fn options(&self, settings: &Settings, x: DVec3) -> NewtonOptions {
+        NewtonOptions {
+            inside_length: self.length(x),
+            ..self.newton(settings)
+        }
+    }
+
+    /// The allowance (ξ units, per axis) for a query at `x` in an undeformed cell of spacing `h`:
+    /// `t + 2 L_k / h_k`.
+    #[inline]
+    #[must_use]
+    pub fn undeformed(&self, x: DVec3, h: DVec3) -> DVec3 {
+        DVec3::splat(self.xi) + 2.0 * self.length(x) / h
+    }
+
+    /// The allowance (ξ units, per axis) for a query at `x` in an undeformed cell of the spacing
+    /// these constants were made with ([`Settings::inside_tolerance`]).
     #[inline]
     #[must_use]
     pub fn at(&self, x: DVec3) -> DVec3 {
-        let magnitude = x.abs().max_element().max(self.origin_magnitude);
-        self.base + self.per_magnitude * magnitude
+        DVec3::splat(self.xi) + self.per_length * self.length(x)
     }
 
-    /// [`InsideTolerance::at`] from |x|∞, in lanes (the batched search).
+    /// What the filters widen by for a point of rounding length `length`, ξ units: `t` plus the
+    /// largest L_j times the largest 2 / h_k, at least every component of
+    /// [`InsideTolerance::at`].
     #[inline(always)]
-    pub(crate) fn at_magnitude<D: Lanes<S = f64>>(&self, magnitude: D) -> V3<D> {
-        let magnitude = magnitude.max(D::splat(self.origin_magnitude));
-        V3 {
-            x: D::splat(self.base.x) + D::splat(self.per_magnitude.x) * magnitude,
-            y: D::splat(self.base.y) + D::splat(self.per_magnitude.y) * magnitude,
-            z: D::splat(self.base.z) + D::splat(self.per_magnitude.z) * magnitude,
-        }
+    pub(crate) fn tau(&self, length: DVec3) -> f64 {
+        self.xi + self.per_length.max_element() * length.max_element()
+    }
+
+    /// [`InsideTolerance::tau`] in lanes: the same operations.
+    #[inline(always)]
+    pub(crate) fn tau_lanes<D: Lanes<S = f64>>(&self, length: V3<D>) -> D {
+        D::splat(self.xi) + D::splat(self.per_length.max_element()) * length.max_element()
     }
 }

@@ -129,7 +129,7 @@ fn check_scene(spec: &AdaptiveSpec, settings: Settings, xi_tol: f64) -> (Tally, 
     )
     .unwrap();
     let h_min = body.spacing(body.finest_level()).min_element();
-    let u_max = body.max_displacement().max_element();
+    let u_max = body.max_displacement();
     let finest = body.spacing(body.finest_level());
     let inside = InsideTolerance::with_spacing(&settings, body.lattice().origin(), finest, u_max);
     let (mut by_centroid, mut by_noderad, mut located) = (Tally::default(), Tally::default(), 0);
@@ -523,7 +523,7 @@ fn every_strategy_uses_the_adaptive_locators_inside_tolerance() {
     let settings = Settings::default();
     let h_min = body.spacing(body.finest_level()).min_element();
     assert!(h_min < 0.25 / 4.0, "a refinement to test");
-    let u_max = body.max_displacement().max_element();
+    let u_max = body.max_displacement();
     let finest = body.spacing(body.finest_level());
     let inside = InsideTolerance::with_spacing(&settings, body.lattice().origin(), finest, u_max);
     let adaptive = AdaptiveLocator::new(&body, settings).unwrap();
@@ -546,9 +546,10 @@ fn every_strategy_uses_the_adaptive_locators_inside_tolerance() {
         let axis = (0..3)
             .max_by(|&a, &b| on_face[a].abs().total_cmp(&on_face[b].abs()))
             .unwrap();
-        // The tolerance of the cell's own level (its spacing's ratio to the finest).
+        // The allowance of the cell's own level (its own spacing; this field deforms it by
+        // little, so that its J⁻¹ is nearly that of the undeformed leaf).
         let level = body.leaves().get(cell.index()).unwrap().level;
-        let tol = inside.for_leaf(inside.at(x), level, body.finest_level())[axis];
+        let tol = inside.undeformed(x, body.spacing(level))[axis];
         for (factor, expected) in [(0.5, true), (2.0, false)] {
             let mut xi = on_face;
             xi[axis] = on_face[axis].signum() * (1.0 + factor * tol);

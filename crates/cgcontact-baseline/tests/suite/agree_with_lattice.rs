@@ -34,8 +34,7 @@ fn check_body(
     // What the kernel's rounding grows with: |u − T| in f32's frame, |u| in f64.
     let u_max = cgcontact_baseline::BodyRef::Uniform(&body)
         .frame(&settings)
-        .reach()
-        .max_element();
+        .reach();
     let mut located = 0;
     for (index, (x, kind)) in common::points(&body, points_per_kind, spec.seed + 1)
         .into_iter()

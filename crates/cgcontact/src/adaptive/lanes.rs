@@ -175,7 +175,7 @@ impl AdaptiveLocator<'_> {
         let splat = V3::<V::Wide>::splat;
         let two = V::Wide::splat(2.0);
         let x = V::Wide::transpose(|l| &points[l]);
-        let (inside_tol, finite, admitted) = self.admit.lanes(x);
+        let (length, finite, admitted) = self.admit.lanes(x);
         let t_x = (x - splat(lattice.origin())).mul_each(self.inv_h);
         // Both lookups from one place in the code: x's leaves, then the guess's in the lanes
         // where it left them. Inlined at two places (and software-pipelined as the uniform
@@ -236,14 +236,12 @@ impl AdaptiveLocator<'_> {
             maps.add_lattice_lanes(V3::narrow(spacing.scale(V::Wide::splat(0.5))));
             let x_local = self.point_lanes::<V>(x) - (splat(lattice.origin()) + spacing * leaf.ijk);
             let xi0 = (t_guess.scale(leaf.scale) - leaf.ijk).scale(two) - splat(DVec3::ONE);
-            // Each lane's tolerance for its leaf's level (`leaf_tol`): 2^level · 2^−finest.
-            let ratio = leaf.scale * V::Wide::splat(level_size(self.body.finest));
-            let inside_tol = self.admit.inside_tol.for_cells(inside_tol, ratio);
-            let inside = V3::<V>::splat(DVec3::ONE) + V3::narrow(inside_tol);
+            let inside = V3::<V>::splat(DVec3::ONE + self.newton.inside_tol);
             let inverted = maps.invert(
                 V3::narrow(x_local),
                 V3::narrow(xi0),
                 inside,
+                V3::narrow(length),
                 V::mask_from_bits(take),
                 &self.newton,
             );

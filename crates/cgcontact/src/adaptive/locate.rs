@@ -67,23 +67,20 @@ impl<'a> AdaptiveLocator<'a> {
         let lattice = body.lattice();
         let h_finest = body.spacing(body.finest);
         let frame = Frame::new(settings.precision, u_range.low, u_range.high, h_finest);
+        let inside = InsideTolerance::with_spacing(
+            &settings,
+            lattice.origin(),
+            h_finest,
+            // The kernel rounds u − T (|u| with f64).
+            frame.reach(),
+        );
         Ok(Self {
             body,
             settings,
-            newton: settings.newton(),
+            newton: inside.newton(&settings),
             u_range,
             inv_h: lattice.h().recip(),
-            admit: reach::Admit::new(
-                InsideTolerance::with_spacing(
-                    &settings,
-                    lattice.origin(),
-                    h_finest,
-                    // The kernel rounds u − T (|u| with f64).
-                    frame.reach().max_element(),
-                ),
-                lattice,
-                u_range,
-            ),
+            admit: reach::Admit::new(inside, lattice, u_range),
             frame,
             u_f32: match settings.precision {
                 Precision::F32 => body
@@ -167,26 +164,16 @@ impl<'a> AdaptiveLocator<'a> {
         self.frame.point_if(N::SHIFTED, x) - self.body.leaf_origin(leaf)
     }
 
-    /// The inside tolerance `tol` that [`reach::Admit::admit`] gave (the finest leaves') for a
-    /// leaf of `level` ([`InsideTolerance::for_leaf`]).
-    #[inline(always)]
-    pub(super) fn leaf_tol(&self, tol: DVec3, level: u8) -> DVec3 {
-        self.admit.inside_tol.for_leaf(tol, level, self.body.finest)
-    }
-
     fn search(
         &self,
         x: DVec3,
         mut collect: Collect<'_>,
         tried: &mut u32,
     ) -> Result<Option<Hit>, PointError> {
-        let Some(inside_tol) = self.admit.admit(x)? else {
+        let Some(length) = self.admit.admit(x)? else {
             return Ok(None);
         };
-        let options = NewtonOptions {
-            inside_tol,
-            ..self.newton
-        };
+        let options = self.admit.options(&self.newton, length);
         Ok(match self.settings.precision {
             Precision::F64 => self.search_with::<Hex8Map>(x, &options, &mut collect, tried),
             Precision::F32 => self.search_with::<Hex8Map32>(x, &options, &mut collect, tried),
@@ -196,13 +183,10 @@ impl<'a> AdaptiveLocator<'a> {
     /// [`Locator::relocate`]; the inversions tried go to `tried` (the hinted one included).
     fn relocate_counted(&self, x: DVec3, previous: &Answer, tried: &mut u32) -> Answer {
         // The cold search's admission first: refused and unreachable points answer as there.
-        let Some(inside_tol) = self.admit.admit(x)? else {
+        let Some(length) = self.admit.admit(x)? else {
             return Ok(None);
         };
-        let options = NewtonOptions {
-            inside_tol,
-            ..self.newton
-        };
+        let options = self.admit.options(&self.newton, length);
         Ok(match self.settings.precision {
             Precision::F64 => self.relocate_with::<Hex8Map>(x, previous, &options, tried),
             Precision::F32 => self.relocate_with::<Hex8Map32>(x, previous, &options, tried),
@@ -224,11 +208,7 @@ impl<'a> AdaptiveLocator<'a> {
             && let Some(leaf) = body.leaves.get(hint.cell.index())
         {
             let map = self.leaf_map::<K>(leaf.level, &body.leaf_displacements(hint.cell.0));
-            let options = NewtonOptions {
-                inside_tol: self.leaf_tol(options.inside_tol, leaf.level),
-                ..*options
-            };
-            let inversion = map.invert_f64(self.local::<K>(x, leaf), warm_start(hint.xi), &options);
+            let inversion = map.invert_f64(self.local::<K>(x, leaf), warm_start(hint.xi), options);
             *tried += 1;
             if inversion.status == Status::Inside {
                 return Some(Hit {
@@ -286,11 +266,7 @@ impl<'a> AdaptiveLocator<'a> {
     ) -> Option<Hit> {
         let map = self.leaf_map::<K>(leaf.level, u);
         let xi0 = Self::undeformed_xi(t_guess, leaf.level, leaf.ijk);
-        let options = NewtonOptions {
-            inside_tol: self.leaf_tol(options.inside_tol, leaf.level),
-            ..*options
-        };
-        let inversion = map.invert_f64(self.local::<K>(x, leaf), xi0, &options);
+        let inversion = map.invert_f64(self.local::<K>(x, leaf), xi0, options);
         *inversions += 1;
         if inversion.status != Status::Inside {
             return None;
@@ -370,8 +346,8 @@ impl<'a> AdaptiveLocator<'a> {
             }
         }
         let t_guess = *t_guess;
-        // The filters widen by the largest of the per-axis tolerances.
-        let tau = options.inside_tol.max_element();
+        // The filters widen by the largest of the per-axis tolerances of an undeformed finest leaf.
+        let tau = self.admit.tau(options);
         let range = self.u_range;
         let w = reach::widening(body.lattice().h(), range.high - range.low, tau);
         let low = t_x - (range.high + w) * self.inv_h;
@@ -457,7 +433,7 @@ pub(super) fn level_size(level: u8) -> f64 {
 /// (and a whole number of lanes of every lane type).
 const GROUP: usize = 8;
 
-/// A group's common path up to the inversion: for each point, its inside tolerance (`None`: refused
+/// A group's common path up to the inversion: for each point, its rounding length (`None`: refused
 /// or out of reach), the predicted leaf, that leaf's corner displacements, and the guess.
 struct Front {
     tol: [Option<DVec3>; GROUP],
@@ -569,14 +545,11 @@ impl AdaptiveLocator<'_> {
         for (xs, answers) in points.chunks(GROUP).zip(out.chunks_mut(GROUP)) {
             let front = self.front::<K>(xs);
             for (l, (&x, answer)) in xs.iter().zip(answers.iter_mut()).enumerate() {
-                let (Some(inside_tol), Some((id, leaf))) = (front.tol[l], front.first[l]) else {
+                let (Some(length), Some((id, leaf))) = (front.tol[l], front.first[l]) else {
                     *answer = self.search(x, Collect::First, &mut 0);
                     continue;
                 };
-                let options = NewtonOptions {
-                    inside_tol,
-                    ..self.newton
-                };
+                let options = self.admit.options(&self.newton, length);
                 let hit = self.visit::<K>(
                     x,
                     id,
@@ -648,13 +621,13 @@ impl AdaptiveLocator<'_> {
         let no_leaf = (0, Leaf::new(0, [0; 3]));
         // The leaf at x, per lane; lanes refused, out of reach or in a hole leave the batch.
         let mut take = 0u32;
-        let mut tol = [DVec3::ZERO; MAX_W];
+        let mut length = [DVec3::ZERO; MAX_W];
         let mut t_x = [DVec3::ZERO; MAX_W];
         let mut at = [no_leaf; MAX_W];
         for l in 0..V::W {
             let x = xs[l];
-            if let Ok(Some(inside_tol)) = self.admit.admit(x) {
-                tol[l] = inside_tol;
+            if let Ok(Some(rounding)) = self.admit.admit(x) {
+                length[l] = rounding;
                 t_x[l] = (x - origin) * self.inv_h;
                 if let Some(found) = body.forest.leaf_at(t_x[l]) {
                     at[l] = found;
@@ -708,10 +681,16 @@ impl AdaptiveLocator<'_> {
                     let leaf = first[l].1;
                     Self::undeformed_xi(t_guess.lane(l), leaf.level, leaf.ijk)
                 });
-                let inside = V3::<V>::splat(DVec3::ONE)
-                    + lanes3::<V>(|l| self.leaf_tol(tol[l], first[l].1.level));
-                let inverted =
-                    maps.invert(x_local, xi0, inside, V::mask_from_bits(take), &self.newton);
+                let inside = V3::<V>::splat(DVec3::ONE + self.newton.inside_tol);
+                let length = lanes3::<V>(|l| length[l]);
+                let inverted = maps.invert(
+                    x_local,
+                    xi0,
+                    inside,
+                    length,
+                    V::mask_from_bits(take),
+                    &self.newton,
+                );
                 found = write_hits(out, inverted, |l| CellId(first[l].0));
             }
         }
@@ -779,7 +758,7 @@ impl AdaptiveLocator<'_> {
         let lattice = body.lattice();
         let x = V::Wide::transpose(|l| &xs[l]);
         // Lanes refused or out of reach, and lanes without a usable hint, go to `relocate`.
-        let (inside_tol, _, admitted) = self.admit.lanes(x);
+        let (length, _, admitted) = self.admit.lanes(x);
         let mut take = 0u32;
         let mut cell = [CellId(0); MAX_W];
         // Lanes not taken read leaf 0's corners (there is one: a lane took a leaf), and are ignored.
@@ -805,29 +784,24 @@ impl AdaptiveLocator<'_> {
         let mut found = 0;
         if take != 0 {
             let splat = V3::<V::Wide>::splat;
-            let level = |l: usize| leaves[l].level;
-            let (scale, size) = (
-                V::Wide::from_fn(|l| level_scale(level(l))),
-                V::Wide::from_fn(|l| level_size(level(l))),
-            );
+            let size = V::Wide::from_fn(|l| level_size(leaves[l].level));
             let index = |a: usize| V::Wide::from_fn(|l| f64::from(leaves[l].ijk[a]));
             let ijk = V3 {
                 x: index(0),
                 y: index(1),
                 z: index(2),
             };
-            // `visit`'s: the leaf's spacing h · 2^−level, its lowest corner, and its tolerance.
+            // `visit`'s: the leaf's spacing h · 2^−level and its lowest corner.
             let spacing = splat(lattice.h()).scale(size);
             let nodes = V::Node::of(self);
             let mut maps = Maps::<V>::from_nodes(|l, c| &nodes[rows[l][c] as usize]);
             maps.add_lattice_lanes(V3::narrow(spacing.scale(V::Wide::splat(0.5))));
             let x_local = self.point_lanes::<V>(x) - (splat(lattice.origin()) + spacing * ijk);
-            let ratio = scale * V::Wide::splat(level_size(body.finest));
-            let inside_tol = self.admit.inside_tol.for_cells(inside_tol, ratio);
             let inverted = maps.invert(
                 V3::narrow(x_local),
                 lanes3::<V>(|l| xi0[l]),
-                V3::<V>::splat(DVec3::ONE) + V3::narrow(inside_tol),
+                V3::<V>::splat(DVec3::ONE + self.newton.inside_tol),
+                V3::narrow(length),
                 V::mask_from_bits(take),
                 &self.newton,
             );
@@ -1322,13 +1296,10 @@ mod tests {
     /// The search as documented, without the shortcut of `search_box`: the predicted leaf, then
     /// every other leaf of the box whose corners reach x, by distance to the refined guess and id.
     fn documented_search<K: Kernel>(locator: &AdaptiveLocator<'_>, x: DVec3) -> Answer {
-        let Some(inside_tol) = locator.admit.admit(x)? else {
+        let Some(length) = locator.admit.admit(x)? else {
             return Ok(None);
         };
-        let options = NewtonOptions {
-            inside_tol,
-            ..locator.newton
-        };
+        let options = locator.admit.options(&locator.newton, length);
         let body = locator.body;
         let predicted = locator.settings.order == CandidateOrder::Predicted;
         let t_x = (x - body.lattice().origin()) * locator.inv_h;
@@ -1363,8 +1334,8 @@ mod tests {
                 t_guess = locator.guess::<K>(t_x, t_guess).0;
             }
         }
-        // The filters widen by the largest of the per-axis tolerances.
-        let tau = options.inside_tol.max_element();
+        // The filters widen by the largest of the per-axis tolerances of an undeformed finest leaf.
+        let tau = locator.admit.tau(&options);
         let range = locator.u_range;
         let w = reach::widening(body.lattice().h(), range.high - range.low, tau);
         let low = t_x - (range.high + w) * locator.inv_h;

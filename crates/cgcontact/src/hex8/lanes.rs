@@ -120,6 +120,17 @@ impl<V: Lanes> Maps<V> {
         V::splat(V::S::of(16.0)) * V::splat(V::EPSILON) * magnitude * inverse_norm
     }
 
+    /// `Hex8Map::carried`.
+    #[inline(always)]
+    fn carried(length: V3<V>, k: [V3<V>; 3], inv_det: V) -> V3<V> {
+        V3 {
+            x: k[0].abs().dot(length),
+            y: k[1].abs().dot(length),
+            z: k[2].abs().dot(length),
+        }
+        .scale(inv_det.abs())
+    }
+
     /// `Hex8Map::det_at_center`.
     #[inline(always)]
     fn det_at_center(&self) -> V {
@@ -127,7 +138,8 @@ impl<V: Lanes> Maps<V> {
     }
 
     /// The common path of `Hex8Map::invert` for W points at once: plain Newton steps, no line search.
-    /// `inside` is 1 + each lane's inside tolerance, per axis. Lanes with `take` unset are ignored.
+    /// `inside` is 1 + each lane's inside tolerance, per axis, and `length` each lane's rounding
+    /// length (`NewtonOptions::inside_length`). Lanes with `take` unset are ignored.
     /// Returns, per lane, the final ξ, |residual|², the iterations and whether the lane ended
     /// `Inside` on the common path (the scalar kernel then gives exactly this answer); a lane not
     /// `Inside` must be redone.
@@ -137,6 +149,7 @@ impl<V: Lanes> Maps<V> {
         x: V3<V>,
         xi0: V3<V>,
         inside: V3<V>,
+        length: V3<V>,
         take: V::Mask,
         options: &NewtonOptions,
     ) -> (V3<V>, V, [u32; MAX_W], u32) {
@@ -184,7 +197,8 @@ impl<V: Lanes> Maps<V> {
             let rr_trial = r_trial.dot(r_trial);
             let finite = trial.is_finite() & rr_trial.is_finite() & delta.is_finite();
             let far = trial.abs();
-            let within = far.x.le(inside.x) & far.y.le(inside.y) & far.z.le(inside.z);
+            let limit = inside + Self::carried(length, [k0, k1, k2], inv_det);
+            let within = far.x.le(limit.x) & far.y.le(limit.y) & far.z.le(limit.z);
             // Converged: Inside, or (Outside / not finite) left to the scalar search.
             let inside_now = pending & !singular & converged & finite & within;
             // Not converged: a step the scalar kernel would shorten (line search), a non-finite value

@@ -55,8 +55,13 @@ pub struct NewtonOptions {
     pub tol: f64,
     /// Iteration limit.
     pub max_iter: u32,
-    /// The result is inside when every |ξ_k| ≤ 1 + `inside_tol`'s component k.
+    /// The result is inside when every |ξ_k| ≤ 1 + `inside_tol`'s component k
+    /// + Σ_j |J⁻¹_kj| `inside_length`_j.
     pub inside_tol: DVec3,
+    /// How far the point and the map may be off by rounding, per component (lengths, the frame's
+    /// units): carried into ξ through J⁻¹, so that a cell of any shape accepts every point within
+    /// that much of it ([`crate::InsideTolerance`]). J is the Jacobian of the last step.
+    pub inside_length: DVec3,
     /// Give up (singular) when det J falls to this fraction of the cell's det J at ξ = 0 or below.
     pub det_ratio_min: f64,
 }
@@ -67,6 +72,7 @@ impl Default for NewtonOptions {
             tol: crate::Settings::NEWTON_TOL,
             max_iter: crate::Settings::MAX_ITER,
             inside_tol: DVec3::splat(crate::Settings::INSIDE_TOL),
+            inside_length: DVec3::ZERO,
             det_ratio_min: 1e-12,
         }
     }
@@ -237,6 +243,15 @@ macro_rules! stamp_hex8 {
                 16.0 * <$S>::EPSILON * magnitude * inverse_norm
             }
 
+            /// |J⁻¹| `length`: how far a perturbation of at most `length_j` in each component j
+            /// moves ξ along each axis, from the rows of adj(J) (`adjugate`) and 1 / det J.
+            #[inline]
+            fn carried(length: $V, adjugate: [$V; 3], inv_det: $S) -> $V {
+                let [k0, k1, k2] = adjugate;
+                <$V>::new(k0.abs().dot(length), k1.abs().dot(length), k2.abs().dot(length))
+                    * inv_det.abs()
+            }
+
             /// det J at ξ = 0, the scale of the cell's volume (volume / 8).
             #[inline]
             #[must_use]
@@ -262,6 +277,7 @@ macro_rules! stamp_hex8 {
                 const EARLY_OUTSIDE_MARGIN: $S = crate::hex8::EARLY_OUTSIDE_MARGIN as $S;
                 let tol = options.tol as $S;
                 let inside = <$V>::splat(1.0) + $to_v(options.inside_tol);
+                let inside_length = $to_v(options.inside_length);
                 let det_floor = options.det_ratio_min as $S * self.det_at_center().abs();
                 let magnitude = self.magnitude(x);
                 let mut xi = xi0.clamp(<$V>::splat(-1.0), <$V>::splat(1.0));
@@ -302,7 +318,11 @@ macro_rules! stamp_hex8 {
                         rr = r.dot(r);
                         let status = if !xi.is_finite() || !rr.is_finite() {
                             Status::Singular
-                        } else if xi.abs().cmple(inside).all() {
+                        } else if xi
+                            .abs()
+                            .cmple(inside + Self::carried(inside_length, [k0, k1, k2], inv_det))
+                            .all()
+                        {
                             Status::Inside
                         } else {
                             Status::Outside

@@ -299,6 +299,15 @@ impl<V: Lanes> V3<V> {
         let max = |a: V, b: V| V::select(a.gt(b), a, b);
         max(self.x, max(self.y, self.z))
     }
+    /// glam's `max`, per component (the same for finite values).
+    #[inline(always)]
+    pub fn max(self, o: Self) -> Self {
+        Self {
+            x: self.x.max(o.x),
+            y: self.y.max(o.y),
+            z: self.z.max(o.z),
+        }
+    }
     /// glam's `element_sum`: (x + y) + z.
     #[inline(always)]
     pub fn element_sum(self) -> V {

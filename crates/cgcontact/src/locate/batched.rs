@@ -62,7 +62,8 @@ struct Front<V: Lanes> {
     x: V3<V::Wide>,
     t_x: V3<V::Wide>,
     cell_x: V3<V::Wide>,
-    inside_tol: V3<V::Wide>,
+    /// Each lane's rounding length (`Admit::lanes`).
+    length: V3<V::Wide>,
     /// Lanes with a finite point, and lanes within reach (bits): `admit`'s two answers.
     finite: u32,
     take: u32,
@@ -78,7 +79,7 @@ impl<V: Lanes> Front<V> {
             x: zero,
             t_x: zero,
             cell_x: zero,
-            inside_tol: V3::splat(DVec3::ZERO),
+            length: V3::splat(DVec3::ZERO),
             finite: 0,
             take: 0,
             maps: Maps {
@@ -134,7 +135,7 @@ impl LatticeLocator<'_> {
         let x = V::Wide::transpose(|l| &points[l]);
         // `admit`: finite and within reach (the lattice's box shifted by the displacement range,
         // widened by the tolerance).
-        let (inside_tol, finite, take) = self.admit.lanes(x);
+        let (length, finite, take) = self.admit.lanes(x);
         let t_x = (x - V3::splat(lattice.origin())).mul_each(self.inv_h);
         let cell_x = clamped_cells(lattice.cells(), t_x);
         if take != 0 {
@@ -144,7 +145,7 @@ impl LatticeLocator<'_> {
             x,
             t_x,
             cell_x,
-            inside_tol,
+            length,
             take,
             finite,
             maps: front.maps,
@@ -229,7 +230,7 @@ impl LatticeLocator<'_> {
             x,
             t_x,
             cell_x,
-            inside_tol,
+            length,
             mut take,
             mut maps,
             ..
@@ -269,11 +270,12 @@ impl LatticeLocator<'_> {
         };
         let x_local = x - (splat(lattice.origin()) + first.mul_each(lattice.h()));
         let xi0 = (t_guess - first).scale(V::Wide::splat(2.0)) - splat(DVec3::ONE);
-        let inside = V3::<V>::splat(DVec3::ONE) + V3::narrow(inside_tol);
+        let inside = V3::<V>::splat(DVec3::ONE + self.newton.inside_tol);
         let inverted = maps.invert(
             V3::narrow(x_local),
             V3::narrow(xi0),
             inside,
+            V3::narrow(length),
             V::mask_from_bits(take),
             &self.newton,
         );

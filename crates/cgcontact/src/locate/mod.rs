@@ -259,19 +259,15 @@ impl<'a> LatticeLocator<'a> {
         let frame = Frame::new(settings.precision, u_range.low, u_range.high, lattice.h());
         // The kernel rounds the displacements in its frame: its share of the inside tolerance
         // grows with |u − T| (|u| with f64).
-        let u_kernel = frame.reach().max_element();
+        let inside = InsideTolerance::new(&settings, lattice, frame.reach());
         Ok(Self {
             body,
             settings,
-            newton: settings.newton(),
+            newton: inside.newton(&settings),
             u_max,
             u_range,
             inv_h: lattice.h().recip(),
-            admit: reach::Admit::new(
-                InsideTolerance::new(&settings, lattice, u_kernel),
-                lattice,
-                u_range,
-            ),
+            admit: reach::Admit::new(inside, lattice, u_range),
             frame,
             // Not on a sparse body whose lattice dwarfs it: the pyramid is dense over the lattice
             // (48 bytes per 8 cells), and the body's memory must grow with its cells.

@@ -36,8 +36,8 @@ impl LatticeLocator<'_> {
         // Then every other active cell meeting x − the displacement range (widened by the inside
         // tolerance) whose own shifted box holds x, in rings of growing Chebyshev distance around
         // the predicted cell.
-        // The filters widen by the largest of the per-axis tolerances.
-        let tau = options.inside_tol.max_element();
+        // The filters widen by the largest of the per-axis tolerances of an undeformed cell.
+        let tau = self.admit.tau(options);
         let range = self.u_range;
         let w = reach::widening(h, range.high - range.low, tau);
         let low = lattice.clamped_cell(t_x - (range.high + w) * self.inv_h);

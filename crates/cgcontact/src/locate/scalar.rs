@@ -37,13 +37,10 @@ impl LatticeLocator<'_> {
         mut collect: Collect<'_>,
         tried: &mut u32,
     ) -> Result<Option<Hit>, PointError> {
-        let Some(inside_tol) = self.admit.admit(x)? else {
+        let Some(length) = self.admit.admit(x)? else {
             return Ok(None);
         };
-        let options = NewtonOptions {
-            inside_tol,
-            ..self.newton
-        };
+        let options = self.admit.options(&self.newton, length);
         Ok(match self.settings.precision {
             Precision::F64 => self.search_with::<Hex8Map>(x, &options, &mut collect, tried),
             Precision::F32 => self.search_with::<Hex8Map32>(x, &options, &mut collect, tried),

@@ -93,13 +93,10 @@ impl LatticeLocator<'_> {
     #[inline]
     pub(super) fn relocate_counted(&self, x: DVec3, previous: &Answer, tried: &mut u32) -> Answer {
         // The cold search's admission first: refused and unreachable points answer as there.
-        let Some(inside_tol) = self.admit.admit(x)? else {
+        let Some(length) = self.admit.admit(x)? else {
             return Ok(None);
         };
-        let options = NewtonOptions {
-            inside_tol,
-            ..self.newton
-        };
+        let options = self.admit.options(&self.newton, length);
         if let Some(hint) = self.hint(previous) {
             *tried += 1;
             let hit = match self.settings.precision {
@@ -194,7 +191,7 @@ impl LatticeLocator<'_> {
         let lattice = self.body.lattice();
         let x = V::Wide::transpose(|l| &xs[l]);
         // Lanes refused or out of reach, and lanes without a usable hint, go to `relocate`.
-        let (inside_tol, _, admitted) = self.admit.lanes(x);
+        let (length, _, admitted) = self.admit.lanes(x);
         let mut base = [0usize; MAX_W];
         let mut ijk = [[0u32; 3]; MAX_W];
         front.take = 0;
@@ -225,7 +222,7 @@ impl LatticeLocator<'_> {
                 x
             };
             front.x_local = x - (splat(lattice.origin()) + cell.mul_each(lattice.h()));
-            front.inside_tol = inside_tol;
+            front.length = length;
             // The corners of each lane's hinted cell (active: every corner has a displacement;
             // lanes not taken read the lattice's first cell, and are ignored).
             let nodes = V::Node::of(self);
@@ -251,11 +248,12 @@ impl LatticeLocator<'_> {
                 y: V::from_fn(|l| V::S::of(front.xi0[l].y)),
                 z: V::from_fn(|l| V::S::of(front.xi0[l].z)),
             };
-            let inside = V3::<V>::splat(DVec3::ONE) + V3::narrow(front.inside_tol);
+            let inside = V3::<V>::splat(DVec3::ONE + self.newton.inside_tol);
             let inverted = maps.invert(
                 V3::narrow(front.x_local),
                 xi0,
                 inside,
+                V3::narrow(front.length),
                 V::mask_from_bits(take),
                 &self.newton,
             );
@@ -270,12 +268,12 @@ impl LatticeLocator<'_> {
 }
 
 /// The first half of a warm batch of W points ([`LatticeLocator::relocate_chunk_with`]): per lane
-/// its hinted cell and starting ξ, and in lanes the inside tolerances and the points in their
+/// its hinted cell and starting ξ, and in lanes the rounding lengths and the points in their
 /// hinted cells' local frames (valid in the lanes `take` has), and the hinted cells'
 /// displacement maps.
 struct WarmFront<V: Lanes> {
     take: u32,
-    inside_tol: V3<V::Wide>,
+    length: V3<V::Wide>,
     cell: [CellId; MAX_W],
     x_local: V3<V::Wide>,
     xi0: [DVec3; MAX_W],
@@ -288,7 +286,7 @@ impl<V: Lanes> WarmFront<V> {
         let zero = V3::splat(DVec3::ZERO);
         Self {
             take: 0,
-            inside_tol: zero,
+            length: V3::splat(DVec3::ZERO),
             cell: [CellId(0); MAX_W],
             x_local: zero,
             xi0: [DVec3::ZERO; MAX_W],

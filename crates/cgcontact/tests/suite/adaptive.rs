@@ -5,14 +5,14 @@
 use std::collections::BTreeSet;
 
 use cgcontact::adaptive::MAX_LEVEL;
-use cgcontact::hex8::{NewtonOptions, Status};
+use cgcontact::hex8::Status;
 use cgcontact::{
-    AdaptiveBody, AdaptiveLocator, Answer, Body, CellId, Error, Frame, InsideTolerance, Lattice,
-    LatticeLocator, Leaf, Locator, Settings,
+    AdaptiveBody, AdaptiveLocator, Answer, Body, CellId, Error, Frame, Hit, InsideTolerance,
+    Lattice, LatticeLocator, Leaf, Locator, Settings,
 };
 use glam::DVec3;
 
-use crate::common::Rng;
+use crate::common::{Rng, linear_maps};
 
 /// The leaf of `leaves` holding the finest cell `q` (level `finest`), by walking up its ancestors.
 fn holder(leaves: &BTreeSet<Leaf>, q: [u32; 3], finest: u8) -> Option<Leaf> {
@@ -135,20 +135,11 @@ fn deform(body: &mut AdaptiveBody, strain: f64, jitter: f64, seed: u64) {
 fn brute_owners(body: &AdaptiveBody, settings: &Settings, x: DVec3) -> Vec<u32> {
     let h = body.spacing(body.finest_level());
     let frame = Frame::of_displacements(settings.precision, body.displacements(), h);
-    let tol = InsideTolerance::with_spacing(
-        settings,
-        body.lattice().origin(),
-        h,
-        frame.reach().max_element(),
-    );
+    let tol = InsideTolerance::with_spacing(settings, body.lattice().origin(), h, frame.reach());
+    // Each leaf's own allowance follows from its J (the rounding length carried through J⁻¹).
+    let options = tol.options(settings, x);
     (0..body.cell_count() as u32)
         .filter(|&c| {
-            // Each leaf with the tolerance of its level (its spacing's ratio to the finest).
-            let level = body.leaves().get(c as usize).unwrap().level;
-            let options = NewtonOptions {
-                inside_tol: tol.for_leaf(tol.at(x), level, body.finest_level()),
-                ..settings.newton()
-            };
             let (map, origin) = body.cell_map(CellId(c)).unwrap();
             map.invert(x - origin, DVec3::ZERO, &options).status == Status::Inside
         })
@@ -797,4 +788,80 @@ fn coarse_leaves_beside_deep_ones_keep_their_own_tolerance() {
             }
         }
     }
+}
+
+/// Every node (hanging ones too), edge midpoint and face centre of every leaf of adaptive bodies
+/// deformed by [`linear_maps`] (shears and rotations, which carry each axis's rounding into the
+/// others' ξ), anisotropic and far from the origin, is held by exactly the leaves whose closed
+/// box holds it, in both precisions, batched and not. With an allowance of 2L / h_k per axis
+/// (J⁻¹'s diagonal alone), some lost owners.
+#[test]
+fn sheared_and_rotated_leaves_keep_every_owner_of_nodes_edges_and_faces() {
+    let mut checked = 0;
+    for (seed, (map_name, a)) in linear_maps().into_iter().enumerate() {
+        for (h, origin) in [
+            (DVec3::new(4.0, 0.25, 0.002), DVec3::splat(1e5)),
+            (DVec3::splat(0.5), DVec3::new(-1e7, 3.0, 2e6)),
+        ] {
+            let lattice = Lattice::new(origin, h, [3, 2, 2]).unwrap();
+            let leaves = refine([3, 2, 2], 3, 8, seed % 2 == 0, 0.0, seed as u64 + 40);
+            let mut body = AdaptiveBody::from_leaves(lattice, leaves).unwrap();
+            body.update_independent(|_, x, u| {
+                let r = x - origin;
+                *u = DVec3::new(a[0].dot(r), a[1].dot(r), a[2].dot(r)) - r;
+            })
+            .unwrap();
+            let finest = body.finest_level();
+            // Each point with its finest-lattice coordinates, from every leaf's 27 ξ in {−1, 0, 1}³.
+            let mut points = Vec::new();
+            for c in 0..body.cell_count() as u32 {
+                let leaf = body.leaves().get(c as usize).unwrap();
+                let s = finest - leaf.level;
+                if s == 0 {
+                    continue; // Its midpoints are no finest-lattice points.
+                }
+                for d in 0..27u32 {
+                    let xi = DVec3::new(
+                        f64::from(d % 3) - 1.0,
+                        f64::from(d / 3 % 3) - 1.0,
+                        f64::from(d / 9) - 1.0,
+                    );
+                    let p = [0, 1, 2]
+                        .map(|k| (leaf.ijk[k] << s) + ((xi[k] + 1.0) as u32) * (1 << (s - 1)));
+                    points.push((body.point_at(CellId(c), xi).unwrap(), p));
+                }
+            }
+            for settings in [Settings::default(), Settings::f32()] {
+                let locator = AdaptiveLocator::new(&body, settings).unwrap();
+                let xs: Vec<DVec3> = points.iter().map(|p| p.0).collect();
+                let batched = locator.locate_all(&xs);
+                // Warm starts: each owner, as the hint at its own ξ, answers itself.
+                let (mut warm_points, mut hints) = (Vec::new(), Vec::new());
+                for (&(x, p), hit) in points.iter().zip(batched) {
+                    let at = format!(
+                        "{map_name}, h {h}, {:?}: {x} (finest {p:?})",
+                        settings.precision
+                    );
+                    let owners = locator.locate_owners(x).unwrap();
+                    let cells: Vec<u32> = owners.iter().map(|h| h.cell.0).collect();
+                    assert_eq!(cells, leaves_meeting(&body, p), "{at}");
+                    let hit = hit.unwrap().expect("on the body");
+                    assert!(cells.contains(&hit.cell.0), "{at}: located in {}", hit.cell);
+                    for owner in owners.iter() {
+                        warm_points.push(x);
+                        hints.push(Hit::hint(owner.cell, owner.xi));
+                    }
+                    checked += 1;
+                }
+                let mut answers = hints.clone();
+                locator.relocate_all(&warm_points, &mut answers);
+                for ((x, hint), answer) in warm_points.iter().zip(&hints).zip(&answers) {
+                    let hinted = hint.as_ref().unwrap().unwrap().cell;
+                    let got = answer.as_ref().unwrap().map(|h| h.cell);
+                    assert_eq!(got, Some(hinted), "{map_name}, h {h}: {x} warm");
+                }
+            }
+        }
+    }
+    assert!(checked > 1000, "{checked}");
 }

@@ -6,10 +6,10 @@
 //! Every test prints its measured bound on one `MEASURED` line (`cargo test --test extremes --
 //! --nocapture`); docs/numerics.md records them with the name of the test that backs each.
 
-use crate::common::{Rng, body, point_at};
+use crate::common::{Rng, body, linear_maps, point_at};
 use cgcontact::hex8::{Hex8Map, Kernel, min_corner_det};
 use cgcontact::{
-    Body, CellId, Error, Lattice, LatticeLocator, Locator, PointError, Precision, Settings,
+    Body, CellId, Error, Hit, Lattice, LatticeLocator, Locator, PointError, Precision, Settings,
 };
 use glam::DVec3;
 
@@ -547,7 +547,8 @@ fn boundary_1e_12_h_inside_found_outside_beyond_tolerance_not() {
                     + 16.0 * settings.epsilon()
                     + 8.0 * f64::EPSILON * magnitude / h[axis];
                 assert!(
-                    settings.inside_tolerance(&lattice, 0.0, on_face)[axis] <= tol * (1.0 + 1e-9),
+                    settings.inside_tolerance(&lattice, DVec3::ZERO, on_face)[axis]
+                        <= tol * (1.0 + 1e-9),
                     "{name} 1e{exponent}: the tolerance of axis {axis}"
                 );
                 let beyond =
@@ -569,7 +570,7 @@ fn boundary_1e_12_h_inside_found_outside_beyond_tolerance_not() {
                 total += 1;
             }
             let tol = settings
-                .inside_tolerance(&lattice, 0.0, lattice.upper())
+                .inside_tolerance(&lattice, DVec3::ZERO, lattice.upper())
                 .max_element();
             println!(
                 "MEASURED boundary_1e_12_h_inside_found_outside_beyond_tolerance_not | offset 1e{exponent} h | spacing {h} | {name} | inside tolerance (largest axis) {tol:.2e} ξ = {:.2e} h | 1e-12 h outside found {outside_hair_found}/{total}",
@@ -861,4 +862,79 @@ fn f32_rigid_translations_of_1e3_to_1e6_cells_known_cell_and_xi() {
             .frame_shift(),
         DVec3::ZERO
     );
+}
+
+/// Points on every node, edge and face of lattices deformed by [`linear_maps`] (anisotropic and
+/// not, near the origin and far from it) have all their owners, in every precision and path. With
+/// an allowance of 2L / h_k per axis, a node of the 4 × 0.25 × 0.002 lattice at 1e5 sheared by
+/// x += 10 z lost owners: the rounding of z moved ξ along x by 10 times more than x's own.
+#[test]
+fn sheared_and_rotated_cells_keep_every_owner_of_nodes_edges_and_faces() {
+    for (map_name, a) in linear_maps() {
+        for h in [DVec3::new(4.0, 0.25, 0.002), DVec3::splat(0.5)] {
+            for origin in [
+                DVec3::new(3.0, -2.0, 1.0),
+                DVec3::splat(1e5),
+                DVec3::splat(-1e8),
+            ] {
+                let lattice = Lattice::new(origin, h, [3, 3, 3]).unwrap();
+                let mut body = Body::full(lattice);
+                body.update_displacements(|_, x, u| {
+                    let r = x - origin;
+                    *u = DVec3::new(a[0].dot(r), a[1].dot(r), a[2].dot(r)) - r;
+                })
+                .unwrap();
+                let case = format!("{map_name}, h {h}, origin {origin}");
+                for (name, settings) in precisions() {
+                    let locator = LatticeLocator::new(&body, settings).unwrap();
+                    let mut samples = Vec::new();
+                    let mut wanted = Vec::new();
+                    for k in 0..=6u32 {
+                        for j in 0..=6u32 {
+                            for i in 0..=6u32 {
+                                let expected = owners_of_sample(&body, [i, j, k]);
+                                let (first, xi) = expected[0];
+                                samples.push(point_at(&body, first, xi));
+                                wanted.push(expected.iter().map(|(c, _)| *c).collect::<Vec<_>>());
+                            }
+                        }
+                    }
+                    let batched = locator.locate_all(&samples);
+                    // Warm starts: each owner, as the hint at its own ξ, answers itself.
+                    let (mut warm_points, mut hints) = (Vec::new(), Vec::new());
+                    for ((x, want), hit) in samples.iter().zip(&wanted).zip(batched) {
+                        let owners = locator.locate_owners(*x).unwrap();
+                        let got: Vec<CellId> = owners.iter().map(|h| h.cell).collect();
+                        assert_eq!(&got, want, "{case} {name}: owners of {x}");
+                        let hit = hit.unwrap().expect("on the body");
+                        assert!(
+                            want.contains(&hit.cell),
+                            "{case} {name}: {x} in {}",
+                            hit.cell
+                        );
+                        let one = locator.locate(*x).unwrap().expect("on the body");
+                        assert_eq!(one.cell, hit.cell, "{case} {name}: batched against scalar");
+                        for owner in owners.iter() {
+                            warm_points.push(*x);
+                            hints.push(Hit::hint(owner.cell, owner.xi));
+                        }
+                    }
+                    let mut answers = hints.clone();
+                    locator.relocate_all(&warm_points, &mut answers);
+                    for ((x, hint), answer) in warm_points.iter().zip(&hints).zip(&answers) {
+                        let (Ok(Some(hint)), Ok(Some(hit))) = (hint, answer) else {
+                            panic!("{case} {name}: {x} not relocated");
+                        };
+                        assert_eq!(hit.cell, hint.cell, "{case} {name}: {x} batched warm");
+                        let one = locator.relocate(*x, &Hit::hint(hint.cell, hint.xi));
+                        assert_eq!(
+                            one.unwrap().map(|h| h.cell),
+                            Some(hint.cell),
+                            "{case} {name}"
+                        );
+                    }
+                }
+            }
+        }
+    }
 }

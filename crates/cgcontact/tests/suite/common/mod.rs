@@ -85,13 +85,13 @@ pub fn point_at(body: &Body, cell: CellId, xi: DVec3) -> DVec3 {
     body.point_at(cell, xi).unwrap()
 }
 
-/// The oracle: every active cell that holds `x`, by exhaustive exact inversion.
-pub fn brute_owners(body: &Body, x: DVec3, inside_tol: DVec3) -> Vec<CellId> {
+/// The oracle: every active cell that holds `x`, by exhaustive exact inversion with the f64
+/// locator's allowances ([`cgcontact::InsideTolerance`]).
+pub fn brute_owners(body: &Body, x: DVec3) -> Vec<CellId> {
     let l = body.lattice();
-    let options = cgcontact::hex8::NewtonOptions {
-        inside_tol,
-        ..Default::default()
-    };
+    let settings = cgcontact::Settings::default();
+    let u_max = body.max_displacement();
+    let options = cgcontact::InsideTolerance::new(&settings, l, u_max).options(&settings, x);
     body.active_cells()
         .filter(|&cell| {
             let ijk = l.cell_ijk(cell).unwrap();
@@ -101,4 +101,33 @@ pub fn brute_owners(body: &Body, x: DVec3, inside_tol: DVec3) -> Vec<CellId> {
                 == cgcontact::hex8::Status::Inside
         })
         .collect()
+}
+
+/// Linear deformations x = o + A (X − o) of a body, that move each axis's rounding into the
+/// others' ξ: shears and rotations. (name, A's rows.)
+pub fn linear_maps() -> Vec<(&'static str, [DVec3; 3])> {
+    let rotation = |axis: DVec3, angle: f64| {
+        let q = glam::DQuat::from_axis_angle(axis.normalize(), angle);
+        let m = glam::DMat3::from_quat(q).transpose();
+        [m.x_axis, m.y_axis, m.z_axis]
+    };
+    vec![
+        (
+            "x += 10 z",
+            [DVec3::new(1.0, 0.0, 10.0), DVec3::Y, DVec3::Z],
+        ),
+        (
+            "x += 1e3 z",
+            [DVec3::new(1.0, 0.0, 1e3), DVec3::Y, DVec3::Z],
+        ),
+        (
+            "z += 1e3 y",
+            [DVec3::X, DVec3::Y, DVec3::new(0.0, 1e3, 1.0)],
+        ),
+        (
+            "rotated 45° about z",
+            rotation(DVec3::Z, std::f64::consts::FRAC_PI_4),
+        ),
+        ("rotated 30° about (1, 1, 1)", rotation(DVec3::ONE, 0.5)),
+    ]
 }
