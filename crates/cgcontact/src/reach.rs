@@ -123,10 +123,11 @@ impl Admit {
         Ok(Some(length))
     }
 
-    /// [`Admit::admit`] for W points in f64 lanes, the same operations: each lane's rounding
-    /// length, the lanes whose point is finite, and those within reach (bits).
+    /// [`Admit::admit`] for W points in f64 lanes, the same operations: the lanes whose point is
+    /// finite, and those within reach (bits). (The lanes' Newton needs no rounding length: a
+    /// lane converged within it but beyond 1 + t is redone by the scalar kernel.)
     #[inline(always)]
-    pub(crate) fn lanes<D: Wide>(&self, x: V3<D>) -> (V3<D>, u32, u32) {
+    pub(crate) fn lanes<D: Wide>(&self, x: V3<D>) -> (u32, u32) {
         let splat = V3::<D>::splat;
         let length = self.inside_tol.length_lanes(x);
         let slack = splat(self.pad).scale(self.inside_tol.tau_lanes(length));
@@ -134,7 +135,7 @@ impl Admit {
         let outside = x.x.lt(low.x) | x.y.lt(low.y) | x.z.lt(low.z);
         let outside = outside | x.x.gt(high.x) | x.y.gt(high.y) | x.z.gt(high.z);
         let finite = x.is_finite();
-        (length, D::bits(finite), D::bits(finite & !outside))
+        (D::bits(finite), D::bits(finite & !outside))
     }
 
     /// The Newton options for a point `admit` gave `length`: `base` with this body's allowances.

@@ -175,7 +175,7 @@ impl AdaptiveLocator<'_> {
         let splat = V3::<V::Wide>::splat;
         let two = V::Wide::splat(2.0);
         let x = V::Wide::transpose(|l| &points[l]);
-        let (length, finite, admitted) = self.admit.lanes(x);
+        let (finite, admitted) = self.admit.lanes(x);
         let t_x = (x - splat(lattice.origin())).mul_each(self.inv_h);
         // Both lookups from one place in the code: x's leaves, then the guess's in the lanes
         // where it left them. Inlined at two places (and software-pipelined as the uniform
@@ -241,7 +241,6 @@ impl AdaptiveLocator<'_> {
                 V3::narrow(x_local),
                 V3::narrow(xi0),
                 inside,
-                V3::narrow(length),
                 V::mask_from_bits(take),
                 &self.newton,
             );

@@ -621,13 +621,11 @@ impl AdaptiveLocator<'_> {
         let no_leaf = (0, Leaf::new(0, [0; 3]));
         // The leaf at x, per lane; lanes refused, out of reach or in a hole leave the batch.
         let mut take = 0u32;
-        let mut length = [DVec3::ZERO; MAX_W];
         let mut t_x = [DVec3::ZERO; MAX_W];
         let mut at = [no_leaf; MAX_W];
         for l in 0..V::W {
             let x = xs[l];
-            if let Ok(Some(rounding)) = self.admit.admit(x) {
-                length[l] = rounding;
+            if let Ok(Some(_)) = self.admit.admit(x) {
                 t_x[l] = (x - origin) * self.inv_h;
                 if let Some(found) = body.forest.leaf_at(t_x[l]) {
                     at[l] = found;
@@ -682,15 +680,8 @@ impl AdaptiveLocator<'_> {
                     Self::undeformed_xi(t_guess.lane(l), leaf.level, leaf.ijk)
                 });
                 let inside = V3::<V>::splat(DVec3::ONE + self.newton.inside_tol);
-                let length = lanes3::<V>(|l| length[l]);
-                let inverted = maps.invert(
-                    x_local,
-                    xi0,
-                    inside,
-                    length,
-                    V::mask_from_bits(take),
-                    &self.newton,
-                );
+                let inverted =
+                    maps.invert(x_local, xi0, inside, V::mask_from_bits(take), &self.newton);
                 found = write_hits(out, inverted, |l| CellId(first[l].0));
             }
         }
@@ -758,7 +749,7 @@ impl AdaptiveLocator<'_> {
         let lattice = body.lattice();
         let x = V::Wide::transpose(|l| &xs[l]);
         // Lanes refused or out of reach, and lanes without a usable hint, go to `relocate`.
-        let (length, _, admitted) = self.admit.lanes(x);
+        let (_, admitted) = self.admit.lanes(x);
         let mut take = 0u32;
         let mut cell = [CellId(0); MAX_W];
         // Lanes not taken read leaf 0's corners (there is one: a lane took a leaf), and are ignored.
@@ -801,7 +792,6 @@ impl AdaptiveLocator<'_> {
                 V3::narrow(x_local),
                 lanes3::<V>(|l| xi0[l]),
                 V3::<V>::splat(DVec3::ONE + self.newton.inside_tol),
-                V3::narrow(length),
                 V::mask_from_bits(take),
                 &self.newton,
             );

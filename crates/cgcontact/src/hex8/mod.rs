@@ -318,10 +318,11 @@ macro_rules! stamp_hex8 {
                         rr = r.dot(r);
                         let status = if !xi.is_finite() || !rr.is_finite() {
                             Status::Singular
-                        } else if xi
-                            .abs()
-                            .cmple(inside + Self::carried(inside_length, [k0, k1, k2], inv_det))
-                            .all()
+                        } else if xi.abs().cmple(inside).all()
+                            || xi
+                                .abs()
+                                .cmple(inside + Self::carried(inside_length, [k0, k1, k2], inv_det))
+                                .all()
                         {
                             Status::Inside
                         } else {

@@ -62,8 +62,6 @@ struct Front<V: Lanes> {
     x: V3<V::Wide>,
     t_x: V3<V::Wide>,
     cell_x: V3<V::Wide>,
-    /// Each lane's rounding length (`Admit::lanes`).
-    length: V3<V::Wide>,
     /// Lanes with a finite point, and lanes within reach (bits): `admit`'s two answers.
     finite: u32,
     take: u32,
@@ -79,7 +77,6 @@ impl<V: Lanes> Front<V> {
             x: zero,
             t_x: zero,
             cell_x: zero,
-            length: V3::splat(DVec3::ZERO),
             finite: 0,
             take: 0,
             maps: Maps {
@@ -135,7 +132,7 @@ impl LatticeLocator<'_> {
         let x = V::Wide::transpose(|l| &points[l]);
         // `admit`: finite and within reach (the lattice's box shifted by the displacement range,
         // widened by the tolerance).
-        let (length, finite, take) = self.admit.lanes(x);
+        let (finite, take) = self.admit.lanes(x);
         let t_x = (x - V3::splat(lattice.origin())).mul_each(self.inv_h);
         let cell_x = clamped_cells(lattice.cells(), t_x);
         if take != 0 {
@@ -145,7 +142,6 @@ impl LatticeLocator<'_> {
             x,
             t_x,
             cell_x,
-            length,
             take,
             finite,
             maps: front.maps,
@@ -230,7 +226,6 @@ impl LatticeLocator<'_> {
             x,
             t_x,
             cell_x,
-            length,
             mut take,
             mut maps,
             ..
@@ -275,7 +270,6 @@ impl LatticeLocator<'_> {
             V3::narrow(x_local),
             V3::narrow(xi0),
             inside,
-            V3::narrow(length),
             V::mask_from_bits(take),
             &self.newton,
         );

@@ -191,7 +191,7 @@ impl LatticeLocator<'_> {
         let lattice = self.body.lattice();
         let x = V::Wide::transpose(|l| &xs[l]);
         // Lanes refused or out of reach, and lanes without a usable hint, go to `relocate`.
-        let (length, _, admitted) = self.admit.lanes(x);
+        let (_, admitted) = self.admit.lanes(x);
         let mut base = [0usize; MAX_W];
         let mut ijk = [[0u32; 3]; MAX_W];
         front.take = 0;
@@ -222,7 +222,6 @@ impl LatticeLocator<'_> {
                 x
             };
             front.x_local = x - (splat(lattice.origin()) + cell.mul_each(lattice.h()));
-            front.length = length;
             // The corners of each lane's hinted cell (active: every corner has a displacement;
             // lanes not taken read the lattice's first cell, and are ignored).
             let nodes = V::Node::of(self);
@@ -253,7 +252,6 @@ impl LatticeLocator<'_> {
                 V3::narrow(front.x_local),
                 xi0,
                 inside,
-                V3::narrow(front.length),
                 V::mask_from_bits(take),
                 &self.newton,
             );
@@ -268,12 +266,11 @@ impl LatticeLocator<'_> {
 }
 
 /// The first half of a warm batch of W points ([`LatticeLocator::relocate_chunk_with`]): per lane
-/// its hinted cell and starting ξ, and in lanes the rounding lengths and the points in their
+/// its hinted cell and starting ξ, and in lanes the points in their
 /// hinted cells' local frames (valid in the lanes `take` has), and the hinted cells'
 /// displacement maps.
 struct WarmFront<V: Lanes> {
     take: u32,
-    length: V3<V::Wide>,
     cell: [CellId; MAX_W],
     x_local: V3<V::Wide>,
     xi0: [DVec3; MAX_W],
@@ -286,7 +283,6 @@ impl<V: Lanes> WarmFront<V> {
         let zero = V3::splat(DVec3::ZERO);
         Self {
             take: 0,
-            length: V3::splat(DVec3::ZERO),
             cell: [CellId(0); MAX_W],
             x_local: zero,
             xi0: [DVec3::ZERO; MAX_W],
