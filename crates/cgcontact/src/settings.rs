@@ -258,8 +258,9 @@ impl Settings {
 ///   `L_j = 4 ε₆₄ max(|x_j|, |origin_j|) + 4 ε_kernel u_max_j`.
 ///
 /// A perturbation of at most L_j in each component j moves ξ_k by at most Σ_j |J⁻¹_kj| L_j,
-/// whatever the cell's shape; J is the Jacobian of the last Newton step. In an undeformed cell
-/// that is 2 L_k / h_k, so closed cells stay closed at any offset and no more, whatever the
+/// whatever the cell's shape; J is the cell's Jacobian at the point of the closed cell nearest
+/// the converged ξ (ξ clamped to [−1, 1]³). In an undeformed cell that is 2 L_k / h_k, so
+/// closed cells stay closed at any offset and no more, whatever the
 /// anisotropy (with the smallest spacing on every axis, a point 5e-4 h outside a face of a
 /// 1000 : 1 cell at 1e9 was found inside). In a sheared or rotated cell a rounding along one
 /// axis moves ξ along another: with 2 L_k / h_k alone, nodes of a 4 × 0.25 × 0.002 lattice at

@@ -60,7 +60,7 @@ pub struct NewtonOptions {
     pub inside_tol: DVec3,
     /// How far the point and the map may be off by rounding, per component (lengths, the frame's
     /// units): carried into ξ through J⁻¹, so that a cell of any shape accepts every point within
-    /// that much of it ([`crate::InsideTolerance`]). J is the Jacobian of the last step.
+    /// that much of it ([`crate::InsideTolerance`]). J is the cell's, at ξ clamped to [−1, 1]³.
     pub inside_length: DVec3,
     /// Give up (singular) when det J falls to this fraction of the cell's det J at ξ = 0 or below.
     pub det_ratio_min: f64,
@@ -243,13 +243,23 @@ macro_rules! stamp_hex8 {
                 16.0 * <$S>::EPSILON * magnitude * inverse_norm
             }
 
-            /// |J⁻¹| `length`: how far a perturbation of at most `length_j` in each component j
-            /// moves ξ along each axis, from the rows of adj(J) (`adjugate`) and 1 / det J.
-            #[inline]
-            fn carried(length: $V, adjugate: [$V; 3], inv_det: $S) -> $V {
-                let [k0, k1, k2] = adjugate;
-                <$V>::new(k0.abs().dot(length), k1.abs().dot(length), k2.abs().dot(length))
-                    * inv_det.abs()
+            /// Whether `xi` is within `inside` + |J⁻¹| `length` on every axis, J at the point of
+            /// the closed cell nearest `xi` (ξ clamped to [−1, 1]³): |J⁻¹| `length` is how far a
+            /// perturbation of at most `length_j` in each component j moves ξ along each axis. The
+            /// Jacobian is the cell's own, not its extrapolation's: beyond a crushed corner the
+            /// extrapolated map turns singular, and its J⁻¹ would excuse any distance. No
+            /// allowance where det J ≤ 0 there. Called only for a converged ξ beyond `inside`.
+            #[cold]
+            fn within_allowance(&self, xi: $V, inside: $V, length: $V) -> bool {
+                let (_, [c0, c1, c2]) = self.map_and_jacobian(xi.clamp(<$V>::splat(-1.0), <$V>::splat(1.0)));
+                let (k0, k1, k2) = (c1.cross(c2), c2.cross(c0), c0.cross(c1));
+                let det = c0.dot(k0);
+                // NaN fails too: only a cell known to be valid there gets the allowance.
+                if det.is_nan() || det <= 0.0 {
+                    return false;
+                }
+                let carried = <$V>::new(k0.abs().dot(length), k1.abs().dot(length), k2.abs().dot(length)) / det;
+                xi.abs().cmple(inside + carried).all()
             }
 
             /// det J at ξ = 0, the scale of the cell's volume (volume / 8).
@@ -319,10 +329,7 @@ macro_rules! stamp_hex8 {
                         let status = if !xi.is_finite() || !rr.is_finite() {
                             Status::Singular
                         } else if xi.abs().cmple(inside).all()
-                            || xi
-                                .abs()
-                                .cmple(inside + Self::carried(inside_length, [k0, k1, k2], inv_det))
-                                .all()
+                            || self.within_allowance(xi, inside, inside_length)
                         {
                             Status::Inside
                         } else {
