@@ -247,8 +247,9 @@ impl Settings {
 
 /// What every locator and strategy calls inside, with its per-body constants computed once.
 ///
-/// A point x is inside a cell when the Newton inversion converges to a ξ with, on every axis k,
-/// `|ξ_k| ≤ 1 + t + Σ_j |J⁻¹_kj| L_j`:
+/// A point x is inside a cell when the Newton inversion converges to a ξ that some perturbation
+/// δ of x, |δ_j| ≤ L_j, brings within 1 + t on every axis, to first order (`ξ + J⁻¹ δ` in
+/// [−1 − t, 1 + t]³):
 /// - `t` (ξ units, [`InsideTolerance::xi`]) is the setting plus the kernel's own rounding of ξ,
 ///   16 ε_kernel;
 /// - `L` (a length per component, [`InsideTolerance::length`]) is how far x and the cell's map
@@ -257,11 +258,9 @@ impl Settings {
 ///   from it), and the kernel rounds the displacements at its own precision, so
 ///   `L_j = 4 ε₆₄ max(|x_j|, |origin_j|) + 4 ε_kernel u_max_j`.
 ///
-/// A perturbation of at most L_j in each component j moves ξ_k by at most Σ_j |J⁻¹_kj| L_j,
-/// whatever the cell's shape; J is the cell's Jacobian at the point of the closed cell nearest
-/// the converged ξ (ξ clamped to [−1, 1]³). In an undeformed cell that is 2 L_k / h_k, so
-/// closed cells stay closed at any offset and no more, whatever the
-/// anisotropy (with the smallest spacing on every axis, a point 5e-4 h outside a face of a
+/// J is the cell's Jacobian at the point of the closed cell nearest the converged ξ (ξ clamped
+/// to [−1, 1]³). In an undeformed cell that is |ξ_k| ≤ 1 + t + 2 L_k / h_k, so closed cells stay
+/// closed at any offset and no more, whatever the anisotropy (with the smallest spacing on every axis, a point 5e-4 h outside a face of a
 /// 1000 : 1 cell at 1e9 was found inside). In a sheared or rotated cell a rounding along one
 /// axis moves ξ along another: with 2 L_k / h_k alone, nodes of a 4 × 0.25 × 0.002 lattice at
 /// 1e5 sheared by x += 10 z lost some of their owners. A coarse leaf of an adaptive body gets its

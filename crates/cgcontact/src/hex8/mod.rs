@@ -55,12 +55,14 @@ pub struct NewtonOptions {
     pub tol: f64,
     /// Iteration limit.
     pub max_iter: u32,
-    /// The result is inside when every |ξ_k| ≤ 1 + `inside_tol`'s component k
-    /// + Σ_j |J⁻¹_kj| `inside_length`_j.
+    /// The result is inside when every |ξ_k| ≤ 1 + `inside_tol`'s component k, up to a
+    /// perturbation of the point by `inside_length`.
     pub inside_tol: DVec3,
     /// How far the point and the map may be off by rounding, per component (lengths, the frame's
-    /// units): carried into ξ through J⁻¹, so that a cell of any shape accepts every point within
-    /// that much of it ([`crate::InsideTolerance`]). J is the cell's, at ξ clamped to [−1, 1]³.
+    /// units): the result is inside when some perturbation δ, |δ_j| ≤ `inside_length`_j, brings
+    /// ξ + J⁻¹ δ within `inside_tol`, so that a cell of any shape accepts every point within that
+    /// much of it and no more ([`crate::InsideTolerance`]). J is the cell's, at ξ clamped to
+    /// [−1, 1]³.
     pub inside_length: DVec3,
     /// Give up (singular) when det J falls to this fraction of the cell's det J at ξ = 0 or below.
     pub det_ratio_min: f64,
@@ -243,11 +245,17 @@ macro_rules! stamp_hex8 {
                 16.0 * <$S>::EPSILON * magnitude * inverse_norm
             }
 
-            /// Whether `xi` is within `inside` + |J⁻¹| `length` on every axis, J at the point of
-            /// the closed cell nearest `xi` (ξ clamped to [−1, 1]³): |J⁻¹| `length` is how far a
-            /// perturbation of at most `length_j` in each component j moves ξ along each axis. The
-            /// Jacobian is the cell's own, not its extrapolation's: beyond a crushed corner the
-            /// extrapolated map turns singular, and its J⁻¹ would excuse any distance. No
+            /// Whether `xi` is inside the cell up to rounding: whether some perturbation δ of the
+            /// point, |δ_j| ≤ `length_j`, brings it within `inside` on every axis, to first order:
+            /// ξ + J⁻¹ δ in the box [−`inside`, `inside`]. That is, ξ lies in the Minkowski sum of
+            /// the box and the parallelepiped J⁻¹ [−L, L]³: a zonotope of 6 generators (the box's
+            /// half-edges, and J⁻¹'s columns times L_j), tested on the normals of its faces, the
+            /// cross products of pairs of generators. (The box's own pairs give the per-axis bound
+            /// |ξ_k| ≤ inside_k + Σ_j |J⁻¹_kj| L_j; alone, it accepted points up to cond(J) L
+            /// away from a crushed corner, 1e-6 beyond one of det ratio 1e-5 in f32.)
+            ///
+            /// J is the cell's own at the point of the closed cell nearest `xi` (ξ clamped to
+            /// [−1, 1]³), not its extrapolation's, which turns singular beyond a crushed corner. No
             /// allowance where det J ≤ 0 there. Called only for a converged ξ beyond `inside`.
             #[cold]
             fn within_allowance(&self, xi: $V, inside: $V, length: $V) -> bool {
@@ -258,8 +266,28 @@ macro_rules! stamp_hex8 {
                 if det.is_nan() || det <= 0.0 {
                     return false;
                 }
-                let carried = <$V>::new(k0.abs().dot(length), k1.abs().dot(length), k2.abs().dot(length)) / det;
-                xi.abs().cmple(inside + carried).all()
+                // J⁻¹'s column j is adj(J)'s (the rows k) over det J.
+                let scale = length / det;
+                let generators = [
+                    <$V>::new(inside.x, 0.0, 0.0),
+                    <$V>::new(0.0, inside.y, 0.0),
+                    <$V>::new(0.0, 0.0, inside.z),
+                    <$V>::new(k0.x, k1.x, k2.x) * scale.x,
+                    <$V>::new(k0.y, k1.y, k2.y) * scale.y,
+                    <$V>::new(k0.z, k1.z, k2.z) * scale.z,
+                ];
+                for (i, &a) in generators.iter().enumerate() {
+                    for &b in &generators[i + 1..] {
+                        let normal = a.cross(b);
+                        let reach: $S = generators.iter().map(|&g| normal.dot(g).abs()).sum();
+                        // A zero normal (parallel generators) bounds nothing: 0 ≤ 0.
+                        let within = normal.dot(xi).abs() <= reach;
+                        if !within {
+                            return false;
+                        }
+                    }
+                }
+                true
             }
 
             /// det J at ξ = 0, the scale of the cell's volume (volume / 8).
@@ -547,5 +575,43 @@ mod tests {
         assert_ne!(nan.status, Status::Inside);
         assert!(min_corner_det(&flat).abs() < 1e-15);
         assert!(min_corner_det(&distorted()) > 0.0);
+    }
+
+    /// The rounding allowance is a physical distance, however thin the cell: a sliver (its x and
+    /// y edges 1e-6 apart in angle) accepts a point L/2 beyond its acute edge and not one 1000 L
+    /// beyond. The per-axis bound |ξ_k| ≤ 1 + t + Σ_j |J⁻¹_kj| L_j (the bounding box of the
+    /// exact region) accepted both: J⁻¹'s rows are 1e6 long there.
+    #[test]
+    fn the_rounding_allowance_is_a_distance_even_in_a_sliver() {
+        let (x_edge, y_edge, z_edge) = (DVec3::X, DVec3::new(1.0, 1e-6, 0.0), DVec3::Z);
+        let corners: [DVec3; 8] = std::array::from_fn(|c| {
+            let [i, j, k] = CORNER_XI[c].map(|s| (s + 1.0) / 2.0);
+            x_edge * i + y_edge * j + z_edge * k
+        });
+        let map = Hex8Map::new(&corners);
+        let length = 1e-9;
+        let options = NewtonOptions {
+            inside_length: DVec3::splat(length),
+            ..Default::default()
+        };
+        // Beyond the edge ξ_x = ξ_y = 1 (at ξ_z = 0), along x_edge + y_edge: ξ = (1 + d, 1 + d, 0).
+        let edge = (x_edge + y_edge) + 0.5 * z_edge;
+        let out = (x_edge + y_edge).normalize();
+        for (distance, inside) in [(0.5 * length, true), (1000.0 * length, false)] {
+            let inversion = map.invert(edge + out * distance, DVec3::ZERO, &options);
+            assert!(
+                inversion.xi.x > 1.0 && inversion.xi.y > 1.0,
+                "{inversion:?}"
+            );
+            let expected = if inside {
+                Status::Inside
+            } else {
+                Status::Outside
+            };
+            assert_eq!(
+                inversion.status, expected,
+                "{distance:e} beyond: {inversion:?}"
+            );
+        }
     }
 }
