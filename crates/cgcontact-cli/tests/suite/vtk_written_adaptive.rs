@@ -1,7 +1,8 @@
 //! `cgcontact locate --all-owners` on adaptive meshes written by VTK 9.7.2
 //! (fixtures/vtk-written-adaptive, made by its make.py, which computed every owner of each point
 //! and its ξ): the rows name the file's cells, every owner of a point on a shared node, edge or
-//! face, and a hanging node's coarse cell among them.
+//! face, and a hanging node's coarse cell among them, on cells sheared by x += 10 z and x += 1e3 z
+//! far from the origin too.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -75,10 +76,16 @@ fn locate(mesh: &str, rows: &[Row], flags: &[&str]) -> (std::process::Output, Fo
 
 #[test]
 fn every_owner_of_every_point_in_the_files_numbering() {
-    for (scene, mesh) in [
-        ("jumps", "jumps.appended-zlib.vtu"),
-        ("balanced", "balanced.legacy-binary.vtk"),
-        ("all-refined", "all-refined.appended.vtu"),
+    // Each mesh with its finest cells' shortest edge, or less (for the ξ bound below).
+    for (scene, mesh, edge) in [
+        ("jumps", "jumps.appended-zlib.vtu", 0.0625),
+        ("balanced", "balanced.legacy-binary.vtk", 0.0625),
+        ("all-refined", "all-refined.appended.vtu", 0.0625),
+        // Spacings 4 x 0.25 x 0.002 (finest z edge 0.0005), sheared by x += 10 z at 1e5 and by
+        // x += 1e3 z at -1e7: nodes lost owners at c203d69, whose inside test took its allowance
+        // for rounding from J⁻¹'s diagonal alone (92 of 940 and 209 of 1315 owners missed).
+        ("sheared-1e5", "sheared-1e5.appended-zlib.vtu", 0.0005),
+        ("sheared-m1e7", "sheared-m1e7.binary-zlib.vtu", 0.0005),
     ] {
         let rows = expected(scene);
         for threads in ["1", "3"] {
@@ -99,8 +106,9 @@ fn every_owner_of_every_point_in_the_files_numbering() {
                     .map(|v| v.parse::<f64>().unwrap().abs())
                     .fold(0.0, f64::max);
                 for ((_, xi), (_, known)) in got.iter().zip(owners) {
-                    // The rounding of the point's coordinates, in ξ of a finest cell at most.
-                    let bound = 1e-10 + 64.0 * f64::EPSILON * magnitude / 0.0625;
+                    // The rounding of the point's coordinates, in ξ of a finest cell at most (a
+                    // sheared cell's J⁻¹, 2 s / h_x with s = 10 or 1e3, stays below 2 / edge).
+                    let bound = 1e-10 + 64.0 * f64::EPSILON * magnitude / edge;
                     assert!(
                         (0..3).all(|a| (xi[a] - known[a]).abs() <= bound),
                         "{mesh}: point {p}: {xi:?} vs {known:?}"
