@@ -6,7 +6,9 @@
 //! distance to the closest point c of that surface, negative when a cell holds x (the locator's
 //! answer, with its inside tolerance). The **normal** n is the face's unit outward normal when c
 //! lies inside a face, and (x − c)/gap when c is on an edge or a corner; either way
-//! x = c + gap·n.
+//! x = c + gap·n. Within the locator's allowance of the surface (its inside tolerance as a
+//! distance, and the rounding it carries) the locator's sign may be against x − c: the normal is
+//! then the face's at c, and x = c + gap·n holds to 2|gap|.
 //!
 //! The search is exact and complete within the search distance D without any global structure:
 //! a face point c = X + u(X) within D of x has X in [x − D − u_high, x + D − u_low] (u's range
@@ -31,7 +33,7 @@ use glam::{DVec2, DVec3};
 use crate::lattice::CellId;
 use crate::reach::Range;
 use crate::schedule::Scheduler;
-use crate::{Error, PointError};
+use crate::{Error, Frame, InsideTolerance, PointError};
 use quad::{Locus, Patch, box_distance2};
 use surface::Cell;
 pub(crate) use surface::Coverage;
@@ -70,7 +72,8 @@ pub struct Contact {
     pub gap: f64,
     /// The closest point of the deformed boundary surface.
     pub point: DVec3,
-    /// Unit outward normal: x = point + gap · normal.
+    /// Unit outward normal: x = point + gap · normal (to 2|gap| where |gap| is within the
+    /// locator's allowance and its sign is against x − point: see the module).
     pub normal: DVec3,
     /// The face holding the closest point (on an edge or corner shared by several, one of them).
     pub face: Face,
@@ -91,6 +94,8 @@ pub struct GapFinder<'l, L> {
     surface: &'l L,
     distance: f64,
     u_range: Range,
+    /// The locator's inside tolerance: how far outside a cell the locator's sign may reach.
+    inside: InsideTolerance,
     /// The batched queries' schedule (the locator's) and its sort's buffers.
     scheduler: Scheduler,
 }
@@ -106,8 +111,12 @@ struct Best {
     origin: DVec3,
     locus: Locus,
     normal: DVec3,
-    /// Distances below this are left to the locator's sign (a millionth of the cell's size).
+    /// Distances below this are left to the locator's sign, at least (a millionth of the cell's
+    /// size).
     band: f64,
+    /// Half the cell's thickness across the face, scaled to a base cell: the distance a unit of
+    /// ξ is along the face's normal, what the locator's allowance in ξ is a share of.
+    half_thickness: f64,
 }
 
 /// Every local face, as a bit set.
@@ -144,10 +153,21 @@ impl<'l, L: Surface> GapFinder<'l, L> {
                 high: DVec3::ZERO,
             }
         };
+        // The locator's own allowance (the kernel rounds u − T, |u| with f64).
+        let settings = surface.locator_settings();
+        let finest = surface.finest_spacing();
+        let frame = Frame::new(settings.precision, u_range.low, u_range.high, finest);
+        let inside = InsideTolerance::with_spacing(
+            settings,
+            surface.lattice().origin(),
+            finest,
+            frame.reach(),
+        );
         Ok(Self {
             surface,
             distance,
             u_range,
+            inside,
             scheduler: Scheduler::new(surface.schedule().0),
         })
     }
@@ -272,12 +292,21 @@ impl<'l, L: Surface> GapFinder<'l, L> {
         let dist = b.d2.sqrt();
         // x − c, in the closest face's cell frame.
         let away = (x - b.origin) - b.local;
+        // How far outside a cell the locator may still hold x: its allowance in ξ (t, times the
+        // distance a unit of ξ is across the face) and the rounding length L it carries through
+        // J⁻¹ (at most |L| off a face of a cell that is not degenerate), taken four times over
+        // (the kernel's own noise). With f32 t alone is a millionth of the cell, and with f64
+        // far from the origin L is: a fixed millionth of the cell's smallest edge left points
+        // the locator holds with a positive gap.
+        let allowance =
+            4.0 * (self.inside.xi() * b.half_thickness + self.inside.length(x).element_sum());
         // The sign: a point inside the body reaches its closest surface point c from inside (the
         // segment to c crosses no surface), so where c is inside a face, x − c, normal to it,
         // points against its outward normal. Near the surface (where the locator's inside
         // tolerance decides), and at edges and corners, the locator says.
         let side = away.dot(b.normal);
-        let inside = if b.locus == Locus::Interior && dist > b.band && side.abs() >= 0.5 * dist {
+        let band = b.band.max(allowance);
+        let inside = if b.locus == Locus::Interior && dist > band && side.abs() >= 0.5 * dist {
             side < 0.0
         } else {
             self.surface.locate(x)?.is_some()
@@ -290,7 +319,24 @@ impl<'l, L: Surface> GapFinder<'l, L> {
             dist
         };
         let normal = match b.locus {
-            Locus::Boundary if dist > 0.0 => away / gap,
+            Locus::Boundary if dist > 0.0 => {
+                // On an edge or a corner, x − c is the normal's direction and the gap's sign its
+                // side. Within the allowance the locator's sign may be against x − c, which then
+                // pointed into the body, against the face's outward normal; and x − c may be
+                // only the rounding of x and c. The face's normal is a normal of the surface at c
+                // there (x = c + gap·n then holds to 2|gap|, as inside a face whose sign the
+                // locator turned).
+                let n = away / gap;
+                let noise = 16.0
+                    * f64::EPSILON
+                    * ((x - b.origin).abs().max_element() + b.local.abs().max_element());
+                let against = dist <= allowance && n.dot(b.normal) <= 0.0;
+                if (against || dist <= noise) && b.normal != DVec3::ZERO {
+                    b.normal
+                } else {
+                    n
+                }
+            }
             _ => b.normal,
         };
         Ok(Some(Contact {
@@ -463,8 +509,31 @@ impl<'l, L: Surface> GapFinder<'l, L> {
             locus: p.locus,
             normal: patch.normal(p.st).normalize_or_zero(),
             band: 1e-6 * size.min_element(),
+            // (A coarser neighbour of an adaptive leaf may hold x: as thick as a base cell.)
+            half_thickness: half_thickness(size, u, f / 2)
+                * (self.surface.lattice().h() / size).max_element(),
         });
     }
+}
+
+/// Half the thickness of a cell (edge lengths `size`, corner displacements `u`, VTK order)
+/// across its faces normal to lattice axis `axis`, at its centre: the distance along their
+/// normal a unit of ξ_axis moves, det J / |J_i × J_j| (h_axis / 2 undeformed). Where the other
+/// two columns are parallel (a degenerate face), the length of J's column along `axis`.
+fn half_thickness(size: DVec3, u: &[DVec3; 8], axis: usize) -> f64 {
+    // J's columns at the centre: the cell's edges along each axis, averaged, halved.
+    let mut j = [DVec3::ZERO; 3];
+    for (c, u) in u.iter().enumerate() {
+        let o = crate::lattice::CORNER_OFFSETS[c];
+        let p = DVec3::new(f64::from(o[0]), f64::from(o[1]), f64::from(o[2])) * size + *u;
+        for (a, j) in j.iter_mut().enumerate() {
+            *j += if o[a] == 1 { p } else { -p };
+        }
+    }
+    let j = j.map(|v| v * 0.125);
+    let across = j[(axis + 1) % 3].cross(j[(axis + 2) % 3]);
+    let t = j[axis].dot(across).abs() / across.length();
+    if t.is_finite() { t } else { j[axis].length() }
 }
 
 #[cfg(test)]

@@ -3,11 +3,11 @@
 
 use glam::DVec3;
 
-use crate::Schedule;
 use crate::adaptive::AdaptiveLocator;
 use crate::lattice::{CellId, Lattice};
 use crate::locate::{LatticeLocator, Locator};
 use crate::schedule::Layout;
+use crate::{Schedule, Settings};
 
 /// A locator whose body has a boundary surface to measure gaps to: [`LatticeLocator`] and
 /// [`AdaptiveLocator`]. Sealed: its methods are the crate's own.
@@ -47,6 +47,11 @@ pub(crate) mod sealed {
         fn lattice(&self) -> &Lattice;
         /// Every node's displacement.
         fn displacements(&self) -> &[DVec3];
+        /// The locator's settings (its precision and inside tolerance decide the sign near the
+        /// surface).
+        fn locator_settings(&self) -> &Settings;
+        /// The spacing of the finest cells (the lattice's on a uniform body).
+        fn finest_spacing(&self) -> DVec3;
         /// The batched queries' schedule (the locator's) and the body as it sees it.
         fn schedule(&self) -> (Schedule, Layout<'_>);
         /// The cell of id `id`, if it is an active cell (a leaf).
@@ -113,6 +118,14 @@ pub(crate) mod sealed {
 
         fn displacements(&self) -> &[DVec3] {
             self.body().displacements()
+        }
+
+        fn locator_settings(&self) -> &Settings {
+            self.settings()
+        }
+
+        fn finest_spacing(&self) -> DVec3 {
+            self.body().lattice().h()
         }
 
         fn schedule(&self) -> (Schedule, Layout<'_>) {
@@ -222,6 +235,15 @@ pub(crate) mod sealed {
 
         fn displacements(&self) -> &[DVec3] {
             self.body().displacements()
+        }
+
+        fn locator_settings(&self) -> &Settings {
+            self.settings()
+        }
+
+        fn finest_spacing(&self) -> DVec3 {
+            let body = self.body();
+            body.spacing(body.finest_level())
         }
 
         fn schedule(&self) -> (Schedule, Layout<'_>) {

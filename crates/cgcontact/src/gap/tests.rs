@@ -7,8 +7,8 @@ use glam::{DVec2, DVec3};
 
 use super::*;
 use crate::{
-    AdaptiveBody, AdaptiveLocator, Body, Error, Lattice, LatticeLocator, Leaf, MAX_DISPLACEMENT,
-    Settings,
+    AdaptiveBody, AdaptiveLocator, Body, Error, Lattice, LatticeLocator, Leaf, Locator,
+    MAX_DISPLACEMENT, Settings,
 };
 
 /// The oracle's answer for one point.
@@ -664,4 +664,114 @@ fn a_search_distance_out_of_range_is_named_briefly() {
         assert!(message.len() < 200, "{message}");
     }
     assert!(GapFinder::new(&locator, 1e150).is_ok());
+}
+
+/// `x` moved by `n` units in the last place along each axis.
+fn ulps(x: DVec3, n: DVec3) -> DVec3 {
+    let step = |v: f64, k: f64| {
+        let bits = v.to_bits() as i64 + k as i64 * v.signum() as i64;
+        f64::from_bits(bits as u64)
+    };
+    DVec3::new(step(x.x, n.x), step(x.y, n.y), step(x.z, n.z))
+}
+
+/// Near the surface the sign is the locator's, whose allowance is its inside tolerance plus the
+/// rounding it carries: 1.9e-6 of a cell in ξ with f32, 4 ε |x| per component with f64 far
+/// from the origin. The sign was left to the locator only within a millionth of the cell's
+/// smallest edge, less than either: a point 5e-7 beyond the long face of a 1 × 1 × 0.01 cell
+/// with f32, or 2 units in the last place (3e-8) beyond it at 1e8 with f64, was held by the
+/// locator and answered a positive gap.
+#[test]
+fn the_sign_is_the_locators_within_its_rounding_allowance() {
+    let h = DVec3::new(1.0, 1.0, 0.01);
+    for (name, settings, origin) in [
+        ("f32", Settings::f32(), DVec3::ZERO),
+        ("f64 at 1e8", Settings::default(), DVec3::splat(1e8)),
+    ] {
+        let lattice = Lattice::new(origin, h, [2, 2, 2]).unwrap();
+        let body = Body::full(lattice);
+        let locator = LatticeLocator::new(&body, settings).unwrap();
+        let finder = GapFinder::new(&locator, 0.1).unwrap();
+        // On the face x = 2 (the lattice's upper x face), then just beyond it.
+        let on = origin + DVec3::new(2.0, 0.7, 0.013);
+        let beyond = if settings.precision == crate::Precision::F32 {
+            vec![on + DVec3::X * 5e-7, on + DVec3::X * 2e-7]
+        } else {
+            vec![ulps(on, DVec3::X * 2.0), ulps(on, DVec3::X * 4.0)]
+        };
+        let mut answers = Vec::new();
+        finder.gap_all_into(&beyond, &mut answers);
+        for (&x, batched) in beyond.iter().zip(&answers) {
+            assert!(
+                locator.locate(x).unwrap().is_some(),
+                "{name}: the locator holds {x} (the scene's premise)"
+            );
+            let c = finder.gap(x).unwrap().expect("within the search distance");
+            assert!(
+                c.gap < 0.0,
+                "{name}: {x}, held by the locator, has gap {:e}",
+                c.gap
+            );
+            assert_eq!(*batched, Ok(Some(c)), "{name}: batched");
+            assert_eq!(c.normal, DVec3::X, "{name}: the face's normal");
+        }
+        // Well beyond the allowance: outside, a positive gap, and geometry alone says so.
+        let x = on + DVec3::X * 1e-4;
+        assert!(locator.locate(x).unwrap().is_none(), "{name}");
+        let c = finder.gap(x).unwrap().unwrap();
+        assert!((c.gap - 1e-4).abs() < 1e-7, "{name}: {}", c.gap);
+    }
+}
+
+/// A point a hair beyond an edge or a corner, within the locator's allowance, is held by it: its
+/// gap is negative, and (x − c)/gap, the normal on edges and corners, pointed into the body
+/// (x − c points out of it). With f32 a point 3e-7 of a cell beyond an edge of an undeformed
+/// block got the normal (−1, 0, −1)/√2; with f64 so did one 4e-13 beyond it near the origin, and
+/// one 2 units in the last place beyond it at 1e8. The normal there is now the face's, an
+/// outward normal of the surface at c.
+#[test]
+fn normals_at_edges_and_corners_point_out_where_the_locator_holds_the_point() {
+    for (name, settings, origin) in [
+        ("f32", Settings::f32(), DVec3::ZERO),
+        ("f64", Settings::default(), DVec3::ZERO),
+        ("f64 at 1e8", Settings::default(), DVec3::splat(1e8)),
+    ] {
+        let lattice = Lattice::new(origin, DVec3::ONE, [2, 2, 2]).unwrap();
+        let body = Body::full(lattice);
+        let locator = LatticeLocator::new(&body, settings).unwrap();
+        let finder = GapFinder::new(&locator, 0.5).unwrap();
+        let edge = origin + DVec3::new(2.0, 0.6, 2.0);
+        let corner = origin + DVec3::splat(2.0);
+        for (on, out) in [(edge, DVec3::new(1.0, 0.0, 1.0)), (corner, DVec3::ONE)] {
+            let x = match name {
+                "f32" => on + out * 3e-7,
+                "f64" => on + out * 4e-13,
+                _ => ulps(on, out * 2.0),
+            };
+            assert!(
+                locator.locate(x).unwrap().is_some(),
+                "{name}: the locator holds {x} (the scene's premise)"
+            );
+            let c = finder.gap(x).unwrap().expect("within the search distance");
+            assert!(c.gap < 0.0 && !c.interior, "{name}: {x}: {c:?}");
+            assert!((c.normal.length() - 1.0).abs() < 1e-12, "{name}: {c:?}");
+            // An outward normal of a face through c: one of the axes `out` has.
+            assert!(
+                c.normal.dot(out) > 0.99,
+                "{name}: {x}: normal {} points into the body",
+                c.normal
+            );
+            // x = c + gap·n up to twice the gap.
+            assert!(
+                (c.point + c.gap * c.normal - x).length() <= 2.0 * c.gap.abs() + 1e-15,
+                "{name}: {c:?}"
+            );
+        }
+        // Beyond the allowance, on an edge the normal is (x − c)/gap again.
+        let x = edge + DVec3::new(1.0, 0.0, 1.0) * 1e-3;
+        let c = finder.gap(x).unwrap().unwrap();
+        assert!(c.gap > 0.0 && !c.interior, "{name}: {c:?}");
+        let n = DVec3::new(1.0, 0.0, 1.0).normalize();
+        assert!((c.normal - n).length() < 1e-9, "{name}: {}", c.normal);
+    }
 }

@@ -4,6 +4,7 @@
 mod adaptive;
 mod common;
 mod extremes;
+mod gap_extremes;
 mod locate_property;
 mod schedule;
 mod warm;
