@@ -938,3 +938,72 @@ fn sheared_and_rotated_cells_keep_every_owner_of_nodes_edges_and_faces() {
         }
     }
 }
+
+/// Points off the outer faces of sheared and rotated lattices far from the origin (needle cells of
+/// 1e-6 sheared by 1e3 at 1e5 among them: there the rounding length L dominates the setting) by a
+/// multiple k of L, along the face's outward normal: held up to k = 1/2 (with J⁻¹'s diagonal
+/// alone, not: checked), never from k = 100 (f64). The inside test accepts the points within L of
+/// a cell and no more, whatever its shape.
+#[test]
+fn sheared_and_rotated_cells_hold_nothing_beyond_the_rounding() {
+    let settings = Settings::default();
+    let mut checked = 0;
+    for (map_name, a) in linear_maps() {
+        for (h, origin) in [
+            (DVec3::splat(1e-6), DVec3::splat(1e5)),
+            (DVec3::new(4.0, 0.25, 0.002), DVec3::splat(1e5)),
+            (DVec3::splat(0.5), DVec3::new(-1e6, 3e5, 1e6)),
+        ] {
+            let lattice = Lattice::new(origin, h, [3, 3, 3]).unwrap();
+            let mut body = Body::full(lattice);
+            body.update_displacements(|_, x, u| {
+                let r = x - origin;
+                *u = DVec3::new(a[0].dot(r), a[1].dot(r), a[2].dot(r)) - r;
+            })
+            .unwrap();
+            let locator = LatticeLocator::new(&body, settings).unwrap();
+            let inside =
+                cgcontact::InsideTolerance::new(&settings, &lattice, body.max_displacement());
+            let mut rng = Rng(7);
+            for cell in body.active_cells() {
+                let ijk = lattice.cell_ijk(cell).unwrap();
+                for axis in 0..3 {
+                    for (side, boundary) in [(-1.0, ijk[axis] == 0), (1.0, ijk[axis] == 2)] {
+                        if !boundary {
+                            continue;
+                        }
+                        // A point of the face, and the face's outward unit normal.
+                        let mut xi = rng.vec(-0.9, 0.9);
+                        xi[axis] = side;
+                        let on_face = point_at(&body, cell, xi);
+                        let (mut du, mut dv) = (DVec3::ZERO, DVec3::ZERO);
+                        du[(axis + 1) % 3] = 1e-3;
+                        dv[(axis + 2) % 3] = 1e-3;
+                        let normal = (point_at(&body, cell, xi + du) - on_face)
+                            .cross(point_at(&body, cell, xi + dv) - on_face)
+                            .normalize();
+                        let inward = point_at(&body, cell, xi * DVec3::splat(0.5)) - on_face;
+                        let normal = if normal.dot(inward) > 0.0 {
+                            -normal
+                        } else {
+                            normal
+                        };
+                        let length = inside.length(on_face).min_element();
+                        for (k, held) in [(0.5, true), (100.0, false), (1e4, false)] {
+                            let x = on_face + normal * (k * length);
+                            let found = locator.locate(x).unwrap().is_some();
+                            assert_eq!(
+                                found,
+                                held,
+                                "{map_name}, h {h}: {k} L = {:e} off face {axis} ({side}) of {cell} at {x}",
+                                k * length
+                            );
+                            checked += 1;
+                        }
+                    }
+                }
+            }
+        }
+    }
+    assert!(checked > 1000, "{checked}");
+}
