@@ -112,7 +112,9 @@ fn answer_all<L: Surface + Sync>(
 /// - `closest[3i..3i+3]`: that closest point;
 /// - `normal[3i..3i+3]`: the unit outward normal, so that point = closest + gap · normal (the
 ///   face's normal where the closest point lies inside a face, the direction from it to the point
-///   where it lies on an edge or a corner);
+///   where it lies on an edge or a corner; within the locator's rounding allowance of the surface,
+///   where the locator's sign is against that direction, the face's normal, and the equation
+///   holds to 2 |gap|);
 /// - `face_cell[i]`: the cell of the face holding the closest point, numbered as `cgc_locate`
 ///   numbers cells (lattice cell numbers, or 0-based places in `cells` for a body from
 ///   `cgc_body_from_mesh`); on an edge or a corner shared by several faces, one of them;

@@ -330,7 +330,8 @@ impl PyLocator {
     /// Signed gaps of `points` (n, 3) to the body's deformed boundary surface, searched within
     /// `dist` (finite, at least 0). Returns a dict of arrays: "gap" float64[n] (negative inside
     /// the body), "closest" float64[n, 3] (the closest surface point), "normal" float64[n, 3] (the
-    /// unit outward normal there: point = closest + gap * normal), "face_cell" int64[n] (the cell
+    /// unit outward normal there: point = closest + gap * normal, to 2 |gap| within the locator's
+    /// rounding allowance of the surface), "face_cell" int64[n] (the cell
     /// of the face, numbered as `locate` numbers cells) and "face" int32[n] (its VTK local face
     /// 0-5); NaN and -1 where the surface is farther than `dist`. Measured in f64 with the
     /// library's default Newton settings whatever the locator's (as `cgcontact locate --gap`).
