@@ -150,16 +150,6 @@ fn nearest(faces: &[Face], x: DVec3) -> (f64, DVec3, usize, DVec2) {
     (d2.sqrt(), at(&faces[i].q, s, t), i, DVec2::new(s, t))
 }
 
-/// VTK corners of each local face (any orientation: [`Face::new`] turns them outwards).
-const LOCAL_FACES: [[usize; 4]; 6] = [
-    [0, 4, 7, 3],
-    [1, 2, 6, 5],
-    [0, 1, 5, 4],
-    [3, 7, 6, 2],
-    [0, 3, 2, 1],
-    [4, 5, 6, 7],
-];
-
 /// A cell's deformed corners relative to the lattice's origin: its lowest node's position less
 /// the origin (exact: they are close), plus offset × size, plus the displacement.
 fn local_corners(base: DVec3, size: DVec3, u: &[DVec3; 8]) -> [DVec3; 8] {
@@ -180,7 +170,7 @@ fn uniform_faces(body: &Body) -> Vec<(Face, DVec3)> {
         let base = lattice.node_position(ijk) - lattice.origin();
         let c = local_corners(base, lattice.h(), &body.cell_displacements(cell).unwrap());
         let centre = c.iter().sum::<DVec3>() / 8.0;
-        for (f, corners) in LOCAL_FACES.iter().enumerate() {
+        for (f, corners) in cgcontact::gap::FACE_CORNERS.iter().enumerate() {
             let axis = f / 2;
             let across = i64::from(ijk[axis]) + if f % 2 == 1 { 1 } else { -1 };
             let open = across < 0 || across >= i64::from(n[axis]) || {
