@@ -43,11 +43,16 @@ fn spread(points: &[DVec3]) -> Vec<DVec3> {
         .collect()
 }
 
-fn run(locator: &dyn Locator, points: &[DVec3], mode: Option<&str>) {
-    let one = rayon::ThreadPoolBuilder::new()
+/// The pool every measured call runs in: one thread, as the other profiling examples.
+fn one_thread() -> rayon::ThreadPool {
+    rayon::ThreadPoolBuilder::new()
         .num_threads(1)
         .build()
-        .expect("a one-thread pool");
+        .expect("a one-thread pool")
+}
+
+fn run(locator: &dyn Locator, points: &[DVec3], mode: Option<&str>) {
+    let one = one_thread();
     let mut hints = Vec::new();
     one.install(|| locator.locate_all_into(points, &mut hints));
     let located = hints.iter().filter(|a| matches!(a, Ok(Some(_)))).count();
@@ -77,10 +82,7 @@ fn main() -> Result<(), cgcontact::Error> {
         let locator = LatticeLocator::new(&scene.body, settings)?;
         let finder = cgcontact::GapFinder::new(&locator, scene.body.lattice().h().z)?;
         let points = &scene.contact_points;
-        let one = rayon::ThreadPoolBuilder::new()
-            .num_threads(1)
-            .build()
-            .expect("pool");
+        let one = one_thread();
         let mut hints = Vec::new();
         one.install(|| finder.gap_all_into(points, &mut hints));
         let found = hints.iter().filter(|a| matches!(a, Ok(Some(_)))).count();

@@ -273,9 +273,10 @@ pub struct InsideTolerance {
     kernel: DVec3,
     /// |origin_j| of the lattice.
     origin: DVec3,
-    /// 2 / h_k of the spacing these constants were made with: ξ per unit length in an undeformed
-    /// cell of it.
-    per_length: DVec3,
+    /// The spacing these constants were made with (the finest, on an adaptive body).
+    h: DVec3,
+    /// 2 / its smallest component: the filters' ξ per unit length.
+    per_length: f64,
 }
 
 impl InsideTolerance {
@@ -295,7 +296,8 @@ impl InsideTolerance {
             xi: settings.inside_tol + 16.0 * settings.epsilon(),
             kernel: 4.0 * settings.epsilon() * u_max.abs(),
             origin: origin.abs(),
-            per_length: 2.0 / h,
+            h,
+            per_length: 2.0 / h.min_element(),
         }
     }
 
@@ -355,7 +357,7 @@ impl InsideTolerance {
     #[inline]
     #[must_use]
     pub fn at(&self, x: DVec3) -> DVec3 {
-        DVec3::splat(self.xi) + self.per_length * self.length(x)
+        self.undeformed(x, self.h)
     }
 
     /// What the filters widen by for a point of rounding length `length`, ξ units: `t` plus the
@@ -363,12 +365,12 @@ impl InsideTolerance {
     /// [`InsideTolerance::at`].
     #[inline(always)]
     pub(crate) fn tau(&self, length: DVec3) -> f64 {
-        self.xi + self.per_length.max_element() * length.max_element()
+        self.xi + self.per_length * length.max_element()
     }
 
     /// [`InsideTolerance::tau`] in lanes: the same operations.
     #[inline(always)]
     pub(crate) fn tau_lanes<D: Lanes<S = f64>>(&self, length: V3<D>) -> D {
-        D::splat(self.xi) + D::splat(self.per_length.max_element()) * length.max_element()
+        D::splat(self.xi) + D::splat(self.per_length) * length.max_element()
     }
 }

@@ -436,7 +436,7 @@ const GROUP: usize = 8;
 /// A group's common path up to the inversion: for each point, its rounding length (`None`: refused
 /// or out of reach), the predicted leaf, that leaf's corner displacements, and the guess.
 struct Front {
-    tol: [Option<DVec3>; GROUP],
+    length: [Option<DVec3>; GROUP],
     first: [Option<(u32, Leaf)>; GROUP],
     u: [[DVec3; 8]; GROUP],
     t_guess: [DVec3; GROUP],
@@ -484,13 +484,13 @@ impl AdaptiveLocator<'_> {
         let body = self.body;
         let origin = body.lattice().origin();
         let predicted = self.settings.order == CandidateOrder::Predicted;
-        let mut tol = [None; GROUP];
+        let mut length = [None; GROUP];
         let mut t_x = [DVec3::ZERO; GROUP];
         let mut at_x = [None; GROUP];
         for (l, &x) in xs.iter().enumerate() {
-            tol[l] = self.admit.admit(x).ok().flatten();
+            length[l] = self.admit.admit(x).ok().flatten();
             t_x[l] = (x - origin) * self.inv_h;
-            if predicted && tol[l].is_some() {
+            if predicted && length[l].is_some() {
                 at_x[l] = body.forest.leaf_at(t_x[l]);
             }
         }
@@ -511,7 +511,7 @@ impl AdaptiveLocator<'_> {
         let mut t_guess = t_x;
         let mut first = [None; GROUP];
         for l in 0..xs.len() {
-            if tol[l].is_none() {
+            if length[l].is_none() {
                 continue;
             }
             if let Some((_, leaf)) = at_x[l] {
@@ -531,7 +531,7 @@ impl AdaptiveLocator<'_> {
             }
         }
         Front {
-            tol,
+            length,
             first,
             u,
             t_guess,
@@ -545,7 +545,7 @@ impl AdaptiveLocator<'_> {
         for (xs, answers) in points.chunks(GROUP).zip(out.chunks_mut(GROUP)) {
             let front = self.front::<K>(xs);
             for (l, (&x, answer)) in xs.iter().zip(answers.iter_mut()).enumerate() {
-                let (Some(length), Some((id, leaf))) = (front.tol[l], front.first[l]) else {
+                let (Some(length), Some((id, leaf))) = (front.length[l], front.first[l]) else {
                     *answer = self.search(x, Collect::First, &mut 0);
                     continue;
                 };
