@@ -50,7 +50,7 @@ against ξ error, one mark per configuration) and DIR/scale.svg (points/s agains
 4.2 M cells, random and lattice order). A block between the markers
 <!-- reading --> and <!-- /reading --> of an existing DIR/tradeoff.md is kept.")]
 pub struct TradeoffArgs {
-    /// Folder for tradeoff.md and tradeoff.svg.
+    /// Folder for tradeoff.md, tradeoff.svg and scale.svg.
     #[arg(long, value_name = "DIR", default_value = "docs")]
     out: PathBuf,
     /// Tiny scenes and subsamples: finishes in seconds (CI checks that the report still builds).
@@ -118,13 +118,14 @@ pub fn run(args: &TradeoffArgs) -> Result<()> {
     report.push_str(&scale_section(&scale, gslib.as_ref()));
     crate::output::write_text(&md, &report)?;
     crate::output::say!(
-        "{} configurations × {} scenes and {} sizes in {:.1} s; wrote {}, {} and scale.svg",
+        "{} configurations × {} scenes and {} sizes in {:.1} s; wrote {}, {} and {}",
         configs.len(),
         scenes.len(),
         scale.len(),
         started.elapsed().as_secs_f64(),
         md.display(),
-        svg.display()
+        svg.display(),
+        args.out.join("scale.svg").display()
     )?;
     Ok(())
 }

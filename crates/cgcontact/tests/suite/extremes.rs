@@ -3,8 +3,9 @@
 //! displacements, points on every node/edge/face, points a hair inside and outside the boundary,
 //! far and non-finite points; f64 and f32 side by side.
 //!
-//! Every test prints its measured bound on one `MEASURED` line (`cargo test --test extremes --
-//! --nocapture`); docs/numerics.md records them with the name of the test that backs each.
+//! Every test prints its measured bound on one `MEASURED` line (`cargo test -p cgcontact --test
+//! suite extremes -- --skip gap_extremes --nocapture`); docs/numerics.md records them with the
+//! name of the test that backs each.
 
 use crate::common::{Rng, body, linear_maps, point_at};
 use cgcontact::hex8::{Hex8Map, Kernel, min_corner_det};
