@@ -101,8 +101,10 @@ impl Forest {
                 }
             }
         }
-        // Base cells refined uniformly become bricks; the trees left are copied compactly.
-        let mut bricks = Vec::new();
+        // Base cells refined uniformly become bricks; the trees left are copied compactly. The
+        // bricks start with a 0 that no brick owns: the level (and the leaf) that the lanes read
+        // for an entry that is no brick (`flat_lane`, `flat_id`).
+        let mut bricks = vec![0];
         let mut kept: Vec<[u32; 8]> = Vec::new();
         for entry in base.values_mut() {
             if *entry == EMPTY || *entry & NODE == 0 {
@@ -235,7 +237,7 @@ impl Forest {
         entry
     }
 
-    /// Whether the base index is dense: what [`Forest::flat_entry`] reads.
+    /// Whether the base index is dense: what [`Forest::flat_lane`] reads.
     #[inline(always)]
     pub(super) fn dense_base(&self) -> Option<&[u32]> {
         match &self.base {
@@ -244,26 +246,34 @@ impl Forest {
         }
     }
 
-    /// A base `entry` (of [`Forest::dense_base`]) whose leaf is found without a descent: an
-    /// unrefined cell, `(0, its leaf id)`, or a brick, `(L, its start)` for
-    /// [`Forest::brick_id`]. `None` for a tree or no leaf: [`Forest::leaf_at`] answers those.
+    /// Whether a base `entry` (of [`Forest::dense_base`]) is *flat*, its leaf found without a
+    /// descent: an unrefined cell (level 0, the word its leaf id) or a brick (its level L, the
+    /// word its start in `bricks`, for [`Forest::flat_id`]). A tree or no leaf is not flat
+    /// ([`Forest::leaf_at`] answers those; the level and word are then meaningless).
+    ///
+    /// Without a branch on the entry: the lanes' entries change from lane to lane (an unrefined
+    /// cell in one, a brick in the next), which the processor cannot predict. So the level is
+    /// always loaded, from `bricks[0]` (a 0 no brick owns) where the entry is no brick. (Masking
+    /// the load's value instead, the compiler skipped the load with a branch.)
     #[inline(always)]
-    pub(super) fn flat_entry(&self, entry: u32) -> Option<(u32, u32)> {
-        if entry & NODE == 0 {
-            Some((0, entry))
-        } else if Self::is_brick(entry) {
-            let start = entry & !(NODE | BRICK);
-            Some((self.bricks[start as usize], start))
-        } else {
-            None
-        }
+    pub(super) fn flat_lane(&self, entry: u32) -> (bool, u32, u32) {
+        let leaf = entry & NODE == 0;
+        let brick = Self::is_brick(entry);
+        // All ones on a brick, zero otherwise.
+        let on_brick = 0u32.wrapping_sub(u32::from(brick));
+        let word = entry & !((NODE | BRICK) & on_brick);
+        let level = self.bricks[(word & on_brick) as usize];
+        (leaf | brick, level, word)
     }
 
-    /// The leaf of the brick at `start` ([`Forest::flat_entry`]) of rank `rank` on its level's
-    /// lattice ((z, y, x) order).
+    /// The leaf of a flat entry ([`Forest::flat_lane`]'s level and word) of rank `rank` on its
+    /// level's lattice ((z, y, x) order): the word itself on level 0, else the brick's entry.
+    /// Without a branch, as `flat_lane`: on level 0 it loads `bricks[0]`, 0, and adds the word.
     #[inline(always)]
-    pub(super) fn brick_id(&self, start: u32, rank: usize) -> u32 {
-        self.bricks[start as usize + 1 + rank]
+    pub(super) fn flat_id(&self, level: u32, word: u32, rank: usize) -> u32 {
+        let refined = usize::from(level != 0);
+        let at = self.bricks[(word as usize + 1 + rank) & 0usize.wrapping_sub(refined)];
+        at + (word & (refined as u32).wrapping_sub(1))
     }
 
     /// The entry of base cell `b` (in range).
@@ -496,9 +506,9 @@ mod tests {
         let leaves = leaves();
         let bricked = Forest::build(cells, &leaves, true).unwrap_or_else(|_| panic!("valid"));
         let trees = Forest::build(cells, &leaves, false).unwrap_or_else(|_| panic!("valid"));
-        // Two bricks: 1 + 64 and 1 + 8 entries.
-        assert_eq!(bricked.bricks.len(), 65 + 9);
-        assert!(trees.bricks.is_empty() && bricked.tree.len() < trees.tree.len());
+        // The lanes' 0, then two bricks: 1 + 64 and 1 + 8 entries.
+        assert_eq!(bricked.bricks.len(), 1 + 65 + 9);
+        assert!(trees.bricks == [0] && bricked.tree.len() < trees.tree.len());
         // Points on a grid of eighths of the finest cells, on faces and beyond the lattice.
         let steps = |n: u32| (-2..=(n * 32 + 2) as i32).map(|v| f64::from(v) / 32.0);
         for z in steps(2) {

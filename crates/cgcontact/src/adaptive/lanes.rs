@@ -55,9 +55,11 @@ impl<D: Wide> Found<D> {
 impl AdaptiveLocator<'_> {
     /// The leaves holding the base lattice coordinates `t` in the lanes `ask`, as
     /// [`super::forest::Forest::leaf_at`] finds them (`t` clamped into the lattice; on a boundary
-    /// between leaves, the upper one), and their corner nodes.
+    /// between leaves, the upper one), and their corner nodes: written into `found` in those
+    /// lanes, the others kept (no merge afterwards, whose per-lane branch the processor could not
+    /// predict).
     #[inline(always)]
-    fn leaves_at<D: Wide>(&self, t: V3<D>, ask: u32) -> Found<D> {
+    fn leaves_at<D: Wide>(&self, found: &mut Found<D>, t: V3<D>, ask: u32) {
         let body = self.body;
         let forest = &body.forest;
         let cells = body.lattice().cells();
@@ -67,15 +69,15 @@ impl AdaptiveLocator<'_> {
         let mut word = [0u32; MAX_W];
         let mut flat = 0u32;
         if let Some(dense) = forest.dense_base() {
+            // Every lane, without a branch on its entry (`flat_lane`): the base cell is clamped
+            // into the lattice, so its entry exists.
             let key = lane_indices(&b, cells);
             for l in 0..D::W {
-                if ask & (1 << l) != 0
-                    && let Some((lv, w)) = forest.flat_entry(dense[key[l]])
-                {
-                    (level[l], word[l]) = (lv, w);
-                    flat |= 1 << l;
-                }
+                let (is_flat, lv, w) = forest.flat_lane(dense[key[l]]);
+                (level[l], word[l]) = (lv, w);
+                flat |= u32::from(is_flat) << l;
             }
+            flat &= ask;
         }
         // A flat lane's leaf, as `leaf_at` finds it in a brick: t · 2^L is exact, its floor
         // clamped into the base cell (an unrefined cell: L = 0, the cell itself).
@@ -92,20 +94,18 @@ impl AdaptiveLocator<'_> {
             y: fine(t.y, b.y),
             z: fine(t.z, b.z),
         };
-        let mut found = Found {
-            has: 0,
-            id: [0; MAX_W],
-            scale,
-            size,
-            ijk: b.scale(scale) + q,
-            nodes: [[0; 8]; MAX_W],
-        };
+        let asked = D::mask_from_bits(ask);
+        found.scale = D::select(asked, scale, found.scale);
+        found.size = D::select(asked, size, found.size);
+        let flat_ijk = b.scale(scale) + q;
+        found.ijk = V3::select(asked, flat_ijk, found.ijk);
+        found.has &= !ask;
         let mut rank = [0usize; MAX_W];
         (q.x + scale * (q.y + scale * q.z)).indices_into(&mut rank);
         let mut ijk = [[0usize; MAX_W]; 3];
-        found.ijk.x.indices_into(&mut ijk[0]);
-        found.ijk.y.indices_into(&mut ijk[1]);
-        found.ijk.z.indices_into(&mut ijk[2]);
+        flat_ijk.x.indices_into(&mut ijk[0]);
+        flat_ijk.y.indices_into(&mut ijk[1]);
+        flat_ijk.z.indices_into(&mut ijk[2]);
         // The other lanes descend; their levels and indices replace the computed ones below.
         let mut slow = 0u32;
         let mut slow_leaf = [Leaf::new(0, [0; 3]); MAX_W];
@@ -119,11 +119,7 @@ impl AdaptiveLocator<'_> {
                     level[l] as u8,
                     [ijk[0][l] as u32, ijk[1][l] as u32, ijk[2][l] as u32],
                 );
-                let id = if level[l] == 0 {
-                    word[l]
-                } else {
-                    forest.brick_id(word[l], rank[l])
-                };
+                let id = forest.flat_id(level[l], word[l], rank[l]);
                 (id, leaf)
             } else {
                 let Some(found) = forest.leaf_at(t.lane(l)) else {
@@ -150,7 +146,6 @@ impl AdaptiveLocator<'_> {
             };
             found.ijk = V3::select(m, slow_ijk, found.ijk);
         }
-        found
     }
 
     /// The displacement maps of `found`'s leaves (node 0's in lanes without one: there is one).
@@ -188,22 +183,11 @@ impl AdaptiveLocator<'_> {
         let mut t_guess = t_x;
         let mut second = false;
         while ask != 0 {
-            let to = self.leaves_at(t, ask);
+            self.leaves_at(&mut leaf, t, ask);
             if second {
-                take &= !(ask & !to.has);
-                let m = V::Wide::mask_from_bits(ask);
-                leaf.scale = V::Wide::select(m, to.scale, leaf.scale);
-                leaf.size = V::Wide::select(m, to.size, leaf.size);
-                leaf.ijk = V3::select(m, to.ijk, leaf.ijk);
-                for l in 0..V::W {
-                    if ask & (1 << l) != 0 {
-                        leaf.id[l] = to.id[l];
-                        leaf.nodes[l] = to.nodes[l];
-                    }
-                }
+                take &= !(ask & !leaf.has);
             } else {
-                leaf = to;
-                take = admitted & to.has;
+                take = admitted & leaf.has;
             }
             if take == 0 {
                 break;

@@ -377,16 +377,12 @@ impl Nodes {
                         continue;
                     }
                 }
+                // The corner's local coordinates in its owner: lo + off, less the owner's side
+                // where the step crossed into the next owner (bit a of e, set only where off[a]
+                // is 1 and lo[a] + 1 is the side). Arithmetic, not branches: which corners come
+                // here changes from leaf to leaf.
                 let off = CORNER_OFFSETS[c];
-                let q = [0, 1, 2].map(|a| {
-                    if off[a] == 0 {
-                        lo[a]
-                    } else if e >> a & 1 == 1 {
-                        0
-                    } else {
-                        lo[a] + 1
-                    }
-                });
+                let q = [0, 1, 2].map(|a| lo[a] + off[a] - ((e >> a & 1) << l));
                 nodes[c] = if owner.shape & LIST == 0 {
                     self.in_record(owner, 0, q, l)
                 } else {
