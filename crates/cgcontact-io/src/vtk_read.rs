@@ -6,7 +6,9 @@ use std::path::Path;
 use glam::DVec3;
 use vtkio::model::{Attribute, CellType, DataSet, UnstructuredGridPiece, VertexNumbers, Vtk};
 
-use crate::{ErrorKind, HexMesh, IoError, LatticeMesh, MeshBody, block_headers, raw_appended};
+use crate::{
+    ErrorKind, HexMesh, IoError, LatticeMesh, MeshBody, block_headers, lzma_arrays, raw_appended,
+};
 
 /// The point-data array used when the caller names none.
 pub const DEFAULT_DISPLACEMENT: &str = "displacement";
@@ -162,6 +164,10 @@ fn parse_vtk(bytes: &[u8]) -> Result<Vtk, ErrorKind> {
         // Legacy binary files are big-endian by definition of the format.
         guarded("legacy VTK", || parse_legacy_whole(bytes))
     } else if start.first() == Some(&b'<') {
+        // vtkio is built without LZMA (its `xz2` feature is liblzma, in C): decompress LZMA arrays
+        // first and hand it the file uncompressed (see `lzma_arrays`).
+        let decompressed = lzma_arrays::decompress(bytes)?;
+        let bytes = decompressed.as_deref().unwrap_or(bytes);
         // vtkio cannot read raw (unencoded) appended data, ParaView's default; re-encode it as base64
         // first (see `raw_appended`).
         let converted = raw_appended::to_base64(bytes)?;
