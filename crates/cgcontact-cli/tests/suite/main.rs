@@ -3,6 +3,7 @@
 
 mod bad_input;
 mod end_to_end;
+mod lzma;
 mod output_safety;
 mod tradeoff_quick;
 mod vtk_written_adaptive;

@@ -176,18 +176,41 @@ fn results_bytes(rows: &[(Option<u32>, [f64; 3], u32, f64)]) -> (Vec<u8>, CellMa
 }
 
 /// The hand-written flavours of `tests/common` (what VTK and ParaView write that our writer does
-/// not): XML ascii, raw appended (plain and zlib, 32- and 64-bit headers), legacy 4.2 with VECTORS,
-/// legacy 5.1 with a FIELD array.
+/// not): XML ascii, raw appended (plain, zlib and LZMA, 32- and 64-bit headers), legacy 4.2 with
+/// VECTORS, legacy 5.1 with a FIELD array.
 fn flavour_bytes(body: &Body, flavour: usize) -> Vec<u8> {
     let mesh = HexMesh::from_body(body);
-    match flavour % 6 {
+    match flavour % 8 {
         0 => common::vtu_ascii(&mesh).into_bytes(),
         1 => common::vtu_raw_appended(&mesh, false, true, 4096),
         2 => common::vtu_raw_appended(&mesh, true, false, 4096),
         3 => common::vtu_raw_appended(&mesh, true, true, 4096),
         4 => common::legacy_ascii(&mesh, common::LegacyData::Vectors, false).into_bytes(),
-        _ => common::legacy_ascii(&mesh, common::LegacyData::Field, true).into_bytes(),
+        5 => common::legacy_ascii(&mesh, common::LegacyData::Field, true).into_bytes(),
+        // Blocks of 64 bytes: several per array, a last one partial.
+        6 => common::vtu_raw_appended_lzma(&mesh, false, 64),
+        _ => common::vtu_raw_appended_lzma(&mesh, true, 4096),
     }
+}
+
+/// The files VTK 9.7.2 wrote with its LZMA compressor (fixtures/vtk-written and
+/// fixtures/vtk-written-adaptive): LZMA2 chunks that compress, CRC32 checks, inline and appended
+/// raw and base64, 32- and 64-bit headers, several blocks per array.
+const VTK_LZMA_FILES: [&str; 7] = [
+    "vtk-written/xml-binary-lzma.vtu",
+    "vtk-written/xml-binary-lzma-blocks.vtu",
+    "vtk-written/xml-appended-raw-lzma-uint64.vtu",
+    "vtk-written/xml-appended-base64-lzma.vtu",
+    "vtk-written-adaptive/sheared-1e5.appended-lzma.vtu",
+    "vtk-written-adaptive/sheared-1e5.binary-lzma-uint64.vtu",
+    "vtk-written-adaptive/sheared-m1e7.appended-base64-lzma.vtu",
+];
+
+fn vtk_lzma_file(index: usize) -> Vec<u8> {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../fixtures")
+        .join(VTK_LZMA_FILES[index]);
+    std::fs::read(path).unwrap()
 }
 
 /// The byte range of the displacement array's data in an XML file: its inline text, or (appended)
@@ -265,16 +288,24 @@ proptest! {
     }
 
     #[test]
-    fn mesh_parser_never_panics_on_mutated_hand_written_flavours(body in body_strategy(), flavour in 0usize..6, edits in edits()) {
+    fn mesh_parser_never_panics_on_mutated_hand_written_flavours(body in body_strategy(), flavour in 0usize..8, edits in edits()) {
         read_any_mesh(&mutate(flavour_bytes(&body, flavour), &edits));
+    }
+
+    /// The LZMA files VTK wrote, mutated: an error value or a mesh, never a panic or an abort (a
+    /// block header claiming terabytes, an .xz stream cut or corrupted).
+    #[test]
+    fn mesh_parser_never_panics_on_mutated_lzma_files_written_by_vtk(file in 0usize..VTK_LZMA_FILES.len(), edits in edits()) {
+        read_any_mesh(&mutate(vtk_lzma_file(file), &edits));
     }
 
     /// The silent drop: a file whose displacement array is corrupted (edits inside its data only)
     /// either fails to read or reads with a displacement, never as an undeformed mesh.
     #[test]
-    fn corrupt_displacement_is_never_dropped_silently(body in body_strategy(), flavour in 0usize..5, edits in edits()) {
+    fn corrupt_displacement_is_never_dropped_silently(body in body_strategy(), flavour in 0usize..8, edits in edits()) {
         let bytes = match flavour {
-            0..=3 => flavour_bytes(&body, flavour),
+            // The XML flavours: ascii, raw appended (plain, zlib, LZMA), ours (inline base64).
+            0..=3 | 6 | 7 => flavour_bytes(&body, flavour),
             _ => mesh_bytes(&body, MeshFormat::Xml),
         };
         let range = displacement_range(&bytes).expect("the files carry a displacement");

@@ -3,7 +3,7 @@
 
 use crate::common::{
     LegacyData, body_with_holes, expected_cells, legacy_ascii, shuffled, vtu_ascii,
-    vtu_raw_appended,
+    vtu_raw_appended, vtu_raw_appended_lzma,
 };
 use cgcontact::glam::DVec3;
 use cgcontact::{Body, LatticeLocator, Locator, Settings};
@@ -127,6 +127,8 @@ fn shuffled_meshes_as_vtk_and_paraview_write_them() {
             "zlib-one-block.vtu",
             vtu_raw_appended(&mesh, true, true, 1 << 20),
         ),
+        ("lzma64.vtu", vtu_raw_appended_lzma(&mesh, true, 1000)),
+        ("lzma32.vtu", vtu_raw_appended_lzma(&mesh, false, 256)),
     ];
     for (name, bytes) in files {
         let path = dir.path().join(name);

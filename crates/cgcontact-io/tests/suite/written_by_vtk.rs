@@ -1,6 +1,8 @@
 //! Meshes written by VTK 9.7.2 itself (fixtures/vtk-written, made by its make.py): legacy ASCII
 //! (VTK 5.1 layout) and binary; XML ascii, inline binary with zlib, raw appended, raw appended with
-//! zlib, base64 appended with LZ4. The same body in each: anisotropic cells 1e3 from the origin, a
+//! zlib, base64 appended with LZ4; LZMA inline (one block, and blocks of 2048 bytes with 64-bit
+//! headers), raw appended (64-bit headers) and base64 appended. The same body in each: anisotropic
+//! cells 1e3 from the origin, a
 //! quarter of the cells missing, nodes and cells shuffled. Points made by VTK's side at known (cell, ξ)
 //! must be located in that cell (the file's numbering) at that ξ.
 
@@ -8,7 +10,7 @@ use std::path::{Path, PathBuf};
 
 use cgcontact::glam::DVec3;
 use cgcontact::{LatticeLocator, Locator, Settings};
-use cgcontact_io::{DisplacementArray, read_mesh};
+use cgcontact_io::{DisplacementArray, read_hex_mesh, read_mesh};
 
 fn folder() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/vtk-written")
@@ -42,6 +44,10 @@ fn every_flavour_vtk_writes_is_read_and_located_as_known() {
         "xml-appended-raw.vtu",
         "xml-appended-raw-zlib.vtu",
         "xml-appended-base64-lz4.vtu",
+        "xml-binary-lzma.vtu",
+        "xml-binary-lzma-blocks.vtu",
+        "xml-appended-raw-lzma-uint64.vtu",
+        "xml-appended-base64-lzma.vtu",
     ];
     // VTK writes ASCII values to 11 significant digits (legacy) or its own precision (XML ascii):
     // binary flavours must agree bit for bit, ASCII ones to that rounding.
@@ -147,5 +153,33 @@ fn float_points_as_vtk_writes_them_by_default() {
             let hit = locator.locate(centre).unwrap().unwrap();
             assert_eq!(mesh.input_cell(hit.cell), Some(input), "{file}");
         }
+    }
+}
+
+/// The files VTK wrote with its LZMA compressor (`vtkLZMADataCompressor`, each block an .xz
+/// stream) read as the uncompressed raw appended file of the same body: the same nodes, cells and
+/// displacements, bit for bit. (vtkio, built without liblzma, refused them before `lzma_arrays`.)
+#[test]
+fn lzma_files_read_as_the_uncompressed_one() {
+    let uncompressed = read_hex_mesh(
+        folder().join("xml-appended-raw.vtu"),
+        &DisplacementArray::Default,
+    )
+    .unwrap();
+    assert!(uncompressed.displacement.is_some());
+    for file in [
+        "xml-binary-lzma.vtu",
+        "xml-binary-lzma-blocks.vtu",
+        "xml-appended-raw-lzma-uint64.vtu",
+        "xml-appended-base64-lzma.vtu",
+    ] {
+        let text = std::fs::read(folder().join(file)).unwrap();
+        assert!(
+            text.windows(21).any(|w| w == b"vtkLZMADataCompressor"),
+            "{file}"
+        );
+        let mesh = read_hex_mesh(folder().join(file), &DisplacementArray::Default)
+            .unwrap_or_else(|e| panic!("{file}: {e}"));
+        assert!(mesh == uncompressed, "{file}");
     }
 }

@@ -3,7 +3,7 @@
 //! cells among the hexahedra, cells and nodes shuffled, hanging nodes as nodes of the file,
 //! unmerged nodes, no cell at level 0; origins at 1e6 and -1e8, spacings of 1e-6 and 1e5,
 //! anisotropy of 1e3, float32 points; cells of 4 x 0.25 x 0.002 sheared by x += 10 z and
-//! x += 1e3 z at 1e5 and -1e7. The script computes each scene's leaf, node and hanging
+//! x += 1e3 z at 1e5 and -1e7 (those also LZMA-compressed). The script computes each scene's leaf, node and hanging
 //! node counts and, for points at every node, edge midpoint and face centre and at random
 //! (leaf, ξ), every leaf holding the point with its ξ.
 
@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 
 use cgcontact::glam::DVec3;
 use cgcontact::{AdaptiveLocator, Locator, Settings};
-use cgcontact_io::{DisplacementArray, MeshBody, read_body};
+use cgcontact_io::{DisplacementArray, MeshBody, read_body, read_hex_mesh};
 
 fn folder() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/vtk-written-adaptive")
@@ -181,10 +181,45 @@ fn sheared_anisotropic_cells_far_away_keep_every_owner() {
     for file in [
         "sheared-1e5.appended-zlib.vtu",
         "sheared-1e5.legacy-binary.vtk",
+        "sheared-1e5.appended-lzma.vtu",
+        "sheared-1e5.binary-lzma-uint64.vtu",
     ] {
         check("sheared-1e5", file);
     }
-    check("sheared-m1e7", "sheared-m1e7.binary-zlib.vtu");
+    for file in [
+        "sheared-m1e7.binary-zlib.vtu",
+        "sheared-m1e7.appended-base64-lzma.vtu",
+    ] {
+        check("sheared-m1e7", file);
+    }
+}
+
+/// The LZMA flavours VTK wrote (raw appended, inline with 64-bit headers, base64 appended) read
+/// bit for bit as the same scene's legacy binary file (uncompressed) or, for `sheared-m1e7`, its
+/// zlib file: nodes, cells and displacements.
+#[test]
+fn lzma_flavours_read_as_the_other_flavours_of_their_scene() {
+    for (reference, files) in [
+        (
+            "sheared-1e5.legacy-binary.vtk",
+            &[
+                "sheared-1e5.appended-lzma.vtu",
+                "sheared-1e5.binary-lzma-uint64.vtu",
+            ][..],
+        ),
+        (
+            "sheared-m1e7.binary-zlib.vtu",
+            &["sheared-m1e7.appended-base64-lzma.vtu"][..],
+        ),
+    ] {
+        let want = read_hex_mesh(folder().join(reference), &DisplacementArray::Default).unwrap();
+        assert!(want.displacement.is_some());
+        for file in files {
+            let got = read_hex_mesh(folder().join(file), &DisplacementArray::Default)
+                .unwrap_or_else(|e| panic!("{file}: {e}"));
+            assert!(got == want, "{file} vs {reference}");
+        }
+    }
 }
 
 #[test]

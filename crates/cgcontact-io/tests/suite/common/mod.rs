@@ -191,6 +191,37 @@ fn zlib_stored(data: &[u8]) -> Vec<u8> {
 /// A `.vtu` with raw appended data, as ParaView writes it by default (optionally zlib-compressed in
 /// blocks of `block` bytes), with a UInt64 or UInt32 header.
 pub fn vtu_raw_appended(mesh: &HexMesh, compressed: bool, header64: bool, block: usize) -> Vec<u8> {
+    let zlib = compressed.then_some(("vtkZLibDataCompressor", zlib_stored as fn(&[u8]) -> Vec<u8>));
+    raw_appended_with(mesh, zlib, header64, block)
+}
+
+/// `vtu_raw_appended` compressed with VTK's LZMA compressor: each block an .xz stream (lzma-rs's
+/// encoder, which stores the bytes in uncompressed LZMA2 chunks, without a check).
+pub fn vtu_raw_appended_lzma(mesh: &HexMesh, header64: bool, block: usize) -> Vec<u8> {
+    fn xz(data: &[u8]) -> Vec<u8> {
+        let mut out = Vec::new();
+        lzma_rs::xz_compress(&mut &data[..], &mut out).unwrap();
+        out
+    }
+    raw_appended_with(
+        mesh,
+        Some(("vtkLZMADataCompressor", xz as fn(&[u8]) -> Vec<u8>)),
+        header64,
+        block,
+    )
+}
+
+/// A compressor: its name in a file's `compressor` attribute, and what it does to one block.
+type Compressor = (&'static str, fn(&[u8]) -> Vec<u8>);
+
+/// A raw appended `.vtu`, its blocks compressed by `compressor` if any.
+fn raw_appended_with(
+    mesh: &HexMesh,
+    compressor: Option<Compressor>,
+    header64: bool,
+    block: usize,
+) -> Vec<u8> {
+    let compressed = compressor.is_some();
     let n = mesh.cells.len();
     let header = |v: usize| -> Vec<u8> {
         if header64 {
@@ -207,7 +238,8 @@ pub fn vtu_raw_appended(mesh: &HexMesh, compressed: bool, header64: bool, block:
         }
         let blocks: Vec<&[u8]> = bytes.chunks(block).collect();
         let last = bytes.len() % block;
-        let zipped: Vec<Vec<u8>> = blocks.iter().map(|b| zlib_stored(b)).collect();
+        let compress = compressor.map(|(_, f)| f).unwrap();
+        let zipped: Vec<Vec<u8>> = blocks.iter().map(|b| compress(b)).collect();
         let mut out = header(blocks.len());
         out.extend(header(block));
         out.extend(header(last));
@@ -277,11 +309,7 @@ pub fn vtu_raw_appended(mesh: &HexMesh, compressed: bool, header64: bool, block:
         } else {
             ""
         },
-        if compressed {
-            " compressor=\"vtkZLibDataCompressor\""
-        } else {
-            ""
-        }
+        compressor.map_or_else(String::new, |(name, _)| format!(" compressor=\"{name}\""))
     );
     s += &format!(
         "  <UnstructuredGrid>\n    <Piece NumberOfPoints=\"{}\" NumberOfCells=\"{n}\">\n",
