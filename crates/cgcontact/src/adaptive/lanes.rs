@@ -1,6 +1,6 @@
 //! The adaptive locator's batched path: W points at a time in SIMD lanes, as the uniform
-//! locator's (`locate/batched.rs`), for lane types of 4 lanes (AVX's f64, the portable f32;
-//! 8 lanes find their leaves lane by lane, `locate.rs`).
+//! locator's (`locate/batched.rs`), in lane types of 4 lanes: AVX's f64 and f32 (128-bit f32
+//! registers, whose f64 lanes are one 256-bit register), the portable f32.
 //!
 //! The leaf holding a point is found in lanes wherever the forest answers without a descent (an
 //! unrefined base cell, or a brick: a base cell refined uniformly): the base cell, the leaf's

@@ -158,12 +158,6 @@ impl<'a> AdaptiveLocator<'a> {
         self.frame.point::<K>(x) - self.body.leaf_origin(leaf)
     }
 
-    /// `local` for the kernel of lanes whose displacements are `N`.
-    #[inline(always)]
-    fn local_lanes<N: LaneNodes>(&self, x: DVec3, leaf: Leaf) -> DVec3 {
-        self.frame.point_if(N::SHIFTED, x) - self.body.leaf_origin(leaf)
-    }
-
     fn search(
         &self,
         x: DVec3,
@@ -592,104 +586,10 @@ impl AdaptiveLocator<'_> {
         for b in 0..batches {
             let range = b * w..(b + 1) * w;
             let (points, out) = (&points[range.clone()], &mut out[range]);
-            // 8 lanes (AVX's f32) find their leaves lane by lane: the lanes' lookup of
-            // `lanes.rs` measured 17 % slower there (`profile_adaptive 3 f32`, best of 5
-            // alternated runs: 4.89 against 5.86 M points/s) with no more instructions, while
-            // with 4 lanes (f64, and the portable f32) it is 12 % faster or on par. The cause is
-            // not found.
-            if V::W == 8 {
-                self.batch_per_lane::<V>(points, out);
-            } else {
-                self.batch::<V>(points, out);
-            }
+            self.batch::<V>(points, out);
         }
         let rest = batches * w;
         self.locate_chunk_grouped::<K>(&points[rest..], &mut out[rest..]);
-    }
-
-    /// One batch of `V::W` points of 8 lanes (see [`AdaptiveLocator::locate_chunk_lanes`]): the
-    /// leaf at x and at the guess found lane by lane ([`super::forest::Forest::leaf_at`]), the
-    /// rest in lanes as `lanes.rs` does.
-    #[inline(always)]
-    fn batch_per_lane<V: Lanes>(&self, xs: &[DVec3], out: &mut [Answer])
-    where
-        V::Node: LaneNodes,
-    {
-        let body = self.body;
-        let nodes = V::Node::of(self);
-        let origin = body.lattice().origin();
-        let no_leaf = (0, Leaf::new(0, [0; 3]));
-        // The leaf at x, per lane; lanes refused, out of reach or in a hole leave the batch.
-        let mut take = 0u32;
-        let mut t_x = [DVec3::ZERO; MAX_W];
-        let mut at = [no_leaf; MAX_W];
-        for l in 0..V::W {
-            let x = xs[l];
-            if let Ok(Some(_)) = self.admit.admit(x) {
-                t_x[l] = (x - origin) * self.inv_h;
-                if let Some(found) = body.forest.leaf_at(t_x[l]) {
-                    at[l] = found;
-                    take |= 1 << l;
-                }
-            }
-        }
-        let mut found = 0;
-        if take != 0 {
-            let mut rows = [[0u32; 8]; MAX_W];
-            for l in 0..V::W {
-                rows[l] = body.leaf_nodes(at[l].0, at[l].1);
-            }
-            let mut maps = Maps::<V>::from_nodes(|l, c| &nodes[rows[l][c] as usize]);
-            // The guess x − ũ, ũ interpolated at x in x's leaf (`guess`), in lanes.
-            let xi = lanes3::<V::Wide>(|l| {
-                let leaf = at[l].1;
-                Self::undeformed_xi(t_x[l], leaf.level, leaf.ijk).clamp(DVec3::NEG_ONE, DVec3::ONE)
-            });
-            let t_x_lanes = lanes3::<V::Wide>(|l| t_x[l]);
-            let t_guess = t_x_lanes
-                - self
-                    .displacement_lanes::<V>(maps.map(V3::narrow(xi)).widen())
-                    .mul_each(self.inv_h);
-            // The leaf at the guess, per lane; its map is x's leaf's unless the lane moved, and
-            // only the lanes that moved get their corners anew.
-            let mut first = at;
-            let mut moved = false;
-            for l in 0..V::W {
-                if take & (1 << l) == 0 {
-                    continue;
-                }
-                match body.forest.leaf_at(t_guess.lane(l)) {
-                    Some(leaf) => {
-                        if leaf.0 != at[l].0 {
-                            moved = true;
-                            first[l] = leaf;
-                            rows[l] = body.leaf_nodes(leaf.0, leaf.1);
-                        }
-                    }
-                    None => take &= !(1 << l),
-                }
-            }
-            if moved {
-                maps = Maps::from_nodes(|l, c| &nodes[rows[l][c] as usize]);
-            }
-            if take != 0 {
-                maps.add_lattice_lanes(lanes3::<V>(|l| body.spacing(first[l].1.level) * 0.5));
-                let x_local = lanes3::<V>(|l| self.local_lanes::<V::Node>(xs[l], first[l].1));
-                let xi0 = lanes3::<V>(|l| {
-                    let leaf = first[l].1;
-                    Self::undeformed_xi(t_guess.lane(l), leaf.level, leaf.ijk)
-                });
-                let inside = V3::<V>::splat(DVec3::ONE + self.newton.inside_tol);
-                let inverted =
-                    maps.invert(x_local, xi0, inside, V::mask_from_bits(take), &self.newton);
-                found = write_hits(out, inverted, |l| CellId(first[l].0));
-            }
-        }
-        for (l, (&x, answer)) in xs.iter().zip(out.iter_mut()).enumerate() {
-            if found & (1 << l) == 0 {
-                *answer = self.search(x, Collect::First, &mut 0);
-            }
-        }
     }
 }
 

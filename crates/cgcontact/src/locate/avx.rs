@@ -10,10 +10,13 @@
 
 use std::arch::x86_64::{
     __m128, __m256, __m256d, _CMP_LE_OQ, _CMP_LT_OQ, _CMP_UNORD_Q, _MM_FROUND_NO_EXC,
-    _MM_FROUND_TO_ZERO, _mm_cvtsi128_si64, _mm_extract_epi64, _mm256_add_pd, _mm256_add_ps,
-    _mm256_and_pd, _mm256_and_ps, _mm256_andnot_pd, _mm256_andnot_ps, _mm256_blendv_pd,
-    _mm256_blendv_ps, _mm256_castpd_si256, _mm256_castps256_ps128, _mm256_castsi256_si128,
-    _mm256_cmp_pd, _mm256_cmp_ps, _mm256_cvtpd_ps, _mm256_cvtps_pd, _mm256_div_pd, _mm256_div_ps,
+    _MM_FROUND_TO_ZERO, _mm_add_ps, _mm_and_ps, _mm_andnot_ps, _mm_blendv_ps, _mm_cmp_ps,
+    _mm_cvtsi128_si64, _mm_div_ps, _mm_extract_epi64, _mm_max_ps, _mm_min_ps, _mm_movehl_ps,
+    _mm_movelh_ps, _mm_movemask_ps, _mm_mul_ps, _mm_or_ps, _mm_set_ps, _mm_set1_ps, _mm_sub_ps,
+    _mm_unpackhi_ps, _mm_unpacklo_ps, _mm_xor_ps, _mm256_add_pd, _mm256_add_ps, _mm256_and_pd,
+    _mm256_and_ps, _mm256_andnot_pd, _mm256_andnot_ps, _mm256_blendv_pd, _mm256_blendv_ps,
+    _mm256_castpd_si256, _mm256_castps256_ps128, _mm256_castsi256_si128, _mm256_cmp_pd,
+    _mm256_cmp_ps, _mm256_cvtpd_ps, _mm256_cvtps_pd, _mm256_div_pd, _mm256_div_ps,
     _mm256_extractf128_ps, _mm256_extracti128_si256, _mm256_max_pd, _mm256_max_ps, _mm256_min_pd,
     _mm256_min_ps, _mm256_movemask_pd, _mm256_movemask_ps, _mm256_mul_pd, _mm256_mul_ps,
     _mm256_or_pd, _mm256_or_ps, _mm256_round_pd, _mm256_set_m128, _mm256_set_pd, _mm256_set_ps,
@@ -280,6 +283,46 @@ avx_lanes!(
     )
 );
 
+/// Four `Vec3A` into x, y and z registers: the 4 × 4 transpose.
+#[inline(always)]
+fn transpose_f32x4<'n>(node: impl Fn(usize) -> &'n Vec3A) -> [__m128; 3] {
+    let m: [__m128; 4] = [
+        (*node(0)).into(),
+        (*node(1)).into(),
+        (*node(2)).into(),
+        (*node(3)).into(),
+    ];
+    // [x0 x1 y0 y1], [x2 x3 y2 y3], [z0 z1 w0 w1], [z2 z3 w2 w3].
+    let (xy01, xy23) = (
+        avx!(_mm_unpacklo_ps(m[0], m[1])),
+        avx!(_mm_unpacklo_ps(m[2], m[3])),
+    );
+    let (zw01, zw23) = (
+        avx!(_mm_unpackhi_ps(m[0], m[1])),
+        avx!(_mm_unpackhi_ps(m[2], m[3])),
+    );
+    [
+        avx!(_mm_movelh_ps(xy01, xy23)),
+        avx!(_mm_movehl_ps(xy23, xy01)),
+        avx!(_mm_movelh_ps(zw01, zw23)),
+    ]
+}
+
+avx_lanes!(
+    /// Four f32 lanes (128-bit registers, VEX-encoded), whose f64 lanes are one F64x4: the
+    /// adaptive locator's f32 lanes, which then find their leaves as the f64 ones do.
+    F32x4, M32x4, __m128, f32, 4, u32,
+    add: _mm_add_ps, sub: _mm_sub_ps, mul: _mm_mul_ps, div: _mm_div_ps,
+    and: _mm_and_ps, or: _mm_or_ps, xor: _mm_xor_ps, andnot: _mm_andnot_ps,
+    max: _mm_max_ps, min: _mm_min_ps, cmp: _mm_cmp_ps, blendv: _mm_blendv_ps,
+    movemask: _mm_movemask_ps, set1: _mm_set1_ps,
+    from_fn: |f| _mm_set_ps(f(3), f(2), f(1), f(0)),
+    node: Vec3A, transpose: transpose_f32x4,
+    wide: F64x4,
+    narrow: |w| Self(avx!(_mm256_cvtpd_ps(w.0))),
+    widen: |v| F64x4(avx!(_mm256_cvtps_pd(v.0)))
+);
+
 impl Wide for F64x4 {
     #[inline(always)]
     fn trunc(self) -> Self {
@@ -416,7 +459,7 @@ impl crate::adaptive::AdaptiveLocator<'_> {
     fn locate_chunk_avx(&self, points: &[DVec3], out: &mut [Answer]) {
         use crate::hex8::{Hex8Map, Hex8Map32};
         match self.settings().precision {
-            Precision::F32 => self.locate_chunk_lanes::<Hex8Map32, F32x8>(points, out),
+            Precision::F32 => self.locate_chunk_lanes::<Hex8Map32, F32x4>(points, out),
             Precision::F64 => self.locate_chunk_lanes::<Hex8Map, F64x4>(points, out),
         }
     }
