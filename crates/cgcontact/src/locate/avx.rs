@@ -1,5 +1,6 @@
-//! The AVX lanes (four f64 or eight f32 per 256-bit register) and the only ways in to them: the
-//! `#[target_feature]` entry points, which `batched.rs` calls after detection.
+//! The AVX lanes (four f64 or eight f32 per 256-bit register; four f32 per 128-bit register for
+//! the adaptive locator) and the only ways in to them: the `#[target_feature]` entry points,
+//! which `batched.rs` calls after detection.
 //!
 //! The lane types are private to this module, so privacy, not a comment, guarantees that an AVX
 //! value exists only inside an entry point, that is after `is_x86_feature_detected!` found AVX2
