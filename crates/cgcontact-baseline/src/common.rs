@@ -105,6 +105,16 @@ impl<'a> BodyRef<'a> {
         }
     }
 
+    /// The cells that f64 coordinates of their magnitude cannot resolve, with the share,
+    /// ascending by cell ([`Body::unresolved_cells`], [`AdaptiveBody::unresolved_cells`]).
+    #[must_use]
+    pub fn unresolved_cells(&self) -> Vec<(CellId, f64)> {
+        match self {
+            Self::Uniform(body) => body.unresolved_cells(),
+            Self::Adaptive(body) => body.unresolved_cells(),
+        }
+    }
+
     /// The frame of the settings' kernel, as the core's locator of this kind of body takes it
     /// (f32: shifted by the displacements' common translation in whole cells, of the finest
     /// level for an adaptive body).

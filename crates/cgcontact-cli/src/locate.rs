@@ -152,8 +152,13 @@ pub fn run(args: &LocateArgs) -> Result<()> {
             .clone()
             .unwrap_or_else(|| cgcontact_io::DEFAULT_DISPLACEMENT.to_owned())
     });
-    // Name inverted cells as the user knows them: by their index in the input mesh.
-    for cell in &mut summary.inverted_cells {
+    // Name inverted and unresolved cells as the user knows them: by their index in the input
+    // mesh.
+    for cell in summary
+        .inverted_cells
+        .iter_mut()
+        .chain(summary.unresolved_cells.iter_mut())
+    {
         *cell = cells
             .input_cell(cgcontact::CellId(*cell as u32))
             .unwrap_or(*cell);

@@ -191,6 +191,14 @@ pub struct Summary {
     /// Cells whose det J ≤ 0 at a corner (inverted or degenerate): answers in or near them are not
     /// to be trusted. Input cell indices where the caller knows them, else lattice cell ids.
     pub inverted_cells: Vec<usize>,
+    /// Cells that f64 coordinates of their magnitude cannot resolve through their deformation
+    /// (`Body::unresolved_cells`: a coordinate's rounding moves ξ there by more than a tenth of
+    /// the cell): near their faces a point may be given the cell beside it too. Input cell
+    /// indices where the caller knows them, else lattice cell ids.
+    pub unresolved_cells: Vec<usize>,
+    /// The largest such share of a cell (ξ units); absent when no cell is unresolved.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub unresolved_share: Option<f64>,
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub files: Vec<String>,
     /// With `locate --all-owners`: what listing every owner found; absent otherwise.
@@ -335,26 +343,36 @@ impl Summary {
                 rounding / f64::from(f32::EPSILON)
             );
         }
-        if !self.inverted_cells.is_empty() && !args.quiet {
-            let first: Vec<String> = self
-                .inverted_cells
-                .iter()
-                .take(10)
-                .map(usize::to_string)
-                .collect();
+        if let Some(share) = self.unresolved_share
+            && !args.quiet
+        {
             eprintln!(
-                "cgcontact: warning: {} inverted or degenerate cell(s) (det J <= 0 at a corner), answers in or near them are not trusted: {}{}",
+                "cgcontact: warning: {} cell(s) are sheared or distorted beyond what f64 \
+                 coordinates of their magnitude resolve: a coordinate's rounding moves ξ in them \
+                 by up to {share:.2} of a cell (at most {} is resolved), so a point that close to \
+                 a face of theirs may be given the cell beside it as well; move the mesh nearer \
+                 the origin: {}",
+                self.unresolved_cells.len(),
+                cgcontact::Lattice::RESOLUTION,
+                first_ten(&self.unresolved_cells)
+            );
+        }
+        if !self.inverted_cells.is_empty() && !args.quiet {
+            eprintln!(
+                "cgcontact: warning: {} inverted or degenerate cell(s) (det J <= 0 at a corner), answers in or near them are not trusted: {}",
                 self.inverted_cells.len(),
-                first.join(", "),
-                if self.inverted_cells.len() > 10 {
-                    ", ..."
-                } else {
-                    ""
-                }
+                first_ten(&self.inverted_cells)
             );
         }
         Ok(())
     }
+}
+
+/// Up to ten cell indices, joined by commas, then ", ..." when there are more.
+fn first_ten(cells: &[usize]) -> String {
+    let first: Vec<String> = cells.iter().take(10).map(usize::to_string).collect();
+    let more = if cells.len() > 10 { ", ..." } else { "" };
+    format!("{}{more}", first.join(", "))
 }
 
 /// The one place where a strategy is built: the command line's `--strategy` and the tradeoff's
@@ -469,6 +487,7 @@ pub fn search_listing_owners(
             .collect()
     });
     let inversions: u64 = tried.iter().map(|&t| u64::from(t)).sum();
+    let unresolved = body.unresolved_cells();
     let summary = Summary {
         points: points.len(),
         located: located.len(),
@@ -517,6 +536,8 @@ pub fn search_listing_owners(
             .iter()
             .map(|(cell, _)| cell.index())
             .collect(),
+        unresolved_cells: unresolved.iter().map(|(cell, _)| cell.index()).collect(),
+        unresolved_share: unresolved.iter().map(|&(_, share)| share).reduce(f64::max),
         files: Vec::new(),
         owners: owners
             .as_ref()

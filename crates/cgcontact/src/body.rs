@@ -19,6 +19,7 @@ use crate::error::{displacement_error, displacement_ok};
 use crate::hex8;
 use crate::idmap::IdMap;
 use crate::lattice::{CORNER_OFFSETS, CellId, Lattice};
+use crate::settings::{InsideTolerance, Settings};
 
 /// Slot value of a lattice node that belongs to no active cell.
 const NO_SLOT: u32 = u32::MAX;
@@ -590,6 +591,28 @@ impl Body {
             .collect()
     }
 
+    /// Active cells that f64 coordinates of their magnitude cannot resolve, with the share: where
+    /// a rounding of the point's coordinates (the inside test's L_j = 4 ε₆₄ max(|x_j|, |origin_j|)
+    /// at the cell's centre), carried through the cell's J⁻¹, moves ξ by more than
+    /// [`Lattice::RESOLUTION`] on some axis ([`hex8::Hex8Map::rounding_share`]), ascending by
+    /// cell. A cell whose det J ≤ 0 at its centre is not listed: it is an inverted cell
+    /// ([`Body::inverted_cells`]). [`Lattice::check_resolution`] refuses such undeformed
+    /// cells; a deformation that shears a cell (x += 1e3 y) or crushes it carries a rounding along
+    /// one axis into a large share of another. Near such a cell the inside test's allowance
+    /// reaches that share of it: a point that near a face may be given the cell beside it too.
+    #[must_use]
+    pub fn unresolved_cells(&self) -> Vec<(CellId, f64)> {
+        let tolerance = InsideTolerance::new(&Settings::default(), &self.lattice, DVec3::ZERO);
+        self.active_cells()
+            .filter_map(|cell| {
+                let (map, origin) = self.cell_map(cell)?;
+                let centre = origin + map.map(DVec3::ZERO);
+                let share = map.rounding_share(tolerance.length(centre));
+                (share.is_finite() && share > Lattice::RESOLUTION).then_some((cell, share))
+            })
+            .collect()
+    }
+
     /// Check the body: every displacement finite and within [`Body::displacement_limit`], and no
     /// inverted cell (errors name them).
     pub fn validate(&self) -> Result<(), Error> {
@@ -823,6 +846,31 @@ mod tests {
             .unwrap_err();
         assert!(matches!(err, Error::NonFiniteDisplacement { node: 9, .. }));
         assert!(body.displacements().iter().all(|u| *u == DVec3::ZERO));
+    }
+
+    #[test]
+    fn cells_sheared_beyond_the_coordinates_resolution_are_named() {
+        // Two cells stacked along z, far from the origin, thin along z; u_z = s (Y − Y0): a
+        // rounding of y (4 ε 1e7 ≈ 9e-9) moves z by s times that, against a half cell of 7.8e-6.
+        let sheared = |origin: f64, s: f64| {
+            let h = DVec3::new(0.03125, 0.001953125, 1.5625e-5);
+            let lattice = Lattice::new(DVec3::splat(origin), h, [1, 1, 2]).unwrap();
+            let mut body = Body::full(lattice);
+            body.update_displacements(|_, x, u| *u = DVec3::new(0.0, 0.0, s * (x.y - origin)))
+                .unwrap();
+            body.unresolved_cells()
+        };
+        // Shear 1e3: about 1.1 of a cell in ξ_z, both cells named.
+        let named = sheared(-1e7, 1e3);
+        assert_eq!(named.iter().map(|(c, _)| c.0).collect::<Vec<_>>(), [0, 1]);
+        assert!(
+            named.iter().all(|&(_, share)| share > 1.0 && share < 1.3),
+            "{named:?}"
+        );
+        // Shear 10 at the same place (about 0.013), shear 1e3 near the origin, and no shear: none.
+        assert!(sheared(-1e7, 10.0).is_empty());
+        assert!(sheared(0.0, 1e3).is_empty());
+        assert!(sheared(-1e7, 0.0).is_empty());
     }
 
     #[test]

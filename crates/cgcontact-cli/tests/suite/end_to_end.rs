@@ -343,6 +343,67 @@ fn broken_hanging_node_warns_and_strict_refuses() {
     assert!(String::from_utf8_lossy(&strict.stderr).contains("break their constraint"));
 }
 
+/// Two cells at 1e7 from the origin, 1.6e-5 thin along z, sheared by u_z = s (Y − Y0): with
+/// s = 1e3 a rounding of y moves ξ_z by about 1.1 (both cells named, a point given both cells);
+/// with s = 10, by about 0.01 (no warning).
+#[test]
+fn cells_sheared_beyond_the_coordinates_resolution_warn() {
+    let run = |shear: f64, extra: &[&str]| {
+        let dir = tempfile::tempdir().unwrap();
+        let origin = -1e7;
+        let h = cgcontact::glam::DVec3::new(0.03125, 0.001953125, 1.5625e-5);
+        let lattice =
+            cgcontact::Lattice::new(cgcontact::glam::DVec3::splat(origin), h, [1, 1, 2]).unwrap();
+        let mut body = cgcontact::Body::full(lattice);
+        body.update_displacements(|_, x, u| {
+            *u = cgcontact::glam::DVec3::new(0.0, 0.0, shear * (x.y - origin));
+        })
+        .unwrap();
+        let mesh = dir.path().join("mesh.vtu");
+        cgcontact_io::write_mesh(&mesh, &body, cgcontact_io::MeshFormat::Xml).unwrap();
+        // On the cells' common edge at y = Y0, halfway up the upper cell: in cell 1 alone.
+        let points = dir.path().join("points.csv");
+        std::fs::write(&points, "x,y,z\n-1e7,-1e7,-9999999.999976562\n").unwrap();
+        let out = dir.path().join("out.csv");
+        let mut args = vec![
+            "locate",
+            "--mesh",
+            mesh.to_str().unwrap(),
+            "--points",
+            points.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        let run = cgcontact(&args);
+        assert!(
+            run.status.success(),
+            "{}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+        let rows = std::fs::read_to_string(&out).unwrap().lines().count() - 1;
+        (run, rows)
+    };
+    let (sheared, _) = run(1e3, &["--json"]);
+    let stderr = String::from_utf8_lossy(&sheared.stderr);
+    assert!(
+        stderr.contains("2 cell(s) are sheared or distorted"),
+        "{stderr}"
+    );
+    let summary: serde_json::Value = serde_json::from_slice(&sheared.stdout).unwrap();
+    assert_eq!(summary["unresolved_cells"], serde_json::json!([0, 1]));
+    let share = summary["unresolved_share"].as_f64().unwrap();
+    assert!(share > 1.0 && share < 1.3, "{share}");
+    // What the warning is about: the point is given the cell beside it as well.
+    assert_eq!(run(1e3, &["--all-owners"]).1, 2);
+    let (mild, rows) = run(10.0, &["--json", "--all-owners"]);
+    assert!(!String::from_utf8_lossy(&mild.stderr).contains("sheared"));
+    let summary: serde_json::Value = serde_json::from_slice(&mild.stdout).unwrap();
+    assert_eq!(summary["unresolved_cells"], serde_json::json!([]));
+    assert!(summary.get("unresolved_share").is_none());
+    assert_eq!(rows, 1);
+}
+
 #[test]
 fn adaptive_demo_writes_levels() {
     let dir = tempfile::tempdir().unwrap();

@@ -36,6 +36,7 @@ use crate::Error;
 use crate::error::{displacement_error, displacement_ok};
 use crate::hex8::{self, Kernel};
 use crate::lattice::{CORNER_OFFSETS, CellId, Lattice};
+use crate::settings::{InsideTolerance, Settings};
 use forest::{Forest, Overlap};
 use hanging::{Constraints, Direct, corner_weights};
 use leaves::LeafStore;
@@ -597,6 +598,21 @@ impl AdaptiveBody {
                 let ratio = hex8::min_corner_det(&local) / (h.x * h.y * h.z / 8.0);
                 // NaN counts as inverted: only a ratio known to be positive is valid.
                 (ratio.is_nan() || ratio <= 0.0).then_some((CellId(id), ratio))
+            })
+            .collect()
+    }
+
+    /// Leaves that f64 coordinates of their magnitude cannot resolve, with the share, ascending
+    /// by leaf: [`crate::Body::unresolved_cells`], each leaf with its own J.
+    #[must_use]
+    pub fn unresolved_cells(&self) -> Vec<(CellId, f64)> {
+        let tolerance = InsideTolerance::new(&Settings::default(), self.lattice(), DVec3::ZERO);
+        (0..self.leaves.len() as u32)
+            .filter_map(|id| {
+                let (map, origin) = self.cell_map(CellId(id))?;
+                let centre = origin + map.map(DVec3::ZERO);
+                let share = map.rounding_share(tolerance.length(centre));
+                (share.is_finite() && share > Lattice::RESOLUTION).then_some((CellId(id), share))
             })
             .collect()
     }

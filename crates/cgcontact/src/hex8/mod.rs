@@ -290,6 +290,26 @@ macro_rules! stamp_hex8 {
                 true
             }
 
+            /// How far (in ξ, the largest over the axes) perturbations of the point of at most
+            /// `length_j` per component move ξ through J⁻¹ at the cell's centre:
+            /// max_k Σ_j |J⁻¹_kj| length_j. Infinite where det J ≤ 0 there (or NaN).
+            #[must_use]
+            pub fn rounding_share(&self, length: $V) -> $S {
+                let (_, [c0, c1, c2]) = self.map_and_jacobian(<$V>::splat(0.0));
+                let (k0, k1, k2) = (c1.cross(c2), c2.cross(c0), c0.cross(c1));
+                let det = c0.dot(k0);
+                if det.is_nan() || det <= 0.0 {
+                    return <$S>::INFINITY;
+                }
+                // Row k of J⁻¹ is adj(J)'s row k, (k0.k, k1.k, k2.k), over det J.
+                let rows = [
+                    <$V>::new(k0.x, k1.x, k2.x),
+                    <$V>::new(k0.y, k1.y, k2.y),
+                    <$V>::new(k0.z, k1.z, k2.z),
+                ];
+                rows.iter().map(|row| row.abs().dot(length)).fold(0.0, <$S>::max) / det
+            }
+
             /// det J at ξ = 0, the scale of the cell's volume (volume / 8).
             #[inline]
             #[must_use]

@@ -865,3 +865,53 @@ fn sheared_and_rotated_leaves_keep_every_owner_of_nodes_edges_and_faces() {
     }
     assert!(checked > 1000, "{checked}");
 }
+
+/// The cells f64 coordinates cannot resolve through their deformation: an adaptive body names
+/// the leaves the uniform body of the same cells names, and a refined leaf, half as thick, twice
+/// its share.
+#[test]
+fn adaptive_bodies_name_the_cells_their_coordinates_cannot_resolve() {
+    // Cells 1.6e-5 thin along z at 1e7 from the origin, u_z = s (Y − Y0): a rounding of y moves
+    // ξ_z by about 1.1 with s = 1e3, by 0.011 with s = 10.
+    let origin = -1e7;
+    let h = DVec3::new(0.03125, 0.001953125, 1.5625e-5);
+    let lattice = Lattice::new(DVec3::splat(origin), h, [1, 1, 2]).unwrap();
+    let shear = |s: f64| {
+        move |_: usize, x: DVec3, u: &mut DVec3| *u = DVec3::new(0.0, 0.0, s * (x.y - origin))
+    };
+    for s in [1e3, 10.0] {
+        let mut uniform = Body::full(lattice);
+        uniform.update_displacements(shear(s)).unwrap();
+        let leaves = vec![Leaf::new(0, [0, 0, 0]), Leaf::new(0, [0, 0, 1])];
+        let mut one_level = AdaptiveBody::from_leaves(lattice, leaves).unwrap();
+        one_level.update_independent(shear(s)).unwrap();
+        let (a, b) = (one_level.unresolved_cells(), uniform.unresolved_cells());
+        assert_eq!(a.len(), b.len(), "{a:?} {b:?}");
+        for ((ca, sa), (cb, sb)) in a.iter().zip(&b) {
+            // Leaves and lattice cells are numbered alike here: bottom, then top.
+            assert_eq!(ca, cb);
+            assert!((sa - sb).abs() <= 1e-12 * sb, "{sa} {sb}");
+        }
+        assert_eq!(a.len(), if s == 1e3 { 2 } else { 0 });
+    }
+    // The top cell refined once: its leaves are half as thick, so a rounding takes twice the
+    // share of them; with s = 10, 0.02 of a leaf, still resolved, and no cell is named.
+    let mut leaves = vec![Leaf::new(0, [0, 0, 0])];
+    leaves.extend(Leaf::new(0, [0, 0, 1]).children());
+    for (s, named) in [(1e3, 9), (10.0, 0)] {
+        let mut body = AdaptiveBody::from_leaves(lattice, leaves.clone()).unwrap();
+        body.update_independent(shear(s)).unwrap();
+        let unresolved = body.unresolved_cells();
+        assert_eq!(unresolved.len(), named, "{unresolved:?}");
+        let coarse = unresolved.iter().find(|(c, _)| c.0 == 0).map(|&(_, v)| v);
+        for &(cell, share) in &unresolved {
+            if cell.0 != 0 {
+                let ratio = share / coarse.unwrap();
+                assert!(
+                    (ratio - 2.0).abs() < 0.01,
+                    "leaf {cell}: {share} against {coarse:?}"
+                );
+            }
+        }
+    }
+}
