@@ -51,6 +51,13 @@ class Body:
         when none. Answers in or near them are not to be trusted (a point in one may be found in
         no cell). Updates do not check for them: this costs one pass over every cell, so call it
         when wanted, not on every update. `cgcontact locate --json` reports the same cells."""
+    def unresolved_cells(self) -> npt.NDArray[np.int64]:
+        """The cells that f64 coordinates of their magnitude cannot resolve through their
+        deformation, ascending, numbered as `Locator.locate` numbers cells; empty when none. Far
+        from the origin, a cell sheared or crushed enough turns a coordinate's rounding
+        (4 eps |x|) into more than a tenth of itself, and a point that close to one of its faces
+        may be given the cell beside it as well. One pass over every cell, as `inverted_cells`;
+        `cgcontact locate --json` reports the same cells."""
     @property
     def node_count(self) -> int:
         """Rows `set_displacements` takes."""

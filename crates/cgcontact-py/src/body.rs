@@ -145,6 +145,14 @@ impl BodyState {
             .sorted_numbers(found.iter().map(|&(cell, _)| cell))
     }
 
+    /// The caller's numbers of the cells that f64 coordinates of their magnitude cannot resolve
+    /// through their deformation (`Body::unresolved_cells`), ascending: one pass over every cell.
+    fn unresolved_cells(&self) -> Vec<i64> {
+        let found = self.body.as_ref().unresolved_cells();
+        self.cells
+            .sorted_numbers(found.iter().map(|&(cell, _)| cell))
+    }
+
     /// The caller's node that gives slot `slot`.
     fn source(&self, slot: usize) -> usize {
         self.source_of_slot
@@ -487,6 +495,17 @@ impl PyBody {
     /// wanted (after an update, or when a point is not found).
     fn inverted_cells<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<i64>> {
         let cells = py.detach(|| Self::read(&self.state).inverted_cells());
+        cells.into_pyarray(py)
+    }
+
+    /// The cells that f64 coordinates of their magnitude cannot resolve through their
+    /// deformation, ascending, numbered as `Locator.locate` numbers cells; empty when none: far
+    /// from the origin, a cell sheared or crushed enough turns a coordinate's rounding
+    /// (4 eps |x|) into more than a tenth of itself, and a point that close to one of its faces
+    /// may be given the cell beside it as well (`cgcontact locate` warns). One pass over every
+    /// cell, as `inverted_cells`.
+    fn unresolved_cells<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<i64>> {
+        let cells = py.detach(|| Self::read(&self.state).unresolved_cells());
         cells.into_pyarray(py)
     }
 

@@ -583,6 +583,31 @@ def test_a_node_moved_through_its_neighbour_inverts_the_cells_beyond_it(cli, tmp
     assert cli_inverted_cells(cli, tmp_path, shuffled_nodes, shuffled_hexes, u) == expected
 
 
+def test_cells_sheared_beyond_the_coordinates_resolution_are_named(cli, tmp_path):
+    """Two cells stacked along z at 1e7 from the origin, 1.6e-5 thin along z, u_z = s (Y - Y0):
+    with s = 1e3 a rounding of y moves xi_z by about 1.1, both cells are named, as by
+    `cgcontact locate --json`; with s = 10, about 0.01, none."""
+    origin, spacing = [-1e7] * 3, [0.03125, 0.001953125, 1.5625e-5]
+    body = cgcontact.Body(origin, spacing, [1, 1, 2])
+    # Lattice order, x fastest: node n has j = (n // 2) % 2.
+    j = (np.arange(body.node_count) // 2) % 2
+    for shear, expected in [(1e3, [0, 1]), (10.0, [])]:
+        u = np.zeros((body.node_count, 3))
+        u[:, 2] = shear * j * spacing[1]
+        body.set_displacements(u)
+        cells = body.unresolved_cells()
+        assert cells.dtype == np.int64 and cells.tolist() == expected
+        nodes = np.array([[origin[a] + [i, jj, k][a] * spacing[a] for a in range(3)]
+                          for k in range(3) for jj in range(2) for i in range(2)])
+        hexes = np.array([[0, 1, 3, 2, 4, 5, 7, 6], [4, 5, 7, 6, 8, 9, 11, 10]])
+        write_vtk(tmp_path / "mesh.vtk", nodes, hexes, u)
+        (tmp_path / "points.csv").write_text("x,y,z\n-1e7,-1e7,-1e7\n")
+        out = subprocess.run([cli, "locate", "--mesh", str(tmp_path / "mesh.vtk"), "--points",
+                              str(tmp_path / "points.csv"), "--json", "-q"],
+                             check=True, capture_output=True, text=True).stdout
+        assert sorted(json.loads(out)["unresolved_cells"]) == expected
+
+
 def test_an_inverted_adaptive_leaf_is_named_by_its_row(cli, tmp_path):
     """Base cells (0, 0, 0) and (1, 0, 0) of a unit lattice, the coarse one first and the other
     halved into 8 leaves (5 hanging nodes on the shared face). The body's corner node at the
