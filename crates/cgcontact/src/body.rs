@@ -606,9 +606,7 @@ impl Body {
         self.active_cells()
             .filter_map(|cell| {
                 let (map, origin) = self.cell_map(cell)?;
-                let centre = origin + map.map(DVec3::ZERO);
-                let share = map.rounding_share(tolerance.length(centre));
-                (share.is_finite() && share > Lattice::RESOLUTION).then_some((cell, share))
+                unresolved_share(&tolerance, &map, origin).map(|share| (cell, share))
             })
             .collect()
     }
@@ -628,6 +626,22 @@ impl Body {
             Err(Error::InvertedCells(inverted))
         }
     }
+}
+
+/// The share of a cell that a rounding of the point's coordinates (f64's L at the cell's centre,
+/// `tolerance` made with f64 settings and no displacement) takes through the cell's J⁻¹
+/// ([`hex8::Hex8Map::rounding_share`]), when it exceeds [`Lattice::RESOLUTION`]; `None` below
+/// it, and where det J ≤ 0 at the centre (an inverted cell). `map` is the cell's map in its local
+/// frame, `origin` its lowest undeformed corner: what [`Body::unresolved_cells`] and
+/// `AdaptiveBody::unresolved_cells` ask of each cell.
+pub(crate) fn unresolved_share(
+    tolerance: &InsideTolerance,
+    map: &hex8::Hex8Map,
+    origin: DVec3,
+) -> Option<f64> {
+    let centre = origin + map.map(DVec3::ZERO);
+    let share = map.rounding_share(tolerance.length(centre));
+    (share.is_finite() && share > Lattice::RESOLUTION).then_some(share)
 }
 
 #[cfg(test)]
@@ -852,25 +866,31 @@ mod tests {
     fn cells_sheared_beyond_the_coordinates_resolution_are_named() {
         // Two cells stacked along z, far from the origin, thin along z; u_z = s (Y − Y0): a
         // rounding of y (4 ε 1e7 ≈ 9e-9) moves z by s times that, against a half cell of 7.8e-6.
-        let sheared = |origin: f64, s: f64| {
+        let sheared = |origin: DVec3, s: f64| {
             let h = DVec3::new(0.03125, 0.001953125, 1.5625e-5);
-            let lattice = Lattice::new(DVec3::splat(origin), h, [1, 1, 2]).unwrap();
+            let lattice = Lattice::new(origin, h, [1, 1, 2]).unwrap();
             let mut body = Body::full(lattice);
-            body.update_displacements(|_, x, u| *u = DVec3::new(0.0, 0.0, s * (x.y - origin)))
+            body.update_displacements(|_, x, u| *u = DVec3::new(0.0, 0.0, s * (x.y - origin.y)))
                 .unwrap();
             body.unresolved_cells()
         };
+        let far = DVec3::splat(-1e7);
         // Shear 1e3: about 1.1 of a cell in ξ_z, both cells named.
-        let named = sheared(-1e7, 1e3);
+        let named = sheared(far, 1e3);
         assert_eq!(named.iter().map(|(c, _)| c.0).collect::<Vec<_>>(), [0, 1]);
         assert!(
             named.iter().all(|&(_, share)| share > 1.0 && share < 1.3),
             "{named:?}"
         );
+        // Only y's rounding matters (row z of J⁻¹): far along y alone, the same; far along x and
+        // z alone (y near 0), none.
+        let only_y = sheared(DVec3::new(0.0, -1e7, 0.0), 1e3);
+        assert_eq!(only_y.len(), 2, "{only_y:?}");
+        assert!(sheared(DVec3::new(-1e7, 0.0, -1e7), 1e3).is_empty());
         // Shear 10 at the same place (about 0.013), shear 1e3 near the origin, and no shear: none.
-        assert!(sheared(-1e7, 10.0).is_empty());
-        assert!(sheared(0.0, 1e3).is_empty());
-        assert!(sheared(-1e7, 0.0).is_empty());
+        assert!(sheared(far, 10.0).is_empty());
+        assert!(sheared(DVec3::ZERO, 1e3).is_empty());
+        assert!(sheared(far, 0.0).is_empty());
     }
 
     #[test]

@@ -610,9 +610,7 @@ impl AdaptiveBody {
         (0..self.leaves.len() as u32)
             .filter_map(|id| {
                 let (map, origin) = self.cell_map(CellId(id))?;
-                let centre = origin + map.map(DVec3::ZERO);
-                let share = map.rounding_share(tolerance.length(centre));
-                (share.is_finite() && share > Lattice::RESOLUTION).then_some((CellId(id), share))
+                crate::body::unresolved_share(&tolerance, &map, origin).map(|s| (CellId(id), s))
             })
             .collect()
     }

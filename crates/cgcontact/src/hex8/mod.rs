@@ -259,9 +259,7 @@ macro_rules! stamp_hex8 {
             /// allowance where det J ≤ 0 there. Called only for a converged ξ beyond `inside`.
             #[cold]
             fn within_allowance(&self, xi: $V, inside: $V, length: $V) -> bool {
-                let (_, [c0, c1, c2]) = self.map_and_jacobian(xi.clamp(<$V>::splat(-1.0), <$V>::splat(1.0)));
-                let (k0, k1, k2) = (c1.cross(c2), c2.cross(c0), c0.cross(c1));
-                let det = c0.dot(k0);
+                let ([k0, k1, k2], det) = self.adjugate_at(xi.clamp(<$V>::splat(-1.0), <$V>::splat(1.0)));
                 // NaN fails too: only a cell known to be valid there gets the allowance.
                 if det.is_nan() || det <= 0.0 {
                     return false;
@@ -290,23 +288,24 @@ macro_rules! stamp_hex8 {
                 true
             }
 
+            /// The rows of adj(J) at `xi` (the columns' cross products: row k of J⁻¹ is row k
+            /// over det J) and det J.
+            #[inline]
+            fn adjugate_at(&self, xi: $V) -> ([$V; 3], $S) {
+                let (_, [c0, c1, c2]) = self.map_and_jacobian(xi);
+                let k0 = c1.cross(c2);
+                ([k0, c2.cross(c0), c0.cross(c1)], c0.dot(k0))
+            }
+
             /// How far (in ξ, the largest over the axes) perturbations of the point of at most
             /// `length_j` per component move ξ through J⁻¹ at the cell's centre:
             /// max_k Σ_j |J⁻¹_kj| length_j. Infinite where det J ≤ 0 there (or NaN).
             #[must_use]
             pub fn rounding_share(&self, length: $V) -> $S {
-                let (_, [c0, c1, c2]) = self.map_and_jacobian(<$V>::splat(0.0));
-                let (k0, k1, k2) = (c1.cross(c2), c2.cross(c0), c0.cross(c1));
-                let det = c0.dot(k0);
+                let (rows, det) = self.adjugate_at(<$V>::splat(0.0));
                 if det.is_nan() || det <= 0.0 {
                     return <$S>::INFINITY;
                 }
-                // Row k of J⁻¹ is adj(J)'s row k, (k0.k, k1.k, k2.k), over det J.
-                let rows = [
-                    <$V>::new(k0.x, k1.x, k2.x),
-                    <$V>::new(k0.y, k1.y, k2.y),
-                    <$V>::new(k0.z, k1.z, k2.z),
-                ];
                 rows.iter().map(|row| row.abs().dot(length)).fold(0.0, <$S>::max) / det
             }
 
