@@ -7,8 +7,10 @@
  * coarse neighbour: cgc_body_from_mesh detects which). cgc_gap gives the signed gap of points to
  * the body's deformed boundary surface within a search distance, the closest point there, the
  * outward normal and the face. cgc_body_inverted_cells lists the cells the displacements invert
- * (det J <= 0 at a corner), where answers are not to be trusted; updates do not check for them,
- * so call it when wanted (one pass over the cells).
+ * (det J <= 0 at a corner), where answers are not to be trusted; cgc_body_unresolved_cells lists
+ * the cells f64 coordinates of their magnitude cannot resolve (far from the origin, sheared or
+ * crushed), where a point near a face may be given the cell beside it too. Updates check for
+ * neither, so call them when wanted (each one pass over the cells).
  *
  *   cgc_body *body;  cgc_locator *loc;
  *   cgc_body_from_lattice(origin, h, counts, NULL, 0, &body);      // or cgc_body_from_mesh
@@ -260,6 +262,25 @@ cgc_error cgc_body_inverted_cells(const cgc_body *body,
                                   int64_t *cells,
                                   size_t capacity,
                                   size_t *count);
+
+// Lists the cells that f64 coordinates of their magnitude cannot resolve through their current
+// deformation. Far from the origin a coordinate is known only to its rounding (4 ε |x|); a cell
+// sheared or crushed enough turns that rounding into more than a tenth of the cell in ξ, and a
+// point that close to one of its faces may be given the cell beside it as well (`cgcontact
+// locate` warns, and reports the same cells in `--json` as `unresolved_cells`). As
+// [`cgc_body_inverted_cells`], this costs one pass over every cell and is called when wanted.
+//
+// Writes to `*count` how many cells there are and, when they fit in `capacity`, their numbers
+// to `cells[0 .. *count]`, with the same two-call protocol, numbering and errors as
+// [`cgc_body_inverted_cells`].
+//
+// # Safety
+// `body` must be a live handle or NULL; `cells` must point to `capacity` writable int64 or be
+// NULL; `count` writable or NULL.
+cgc_error cgc_body_unresolved_cells(const cgc_body *body,
+                                    int64_t *cells,
+                                    size_t capacity,
+                                    size_t *count);
 
 // Frees a body handle (NULL is a no-op). Locators made from it stay valid: they share the body,
 // which is freed with the last of them.

@@ -7,9 +7,10 @@
 %   [E, PosL] = relocate(B, XYZ, E, PosL);  % the next iteration, warm started from the last answers
 %   [G, C, N, FE, F] = gap(B, XYZ, D);      % gaps to the surface within D (cgcontact_whereami 'gap')
 %   Inverted = inverted_cells(B);           % 1-based elements U inverts (det J <= 0 at a corner)
+%   Unresolved = unresolved_cells(B);       % 1-based elements f64 cannot resolve (see the MEX)
 %
 % A handle object over cgcontact_whereami's 'new', 'update', 'locate', 'relocate', 'gap',
-% 'inverted_cells' and 'free' (build.sh puts it beside cgcontact_whereami.mex). Options as for cgcontact_whereami.
+% 'inverted_cells', 'unresolved_cells' and 'free' (build.sh puts it beside cgcontact_whereami.mex). Options as for cgcontact_whereami.
 classdef cgcontact_body < handle
   properties (SetAccess = private)
     % The cgcontact_whereami handle (0 when none).
@@ -33,6 +34,9 @@ classdef cgcontact_body < handle
     end
     function Inverted = inverted_cells(obj)
       Inverted = cgcontact_whereami('inverted_cells', obj.id);
+    end
+    function Unresolved = unresolved_cells(obj)
+      Unresolved = cgcontact_whereami('unresolved_cells', obj.id);
     end
     function delete(obj)
       if obj.id > 0

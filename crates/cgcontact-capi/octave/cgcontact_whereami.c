@@ -32,6 +32,7 @@
  *   [E, PosL] = cgcontact_whereami('relocate', H, XYZ, E0, PosL0)  % warm start, see below
  *   [G, C, N, FE, F] = cgcontact_whereami('gap', H, XYZ, D)    % gaps to the surface, within D
  *   Inverted = cgcontact_whereami('inverted_cells', H)         % elements U inverts, 1 x k
+ *   Unresolved = cgcontact_whereami('unresolved_cells', H)     % elements f64 cannot resolve
  *   S = cgcontact_whereami('query_seconds', H, XYZ, Repeats)   % the library's own query time
  *   cgcontact_whereami('free', H)                               % optional
  *   N = cgcontact_whereami('handles')                           % how many are live
@@ -58,6 +59,12 @@
  * corner: a node moved through its neighbours), 1-based and ascending, 1 x 0 when none. Answers
  * in or near them are not to be trusted (a point in one may get E = 0). 'update' does not check
  * for them: the check is one pass over every element, so ask when wanted.
+ *
+ * 'unresolved_cells' lists, the same way, the elements that f64 coordinates of their magnitude
+ * cannot resolve through the current displacements: far from the origin a coordinate is known
+ * only to its rounding (4 eps |x|), and an element sheared or crushed enough turns that into more
+ * than a tenth of itself in PosL, so that a point that close to one of its faces may be given the
+ * element beside it. `cgcontact locate` warns about them and lists them in --json.
  *
  * cgcontact_body.m (beside the MEX file) wraps these in a handle object that frees its body when
  * cleared: B = cgcontact_body(XYZ_N0, Topology); update(B, U); [E, PosL] = locate(B, XYZ).
@@ -336,18 +343,20 @@ static void locate(entry *e, const mxArray *points, const mxArray *e0, const mxA
     else mxDestroyArray(local);
 }
 
-/* The 1-based elements the body's displacements invert, 1 x k ascending. On failure frees the
- * entry when `owned`. */
-static mxArray *inverted_cells(entry *e, int owned) {
+/* One of the body's cell lists (cgc_body_inverted_cells or cgc_body_unresolved_cells, named
+ * `what` in errors), as 1-based elements, 1 x k ascending. On failure frees the entry when
+ * `owned`. */
+typedef cgc_error (*cell_list)(const cgc_body *, int64_t *, size_t, size_t *);
+static mxArray *listed_cells(entry *e, int owned, cell_list list, const char *what) {
     size_t count = 0;
-    cgc_error code = cgc_body_inverted_cells(e->body, NULL, 0, &count);
+    cgc_error code = list(e->body, NULL, 0, &count);
     mxArray *out = code == CGC_ERROR_OK ? mxCreateUninitNumericMatrix(1, count, mxDOUBLE_CLASS, mxREAL) : NULL;
     /* As in locate: the int64 cells are written into the output's memory, converted in place. */
-    if (out) code = cgc_body_inverted_cells(e->body, (int64_t *)mxGetData(out), count, &count);
+    if (out) code = list(e->body, (int64_t *)mxGetData(out), count, &count);
     if (code != CGC_ERROR_OK) {
         if (out) mxDestroyArray(out);
         if (owned) free_entry(e);
-        fail_cgc(code, "inverted_cells");
+        fail_cgc(code, what);
     }
     const int64_t *cells = (const int64_t *)mxGetData(out);
     double *E = mxGetPr(out);
@@ -356,6 +365,12 @@ static mxArray *inverted_cells(entry *e, int owned) {
         E[i] = (double)(cell + 1);
     }
     return out;
+}
+
+/* The 1-based elements the body's displacements invert, 1 x k ascending. On failure frees the
+ * entry when `owned`. */
+static mxArray *inverted_cells(entry *e, int owned) {
+    return listed_cells(e, owned, cgc_body_inverted_cells, "inverted_cells");
 }
 
 /* [G, C, N, FE, F] for points XYZ (3 x n) within D. */
@@ -447,12 +462,12 @@ void mexFunction(int nlhs, mxArray *plhs[], int nrhs, const mxArray *prhs[]) {
         locked = 1;
     }
     if (nrhs >= 1 && mxIsChar(prhs[0])) {
-        char command[16] = {0};
+        char command[32] = {0};
         if (mxGetNumberOfElements(prhs[0]) >= sizeof command || mxGetM(prhs[0]) > 1 ||
             mxGetString(prhs[0], command, sizeof command) != 0)
             FAIL("usage",
                  "unknown command: a row of at most %d characters (new, update, locate, "
-                 "relocate, gap, inverted_cells, query_seconds, free, handles)",
+                 "relocate, gap, inverted_cells, unresolved_cells, query_seconds, free, handles)",
                  (int)sizeof command - 1);
         if (!strcmp(command, "new")) {
             args(nrhs, 3, 4, "H = cgcontact_whereami('new', XYZ_N0, Topology [, Options])");
@@ -474,6 +489,9 @@ void mexFunction(int nlhs, mxArray *plhs[], int nrhs, const mxArray *prhs[]) {
         } else if (!strcmp(command, "inverted_cells")) {
             args(nrhs, 2, 2, "Inverted = cgcontact_whereami('inverted_cells', H)");
             plhs[0] = inverted_cells(lookup(prhs[1]), 0);
+        } else if (!strcmp(command, "unresolved_cells")) {
+            args(nrhs, 2, 2, "Unresolved = cgcontact_whereami('unresolved_cells', H)");
+            plhs[0] = listed_cells(lookup(prhs[1]), 0, cgc_body_unresolved_cells, "unresolved_cells");
         } else if (!strcmp(command, "query_seconds")) {
             args(nrhs, 3, 4, "S = cgcontact_whereami('query_seconds', H, XYZ [, Repeats])");
             entry *e = lookup(prhs[1]);
@@ -496,7 +514,7 @@ void mexFunction(int nlhs, mxArray *plhs[], int nrhs, const mxArray *prhs[]) {
             for (size_t i = 0; i < table_len; i++) live += table[i].body != NULL;
             plhs[0] = mxCreateDoubleScalar(live);
         } else {
-            FAIL("usage", "unknown command '%s' (new, update, locate, relocate, gap, inverted_cells, query_seconds, free, handles)", command);
+            FAIL("usage", "unknown command '%s' (new, update, locate, relocate, gap, inverted_cells, unresolved_cells, query_seconds, free, handles)", command);
         }
         return;
     }

@@ -292,6 +292,49 @@ expect_error('cgcontact:usage', @() cgcontact_whereami('inverted_cells', H, U), 
 printf('inverted: elements %s, as constructed and as cgcontact locate --json; none when undone\n', ...
        mat2str(inverted));
 
+% --- elements f64 cannot resolve: far from the origin, thin and sheared ----------------------
+% Three elements along x at (-1e7)^3, 1.6e-5 thin along z; u_z = s (Y - Y0) on the nodes at
+% i <= 1: lattice cell 0 sheared by dz/dy = s, cell 1 by s / 2 at its centre, cell 2 not at all.
+% A rounding of y (4 eps |x| = 8.9e-9) moves xi_z by about 1.1e-3 s in cell 0: with s = 1000
+% cells 0 and 1 (elements 3 and 2, the scene numbering in reverse) exceed a tenth of the cell;
+% with s = 10 none does. `cgcontact locate --json` lists the same cells.
+hr = [0.03125 0.001953125 1.5625e-5]; orr = [-1e7 -1e7 -1e7];
+[N0r, Tr] = scene([3 1 1], hr, orr);
+ir = round((N0r(1, :) - orr(1)) / hr(1));
+Hr = cgcontact_whereami('new', N0r, Tr);
+check(isequal(cgcontact_whereami('unresolved_cells', Hr), zeros(1, 0)), 'undeformed: unresolved %s', ...
+      mat2str(cgcontact_whereami('unresolved_cells', Hr)));
+for shear = [1e3 10]
+  Ur = zeros(columns(N0r), 3);
+  Ur(:, 3) = shear * (ir <= 1)' .* (N0r(2, :) - orr(2))';
+  cgcontact_whereami('update', Hr, Ur);
+  unresolved = cgcontact_whereami('unresolved_cells', Hr);
+  expected = zeros(1, 0);
+  if shear > 100, expected = [2 3]; end
+  check(isequal(unresolved, expected), 'shear %g: unresolved elements %s, expected %s', shear, ...
+        mat2str(unresolved), mat2str(expected));
+  write_vtk(fullfile(work, 'unresolved.vtk'), N0r, Tr, Ur);
+  fid = fopen(fullfile(work, 'far.csv'), 'w'); fprintf(fid, 'x,y,z\n-1e7,-1e7,-1e7\n'); fclose(fid);
+  cmd = sprintf('"%s" locate --mesh "%s" --points "%s" --json --quiet', cli, ...
+                fullfile(work, 'unresolved.vtk'), fullfile(work, 'far.csv'));
+  [status, output] = system(cmd);
+  check(status == 0, 'cgcontact locate (unresolved) failed (%d): %s', status, output);
+  summary = jsondecode(output);
+  cli_unresolved = sort(summary.unresolved_cells(:)') + 1;
+  check(isequal(unresolved, reshape(cli_unresolved, 1, [])), ...
+        'unresolved elements %s, cgcontact locate %s', mat2str(unresolved), mat2str(cli_unresolved));
+end
+B = cgcontact_body(N0r, Tr);
+Ur(:, 3) = 1e3 * (ir <= 1)' .* (N0r(2, :) - orr(2))';
+update(B, Ur);
+check(isequal(unresolved_cells(B), [2 3]), 'cgcontact_body: unresolved elements %s', ...
+      mat2str(unresolved_cells(B)));
+clear B;
+expect_error('cgcontact:usage', @() cgcontact_whereami('unresolved_cells', Hr, Ur), 'unresolved_cells with U');
+cgcontact_whereami('free', Hr);
+expect_error('cgcontact:badHandle', @() cgcontact_whereami('unresolved_cells', Hr), 'unresolved_cells, a freed handle');
+printf('unresolved: elements [2 3] at -1e7 sheared by 1000, none by 10, as cgcontact locate --json\n');
+
 % --- an adaptive mesh: the same calls, the same answers as cgcontact locate -----------------
 ha = [0.6 0.5 0.4]; oa = [-3 1 2];
 [N0a, Ta, Ua, hanging] = adaptive_scene(ha, oa);

@@ -156,6 +156,14 @@ impl BodyState {
             .sorted_numbers(found.iter().map(|&(cell, _)| cell))
     }
 
+    /// The caller's numbers of the cells that f64 coordinates of their magnitude cannot resolve
+    /// through their deformation (`Body::unresolved_cells`), ascending: one pass over every cell.
+    fn unresolved_cells(&self) -> Vec<i64> {
+        let found = self.body.as_ref().unresolved_cells();
+        self.cells
+            .sorted_numbers(found.iter().map(|&(cell, _)| cell))
+    }
+
     /// The caller's node that gives slot `slot`.
     fn source(&self, slot: usize) -> usize {
         self.source_of_slot
@@ -692,6 +700,67 @@ pub unsafe extern "C" fn cgc_body_inverted_cells(
     capacity: usize,
     count: *mut usize,
 ) -> CgcError {
+    // SAFETY: forwarded from the caller, under the same contract.
+    unsafe {
+        list_cells(
+            body,
+            cells,
+            capacity,
+            count,
+            "inverted",
+            BodyState::inverted_cells,
+        )
+    }
+}
+
+/// Lists the cells that f64 coordinates of their magnitude cannot resolve through their current
+/// deformation. Far from the origin a coordinate is known only to its rounding (4 ε |x|); a cell
+/// sheared or crushed enough turns that rounding into more than a tenth of the cell in ξ, and a
+/// point that close to one of its faces may be given the cell beside it as well (`cgcontact
+/// locate` warns, and reports the same cells in `--json` as `unresolved_cells`). As
+/// [`cgc_body_inverted_cells`], this costs one pass over every cell and is called when wanted.
+///
+/// Writes to `*count` how many cells there are and, when they fit in `capacity`, their numbers
+/// to `cells[0 .. *count]`, with the same two-call protocol, numbering and errors as
+/// [`cgc_body_inverted_cells`].
+///
+/// # Safety
+/// `body` must be a live handle or NULL; `cells` must point to `capacity` writable int64 or be
+/// NULL; `count` writable or NULL.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn cgc_body_unresolved_cells(
+    body: *const CgcBody,
+    cells: *mut i64,
+    capacity: usize,
+    count: *mut usize,
+) -> CgcError {
+    // SAFETY: forwarded from the caller, under the same contract.
+    unsafe {
+        list_cells(
+            body,
+            cells,
+            capacity,
+            count,
+            "unresolved",
+            BodyState::unresolved_cells,
+        )
+    }
+}
+
+/// The two-call protocol of the cell lists: writes the list's length to `*count` and, when
+/// `capacity` is not 0, the list to `cells`, or says that it does not fit.
+///
+/// # Safety
+/// As the public functions that call it: `body` a live handle or NULL, `cells` `capacity`
+/// writable int64 or NULL, `count` writable or NULL.
+unsafe fn list_cells(
+    body: *const CgcBody,
+    cells: *mut i64,
+    capacity: usize,
+    count: *mut usize,
+    what: &str,
+    list: fn(&BodyState) -> Vec<i64>,
+) -> CgcError {
     guard(|| {
         raw::disjoint(&[
             raw::region(cells.cast_const(), capacity, "cells")?,
@@ -706,21 +775,21 @@ pub unsafe extern "C" fn cgc_body_inverted_cells(
                 raw::slice_mut(count, 1, "count")?,
             )
         };
-        let inverted = CgcBody::read(&body.state).inverted_cells();
-        count[0] = inverted.len();
+        let found = list(&CgcBody::read(&body.state));
+        count[0] = found.len();
         if capacity == 0 {
             return Ok(());
         }
-        let Some(out) = out.get_mut(..inverted.len()) else {
+        let Some(out) = out.get_mut(..found.len()) else {
             return Err(Failure::new(
                 CgcError::LengthMismatch,
                 format!(
-                    "cells: the body has {} inverted cells, room for {capacity} (*count holds the number needed)",
-                    inverted.len()
+                    "cells: the body has {} {what} cells, room for {capacity} (*count holds the number needed)",
+                    found.len()
                 ),
             ));
         };
-        out.copy_from_slice(&inverted);
+        out.copy_from_slice(&found);
         Ok(())
     })
 }

@@ -13,6 +13,7 @@
 //! | [`cgc_body_set_displacements`] | every nodal displacement, in place, node- or component-major; hanging nodes checked or filled ([`CGC_FILL_HANGING`]) |
 //! | [`cgc_body_hanging_count`] | how many nodes hang on a coarser neighbour (0 for a uniform body) |
 //! | [`cgc_body_inverted_cells`] | the cells the displacements invert (det J ≤ 0 at a corner), where no point is found: one pass over the cells, on demand |
+//! | [`cgc_body_unresolved_cells`] | the cells that f64 coordinates of their magnitude cannot resolve through their deformation (far from the origin, sheared or crushed), where a point near a face may be given the cell beside it too: one pass over the cells, on demand |
 //! | [`cgc_settings_init`], [`cgc_locator_new`] | a locator with settings (strategy, precision, tolerances, threads) |
 //! | [`cgc_locate`] | n points → cell (−1 none), ξ (n × 3), a status per point |
 //! | [`cgc_relocate`] | the same, warm started from each point's previous cell and ξ (a solver loop): one inversion where the cell still holds the point |
@@ -59,7 +60,7 @@ mod raw;
 pub use body::{
     CGC_FILL_HANGING, CGC_LAYOUT_COMPONENT_MAJOR, CGC_LAYOUT_NODE_MAJOR, CgcBody, cgc_body_free,
     cgc_body_from_lattice, cgc_body_from_mesh, cgc_body_hanging_count, cgc_body_inverted_cells,
-    cgc_body_node_count, cgc_body_set_displacements,
+    cgc_body_node_count, cgc_body_set_displacements, cgc_body_unresolved_cells,
 };
 pub use error::{CgcError, cgc_last_error};
 pub use gap::cgc_gap;
