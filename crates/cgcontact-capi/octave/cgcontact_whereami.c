@@ -257,8 +257,9 @@ static void update(entry *e, const mxArray *u, int owned) {
     if (!mxIsDouble(u) || mxIsComplex(u) || mxIsSparse(u) || mxGetNumberOfDimensions(u) != 2 ||
         mxGetM(u) != e->n_nodes || mxGetN(u) != 3) {
         if (owned) free_entry(e);
-        FAIL("badSize", "U must be a real double m x 3 matrix with m = %d nodes, got %s %d x %d",
-             (int)e->n_nodes, mxGetClassName(u), (int)mxGetM(u), (int)mxGetN(u));
+        FAIL("badSize", "U must be a real, full double m x 3 matrix with m = %d nodes, got %s%s%s %d x %d",
+             (int)e->n_nodes, mxIsSparse(u) ? "sparse " : "", mxIsComplex(u) ? "complex " : "",
+             mxGetClassName(u), (int)mxGetM(u), (int)mxGetN(u));
     }
     cgc_error code = cgc_body_set_displacements(e->body, mxGetPr(u), e->n_nodes,
                                                 CGC_LAYOUT_COMPONENT_MAJOR | e->fill);
@@ -449,8 +450,14 @@ static double keep(entry made) {
     return (double)slot + 1 + made.generation * SLOTS;
 }
 
-static void args(int nrhs, int lo, int hi, const char *usage) {
+/* A command's arguments (lo to hi) and outputs (at most `outs`), checked before it does anything:
+ * a call asking for an output the command does not give would otherwise run (update, free) and
+ * only then fail, with Octave's "element number k undefined in return list". */
+static void args(int nrhs, int nlhs, int lo, int hi, int outs, const char *usage) {
     if (nrhs < lo || nrhs > hi) FAIL("usage", "usage: %s", usage);
+    if (nlhs > outs)
+        FAIL("usage", "asked for %d output%s, the command gives %d: %s", nlhs, nlhs == 1 ? "" : "s",
+             outs, usage);
 }
 
 void mexFunction(int nlhs, mxArray *plhs[], int nrhs, const mxArray *prhs[]) {
@@ -470,30 +477,29 @@ void mexFunction(int nlhs, mxArray *plhs[], int nrhs, const mxArray *prhs[]) {
                  "relocate, gap, inverted_cells, unresolved_cells, query_seconds, free, handles)",
                  (int)sizeof command - 1);
         if (!strcmp(command, "new")) {
-            args(nrhs, 3, 4, "H = cgcontact_whereami('new', XYZ_N0, Topology [, Options])");
+            args(nrhs, nlhs, 3, 4, 1, "H = cgcontact_whereami('new', XYZ_N0, Topology [, Options])");
             entry made = build(prhs[1], prhs[2], nrhs > 3 ? prhs[3] : NULL);
             plhs[0] = mxCreateDoubleScalar(keep(made));
         } else if (!strcmp(command, "update")) {
-            args(nrhs, 3, 3, "cgcontact_whereami('update', H, U)");
+            args(nrhs, nlhs, 3, 3, 0, "cgcontact_whereami('update', H, U)");
             update(lookup(prhs[1]), prhs[2], 0);
         } else if (!strcmp(command, "locate")) {
-            args(nrhs, 3, 3, "[E, PosL] = cgcontact_whereami('locate', H, XYZ)");
+            args(nrhs, nlhs, 3, 3, 2, "[E, PosL] = cgcontact_whereami('locate', H, XYZ)");
             locate(lookup(prhs[1]), prhs[2], NULL, NULL, plhs, nlhs, 0);
         } else if (!strcmp(command, "relocate")) {
-            args(nrhs, 5, 5, "[E, PosL] = cgcontact_whereami('relocate', H, XYZ, E0, PosL0)");
+            args(nrhs, nlhs, 5, 5, 2, "[E, PosL] = cgcontact_whereami('relocate', H, XYZ, E0, PosL0)");
             locate(lookup(prhs[1]), prhs[2], prhs[3], prhs[4], plhs, nlhs, 0);
         } else if (!strcmp(command, "gap")) {
-            args(nrhs, 4, 4, "[G, C, N, FE, F] = cgcontact_whereami('gap', H, XYZ, D)");
-            if (nlhs > 5) FAIL("usage", "at most five outputs: [G, C, N, FE, F]");
+            args(nrhs, nlhs, 4, 4, 5, "[G, C, N, FE, F] = cgcontact_whereami('gap', H, XYZ, D)");
             gap(lookup(prhs[1]), prhs[2], prhs[3], plhs, nlhs);
         } else if (!strcmp(command, "inverted_cells")) {
-            args(nrhs, 2, 2, "Inverted = cgcontact_whereami('inverted_cells', H)");
+            args(nrhs, nlhs, 2, 2, 1, "Inverted = cgcontact_whereami('inverted_cells', H)");
             plhs[0] = inverted_cells(lookup(prhs[1]), 0);
         } else if (!strcmp(command, "unresolved_cells")) {
-            args(nrhs, 2, 2, "Unresolved = cgcontact_whereami('unresolved_cells', H)");
+            args(nrhs, nlhs, 2, 2, 1, "Unresolved = cgcontact_whereami('unresolved_cells', H)");
             plhs[0] = listed_cells(lookup(prhs[1]), 0, cgc_body_unresolved_cells, "unresolved_cells");
         } else if (!strcmp(command, "query_seconds")) {
-            args(nrhs, 3, 4, "S = cgcontact_whereami('query_seconds', H, XYZ [, Repeats])");
+            args(nrhs, nlhs, 3, 4, 1, "S = cgcontact_whereami('query_seconds', H, XYZ [, Repeats])");
             entry *e = lookup(prhs[1]);
             size_t n = matrix(prhs[2], "XYZ", 3, "3 x n, one point per column");
             if (nrhs > 3 && (!mxIsDouble(prhs[3]) || mxIsComplex(prhs[3]) ||
@@ -507,9 +513,10 @@ void mexFunction(int nlhs, mxArray *plhs[], int nrhs, const mxArray *prhs[]) {
             if (code != CGC_ERROR_OK) fail_cgc(code, "XYZ");
             plhs[0] = mxCreateDoubleScalar(seconds);
         } else if (!strcmp(command, "free")) {
-            args(nrhs, 2, 2, "cgcontact_whereami('free', H)");
+            args(nrhs, nlhs, 2, 2, 0, "cgcontact_whereami('free', H)");
             free_entry(lookup(prhs[1]));
         } else if (!strcmp(command, "handles")) {
+            args(nrhs, nlhs, 1, 1, 1, "N = cgcontact_whereami('handles')");
             double live = 0;
             for (size_t i = 0; i < table_len; i++) live += table[i].body != NULL;
             plhs[0] = mxCreateDoubleScalar(live);
@@ -518,8 +525,7 @@ void mexFunction(int nlhs, mxArray *plhs[], int nrhs, const mxArray *prhs[]) {
         }
         return;
     }
-    args(nrhs, 3, 5, "[E, PosL, Inverted] = cgcontact_whereami(XYZ, XYZ_N0, Topology, U [, Options])");
-    if (nlhs > 3) FAIL("usage", "at most three outputs: [E, PosL, Inverted]");
+    args(nrhs, nlhs, 3, 5, 3, "[E, PosL, Inverted] = cgcontact_whereami(XYZ, XYZ_N0, Topology, U [, Options])");
     /* Check the points before building anything, so that a bad XYZ costs nothing. */
     matrix(prhs[0], "XYZ", 3, "3 x n, one point per column");
     entry made = build(prhs[1], prhs[2], nrhs > 4 ? prhs[4] : NULL);

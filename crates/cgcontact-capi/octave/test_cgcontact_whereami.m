@@ -31,6 +31,12 @@ function expect_error(id, f, what)
   check(false, '%s: expected error %s, got none', what, id);
 end
 
+function ask_outputs(k, varargin)
+  % cgcontact_whereami(varargin{:}) asked for k outputs.
+  out = cell(1, k);
+  [out{:}] = cgcontact_whereami(varargin{:});
+end
+
 function [N0, T, U] = scene(nc, h, origin)
   % Nodes of an nc(1) x nc(2) x nc(3) lattice, numbered in reverse order; cells in reverse order.
   [I, J, K] = ndgrid(0:nc(1), 0:nc(2), 0:nc(3));
@@ -484,6 +490,19 @@ expect_error('cgcontact:badSize', @() cgcontact_whereami(XYZ, N0, T, {}), 'U = {
 expect_error('cgcontact:usage', @() cgcontact_whereami('locate_every_point_please', H, XYZ), 'a long command');
 expect_error('cgcontact:badInput', @() cgcontact_whereami('query_seconds', H, XYZ, 'abc'), 'Repeats as text');
 expect_error('cgcontact:badInput', @() cgcontact_whereami('query_seconds', H, XYZ, 2.5), 'Repeats 2.5');
+% Outputs a command does not give, refused before it runs: asked for an output, 'free' and
+% 'update' did their work, then failed with Octave's "element number 1 undefined in return list".
+[Ekept, ~] = cgcontact_whereami('locate', H, XYZ);
+expect_error('cgcontact:usage', @() ask_outputs(1, 'free', H), 'free with an output');
+[Efree, ~] = cgcontact_whereami('locate', H, XYZ);
+check(isequal(Efree, Ekept), 'free with an output freed the handle, or changed its answers');
+expect_error('cgcontact:usage', @() ask_outputs(1, 'update', H, U), 'update with an output');
+expect_error('cgcontact:usage', @() ask_outputs(3, 'locate', H, XYZ), 'locate with 3 outputs');
+expect_error('cgcontact:usage', @() ask_outputs(2, 'inverted_cells', H), 'inverted_cells with 2 outputs');
+expect_error('cgcontact:usage', @() ask_outputs(4, XYZ, N0, T, U), 'one-shot with 4 outputs');
+expect_error('cgcontact:usage', @() cgcontact_whereami('handles', H), 'handles with an argument');
+expect_error('cgcontact:usage', @() cgcontact_whereami(repmat('x', 1, 40), H), 'a command of 40 characters');
+expect_error('cgcontact:badSize', @() cgcontact_whereami('update', H, sparse(U)), 'update with a sparse U');
 try
   cgcontact_whereami('locate_every_point_please', H, XYZ);
 catch err

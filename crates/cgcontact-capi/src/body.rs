@@ -263,9 +263,9 @@ fn in_caller_nodes(e: cgcontact::Error, u: &[DVec3], source: Option<&[u32]>) -> 
         return Failure::new(
             CgcError::InvalidArgument,
             format!(
-                "the displacement of node {node} (0-based) is too large: {} (at most {limit:e} \
+                "the displacement of node {node} (0-based) is too large: {:?} (at most {limit:e} \
                  per axis: displaced farther, coordinates cannot resolve this body's cells)",
-                u[slot]
+                u[slot].to_array()
             ),
         );
     }
