@@ -73,7 +73,7 @@ struct LocateArgs {
     block: Option<u32>,
     /// Also measure each point's signed gap to the mesh's deformed boundary surface within D, as
     /// `cgcontact locate --gap D` does: the same columns appended to every row, byte for byte.
-    #[arg(long, value_name = "D")]
+    #[arg(long, value_name = "D", allow_negative_numbers = true)]
     gap: Option<f64>,
     /// Query the points N more times after the first, and report the fastest run's phases.
     #[arg(long, default_value_t = 0)]
@@ -86,7 +86,7 @@ struct LocateArgs {
     #[arg(long)]
     strict: bool,
     /// Print nothing but errors.
-    #[arg(long)]
+    #[arg(long, short)]
     quiet: bool,
 }
 
@@ -194,7 +194,7 @@ fn locate(world: &SimpleCommunicator, args: &LocateArgs) -> Result<(), Failure> 
     let (rank, size) = (world.rank(), world.size() as usize);
     let start = Instant::now();
     // Every flag and the output checked before any file is read.
-    agree(world, check_args(args))?;
+    agree(world, check_args(args, rank))?;
     // The local search runs on rayon's global pool (a communicator cannot enter another pool's
     // threads).
     agree(
@@ -422,8 +422,9 @@ fn capped_threads(args: &LocateArgs, rank: i32) -> usize {
 }
 
 /// Refuse, before any file is read, what cannot work: a block size out of range, no threads, an
-/// output that is an input or in a missing folder.
-fn check_args(args: &LocateArgs) -> Result<()> {
+/// output that is an input, in a missing folder or in one rank 0 cannot write in. Only rank 0
+/// writes, so only rank 0 checks the output (another node need not see its folder).
+fn check_args(args: &LocateArgs, rank: i32) -> Result<()> {
     if let Some(block) = args.block
         && (block == 0 || block > 1 << 20)
     {
@@ -437,7 +438,7 @@ fn check_args(args: &LocateArgs) -> Result<()> {
     {
         bail!("--gap {d}: the search distance must be a finite number at least 0");
     }
-    if let Some(out) = &args.out {
+    if let Some(out) = args.out.as_ref().filter(|_| rank == 0) {
         for (flag, input) in [("--mesh", &args.mesh), ("--points", &args.points)] {
             if same_file(out, input) {
                 bail!(
@@ -460,6 +461,17 @@ fn check_args(args: &LocateArgs) -> Result<()> {
         }
         if out.is_dir() {
             bail!("--out {}: a folder, not a file", out.display());
+        }
+        // A folder rank 0 cannot write in fails now, as `cgcontact locate` fails, not after the
+        // whole search (a device such as /dev/null is written in place).
+        if !out.exists() || out.is_file() {
+            tempfile::tempfile_in(&folder).with_context(|| {
+                format!(
+                    "--out {}: cannot write in {}",
+                    out.display(),
+                    folder.display()
+                )
+            })?;
         }
     }
     Ok(())

@@ -401,3 +401,85 @@ fn an_output_hard_linked_to_an_input_is_refused() {
     }
     assert_eq!(std::fs::read_to_string(&points).unwrap(), text);
 }
+
+/// `--out` in a folder rank 0 cannot write in (here /proc, where no file can be made, even by
+/// root): refused before any file is read, with one message naming the folder, as `cgcontact
+/// locate` refuses it. Before, every rank read the mesh (here a missing one, whose error came
+/// first) and searched, and only the final write failed.
+#[test]
+fn an_unwritable_output_folder_is_refused_before_any_file_is_read() {
+    if !Path::new("/proc").is_dir() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let points = dir.path().join("points.csv");
+    std::fs::write(&points, "x,y,z\n0,0,0\n").unwrap();
+    let missing = dir.path().join("missing.vtu");
+    let args = [
+        "locate",
+        "--mesh",
+        missing.to_str().unwrap(),
+        "--points",
+        points.to_str().unwrap(),
+        "--out",
+        "/proc/results.csv",
+    ];
+    let serial = Command::new(cgcontact()).args(args).output().unwrap();
+    let serial_stderr = String::from_utf8_lossy(&serial.stderr);
+    assert_eq!(serial.status.code(), Some(2), "{serial_stderr}");
+    assert!(
+        serial_stderr.contains("cannot write in /proc"),
+        "{serial_stderr}"
+    );
+    for ranks in [1, 3] {
+        let result = mpirun(ranks, &args);
+        let stderr = String::from_utf8_lossy(&result.stderr);
+        assert_eq!(result.status.code(), Some(2), "{stderr}");
+        assert_eq!(stderr.matches("cgcontact-mpi:").count(), 1, "{stderr}");
+        assert!(stderr.contains("cannot write in /proc"), "{stderr}");
+        assert!(
+            !stderr.contains("missing.vtu"),
+            "the mesh was read first: {stderr}"
+        );
+    }
+}
+
+/// What `cgcontact locate` takes of the flags the two share, this takes alike: `--gap` with a
+/// negative number is refused with the serial message (before, clap read `-1` as an unknown
+/// flag), and `-q` is `--quiet` (before, an unknown flag).
+#[test]
+fn shared_flags_are_taken_as_cgcontact_locate_takes_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let body = cgcontact_scenes::hanging_node_moved(0.0).unwrap();
+    let mesh = dir.path().join("mesh.vtu");
+    cgcontact_io::write_adaptive_mesh(&mesh, &body, cgcontact_io::MeshFormat::Xml).unwrap();
+    let points = dir.path().join("points.csv");
+    std::fs::write(&points, "x,y,z\n0.5,0.5,0.5\n").unwrap();
+    let base = [
+        "locate",
+        "--mesh",
+        mesh.to_str().unwrap(),
+        "--points",
+        points.to_str().unwrap(),
+    ];
+    let negative = [&base[..], &["--gap", "-1"]].concat();
+    let serial = Command::new(cgcontact()).args(&negative).output().unwrap();
+    let serial_stderr = String::from_utf8_lossy(&serial.stderr);
+    assert_eq!(serial.status.code(), Some(2), "{serial_stderr}");
+    let message = serial_stderr
+        .trim()
+        .strip_prefix("cgcontact: error: ")
+        .expect("one error line");
+    let result = mpirun(2, &negative);
+    let stderr = String::from_utf8_lossy(&result.stderr);
+    assert_eq!(result.status.code(), Some(2), "{stderr}");
+    assert_eq!(stderr.matches(message).count(), 1, "{message} in {stderr}");
+    let quiet = mpirun(2, &[&base[..], &["-q"]].concat());
+    let stderr = String::from_utf8_lossy(&quiet.stderr);
+    assert!(quiet.status.success(), "{stderr}");
+    assert!(
+        quiet.stdout.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&quiet.stdout)
+    );
+}
