@@ -9,7 +9,7 @@ use cgcontact_scenes::{SphereOnAdaptiveBlock, SphereOnBlock};
 use clap::Args;
 
 use crate::locate::measure_gaps;
-use crate::output::{prepare_folder, say, write_owner_rows};
+use crate::output::{check_outputs, prepare_folder, say, write_owner_rows};
 use crate::picture::{adaptive_patch_svg, contact_patch_svg};
 use crate::run::{SearchArgs, Searched, search};
 
@@ -62,6 +62,9 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         dir.join("points.vtu"),
         dir.join("contact.svg"),
     );
+    // Each file's name free for a file, before the scene is built and searched.
+    let files = [&results, &block, &points, &picture].map(|f| ("--out", f.clone()));
+    check_outputs(&[], &files)?;
     let mut summary = if args.adaptive {
         let scene = SphereOnAdaptiveBlock::refining(knobs).build(name)?;
         let Searched {

@@ -85,7 +85,25 @@ fn same_file(a: &Path, b: &Path) -> bool {
 /// Check, before any work, that every output file can be written where asked and replaces no
 /// input: `outputs` are (flag, path) pairs, `inputs` likewise.
 pub fn check_outputs(inputs: &[(&str, &Path)], outputs: &[(&str, PathBuf)]) -> Result<()> {
-    for (flag, output) in outputs {
+    for (at, (flag, output)) in outputs.iter().enumerate() {
+        // `new/`, `.` or `..` name a folder even where none exists yet: the write would fail
+        // after the work with the system's bare "Not a directory".
+        if names_a_folder(output) {
+            bail!(
+                "{}: {flag} names a folder, not a file; give a file name",
+                output.display()
+            );
+        }
+        // Two outputs on one file: the second would silently replace the first.
+        if let Some((other_flag, _)) = outputs[..at]
+            .iter()
+            .find(|(_, other)| same_file(output, other))
+        {
+            bail!(
+                "{}: {other_flag} and {flag} would both write this file; choose another output",
+                output.display()
+            );
+        }
         for (input_flag, input) in inputs {
             if same_file(output, input) {
                 bail!(
@@ -121,6 +139,18 @@ pub fn check_outputs(inputs: &[(&str, &Path)], outputs: &[(&str, PathBuf)]) -> R
         }
     }
     Ok(())
+}
+
+/// Whether `path` can only name a folder: it ends with a separator, `.` or `..` (`Path` drops a
+/// trailing `.`: `new/.` has the file name `new`).
+fn names_a_folder(path: &Path) -> bool {
+    let text = path.as_os_str().to_string_lossy();
+    let text = text.strip_suffix('.').unwrap_or(&text);
+    let text = text.strip_suffix('.').unwrap_or(text);
+    path.file_name().is_none()
+        || text.is_empty()
+        || text.ends_with('/')
+        || text.ends_with(std::path::MAIN_SEPARATOR)
 }
 
 /// Check that `dir` (a `--vtk` or `--out` folder) is a folder or can be made one, and create it.

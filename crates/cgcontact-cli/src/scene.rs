@@ -15,7 +15,7 @@ use cgcontact::glam::DVec3;
 use cgcontact_io::{CellMap, MeshFormat, write_adaptive_mesh, write_mesh, write_points};
 use cgcontact_scenes::{KnownPoint, LeafOrder, SphereOnAdaptiveBlock, SphereOnBlock};
 
-use crate::output::{prepare_folder, say};
+use crate::output::{check_outputs, prepare_folder, say};
 use clap::{Args, ValueEnum};
 
 /// Scene names.
@@ -253,6 +253,15 @@ pub fn run(args: &SceneArgs) -> Result<()> {
     let mesh = args.out.join(format!("mesh.{}", format.extension()));
     let points = args.out.join("points.csv");
     let known = args.out.join("known.csv");
+    // Each file's name free for a file, before the scene is built.
+    check_outputs(
+        &[],
+        &[
+            ("--out", mesh.clone()),
+            ("--out", points.clone()),
+            ("--out", known.clone()),
+        ],
+    )?;
     let (contact, known_points, summary) = if args.name == SceneName::SphereAdaptive {
         let adaptive = SphereOnAdaptiveBlock {
             levels: args.levels.unwrap_or(2),

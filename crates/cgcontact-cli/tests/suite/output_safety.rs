@@ -366,3 +366,60 @@ fn f32_on_displacements_of_many_cells_is_warned() {
     let small = locate(&mesh, &points, &["--precision", "f32"]);
     assert!(stderr(&small).is_empty(), "{}", stderr(&small));
 }
+
+/// `--out DIR/points.vtu --vtk DIR` named one file for two outputs: the results were written,
+/// then replaced by the points' VTK file without a word. Now refused before any work, naming
+/// both flags, the old file kept.
+#[test]
+fn two_outputs_naming_one_file_are_refused() {
+    let (dir, mesh, points) = scene();
+    let vtk = dir.path().join("vtk");
+    std::fs::create_dir(&vtk).unwrap();
+    for name in ["points.vtu", "mesh.vtu"] {
+        let out = vtk.join(name);
+        std::fs::write(&out, "previous\n").unwrap();
+        let run = locate(&mesh, &points, &["--out", s(&out), "--vtk", s(&vtk)]);
+        refused(&run, &["--out", "--vtk", name], &[(&out, b"previous\n")]);
+    }
+}
+
+/// `--out new/` (a folder's name, with its slash) passed every check, the work was done, and the
+/// write failed with the system's bare "Not a directory". Now refused first, naming the flag.
+#[test]
+fn out_naming_a_folder_by_its_slash_fails_before_the_mesh_is_read() {
+    let (dir, _mesh, points) = scene();
+    let no_mesh = Path::new("/no/such/mesh.vtu");
+    for out in [
+        format!("{}/", dir.path().join("new").display()),
+        format!("{}/.", dir.path().display()),
+        format!("{}/..", dir.path().display()),
+    ] {
+        let run = locate(no_mesh, &points, &["--out", &out]);
+        refused(&run, &["--out", "folder"], &[]);
+        assert!(!stderr(&run).contains("mesh.vtu"), "{}", stderr(&run));
+    }
+    assert!(!dir.path().join("new").exists());
+}
+
+/// `scene`, `demo` and `tradeoff` wrote some of their files, did the work, and failed on the
+/// last when its name was taken by a folder (`known.csv/`): a scene half written, or a 4-minute
+/// report lost. Now every file they write is checked before anything is built.
+#[test]
+fn every_file_of_scene_demo_and_tradeoff_is_checked_before_the_work() {
+    let dir = tempfile::tempdir().unwrap();
+    for (command, taken, written) in [
+        (
+            &["scene", "block", "--cells", "2,2,2", "--known", "5"][..],
+            "known.csv",
+            "mesh.vtu",
+        ),
+        (&["demo", "--coarse", "-q"], "contact.svg", "results.csv"),
+        (&["tradeoff", "--quick"], "tradeoff.md", "scale.svg"),
+    ] {
+        let out = dir.path().join(command[0]);
+        std::fs::create_dir_all(out.join(taken)).unwrap();
+        let run = cgcontact(&[command, &["--out", s(&out)]].concat());
+        refused(&run, &[taken, "folder"], &[]);
+        assert!(!out.join(written).exists(), "{command:?} wrote {written}");
+    }
+}
