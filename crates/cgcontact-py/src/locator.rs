@@ -124,19 +124,20 @@ pub struct PyLocator {
 impl PyLocator {
     /// Runs `f` with the strategy over the body's current state, on this locator's threads (the
     /// body stays read-locked meanwhile, so that an update waits for it).
+    ///
+    /// The lock is taken here, on the caller's thread, never on a pool worker: a worker waiting
+    /// for its share of one query runs other queued jobs, another query's among them, and a
+    /// lock taken there would wait behind a waiting update, which waits for the first query.
     fn with<R: Send>(&self, f: impl FnOnce(&dyn Locator, &BodyState) -> R + Send) -> PyResult<R> {
-        let run = || {
-            let state = PyBody::read(&self.body);
+        let state = PyBody::read(&self.body);
+        let state: &BodyState = &state;
+        self.on_threads(|| {
             let locator = self
                 .strategy
                 .build(state.body.as_ref(), self.settings)
                 .map_err(value_error)?;
-            Ok(f(&*locator, &state))
-        };
-        match &self.pool {
-            Some(pool) => pool.install(run),
-            None => run(),
-        }
+            Ok(f(&*locator, state))
+        })
     }
 
     /// `locate` (`warm` false) and `relocate` (`warm` true, the hints in `out`).
@@ -351,8 +352,10 @@ impl PyLocator {
         let points: &[DVec3] = &vectors;
         let n = points.len();
         let out = py.detach(|| {
+            // Locked on the caller's thread, as `with` explains.
+            let state = PyBody::read(&self.body);
+            let state: &BodyState = &state;
             self.on_threads(|| -> PyResult<GapArrays> {
-                let state = PyBody::read(&self.body);
                 let settings = Settings::default();
                 let mut gaps = Vec::new();
                 match &state.body {
@@ -372,7 +375,7 @@ impl PyLocator {
                 if let Some(row) = gaps.iter().position(Result::is_err) {
                     return Err(refused("points", points, row));
                 }
-                Ok(GapArrays::of(&gaps, &state))
+                Ok(GapArrays::of(&gaps, state))
             })
         })?;
         let dict = PyDict::new(py);

@@ -10,6 +10,7 @@ import os
 import pathlib
 import subprocess
 import threading
+import time
 import warnings
 
 import numpy as np
@@ -761,3 +762,41 @@ def test_an_anisotropic_mesh_vtk_wrote_reads_strictly():
         warnings.simplefilter("error")
         body = cgcontact.read_mesh(path, strict=True)
     assert body.cell_count > 0
+
+
+# Several Python threads on one body and its locators.
+
+
+def test_queries_and_updates_from_several_threads_do_not_deadlock():
+    """A locator with a pool of its own took the body's lock on a pool worker: a worker waiting
+    for its piece of one query ran another query's job, whose lock waited behind a waiting update,
+    which waited for the first query. Two queries and an update, looped, hung in a few calls."""
+    body = cgcontact.Body((0, 0, 0), (1, 1, 1), (20, 20, 20))
+    points = np.random.default_rng(3).uniform(0, 20, (100_000, 3))
+    expected = cgcontact.Locator(body, threads=1).locate(points)[0]
+    shift = np.zeros((body.node_count, 3))
+    for locator in [cgcontact.Locator(body, threads=2), cgcontact.Locator(body, threads=3)]:
+        failures, stop = [], threading.Event()
+
+        def loop(call):
+            try:
+                while not stop.is_set():
+                    call()
+            except BaseException as e:  # noqa: BLE001: reported below
+                failures.append(e)
+
+        calls = [lambda: np.testing.assert_array_equal(locator.locate(points)[0], expected),
+                 lambda: locator.gap(points[:20_000], 0.5),
+                 lambda: locator.locate_owners(points[:5_000]),
+                 lambda: body.set_displacements(shift)]
+        threads = [threading.Thread(target=loop, args=(call,), daemon=True) for call in calls]
+        for t in threads:
+            t.start()
+        stop.wait(3.0)
+        stop.set()
+        deadline = time.monotonic() + 20.0
+        for t in threads:
+            t.join(timeout=max(0.0, deadline - time.monotonic()))
+        assert not any(t.is_alive() for t in threads), "a query or an update never returned"
+        assert failures == []
+
