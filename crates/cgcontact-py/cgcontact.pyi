@@ -114,7 +114,8 @@ class Locator:
     def locate_owners(self, x: npt.NDArray[np.float64]) -> Union[List[Tuple[int, Xi]], List[List[Tuple[int, Xi]]]]: ...
     def locate_owners(self, x: npt.ArrayLike) -> Union[List[Tuple[int, Xi]], List[List[Tuple[int, Xi]]]]:
         """Every cell holding the point x (3,): [(cell, xi), ...], cells ascending; for x of
-        shape (n, 3), one such list per point."""
+        shape (n, 3), one such list per point. Not with strategy "noderad-seed" (ValueError:
+        its loose Newton misses owners)."""
     def gap(self, points: npt.ArrayLike, dist: float) -> Dict[str, np.ndarray]:
         """Signed gaps to the deformed boundary surface within `dist`: "gap" float64[n]
         (negative inside), "closest" float64[n, 3], "normal" float64[n, 3] (point = closest +

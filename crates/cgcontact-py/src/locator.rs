@@ -291,12 +291,22 @@ impl PyLocator {
 
     /// Every cell holding the point `x` (3 floats): a list of `(cell, xi)`, cells ascending, xi a
     /// tuple of 3 floats; empty when no cell holds it. A point on a shared face has 2 owners, on
-    /// an edge 4, at a node 8. With `x` of shape (n, 3), one such list per point.
+    /// an edge 4, at a node 8. With `x` of shape (n, 3), one such list per point. Not with the
+    /// strategy "noderad-seed", whose loose Newton misses owners (`ValueError`, as the command
+    /// line's `--all-owners` refuses it).
     fn locate_owners<'py>(
         &self,
         py: Python<'py>,
         x: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyList>> {
+        if self.strategy == Strategy::NoderadSeed {
+            return Err(PyValueError::new_err(
+                "locate_owners cannot be used with strategy \"noderad-seed\": the seed's Newton \
+                 stops at a residual of 0.1 and tests |xi| <= 1 without tolerance, so it misses \
+                 cells sharing a face, edge or node (use strategy \"noderad\": the same filter \
+                 with the exact Newton)",
+            ));
+        }
         let (rows, single) = arrays::rows(x, "x", true)?;
         let vectors = rows.vectors()?;
         let points: &[DVec3] = &vectors;

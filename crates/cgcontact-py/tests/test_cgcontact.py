@@ -800,3 +800,18 @@ def test_queries_and_updates_from_several_threads_do_not_deadlock():
         assert not any(t.is_alive() for t in threads), "a query or an update never returned"
         assert failures == []
 
+
+def test_owners_with_the_seeds_newton_are_refused_as_the_cli_refuses_them(scene, cli):
+    """The seed's Newton stops at a residual of 0.1 and tests |xi| <= 1 without tolerance: on the
+    adaptive scene it gave 1075 of 3340 points fewer owners than the exact Newton, silently."""
+    folder, body, points = scene
+    refused = subprocess.run([cli, "locate", "--mesh", folder / "mesh.vtu", "--points",
+                              folder / "points.csv", "--all-owners", "--strategy", "noderad-seed",
+                              "-q"], capture_output=True, text=True)
+    assert refused.returncode == 2 and "noderad-seed" in refused.stderr
+    locator = cgcontact.Locator(body, strategy="noderad-seed")
+    for x in [points[0], points[:10]]:
+        with pytest.raises(ValueError, match="noderad-seed"):
+            locator.locate_owners(x)
+    # Its single-cell queries stay those of the command line (test_every_strategy_...).
+    assert locator.locate(points[:10])[0].shape == (10,)
