@@ -85,7 +85,7 @@ struct LocateArgs {
     /// `cgcontact locate --strict` does); without it, rank 0 warns.
     #[arg(long)]
     strict: bool,
-    /// Print nothing but errors.
+    /// Print nothing but errors (and the JSON object with --json, as `cgcontact locate` does).
     #[arg(long, short)]
     quiet: bool,
 }
@@ -116,6 +116,13 @@ fn main() -> ExitCode {
     let Command::Locate(args) = &cli.command;
     match locate(&world, args) {
         Ok(()) => ExitCode::SUCCESS,
+        Err(Failure::Here(e))
+            if e.downcast_ref::<StdoutError>()
+                .is_some_and(|e| e.0.kind() == std::io::ErrorKind::BrokenPipe) =>
+        {
+            // The reader went away (`| head`): a normal end, as for any Unix tool.
+            ExitCode::SUCCESS
+        }
         Err(Failure::Here(e)) => {
             eprintln!("cgcontact-mpi: {e:#}");
             ExitCode::from(2)
@@ -357,10 +364,10 @@ fn locate(world: &SimpleCommunicator, args: &LocateArgs) -> Result<(), Failure> 
     let mine_report = report(&distributed.stats(), &located.stats);
     let mut all = vec![0.0f64; REPORT.len() * size];
     world.all_gather_into(&mine_report[..], &mut all[..]);
-    if rank == 0 && !args.quiet {
+    if rank == 0 && (args.json || !args.quiet) {
         let (answers, _) = gathered.as_ref().expect("rank 0 gathers");
         let located_count = answers.iter().filter(|a| matches!(a, Ok(Some(_)))).count();
-        print_summary(
+        let text = summary_text(
             args,
             &Summary {
                 ranks: size,
@@ -376,8 +383,56 @@ fn locate(world: &SimpleCommunicator, args: &LocateArgs) -> Result<(), Failure> 
                 per_rank: &all,
             },
         );
+        print_text(&text).map_err(Failure::Here)?;
+    }
+    if rank == 0 && !args.quiet {
+        warn_about_cells(&mesh);
     }
     Ok(())
+}
+
+/// The warnings `cgcontact locate` gives about the mesh's cells, in its words: cells f64
+/// coordinates cannot resolve, and inverted or degenerate cells, named by their input index.
+/// Rank 0 holds the whole mesh, as every rank does.
+fn warn_about_cells(mesh: &MeshBody) {
+    let (inverted, unresolved) = match mesh {
+        MeshBody::Uniform(mesh) => (mesh.body.inverted_cells(), mesh.body.unresolved_cells()),
+        MeshBody::Adaptive(mesh) => (mesh.body.inverted_cells(), mesh.body.unresolved_cells()),
+    };
+    let input = |cells: &[(CellId, f64)]| -> Vec<usize> {
+        cells
+            .iter()
+            .map(|&(cell, _)| mesh.cells().input_cell(cell).unwrap_or(cell.index()))
+            .collect()
+    };
+    if let Some(share) = unresolved.iter().map(|&(_, share)| share).reduce(f64::max) {
+        eprintln!(
+            "cgcontact-mpi: warning: {} cell(s) are sheared or distorted beyond what f64 \
+             coordinates of their magnitude resolve: a coordinate's rounding moves ξ in them by \
+             up to {share:.2} of a cell (at most {} is resolved), so a point that close to a \
+             face of theirs may be given the cell beside it as well; move the mesh nearer the \
+             origin: {}",
+            unresolved.len(),
+            cgcontact::Lattice::RESOLUTION,
+            first_ten(&input(&unresolved))
+        );
+    }
+    if !inverted.is_empty() {
+        eprintln!(
+            "cgcontact-mpi: warning: {} inverted or degenerate cell(s) (det J <= 0 at a corner), \
+             answers in or near them are not trusted: {}",
+            inverted.len(),
+            first_ten(&input(&inverted))
+        );
+    }
+}
+
+/// Up to ten cell indices, joined by commas, then ", ..." when there are more (as `cgcontact
+/// locate` lists them).
+fn first_ten(cells: &[usize]) -> String {
+    let first: Vec<String> = cells.iter().take(10).map(usize::to_string).collect();
+    let more = if cells.len() > 10 { ", ..." } else { "" };
+    format!("{}{more}", first.join(", "))
 }
 
 /// This rank's share of the body.
@@ -512,7 +567,7 @@ struct Summary<'a> {
     per_rank: &'a [f64],
 }
 
-fn print_summary(args: &LocateArgs, s: &Summary<'_>) {
+fn summary_text(args: &LocateArgs, s: &Summary<'_>) -> String {
     let rows: Vec<&[f64]> = s.per_rank.chunks_exact(REPORT.len()).collect();
     if args.json {
         let ranks: Vec<String> = rows
@@ -526,8 +581,8 @@ fn print_summary(args: &LocateArgs, s: &Summary<'_>) {
                 format!("{{{}}}", fields.join(", "))
             })
             .collect();
-        println!(
-            "{{\"ranks\": {}, \"partition\": \"{}\", \"block\": {}, \"threads\": {}, \"points\": {}, \"located\": {}, \"cells\": {}, \"blocks\": {}, \"read_seconds\": {}, \"query_seconds\": {}, \"points_per_second\": {}, \"gap_seconds\": {}, \"total_seconds\": {}, \"per_rank\": [{}]}}",
+        return format!(
+            "{{\"ranks\": {}, \"partition\": \"{}\", \"block\": {}, \"threads\": {}, \"points\": {}, \"located\": {}, \"cells\": {}, \"blocks\": {}, \"read_seconds\": {}, \"query_seconds\": {}, \"points_per_second\": {}, \"gap_seconds\": {}, \"total_seconds\": {}, \"per_rank\": [{}]}}\n",
             s.ranks,
             args.partition.name(),
             s.block,
@@ -544,28 +599,29 @@ fn print_summary(args: &LocateArgs, s: &Summary<'_>) {
             s.total_seconds,
             ranks.join(", ")
         );
-        return;
     }
-    println!(
-        "{} ranks ({} partition), {} cells, {} points: {} located, {} not located",
-        s.ranks,
-        args.partition.name(),
-        s.cells,
-        s.points,
-        s.located,
-        s.points - s.located
-    );
-    println!(
-        "query {:.3} ms ({:.3e} points/s), slowest rank; files read in {:.3} s",
-        1e3 * s.query_seconds,
-        s.points as f64 / s.query_seconds.max(1e-12),
-        s.read_seconds
-    );
+    let mut lines = vec![
+        format!(
+            "{} ranks ({} partition), {} cells, {} points: {} located, {} not located",
+            s.ranks,
+            args.partition.name(),
+            s.cells,
+            s.points,
+            s.located,
+            s.points - s.located
+        ),
+        format!(
+            "query {:.3} ms ({:.3e} points/s), slowest rank; files read in {:.3} s",
+            1e3 * s.query_seconds,
+            s.points as f64 / s.query_seconds.max(1e-12),
+            s.read_seconds
+        ),
+    ];
     if let Some(t) = s.gap_seconds {
-        println!("gap query {:.3} ms, slowest rank", 1e3 * t);
+        lines.push(format!("gap query {:.3} ms, slowest rank", 1e3 * t));
     }
     for (rank, row) in rows.iter().enumerate() {
-        println!(
+        lines.push(format!(
             "rank {rank}: setup {:.3} ms ({} cells own, {} local); points {} asked, {} searched; routing {:.3} ms, search {:.3} ms, return {:.3} ms; sent {} + {} messages, {} + {} bytes",
             1e3 * row[0],
             row[3],
@@ -579,9 +635,38 @@ fn print_summary(args: &LocateArgs, s: &Summary<'_>) {
             row[12],
             row[11],
             row[13],
-        );
+        ));
     }
     if let Some(out) = &args.out {
-        println!("wrote {}", out.display());
+        lines.push(format!("wrote {}", out.display()));
     }
+    lines.iter().map(|line| format!("{line}\n")).collect()
+}
+
+/// Standard output could not be written. A closed pipe (`cgcontact-mpi ... | head -c 1`) is a
+/// normal end, as for `cgcontact locate`; anything else (a full disk) is an error.
+///
+/// Under mpirun, rank 0's standard output is a pipe or terminal that mpirun reads and copies to
+/// its own, and Open MPI's mpirun drops what it cannot write there without a word (`mpirun ...`
+/// redirected to /dev/full exits 0 whatever the rank does). This catches what the rank itself
+/// can see: a run started without mpirun (a singleton), or a launcher that passes it on.
+#[derive(Debug)]
+struct StdoutError(std::io::Error);
+
+impl std::fmt::Display for StdoutError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "cannot write to standard output: {}", self.0)
+    }
+}
+
+impl std::error::Error for StdoutError {}
+
+/// `text` on standard output, flushed: an error rather than `println!`'s panic (which aborted
+/// the run with a panic message) when it cannot be written.
+fn print_text(text: &str) -> Result<()> {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    out.write_all(text.as_bytes())
+        .and_then(|()| out.flush())
+        .map_err(|e| StdoutError(e).into())
 }

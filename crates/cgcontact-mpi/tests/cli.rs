@@ -39,14 +39,18 @@ fn cgcontact() -> PathBuf {
     target.join("release/cgcontact")
 }
 
+/// Whether this runs as root (Open MPI then wants to be told that it may).
+fn is_root() -> bool {
+    Command::new("id")
+        .arg("-u")
+        .output()
+        .is_ok_and(|out| String::from_utf8_lossy(&out.stdout).trim() == "0")
+}
+
 fn mpirun(ranks: usize, args: &[&str]) -> Output {
     let mut command = Command::new("mpirun");
     command.arg("--oversubscribe");
-    let root = Command::new("id")
-        .arg("-u")
-        .output()
-        .is_ok_and(|out| String::from_utf8_lossy(&out.stdout).trim() == "0");
-    if root {
+    if is_root() {
         command.arg("--allow-run-as-root");
     }
     command
@@ -481,5 +485,181 @@ fn shared_flags_are_taken_as_cgcontact_locate_takes_them() {
         quiet.stdout.is_empty(),
         "{}",
         String::from_utf8_lossy(&quiet.stdout)
+    );
+}
+
+/// The `cgcontact: warning: ...` lines of `stderr` (or `cgcontact-mpi: warning: ...`), without
+/// the prefix.
+fn warnings(stderr: &[u8]) -> Vec<String> {
+    String::from_utf8_lossy(stderr)
+        .lines()
+        .filter_map(|line| line.split_once(": warning: ").map(|(_, w)| w.to_owned()))
+        .collect()
+}
+
+/// A mesh with inverted cells, and one with cells f64 cannot resolve: `cgcontact locate` warns
+/// that answers there are not to be trusted; so must this, in the same words, naming the same
+/// input cells, once (rank 0), and not with `--quiet`. Before, it warned of neither: the same
+/// untrusted answers came back without a word.
+#[test]
+fn cell_warnings_are_those_of_cgcontact_locate() {
+    let bin = cgcontact();
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // 3 × 2 × 2 cells of h = 1 whose middle node (1, 1, 1) is pushed through its neighbours.
+    let lattice = cgcontact::Lattice::new(DVec3::ZERO, DVec3::ONE, [3, 2, 2]).unwrap();
+    let mut inverted = cgcontact::Body::full(lattice);
+    inverted
+        .update_displacements(|_, x, u| {
+            if x == DVec3::ONE {
+                *u = DVec3::splat(-1.6);
+            }
+        })
+        .unwrap();
+    let inverted_mesh = d.join("inverted.vtk");
+    cgcontact_io::write_mesh(
+        &inverted_mesh,
+        &inverted,
+        cgcontact_io::MeshFormat::LegacyAscii,
+    )
+    .unwrap();
+    // Two cells at 1e7 from the origin, 1.6e-5 thin along z, sheared by u_z = 1e3 (y − y0): a
+    // rounding of y moves ξ_z by about 1.1 (`cgcontact locate`'s own test of this warning).
+    let origin = -1e7;
+    let h = DVec3::new(0.03125, 0.001953125, 1.5625e-5);
+    let lattice = cgcontact::Lattice::new(DVec3::splat(origin), h, [1, 1, 2]).unwrap();
+    let mut sheared = cgcontact::Body::full(lattice);
+    sheared
+        .update_displacements(|_, x, u| *u = DVec3::new(0.0, 0.0, 1e3 * (x.y - origin)))
+        .unwrap();
+    let sheared_mesh = d.join("sheared.vtu");
+    cgcontact_io::write_mesh(&sheared_mesh, &sheared, cgcontact_io::MeshFormat::Xml).unwrap();
+    let points = d.join("points.csv");
+    std::fs::write(
+        &points,
+        "x,y,z\n0.5,0.5,0.5\n-1e7,-1e7,-9999999.999976562\n",
+    )
+    .unwrap();
+    for mesh in [&inverted_mesh, &sheared_mesh] {
+        let args = [
+            "locate",
+            "--mesh",
+            mesh.to_str().unwrap(),
+            "--points",
+            points.to_str().unwrap(),
+        ];
+        let serial = Command::new(&bin).args(args).output().unwrap();
+        assert!(serial.status.success(), "{serial:?}");
+        let want = warnings(&serial.stderr);
+        assert_eq!(want.len(), 1, "{mesh:?}: {want:?}");
+        for ranks in [1, 3] {
+            let result = mpirun(ranks, &args);
+            assert!(result.status.success(), "{result:?}");
+            assert_eq!(warnings(&result.stderr), want, "{mesh:?}, {ranks} ranks");
+            let quiet = mpirun(ranks, &[&args[..], &["--quiet"]].concat());
+            assert!(quiet.status.success(), "{quiet:?}");
+            assert!(warnings(&quiet.stderr).is_empty(), "{quiet:?}");
+        }
+    }
+}
+
+/// The summary on a standard output that cannot take it, the binary started without mpirun (a
+/// singleton, where the rank's standard output is the caller's): on a full device, exit code 2
+/// and one line saying so, as `cgcontact locate` gives; on a closed pipe, exit code 0. Before,
+/// `println!` panicked and the panic hook aborted the run with a panic message, exit code 2 for
+/// a closed pipe too. (Under mpirun the failure happens in mpirun, which drops it: Open MPI's
+/// mpirun exits 0 on `> /dev/full` whatever the ranks do.)
+#[test]
+fn a_full_or_closed_standard_output_ends_as_cgcontact_locate_ends() {
+    if !Path::new("/dev/full").exists() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let body = cgcontact_scenes::hanging_node_moved(0.0).unwrap();
+    let mesh = dir.path().join("mesh.vtu");
+    cgcontact_io::write_adaptive_mesh(&mesh, &body, cgcontact_io::MeshFormat::Xml).unwrap();
+    let points = dir.path().join("points.csv");
+    std::fs::write(&points, "x,y,z\n0.5,0.5,0.5\n").unwrap();
+    let args = [
+        "locate",
+        "--mesh",
+        mesh.to_str().unwrap(),
+        "--points",
+        points.to_str().unwrap(),
+    ];
+    let singleton = || {
+        let mut command = Command::new(env!("CARGO_BIN_EXE_cgcontact-mpi"));
+        command.args(args).stdin(std::process::Stdio::null());
+        if is_root() {
+            command.env("OMPI_ALLOW_RUN_AS_ROOT", "1");
+            command.env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1");
+        }
+        command
+    };
+    let full = || {
+        std::fs::OpenOptions::new()
+            .write(true)
+            .open("/dev/full")
+            .unwrap()
+    };
+    let serial = Command::new(cgcontact())
+        .args(args)
+        .stdout(full())
+        .output()
+        .unwrap();
+    assert_eq!(serial.status.code(), Some(2), "{serial:?}");
+    let result = singleton().stdout(full()).output().unwrap();
+    let stderr = String::from_utf8_lossy(&result.stderr);
+    assert_eq!(result.status.code(), Some(2), "{stderr}");
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert_eq!(
+        stderr
+            .matches("cgcontact-mpi: cannot write to standard output")
+            .count(),
+        1,
+        "{stderr}"
+    );
+    // A reader gone before the summary: a normal end.
+    let mut child = singleton()
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    let result = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&result.stderr);
+    assert!(result.status.success(), "{stderr}");
+    assert!(!stderr.contains("panicked"), "{stderr}");
+}
+
+/// `--json --quiet`: the JSON object and nothing else, as `cgcontact locate --json --quiet`
+/// prints it. Before, `--quiet` dropped the JSON too, without a word.
+#[test]
+fn json_with_quiet_still_prints_the_json() {
+    let dir = tempfile::tempdir().unwrap();
+    let body = cgcontact_scenes::hanging_node_moved(0.0).unwrap();
+    let mesh = dir.path().join("mesh.vtu");
+    cgcontact_io::write_adaptive_mesh(&mesh, &body, cgcontact_io::MeshFormat::Xml).unwrap();
+    let points = dir.path().join("points.csv");
+    std::fs::write(&points, "x,y,z\n0.5,0.5,0.5\n1.5,0.25,0.25\n9,9,9\n").unwrap();
+    let args = [
+        "locate",
+        "--mesh",
+        mesh.to_str().unwrap(),
+        "--points",
+        points.to_str().unwrap(),
+        "--json",
+        "--quiet",
+    ];
+    let serial = Command::new(cgcontact()).args(args).output().unwrap();
+    let serial_out = String::from_utf8_lossy(&serial.stdout);
+    assert!(serial_out.trim_start().starts_with('{'), "{serial_out}");
+    let result = mpirun(2, &args);
+    let stdout = String::from_utf8_lossy(&result.stdout);
+    assert!(result.status.success(), "{result:?}");
+    assert_eq!(stdout.lines().count(), 1, "{stdout}");
+    assert!(
+        stdout.starts_with('{') && stdout.contains("\"points\": 3"),
+        "{stdout}"
     );
 }
