@@ -169,9 +169,14 @@ impl BodyState {
                 u.len()
             ));
         }
-        let non_finite = |node: usize, value: DVec3| {
-            format!("displacement row {node} (0-based) is not finite: {value}")
-        };
+        // Every row, those of nodes no (active) cell uses too: the command line refuses a NaN at
+        // any node of the file, and `from_hexes` at any of `nodes`.
+        if let Some(row) = u.iter().position(|v| !v.is_finite()) {
+            return Err(format!(
+                "displacement row {row} (0-based) is not finite: {}",
+                u[row]
+            ));
+        }
         match &self.source_of_slot {
             None => self.scratch.copy_from_slice(u),
             Some(source) => {
@@ -180,9 +185,6 @@ impl BodyState {
                 }
             }
         }
-        if let Some(s) = self.scratch.iter().position(|v| !v.is_finite()) {
-            return Err(non_finite(self.source(s), self.scratch[s]));
-        }
         let h = match &self.body {
             AnyBody::Uniform(body) => body.lattice().h(),
             AnyBody::Adaptive(body) => body.lattice().h(),
@@ -190,9 +192,6 @@ impl BodyState {
         let tol = LATTICE_TOLERANCE * h.max_element();
         for &(node, slot) in &self.duplicates {
             let (value, first) = (u[node], self.scratch[slot]);
-            if !value.is_finite() {
-                return Err(non_finite(node, value));
-            }
             if (value - first).abs().max_element()
                 > tol + ROUNDING_SLACK * first.abs().max_element()
             {

@@ -815,3 +815,26 @@ def test_owners_with_the_seeds_newton_are_refused_as_the_cli_refuses_them(scene,
             locator.locate_owners(x)
     # Its single-cell queries stay those of the command line (test_every_strategy_...).
     assert locator.locate(points[:10])[0].shape == (10,)
+
+
+def test_a_nan_displacement_at_a_node_no_cell_uses_is_refused_as_the_cli_refuses_it(cli, tmp_path):
+    """Rows of nodes outside every (active) cell were never read: a NaN there passed silently,
+    where `cgcontact locate` refuses it in the file and `from_hexes` refuses it in `nodes`."""
+    nodes, hexes = lattice_hexes()
+    nodes = np.vstack([nodes, [[9.0, 9.0, 9.0]]])  # node 36: in no cell
+    u = np.zeros((len(nodes), 3))
+    u[36, 1] = np.nan
+    write_vtk(tmp_path / "mesh.vtk", nodes, hexes, u)
+    np.savetxt(tmp_path / "points.csv", nodes[:2], delimiter=",", header="x,y,z", comments="")
+    cli_run = subprocess.run([cli, "locate", "--mesh", str(tmp_path / "mesh.vtk"), "--points",
+                              str(tmp_path / "points.csv"), "-q"], capture_output=True, text=True)
+    assert cli_run.returncode == 2, cli_run.stderr
+    body = cgcontact.Body.from_hexes(nodes, hexes)
+    lattice = cgcontact.Body(ORIGIN, SPACING, COUNTS, active=np.arange(12) != 11)
+    v = np.zeros((lattice.node_count, 3))
+    v[-1, 0] = np.inf  # the last lattice node: a corner of the inactive cell 11 only
+    for target, values, row in [(body, u, 36), (lattice, v, lattice.node_count - 1)]:
+        with pytest.raises(ValueError, match=rf"displacement row {row} \(0-based\) is not finite"):
+            target.set_displacements(values)
+        assert np.isnan(cgcontact.Locator(target).locate(nodes[:1] + 1e-3)[1]).sum() == 0, \
+            "the body keeps its displacements"
