@@ -545,6 +545,8 @@ fn hex_mesh_from_vtk(
         _ => Some(Vec::new()),
     };
     let mut found_any = false;
+    // The first piece with the displacement and the first without it: a file with both is refused.
+    let (mut with, mut without) = (None, None);
     let mut available = Vec::new();
     for (index, piece) in pieces.into_iter().enumerate() {
         let piece = guarded("piece", || {
@@ -567,6 +569,7 @@ fn hex_mesh_from_vtk(
             match piece_displacement(&piece, displacement, points.len(), &mut available)? {
                 Some(values) => {
                     found_any = true;
+                    with.get_or_insert(index);
                     u.extend(values);
                 }
                 None => {
@@ -587,10 +590,24 @@ fn hex_mesh_from_vtk(
                             ),
                         });
                     }
+                    without.get_or_insert(index);
                     u.extend(std::iter::repeat_n(DVec3::ZERO, points.len()));
                 }
             }
         }
+    }
+    if let (Some(with), Some(without)) = (with, without) {
+        // Its nodes would be read as undeformed, while the other pieces' move.
+        return Err(ErrorKind::BadDisplacement {
+            name: match displacement {
+                DisplacementArray::Named(name) => name.clone(),
+                _ => DEFAULT_DISPLACEMENT.to_owned(),
+            },
+            message: format!(
+                "piece {without} has no such point array, but piece {with} has one: every piece \
+                 must carry the displacement of its nodes"
+            ),
+        });
     }
     if let DisplacementArray::Named(name) = displacement
         && !found_any

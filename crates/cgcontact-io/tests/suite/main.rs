@@ -11,6 +11,7 @@ mod messages;
 mod parser_property;
 mod regression_corrupt_block_header_aborted;
 mod regression_corrupt_displacement_dropped;
+mod several_pieces;
 mod vtk_round_trip;
 mod written_by_vtk;
 mod written_by_vtk_adaptive;
