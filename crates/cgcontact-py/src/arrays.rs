@@ -5,10 +5,74 @@ use std::borrow::Cow;
 
 use cgcontact::glam::DVec3;
 use numpy::{PyArray, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods};
-use pyo3::exceptions::PyValueError;
+use pyo3::conversion::FromPyObjectOwned;
+use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
 use pyo3::types::{PyTuple, PyType};
+
+/// `obj`, the argument `what`, as a `T`, or an error naming the argument and what it must be
+/// (`expected`): pyo3 names the argument in a `TypeError` only, not in the `OverflowError` of a
+/// negative count ("out of range integral type conversion attempted") or in the `ValueError` of
+/// a sequence of another length. A wrong type stays a `TypeError`; a wrong value is a
+/// `ValueError`.
+pub fn argument<'py, T: FromPyObjectOwned<'py>>(
+    obj: &Bound<'py, PyAny>,
+    what: &str,
+    expected: &str,
+) -> PyResult<T> {
+    obj.extract::<T>().map_err(|e| {
+        let py = obj.py();
+        let e: PyErr = e.into();
+        let given = obj
+            .repr()
+            .map_or_else(|_| "?".to_owned(), |r| r.to_string());
+        let message = format!("{what} must be {expected}, got {}", clip(&given));
+        if e.is_instance_of::<PyTypeError>(py) {
+            PyTypeError::new_err(message)
+        } else {
+            PyValueError::new_err(message)
+        }
+    })
+}
+
+/// `text` cut to about 80 characters, for an error message.
+fn clip(text: &str) -> String {
+    match text.char_indices().nth(80) {
+        None => text.to_owned(),
+        Some((end, _)) => format!("{}...", &text[..end]),
+    }
+}
+
+/// An error numpy raised reading the argument `what` (a ragged list, a string that is no
+/// number), naming it; its type is kept and any error but a `TypeError` or a `ValueError`
+/// (`MemoryError`, `KeyboardInterrupt`) passes unchanged.
+fn naming(py: Python<'_>, e: PyErr, what: &str) -> PyErr {
+    let message = format!("{what} cannot be read as a numeric array: {}", e.value(py));
+    let named = if e.is_instance_of::<PyTypeError>(py) {
+        PyTypeError::new_err(message)
+    } else if e.is_instance_of::<PyValueError>(py) {
+        PyValueError::new_err(message)
+    } else {
+        return e;
+    };
+    named.set_cause(py, Some(e));
+    named
+}
+
+/// `obj` as a numpy array (`numpy.asarray`), numpy's errors naming the argument `what`.
+fn as_array<'py>(obj: &Bound<'py, PyAny>, what: &str) -> PyResult<Bound<'py, PyAny>> {
+    let py = obj.py();
+    py.import("numpy")?
+        .call_method1("asarray", (obj,))
+        .map_err(|e| naming(py, e, what))
+}
+
+/// A vector for an error message: each value as Rust's `Debug` writes it, short however large
+/// (`1e300`, where `Display` writes 301 digits).
+pub fn show(v: DVec3) -> String {
+    format!("[{:?}, {:?}, {:?}]", v.x, v.y, v.z)
+}
 
 /// An `(n, 3)` float64 array borrowed from Python (read-only for as long as this lives).
 pub struct Rows<'py> {
@@ -98,11 +162,12 @@ pub fn rows<'py>(obj: &Bound<'py, PyAny>, what: &str, single: bool) -> PyResult<
     {
         return check(Rows { array }, what).map(|r| (r, false));
     }
-    let numpy = obj.py().import("numpy")?;
-    let given = numpy.call_method1("asarray", (obj,))?;
+    let given = as_array(obj, what)?;
     let shape: Vec<usize> = given.getattr("shape")?.extract()?;
     let was_single = single && shape == [3];
-    if !(was_single || (shape.len() == 2 && shape[1] == 3)) {
+    // No points as `numpy.array([])` gives them (shape (0,)): as (0, 3).
+    let empty = shape == [0];
+    if !(was_single || empty || (shape.len() == 2 && shape[1] == 3)) {
         let wanted = if single { "(3,) or (n, 3)" } else { "(n, 3)" };
         return Err(PyValueError::new_err(format!(
             "{what} must have shape {wanted}, got {}",
@@ -110,9 +175,9 @@ pub fn rows<'py>(obj: &Bound<'py, PyAny>, what: &str, single: bool) -> PyResult<
         )));
     }
     refuse_unreal(&given, what)?;
-    let converted = contiguous(&given, "float64")?;
-    let converted = if was_single {
-        let shape = PyTuple::new(obj.py(), [1usize, 3])?;
+    let converted = contiguous(&given, "float64").map_err(|e| naming(obj.py(), e, what))?;
+    let converted = if was_single || empty {
+        let shape = PyTuple::new(obj.py(), [usize::from(was_single), 3])?;
         converted.call_method1("reshape", (shape,))?
     } else {
         converted
@@ -145,7 +210,7 @@ pub fn finite(vectors: &[DVec3], what: &str) -> PyResult<()> {
         None => Ok(()),
         Some(row) => Err(PyValueError::new_err(format!(
             "{what} row {row} (0-based) is not finite: {}",
-            vectors[row]
+            show(vectors[row])
         ))),
     }
 }
@@ -165,7 +230,7 @@ fn same_values(converted: &Bound<'_, PyAny>, given: &Bound<'_, PyAny>) -> PyResu
 pub fn hexes(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<[i64; 8]>> {
     refuse_masked(obj, what)?;
     let numpy = obj.py().import("numpy")?;
-    let given = numpy.call_method1("asarray", (obj,))?;
+    let given = as_array(obj, what)?;
     // NaN and out-of-range floats are refused below; numpy's warning on casting them is noise.
     let kwargs = pyo3::types::PyDict::new(obj.py());
     kwargs.set_item("invalid", "ignore")?;
@@ -174,7 +239,7 @@ pub fn hexes(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<[i64; 8]>> {
     let converted = contiguous(&given, "int64");
     let none = obj.py().None();
     quiet.call_method1("__exit__", (&none, &none, &none))?;
-    let converted = converted?;
+    let converted = converted.map_err(|e| naming(obj.py(), e, what))?;
     if !same_values(&converted, &given)? {
         return Err(PyValueError::new_err(format!(
             "{what} must hold whole node numbers (an integer array), got dtype {}",
@@ -206,8 +271,7 @@ pub fn hexes(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<[i64; 8]>> {
 /// flag) are refused.
 pub fn flags(obj: &Bound<'_, PyAny>, what: &str, counts: [u32; 3]) -> PyResult<Vec<bool>> {
     refuse_masked(obj, what)?;
-    let numpy = obj.py().import("numpy")?;
-    let given = numpy.call_method1("asarray", (obj,))?;
+    let given = as_array(obj, what)?;
     let shape: Vec<usize> = given.getattr("shape")?.extract()?;
     let [nx, ny, nz] = counts.map(|n| n as usize);
     let n = nx * ny * nz;
@@ -217,7 +281,7 @@ pub fn flags(obj: &Bound<'_, PyAny>, what: &str, counts: [u32; 3]) -> PyResult<V
             shape_of(&given)
         )));
     }
-    let converted = contiguous(&given, "bool_")?;
+    let converted = contiguous(&given, "bool_").map_err(|e| naming(obj.py(), e, what))?;
     if !same_values(&converted, &given)? {
         return Err(PyValueError::new_err(format!(
             "{what} must hold booleans, or 0s and 1s (dtype {})",

@@ -174,7 +174,7 @@ impl BodyState {
         if let Some(row) = u.iter().position(|v| !v.is_finite()) {
             return Err(format!(
                 "displacement row {row} (0-based) is not finite: {}",
-                u[row]
+                arrays::show(u[row])
             ));
         }
         match &self.source_of_slot {
@@ -196,8 +196,10 @@ impl BodyState {
                 > tol + ROUNDING_SLACK * first.abs().max_element()
             {
                 return Err(format!(
-                    "nodes {} and {node} (0-based) coincide but their displacements differ: {first} and {value}",
-                    self.source(slot)
+                    "nodes {} and {node} (0-based) coincide but their displacements differ: {} and {}",
+                    self.source(slot),
+                    arrays::show(first),
+                    arrays::show(value)
                 ));
             }
         }
@@ -237,7 +239,7 @@ fn in_caller_rows(e: cgcontact::Error, u: &[DVec3], source: Option<&[u32]>) -> S
         return format!(
             "displacement row {row} (0-based) is too large: {} (at most {limit:e} per axis: \
              displaced farther, coordinates cannot resolve this body's cells)",
-            u[slot]
+            arrays::show(u[slot])
         );
     }
     e.to_string()
@@ -265,8 +267,9 @@ fn check_hanging(
     let node = source.map_or(slot, |s| s[slot] as usize);
     let at = body.node_position(slot).unwrap_or(DVec3::NAN);
     Err(format!(
-        "displacements: {count} of {} hanging nodes break their constraint by more than {tol:.1e}; the worst, node {node} (0-based) at {at}, by {by:.3e}: the deformed mesh would gap or overlap there (give each hanging node the trilinear interpolation of the coarse cell it hangs on, or pass fill_hanging=True)",
-        hanging.rows.len()
+        "displacements: {count} of {} hanging nodes break their constraint by more than {tol:.1e}; the worst, node {node} (0-based) at {}, by {by:.3e}: the deformed mesh would gap or overlap there (give each hanging node the trilinear interpolation of the coarse cell it hangs on, or pass fill_hanging=True)",
+        hanging.rows.len(),
+        arrays::show(at)
     ))
 }
 
@@ -397,15 +400,24 @@ impl PyBody {
     #[new]
     #[pyo3(signature = (origin, spacing, counts, active = None))]
     fn new(
-        origin: [f64; 3],
-        spacing: [f64; 3],
-        counts: [u32; 3],
+        origin: &Bound<'_, PyAny>,
+        spacing: &Bound<'_, PyAny>,
+        counts: &Bound<'_, PyAny>,
         active: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
-        let (origin, h) = (DVec3::from_array(origin), DVec3::from_array(spacing));
+        let three = "3 numbers (x, y, z)";
+        let origin = DVec3::from_array(arrays::argument(origin, "origin", three)?);
+        let h = DVec3::from_array(arrays::argument(spacing, "spacing", three)?);
+        let counts: [u32; 3] = arrays::argument(
+            counts,
+            "counts",
+            "3 whole numbers of cells (x, y, z), each from 1 to 2^32 - 1",
+        )?;
         if !(origin.is_finite() && h.is_finite()) {
             return Err(PyValueError::new_err(format!(
-                "the lattice's origin {origin} or spacing {h} is not finite"
+                "the lattice's origin {} or spacing {} is not finite",
+                arrays::show(origin),
+                arrays::show(h)
             )));
         }
         let lattice = Lattice::new(origin, h, counts).map_err(value_error)?;

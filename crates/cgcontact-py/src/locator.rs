@@ -104,7 +104,7 @@ impl Strategy {
 fn refused(what: &str, points: &[DVec3], row: usize) -> PyErr {
     PyValueError::new_err(format!(
         "{what} row {row} (0-based) is not finite: {}",
-        points[row]
+        arrays::show(points[row])
     ))
 }
 
@@ -211,9 +211,15 @@ impl PyLocator {
         strategy: &str,
         precision: &str,
         tol: Option<f64>,
-        max_iter: Option<u32>,
-        threads: Option<usize>,
+        max_iter: Option<&Bound<'_, PyAny>>,
+        threads: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
+        let max_iter = max_iter
+            .map(|m| arrays::argument::<u32>(m, "max_iter", "a whole number from 1 to 2^32 - 1"))
+            .transpose()?;
+        let threads = threads
+            .map(|t| arrays::argument::<usize>(t, "threads", "a whole number at least 1"))
+            .transpose()?;
         let strategy = Strategy::parse(strategy)?;
         let mut settings = match precision {
             "f64" => Settings::default(),

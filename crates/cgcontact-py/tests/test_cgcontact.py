@@ -838,3 +838,74 @@ def test_a_nan_displacement_at_a_node_no_cell_uses_is_refused_as_the_cli_refuses
             target.set_displacements(values)
         assert np.isnan(cgcontact.Locator(target).locate(nodes[:1] + 1e-3)[1]).sum() == 0, \
             "the body keeps its displacements"
+
+
+# Arguments: errors name the argument and what it must be.
+
+
+@pytest.mark.parametrize(
+    "call, error, message",
+    [
+        # pyo3 named an argument only in TypeErrors: these were OverflowErrors and ValueErrors
+        # such as "out of range integral type conversion attempted".
+        (lambda b: cgcontact.Body((0, 0, 0), (1, 1, 1), (-1, 2, 2)), ValueError, "counts"),
+        (lambda b: cgcontact.Body((0, 0, 0), (1, 1, 1), (2**40, 1, 1)), ValueError, "counts"),
+        (lambda b: cgcontact.Body((0, 0, 0), (1, 1, 1), (2, 2)), ValueError, "counts"),
+        (lambda b: cgcontact.Body((0, 0), (1, 1, 1), (2, 2, 2)), ValueError, "origin"),
+        (lambda b: cgcontact.Body((0, 0, 0), (1, 1, 1, 1), (2, 2, 2)), ValueError, "spacing"),
+        (lambda b: cgcontact.Body((0, 0, 0), (1, 1, 1), (2.5, 2, 2)), TypeError, "counts"),
+        (lambda b: cgcontact.Body("xyz", (1, 1, 1), (2, 2, 2)), TypeError, "origin"),
+        (lambda b: cgcontact.Locator(b, max_iter=-1), ValueError, "max_iter"),
+        (lambda b: cgcontact.Locator(b, max_iter=2**40), ValueError, "max_iter"),
+        (lambda b: cgcontact.Locator(b, threads=-1), ValueError, "threads"),
+        # numpy's own conversion errors, which named no argument.
+        (lambda b: cgcontact.Locator(b).locate([[0, 0, 0], [0, 0]]), ValueError, "points"),
+        (lambda b: cgcontact.Locator(b).locate([["a", "b", "c"]]), ValueError, "points"),
+        (lambda b: cgcontact.Locator(b).locate(np.array([[{}, 0, 0]], dtype=object)), TypeError,
+         "points"),
+        (lambda b: cgcontact.Locator(b).locate_owners([[0, 0, 0], [0]]), ValueError, "x"),
+        (lambda b: cgcontact.Locator(b).gap([[0, 0, 0], [0]], 1.0), ValueError, "points"),
+        (lambda b: b.set_displacements([[0, 0, 0], [0]]), ValueError, "^u "),
+        (lambda b: cgcontact.Body.from_hexes([[0, 0, 0], [0]], [[0] * 8]), ValueError, "nodes"),
+        (lambda b: cgcontact.Body.from_hexes(np.zeros((8, 3)), [[0] * 8, [0]]), ValueError,
+         "hexes"),
+        (lambda b: cgcontact.Body((0, 0, 0), (1, 1, 1), (2, 1, 1), [[1], 1]), ValueError,
+         "active"),
+    ],
+)
+def test_argument_errors_name_the_argument(call, error, message):
+    body = cgcontact.Body(ORIGIN, SPACING, COUNTS)
+    with pytest.raises(error, match=message) as caught:
+        call(body)
+    assert caught.type is error
+
+
+def test_an_empty_list_is_no_points():
+    """`np.array(points_found)` of no points has shape (0,), not (0, 3)."""
+    locator = cgcontact.Locator(cgcontact.Body(ORIGIN, SPACING, COUNTS))
+    for empty in [[], np.array([]), ()]:
+        cell, xi = locator.locate(empty)
+        assert cell.shape == (0,) and xi.shape == (0, 3)
+        assert locator.locate_owners(empty) == []
+        assert locator.gap(empty, 1.0)["closest"].shape == (0, 3)
+    with pytest.raises(ValueError, match=r"shape \(n, 3\), got \(0, 2\)"):
+        locator.locate(np.zeros((0, 2)))
+
+
+def test_values_in_messages_are_short():
+    """Display printed 1e300 as 301 digits."""
+    nodes, hexes = lattice_hexes()
+    body = cgcontact.Body.from_hexes(nodes, hexes)
+    u = np.zeros((body.node_count, 3))
+    u[4] = [1e300, -1e-300, np.nan]
+    for values, row in [(u, 4)]:
+        with pytest.raises(ValueError, match=f"row {row}") as caught:
+            body.set_displacements(values)
+        assert "1e300" in str(caught.value) and len(str(caught.value)) < 200, str(caught.value)
+    u[4, 2] = 0.0
+    with pytest.raises(ValueError, match="too large") as caught:
+        body.set_displacements(u)
+    assert "1e300" in str(caught.value) and len(str(caught.value)) < 250, str(caught.value)
+    with pytest.raises(ValueError, match="row 0") as caught:
+        cgcontact.Locator(body).locate([[1e300, np.inf, 0.5]])
+    assert "1e300" in str(caught.value) and len(str(caught.value)) < 200, str(caught.value)
