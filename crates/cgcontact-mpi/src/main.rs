@@ -12,6 +12,7 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use anyhow::{Context, Result, anyhow, bail};
+use cgcontact::glam::DVec3;
 use cgcontact::{CellId, Settings};
 use cgcontact_io::{
     DisplacementArray, MeshBody, read_body, read_points, write_owner_rows, write_results_counted,
@@ -39,14 +40,16 @@ enum Command {
 }
 
 /// Locate the points of a CSV file in a VTK mesh, over the ranks of `mpirun`.
-#[derive(Args, Debug)]
+#[derive(Args, Debug, Clone)]
 #[command(after_help = "Example:
   mpirun -np 4 cgcontact-mpi locate --mesh block.vtu --points contact.csv --out results.csv --partition slabs
 
 The results file is the one `cgcontact locate` writes for the same mesh and points, byte for byte.
 Each rank reads the whole mesh and keeps its partition's cells (slabs across the longest lattice
 axis, Morton runs, or scattered; the leaves of an adaptive mesh go with the base cell they lie
-in), and keeps a contiguous run of the points' rows. Exit code 2 on bad input, on every rank.")]
+in), and keeps a contiguous run of the points' rows. Every rank must be given the same arguments
+(but --threads) and read the same files: else exit code 2, on every rank. Exit code 2 on bad
+input, on every rank.")]
 struct LocateArgs {
     /// The mesh (.vtk or .vtu).
     #[arg(long, value_name = "FILE")]
@@ -151,6 +154,76 @@ fn agree<T>(world: &SimpleCommunicator, step: Result<T>) -> Result<T, Failure> {
     }
 }
 
+/// Collective: for each of `keys`, whether every rank holds the same (the greatest key is the
+/// complement of the greatest complement only when all are equal): one reduction.
+fn same_everywhere(world: &SimpleCommunicator, keys: &[u64]) -> Vec<bool> {
+    let words: Vec<u64> = keys.iter().flat_map(|&k| [k, !k]).collect();
+    let mut greatest = vec![0u64; words.len()];
+    world.all_reduce_into(&words[..], &mut greatest[..], SystemOperation::max());
+    greatest.chunks_exact(2).map(|w| w[0] == !w[1]).collect()
+}
+
+/// A failure every rank knows of: rank 0 prints it, the others stop with it.
+fn on_rank_0(rank: i32, error: anyhow::Error) -> Failure {
+    if rank == 0 {
+        Failure::Here(error)
+    } else {
+        Failure::Elsewhere
+    }
+}
+
+/// A 64-bit fingerprint of `words` (each through a multiply–rotate step, which any one changed
+/// word changes): the ranks compare their inputs by it.
+fn fingerprint(words: impl IntoIterator<Item = u64>) -> u64 {
+    let mut hash = 0xcbf2_9ce4_8422_2325u64;
+    for word in words {
+        hash = (hash ^ word)
+            .wrapping_mul(0x9E37_79B9_7F4A_7C15)
+            .rotate_left(29);
+    }
+    hash
+}
+
+/// The fingerprint of the points, bitwise.
+fn fingerprint_points(points: &[DVec3]) -> u64 {
+    fingerprint(std::iter::once(points.len() as u64).chain(bits(points)))
+}
+
+/// The bits of each vector's components, in order.
+fn bits(vectors: &[DVec3]) -> impl Iterator<Item = u64> + '_ {
+    vectors.iter().flat_map(|x| x.to_array()).map(f64::to_bits)
+}
+
+/// The fingerprint of a mesh as read: its lattice, its cells in input order and their nodes'
+/// displacements, bitwise.
+fn mesh_fingerprint(mesh: &MeshBody) -> u64 {
+    let lattice_words = |lattice: &cgcontact::Lattice| {
+        let [origin, h] = [lattice.origin(), lattice.h()].map(|v| v.to_array().map(f64::to_bits));
+        let cells = lattice.cells().map(u64::from);
+        origin.into_iter().chain(h).chain(cells)
+    };
+    match mesh {
+        MeshBody::Uniform(mesh) => fingerprint(
+            lattice_words(mesh.body.lattice())
+                .chain([mesh.cells.len() as u64, u64::from(mesh.has_displacement)])
+                .chain(mesh.cells.lattice_cells().iter().map(|c| u64::from(c.0)))
+                .chain(bits(mesh.body.displacements())),
+        ),
+        MeshBody::Adaptive(mesh) => fingerprint(
+            lattice_words(mesh.body.lattice())
+                .chain([
+                    mesh.body.cell_count() as u64,
+                    u64::from(mesh.has_displacement),
+                ])
+                .chain(mesh.body.leaves().iter().flat_map(|leaf| {
+                    let [i, j, k] = leaf.ijk.map(u64::from);
+                    [u64::from(leaf.level), i, j, k]
+                }))
+                .chain(bits(mesh.body.displacements())),
+        ),
+    }
+}
+
 /// The failure of a collective call of the library, which fails on every rank alike: the rank
 /// that met the error prints it, the others stop with it.
 fn collective<T>(result: Result<T, Error>, step: &str) -> Result<T, Failure> {
@@ -200,6 +273,24 @@ fn report(setup: &SetupStats, query: &QueryStats) -> [f64; 14] {
 fn locate(world: &SimpleCommunicator, args: &LocateArgs) -> Result<(), Failure> {
     let (rank, size) = (world.rank(), world.size() as usize);
     let start = Instant::now();
+    // The ranks' arguments (mpirun's MPMD form gives each its own) decide the collectives each
+    // makes: ranks given different ones (another --repeat, another --gap) would wait forever
+    // in collectives the others never enter.
+    let same_args = {
+        let mut args = args.clone();
+        // Threads are each rank's own business.
+        args.threads = 1;
+        fingerprint(format!("{args:?}").bytes().map(u64::from))
+    };
+    if !same_everywhere(world, &[same_args])[0] {
+        return Err(on_rank_0(
+            rank,
+            anyhow!(
+                "the ranks were given different arguments (mpirun's `:` form): every rank \
+                 must be given the same, but --threads"
+            ),
+        ));
+    }
     // Every flag and the output checked before any file is read.
     agree(world, check_args(args, rank))?;
     // The local search runs on rayon's global pool (a communicator cannot enter another pool's
@@ -226,6 +317,26 @@ fn locate(world: &SimpleCommunicator, args: &LocateArgs) -> Result<(), Failure> 
         read_points(&args.points).map_err(anyhow::Error::from),
     )?;
     let read_seconds = read_start.elapsed().as_secs_f64();
+    // Each rank keeps its partition of the cells and its run of the points by what it read
+    // itself: ranks that read different files (another copy on another node's disk, a file
+    // rewritten during the run) would leave cells or points to no rank, or give them twice,
+    // and rank 0 would write a results file of the wrong rows without a word.
+    let same = same_everywhere(
+        world,
+        &[mesh_fingerprint(&mesh), fingerprint_points(&points)],
+    );
+    for (same, path) in same.into_iter().zip([&args.mesh, &args.points]) {
+        if !same {
+            return Err(on_rank_0(
+                rank,
+                anyhow!(
+                    "{}: the ranks read different contents (the file changed while they read \
+                     it, or the nodes hold different copies): every rank must read the same",
+                    path.display()
+                ),
+            ));
+        }
+    }
 
     // This rank's cells (or leaves, split by the base cell they lie in) and points.
     let mine = match &mesh {

@@ -663,3 +663,130 @@ fn json_with_quiet_still_prints_the_json() {
         "{stdout}"
     );
 }
+
+/// mpirun's MPMD form: `ranks` ranks started in `folder` with `args`, for each part, under a
+/// 120 s limit (coreutils `timeout`: exit code 124 when it struck, the run having hung).
+fn mpirun_parts(parts: &[(usize, &Path, Vec<&str>)]) -> Output {
+    let mut command = Command::new("timeout");
+    command.args(["-k", "10", "120", "mpirun", "--oversubscribe"]);
+    if is_root() {
+        command.arg("--allow-run-as-root");
+    }
+    for (at, (ranks, folder, args)) in parts.iter().enumerate() {
+        if at > 0 {
+            command.arg(":");
+        }
+        command
+            .args(["-np", &ranks.to_string(), "-wdir"])
+            .arg(folder)
+            .arg(env!("CARGO_BIN_EXE_cgcontact-mpi"))
+            .args(args);
+    }
+    command.output().expect("timeout and mpirun run")
+}
+
+/// Ranks given different arguments (mpirun's `:` form) or reading different files under one
+/// name (each node its own copy; here each rank its own working folder): refused on every rank
+/// with one message naming the cause, and no results file. Before, another `--repeat` on one
+/// rank hung the run (the others waited in a collective it never entered), and points files of
+/// other lengths gave a results file of the wrong rows.
+#[test]
+fn ranks_given_different_arguments_or_files_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let lattice = cgcontact::Lattice::new(DVec3::ZERO, DVec3::ONE, [2, 3, 2]).unwrap();
+    let mut body = cgcontact::Body::full(lattice);
+    body.update_displacements(|_, x, u| *u = DVec3::new(0.1 * x.y, 0.0, 0.05 * x.x))
+        .unwrap();
+    let (a, b) = (d.join("a"), d.join("b"));
+    let out = d.join("results.csv");
+    let points = (0..30)
+        .map(|i| {
+            format!(
+                "{},{},{}\n",
+                0.1 * f64::from(i % 3),
+                0.1 * f64::from(i),
+                0.5
+            )
+        })
+        .collect::<String>();
+    for (folder, rows) in [(&a, 30), (&b, 20)] {
+        std::fs::create_dir(folder).unwrap();
+        cgcontact_io::write_mesh(
+            folder.join("mesh.vtu"),
+            &body,
+            cgcontact_io::MeshFormat::Xml,
+        )
+        .unwrap();
+        let rows: String = points
+            .lines()
+            .take(rows)
+            .map(|l| format!("{l}\n"))
+            .collect();
+        std::fs::write(folder.join("points.csv"), format!("x,y,z\n{rows}")).unwrap();
+    }
+    // The same arguments (but --threads), run in one folder: the serial file, byte for byte.
+    let args = vec![
+        "locate",
+        "--mesh",
+        "mesh.vtu",
+        "--points",
+        "points.csv",
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    let with = |extra: &[&'static str]| [&args[..], extra].concat();
+    let same = mpirun_parts(&[(1, &a, with(&["--threads", "2"])), (2, &a, args.clone())]);
+    assert!(same.status.success(), "{same:?}");
+    let serial = d.join("serial.csv");
+    run(Command::new(cgcontact())
+        .current_dir(&a)
+        .args([
+            "locate",
+            "--quiet",
+            "--mesh",
+            "mesh.vtu",
+            "--points",
+            "points.csv",
+        ])
+        .arg("--out")
+        .arg(&serial));
+    assert_eq!(
+        std::fs::read(&out).unwrap(),
+        std::fs::read(&serial).unwrap()
+    );
+    std::fs::remove_file(&out).unwrap();
+    let refused = |result: Output, cause: &str| {
+        let stderr = String::from_utf8_lossy(&result.stderr);
+        assert_eq!(result.status.code(), Some(2), "hung or went on: {stderr}");
+        assert_eq!(stderr.matches("cgcontact-mpi:").count(), 1, "{stderr}");
+        assert!(stderr.contains(cause), "{cause} not in {stderr}");
+        assert!(!out.exists(), "{stderr}");
+    };
+    refused(
+        mpirun_parts(&[(1, &a, with(&["--repeat", "2"])), (2, &a, args.clone())]),
+        "different arguments",
+    );
+    refused(
+        mpirun_parts(&[(1, &a, args.clone()), (1, &a, with(&["--gap", "0.5"]))]),
+        "different arguments",
+    );
+    // Points files of 30 and 20 rows.
+    refused(
+        mpirun_parts(&[(1, &a, args.clone()), (2, &b, args.clone())]),
+        "points.csv: the ranks read different contents",
+    );
+    // Meshes one displacement apart.
+    body.update_displacements(|_, x, u| {
+        if x == DVec3::ONE {
+            u.z += 1e-9;
+        }
+    })
+    .unwrap();
+    cgcontact_io::write_mesh(b.join("mesh.vtu"), &body, cgcontact_io::MeshFormat::Xml).unwrap();
+    std::fs::copy(a.join("points.csv"), b.join("points.csv")).unwrap();
+    refused(
+        mpirun_parts(&[(2, &a, args.clone()), (1, &b, args.clone())]),
+        "mesh.vtu: the ranks read different contents",
+    );
+}
