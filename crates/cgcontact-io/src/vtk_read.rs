@@ -162,7 +162,10 @@ fn parse_vtk(bytes: &[u8]) -> Result<Vtk, ErrorKind> {
         .unwrap_or(start.len())..];
     if start.len() >= 5 && start[..5].eq_ignore_ascii_case(b"# vtk") {
         // Legacy binary files are big-endian by definition of the format.
-        guarded("legacy VTK", || parse_legacy_whole(bytes))
+        guarded("legacy VTK", || {
+            let blanked = blank_dataset_field(bytes);
+            parse_legacy_whole(blanked.as_deref().unwrap_or(bytes))
+        })
     } else if start.first() == Some(&b'<') {
         // vtkio is built without LZMA (its `xz2` feature is liblzma, in C): decompress LZMA arrays
         // first and hand it the file uncompressed (see `lzma_arrays`).
@@ -407,6 +410,55 @@ fn parse_legacy_whole(bytes: &[u8]) -> Result<Vtk, ErrorKind> {
             )))
         }
     }
+}
+
+/// A legacy file whose data set's own field data (a `FIELD` block right after the `DATASET`
+/// line, where VTK's writer puts `TimeValue` and the like) is blanked out: each of its bytes but
+/// line ends made a space, so that lines keep their numbers. `None` when the file has no such
+/// block, or one vtkio cannot parse (its parser then names the line).
+///
+/// vtkio 0.7.0-rc2 reads `FIELD` only as point or cell data, or as a whole data set. Its own
+/// parser measures the block: the header lines followed by the block read as a `FIELD` data
+/// set, and what it leaves over is the rest of the file.
+fn blank_dataset_field(bytes: &[u8]) -> Option<Vec<u8>> {
+    let line_end = |from: usize| {
+        bytes[from..]
+            .iter()
+            .position(|&b| b == b'\n')
+            .map(|i| from + i + 1)
+    };
+    // The header: `# vtk DataFile ...`, the title, ASCII or BINARY.
+    let mut header_end = 0;
+    for _ in 0..3 {
+        header_end = line_end(header_end)?;
+    }
+    let skip_blank = |from: usize| {
+        from + bytes[from..]
+            .iter()
+            .position(|b| !b.is_ascii_whitespace())
+            .unwrap_or(bytes.len() - from)
+    };
+    let dataset = skip_blank(header_end);
+    let starts_with = |at: usize, word: &[u8]| {
+        bytes.len() >= at + word.len() && bytes[at..at + word.len()].eq_ignore_ascii_case(word)
+    };
+    if !starts_with(dataset, b"DATASET") {
+        return None;
+    }
+    let field = skip_blank(line_end(dataset)?);
+    if !starts_with(field, b"FIELD") || !bytes.get(field + 5)?.is_ascii_whitespace() {
+        return None;
+    }
+    let alone = [&bytes[..header_end], &bytes[field..]].concat();
+    let (rest, _) = vtkio::parser::parse_be(&alone).ok()?;
+    let end = field + (alone.len() - header_end) - rest.len();
+    let mut blanked = bytes.to_vec();
+    for byte in &mut blanked[field..end] {
+        if *byte != b'\n' && *byte != b'\r' {
+            *byte = b' ';
+        }
+    }
+    Some(blanked)
 }
 
 /// The last line of a legacy file, with its number, when it is a data section's header with no

@@ -6,6 +6,7 @@ mod bad_input;
 mod common;
 mod csv_files;
 mod lattice_detection;
+mod legacy_dataset_field;
 mod lzma_hostile;
 mod messages;
 mod parser_property;
