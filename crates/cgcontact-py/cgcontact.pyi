@@ -3,33 +3,38 @@
 Find the hexahedron of a deformed body holding each point and its local coordinates xi in
 [-1, 1]^3 (VTK corner 0 at (-1, -1, -1)), every cell holding a point, and signed gaps to the
 body's deformed boundary surface. Queries release the GIL; C-contiguous, aligned float64 (n, 3)
-arrays are read in place, anything else array-like is converted once. Complex, date and time
-arrays, and masked arrays with masked values, raise ValueError rather than being cast.
+arrays are read in place (do not write to them from another thread while a call runs), anything
+else array-like is converted once; an empty list is no points. Complex, date and time arrays,
+and masked arrays with masked values, raise ValueError rather than being cast. Errors name the
+argument at fault.
 """
 
 import os
-from typing import Dict, List, Literal, Optional, Sequence, Tuple, Union, overload
+from typing import Dict, List, Literal, Optional, Sequence, Tuple, Union, final, overload
 
 import numpy as np
 import numpy.typing as npt
 
+__all__ = ["Body", "Locator", "read_mesh", "_data_address", "__version__"]
+
 __version__: str
 
-Strategy = Literal["lattice", "centroid", "noderad", "noderad-seed", "rtree", "brute"]
-Xi = Tuple[float, float, float]
+_Strategy = Literal["lattice", "centroid", "noderad", "noderad-seed", "rtree", "brute"]
+_Xi = Tuple[float, float, float]
 
+@final
 class Body:
     """A deformed body of hexahedra on a cartesian lattice (uniform, or adaptive: dyadic
     refinements of one with hanging nodes). Locators made from it share it and see every later
     `set_displacements`."""
 
-    def __init__(
-        self,
+    def __new__(
+        cls,
         origin: Sequence[float],
         spacing: Sequence[float],
         counts: Sequence[int],
         active: Optional[npt.ArrayLike] = None,
-    ) -> None:
+    ) -> "Body":
         """A body on a lattice of `counts` cells per axis (MemoryError, before allocating,
         when its 48 bytes a node cannot be had). `active`: one flag per lattice cell
         (booleans, or 0s and 1s), x fastest (flat, or shape (nz, ny, nx)); None for every cell.
@@ -69,24 +74,25 @@ class Body:
     @property
     def hanging_count(self) -> int: ...
 
+@final
 class Locator:
     """Finds the cell of a body holding each point. Each query searches the body's current
     displacements."""
 
-    def __init__(
-        self,
+    def __new__(
+        cls,
         body: Body,
-        strategy: Strategy = "lattice",
+        strategy: _Strategy = "lattice",
         precision: Literal["f64", "f32"] = "f64",
         tol: Optional[float] = None,
         max_iter: Optional[int] = None,
         threads: Optional[int] = None,
-    ) -> None:
+    ) -> "Locator":
         """`tol`: Newton step tolerance in xi units (default 1e-10 in f64, 1e-5 in f32);
         `max_iter`: Newton iterations per candidate cell; `threads`: a pool of its own (None:
         every core)."""
     @property
-    def strategy(self) -> Strategy: ...
+    def strategy(self) -> _Strategy: ...
     def locate(
         self,
         points: npt.ArrayLike,
@@ -109,10 +115,11 @@ class Locator:
         answers are `locate`'s whatever the hints; a cell that is neither -1 nor a cell of the
         body raises ValueError before anything is written."""
     @overload
-    def locate_owners(self, x: Sequence[float]) -> List[Tuple[int, Xi]]: ...
+    def locate_owners(self, x: Sequence[float]) -> List[Tuple[int, _Xi]]: ...
     @overload
-    def locate_owners(self, x: npt.NDArray[np.float64]) -> Union[List[Tuple[int, Xi]], List[List[Tuple[int, Xi]]]]: ...
-    def locate_owners(self, x: npt.ArrayLike) -> Union[List[Tuple[int, Xi]], List[List[Tuple[int, Xi]]]]:
+    def locate_owners(
+        self, x: npt.ArrayLike
+    ) -> Union[List[Tuple[int, _Xi]], List[List[Tuple[int, _Xi]]]]:
         """Every cell holding the point x (3,): [(cell, xi), ...], cells ascending; for x of
         shape (n, 3), one such list per point. Not with strategy "noderad-seed" (ValueError:
         its loose Newton misses owners)."""
@@ -120,7 +127,7 @@ class Locator:
         """Signed gaps to the deformed boundary surface within `dist`: "gap" float64[n]
         (negative inside), "closest" float64[n, 3], "normal" float64[n, 3] (point = closest +
         gap * normal), "face_cell" int64[n], "face" int32[n] (VTK local face 0-5); NaN and -1
-        where the surface is farther than `dist`."""
+        where the surface is farther than `dist`. `dist`: at least 0 and at most 1e150."""
 
 def read_mesh(
     path: Union[str, os.PathLike],

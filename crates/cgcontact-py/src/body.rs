@@ -366,6 +366,14 @@ fn sources(slot_of_input: &[usize], slots: usize) -> (Vec<u32>, Vec<(usize, usiz
 /// Build one with `Body(origin, spacing, counts, active=None)`, `Body.from_hexes(nodes, hexes)`
 /// or `cgcontact.read_mesh(path)`. Locators made from a body share it: they see every later
 /// `set_displacements`.
+///
+/// `Body(origin, spacing, counts, active=None)`: a body on a lattice, `origin` and `spacing` 3
+/// floats each, `counts` cells per axis (MemoryError, before allocating, when its 48 bytes a
+/// node cannot be had). `active` is None (every cell) or one flag per lattice cell (booleans,
+/// or 0s and 1s), x fastest (a flat array, or one of shape (nz, ny, nx)); other shapes and
+/// values raise ValueError. The body starts undeformed; its cells are numbered as the
+/// lattice's, `i + nx (j + ny k)`, and `set_displacements` takes one row per lattice node,
+/// `i + (nx + 1)(j + (ny + 1) k)`.
 #[pyclass(name = "Body", module = "cgcontact", frozen)]
 pub struct PyBody {
     pub(crate) state: Arc<RwLock<BodyState>>,
@@ -392,11 +400,8 @@ impl PyBody {
 
 #[pymethods]
 impl PyBody {
-    /// A body on a lattice: `origin` and `spacing` (3 floats each), `counts` cells per axis.
-    /// `active` is None (every cell) or one flag per lattice cell (booleans, or 0s and 1s), x
-    /// fastest (a flat array, or one of shape (nz, ny, nx)). The body starts undeformed; its
-    /// cells are numbered as the lattice's, `i + nx (j + ny k)`, and `set_displacements` takes
-    /// one row per lattice node, `i + (nx + 1)(j + (ny + 1) k)`.
+    /// A body on a lattice (pyo3 shows Python this comment's place in the class docs, which
+    /// say what each argument takes).
     #[new]
     #[pyo3(signature = (origin, spacing, counts, active = None))]
     fn new(

@@ -28,7 +28,11 @@ use crate::locator::PyLocator;
 /// takes one row per node of the file. An adaptive mesh whose hanging nodes break their
 /// constraint gives a warning, or a ValueError with `strict`.
 #[pyfunction]
-#[pyo3(signature = (path, displacement = Some(DEFAULT_DISPLACEMENT.to_owned()), strict = false))]
+#[pyo3(
+    signature = (path, displacement = Some(DEFAULT_DISPLACEMENT.to_owned()), strict = false),
+    // The default as Python writes it: pyo3 shows a default it cannot evaluate as `...`.
+    text_signature = "(path, displacement='displacement', strict=False)"
+)]
 fn read_mesh(
     py: Python<'_>,
     path: std::path::PathBuf,
@@ -70,7 +74,18 @@ fn _data_address(points: &Bound<'_, PyAny>) -> PyResult<usize> {
     Ok(vectors.as_ptr() as usize)
 }
 
-/// The `cgcontact` module.
+/// Contact search on cartesian hexahedral lattices: numpy in, numpy out.
+///
+/// Find the hexahedron of a deformed body holding each point and its local coordinates xi in
+/// [-1, 1]^3 (VTK corner 0 at (-1, -1, -1)), every cell holding a point, and signed gaps to the
+/// body's deformed boundary surface. Queries release the GIL; C-contiguous, aligned float64
+/// (n, 3) arrays are read in place (do not write to them from another thread while a call
+/// runs), anything else array-like is converted once; an empty list is no points. Complex, date
+/// and time arrays, and masked arrays with masked values, raise ValueError rather than being
+/// cast. Errors name the argument at fault.
+///
+/// `Body` holds a deformed body (`Body(origin, spacing, counts)`, `Body.from_hexes` or
+/// `read_mesh`); `Locator(body)` searches it. `cgcontact.pyi` gives every signature.
 #[pymodule]
 fn cgcontact(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyBody>()?;

@@ -110,9 +110,16 @@ fn refused(what: &str, points: &[DVec3], row: usize) -> PyErr {
 
 /// Finds the cell of a body holding each point, and its local coordinates.
 ///
+/// `Locator(body, strategy="lattice", precision="f64", tol=None, max_iter=None, threads=None)`:
+/// `strategy` is one of "lattice" (this library's), "centroid", "noderad", "noderad-seed",
+/// "rtree" or "brute" (the command line's baselines); `precision` "f64" or "f32"; `tol` the
+/// Newton step tolerance in xi units (default 1e-10 in f64, 1e-5 in f32); `max_iter` the Newton
+/// iteration limit per candidate cell; `threads` the worker threads of a pool of its own (None:
+/// every core, rayon's global pool).
+///
 /// The locator shares its body: each query searches the body's current displacements (the
 /// strategy's setup, a pass over the nodes for the lattice strategy, runs again at each query).
-/// Queries release the GIL and run on `threads` worker threads (None: every core).
+/// Queries release the GIL and run on `threads` worker threads.
 #[pyclass(name = "Locator", module = "cgcontact", frozen)]
 pub struct PyLocator {
     body: Arc<RwLock<BodyState>>,
@@ -199,11 +206,8 @@ impl PyLocator {
 
 #[pymethods]
 impl PyLocator {
-    /// A locator over `body`. `strategy` is one of "lattice" (this library's), "centroid",
-    /// "noderad", "noderad-seed", "rtree" or "brute" (the command line's baselines);
-    /// `precision` "f64" or "f32"; `tol` the Newton step tolerance in xi units (default 1e-10 in
-    /// f64, 1e-5 in f32); `max_iter` the Newton iteration limit per candidate cell; `threads`
-    /// the worker threads of a pool of its own (None: every core, rayon's global pool).
+    /// A locator over `body` (its arguments are described in the class docs, where pyo3 shows
+    /// them to Python).
     #[new]
     #[pyo3(signature = (body, strategy = "lattice", precision = "f64", tol = None, max_iter = None, threads = None))]
     fn new(
@@ -345,10 +349,10 @@ impl PyLocator {
     }
 
     /// Signed gaps of `points` (n, 3) to the body's deformed boundary surface, searched within
-    /// `dist` (finite, at least 0). Returns a dict of arrays: "gap" float64[n] (negative inside
-    /// the body), "closest" float64[n, 3] (the closest surface point), "normal" float64[n, 3] (the
-    /// unit outward normal there: point = closest + gap * normal, to 2 |gap| within the locator's
-    /// rounding allowance of the surface), "face_cell" int64[n] (the cell
+    /// `dist` (at least 0, at most 1e150). Returns a dict of arrays: "gap" float64[n] (negative
+    /// inside the body), "closest" float64[n, 3] (the closest surface point), "normal"
+    /// float64[n, 3] (the unit outward normal there: point = closest + gap * normal, to 2 |gap|
+    /// within the locator's rounding allowance of the surface), "face_cell" int64[n] (the cell
     /// of the face, numbered as `locate` numbers cells) and "face" int32[n] (its VTK local face
     /// 0-5); NaN and -1 where the surface is farther than `dist`. Measured in f64 with the
     /// library's default Newton settings whatever the locator's (as `cgcontact locate --gap`).

@@ -5,6 +5,8 @@ The command line binary is $CGCONTACT_BIN; without it, the workspace's release b
 with cargo. Run with `pytest crates/cgcontact-py/tests` once the module is installed.
 """
 
+import ast
+import inspect
 import json
 import os
 import pathlib
@@ -909,3 +911,86 @@ def test_values_in_messages_are_short():
     with pytest.raises(ValueError, match="row 0") as caught:
         cgcontact.Locator(body).locate([[1e300, np.inf, 0.5]])
     assert "1e300" in str(caught.value) and len(str(caught.value)) < 200, str(caught.value)
+
+
+# The stub against the module: every name, parameter and default.
+
+STUB = pathlib.Path(__file__).resolve().parents[1] / "cgcontact.pyi"
+
+
+def stub_parameters(function):
+    """(name, default source or None) of a stub function's parameters, self and cls left out."""
+    args = function.args
+    positional = args.posonlyargs + args.args
+    defaults = [None] * (len(positional) - len(args.defaults)) + list(args.defaults)
+    pairs = list(zip(positional, defaults)) + list(zip(args.kwonlyargs, args.kw_defaults))
+    return [(a.arg, None if d is None else ast.literal_eval(d)) for a, d in pairs
+            if a.arg not in ("self", "cls")]
+
+
+def runtime_parameters(obj):
+    return [(p.name, None if p.default is inspect.Parameter.empty else p.default)
+            for p in inspect.signature(obj).parameters.values() if p.name not in ("self", "cls")]
+
+
+def decorators(function):
+    return {d.id if isinstance(d, ast.Name) else getattr(d, "attr", None)
+            for d in function.decorator_list}
+
+
+def test_the_stub_matches_the_module():
+    """read_mesh's default showed as `displacement=Ellipsis` at runtime; the stub gave
+    `locate_owners` an implementation beside its overloads (mypy: "An implementation for an
+    overloaded function is not allowed in a stub file") and `__init__` for classes built by
+    `__new__`."""
+    tree = ast.parse(STUB.read_text())
+    stub = {node.name: node for node in tree.body
+            if isinstance(node, (ast.FunctionDef, ast.ClassDef))}
+    aliases = [t.id for node in tree.body if isinstance(node, (ast.Assign, ast.AnnAssign))
+               for t in (node.targets if isinstance(node, ast.Assign) else [node.target])]
+    public = [name for name in stub if not name.startswith("_")]
+    assert sorted(public) == sorted(n for n in cgcontact.__all__ if not n.startswith("_"))
+    for alias in aliases:
+        assert hasattr(cgcontact, alias) or alias.startswith("_"), \
+            f"{alias}: a stub-only name must be private"
+    all_list = next(node.value for node in tree.body if isinstance(node, ast.Assign)
+                    and [t.id for t in node.targets] == ["__all__"])
+    assert sorted(ast.literal_eval(all_list)) == sorted(cgcontact.__all__)
+
+    def check(function, runtime, where):
+        assert stub_parameters(function) == runtime_parameters(runtime), where
+
+    for name, node in stub.items():
+        runtime = getattr(cgcontact, name)
+        if isinstance(node, ast.FunctionDef):
+            check(node, runtime, name)
+            continue
+        with pytest.raises(TypeError):
+            type("Sub", (runtime,), {})
+        assert "final" in decorators(node), f"{name} cannot be subclassed: @final"
+        methods = [m for m in node.body if isinstance(m, ast.FunctionDef)]
+        assert "__init__" not in [m.name for m in methods], f"{name} is built by __new__"
+        overloaded = {m.name for m in methods if "overload" in decorators(m)}
+        for m in methods:
+            where = f"{name}.{m.name}"
+            assert m.name not in overloaded or "overload" in decorators(m), \
+                f"{where}: no implementation beside overloads in a stub"
+            if "property" in decorators(m):
+                assert isinstance(getattr(runtime, m.name), property) or \
+                    type(getattr(runtime, m.name)).__name__ == "getset_descriptor", where
+            elif m.name == "__new__":
+                check(m, runtime, where)
+            elif m.name not in overloaded:
+                check(m, getattr(runtime, m.name), where)
+        documented = {m.name for m in methods} | {"__new__"}
+        for attr in vars(runtime):
+            if not attr.startswith("_"):
+                assert attr in documented, f"{name}.{attr} is missing from the stub"
+
+
+def test_the_runtime_docstrings_say_what_the_constructors_take():
+    """pyo3 drops the doc comment of #[new]: help(Body) never said what `active` takes."""
+    assert "cartesian" in cgcontact.__doc__ and len(cgcontact.__doc__) > 200
+    assert "active" in cgcontact.Body.__doc__ and "i + nx (j + ny k)" in cgcontact.Body.__doc__
+    for word in ["strategy", "precision", "tol", "max_iter", "threads"]:
+        assert word in cgcontact.Locator.__doc__, word
