@@ -50,6 +50,8 @@ pub fn parse_points(mut reader: impl Read) -> Result<Vec<DVec3>, ErrorKind> {
 
 /// [`parse_points`] on the bytes of a whole file.
 fn points_from_bytes(bytes: &[u8]) -> Result<Vec<DVec3>, ErrorKind> {
+    let unix = unix_line_ends(bytes);
+    let bytes: &[u8] = &unix;
     let mut lines = LineCounter::new(bytes);
     let mut csv = csv_reader(bytes);
     let mut points = Vec::new();
@@ -197,6 +199,8 @@ pub fn parse_results(mut reader: impl Read) -> Result<Vec<ResultRow>, ErrorKind>
 
 /// [`parse_results`] on the bytes of a whole file.
 fn results_from_bytes(bytes: &[u8]) -> Result<Vec<ResultRow>, ErrorKind> {
+    let unix = unix_line_ends(bytes);
+    let bytes: &[u8] = &unix;
     let mut lines = LineCounter::new(bytes);
     let mut csv = csv_reader(bytes);
     let mut record = csv::StringRecord::new();
@@ -263,6 +267,23 @@ fn results_from_bytes(bytes: &[u8]) -> Result<Vec<ResultRow>, ErrorKind> {
         });
     }
     Ok(rows)
+}
+
+/// `bytes` with each line end that is a `\r` alone (classic Mac files) made a `\n`, byte for
+/// byte, so that offsets stay: the csv crate ends a `#` comment only at `\n`, so such a comment
+/// swallowed the rest of the file, and lines are counted by `\n`.
+fn unix_line_ends(bytes: &[u8]) -> std::borrow::Cow<'_, [u8]> {
+    let lone = |i: usize| bytes[i] == b'\r' && bytes.get(i + 1) != Some(&b'\n');
+    if !(0..bytes.len()).any(lone) {
+        return std::borrow::Cow::Borrowed(bytes);
+    }
+    let mut unix = bytes.to_vec();
+    for (i, byte) in unix.iter_mut().enumerate() {
+        if lone(i) {
+            *byte = b'\n';
+        }
+    }
+    std::borrow::Cow::Owned(unix)
 }
 
 fn csv_reader(reader: impl Read) -> csv::Reader<impl Read> {
@@ -358,20 +379,27 @@ fn next_record(
 }
 
 /// Why a points row or header does not have the 3 fields x,y,z, in words: another separator is
-/// named (`1;2;3` is one field for a comma-separated reader).
+/// named (`1;2;3` is one field for a comma-separated reader; `1 2 3`, numpy's `savetxt`
+/// default, too: fields are trimmed, so a space left inside one separates values). Such a line
+/// is not called a header: its values are not numbers only because they are not split.
 fn wrong_field_count(record: &csv::StringRecord, what: &str) -> String {
-    let separator = [';', '\t', '|']
+    let separator = [';', '\t', '|', ' ']
         .into_iter()
         .find(|&c| record.len() < 3 && record.iter().any(|f| f.contains(c)));
     match separator {
         Some(c) => format!(
-            "{what} separated by {}, expected commas (x,y,z)",
+            "values separated by {}, expected commas (x,y,z)",
             match c {
                 '\t' => "tabs".to_owned(),
+                ' ' => "spaces".to_owned(),
                 c => format!("`{c}`"),
             }
         ),
-        None => format!("{what} with {} fields, expected 3 (x,y,z)", record.len()),
+        None => format!(
+            "{what} with {} field{}, expected 3 (x,y,z)",
+            record.len(),
+            if record.len() == 1 { "" } else { "s" }
+        ),
     }
 }
 

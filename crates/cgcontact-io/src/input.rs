@@ -76,6 +76,13 @@ fn too_big(size: u64, limit: u64) -> ErrorKind {
 
 /// Refuse, from its first bytes, a file that cannot be of the expected format.
 fn check_start(bytes: &[u8], expect: Expect) -> Result<(), ErrorKind> {
+    // Saved as "Unicode" by some editors (Excel's "Unicode text"): named, not called binary.
+    if bytes.starts_with(b"\xFF\xFE") || bytes.starts_with(b"\xFE\xFF") {
+        return Err(ErrorKind::Format(
+            "UTF-16 text (it starts with a UTF-16 byte order mark): save it as UTF-8 or ASCII"
+                .to_owned(),
+        ));
+    }
     match expect {
         Expect::Text => match bytes.iter().position(|&b| b == 0) {
             Some(at) => Err(ErrorKind::Format(format!(

@@ -133,3 +133,87 @@ fn points_and_results_round_trip() {
             .contains("line 1")
     );
 }
+
+fn message_of(text: &str) -> String {
+    match points(text) {
+        Err(error @ ErrorKind::Csv { .. }) => error.to_string(),
+        other => panic!("expected a CSV error for {text:?}, got {other:?}"),
+    }
+}
+
+/// Points separated by spaces (numpy's `savetxt` default) read "header with 1 fields, expected
+/// 3", and a first data row separated by `;` was called a header. Now the separator is named,
+/// and the line is not called a header.
+#[test]
+fn rows_in_another_separator_name_it() {
+    for (text, separator, line) in [
+        ("1.000000000000000000e+00 2.5e+00 3.0e+00\n", "spaces", 1),
+        ("x y z\n1 2 3\n", "spaces", 1),
+        ("x,y,z\n1,2,3\n1 2 3\n", "spaces", 3),
+        ("0.2;0.2;0.1\n", "`;`", 1),
+        ("0.2\t0.2\t0.1\n", "tabs", 1),
+    ] {
+        let message = message_of(text);
+        assert!(
+            message.contains(&format!("line {line}:")) && message.contains(separator),
+            "{text:?}: {message}"
+        );
+        assert!(!message.contains("header"), "{text:?}: {message}");
+    }
+    assert!(message_of("x,y\n").contains("2 fields"));
+    assert!(message_of("1,2,3\n4\n").contains("1 field,"));
+}
+
+/// Files with classic Mac line ends (CR alone) read whole, and their errors name the right line
+/// (all were line 1). A `#` comment in such a file ended only at a `\n`: it swallowed every row
+/// after it, and the file read as fewer points without a word.
+#[test]
+fn carriage_return_line_ends_count_as_lines() {
+    assert_eq!(
+        points("x,y,z\r1,2,3\r-0.5,1e-300,4e6\r").unwrap(),
+        vec![DVec3::new(1.0, 2.0, 3.0), DVec3::new(-0.5, 1e-300, 4e6)]
+    );
+    assert_eq!(line_of("x,y,z\r1,2,3\r1,a,3\r"), 3);
+    assert_eq!(line_of("x,y,z\r\n1,2,3\r\n\r\n1,a,3\r\n"), 4);
+    assert_eq!(line_of("x,y,z\r1,2,3\r\r# note\r1,a,3\r"), 5);
+    assert_eq!(
+        points("# contact points\rx,y,z\r1,2,3\r# more\r4,5,6\r").unwrap(),
+        vec![DVec3::new(1.0, 2.0, 3.0), DVec3::new(4.0, 5.0, 6.0)]
+    );
+}
+
+/// A UTF-16 file (Excel's "Unicode text") was refused as binary data for its NUL bytes, and as
+/// a mesh with an escaped byte soup: the message now names the encoding.
+#[test]
+fn utf16_files_are_named_as_such() {
+    let dir = tempfile::tempdir().unwrap();
+    for (bom, encode) in [
+        ([0xFF, 0xFE], u16::to_le_bytes as fn(u16) -> [u8; 2]),
+        ([0xFE, 0xFF], u16::to_be_bytes),
+    ] {
+        let path = dir.path().join("points.csv");
+        let mut bytes = bom.to_vec();
+        bytes.extend("x,y,z\n1,2,3\n".encode_utf16().flat_map(encode));
+        std::fs::write(&path, &bytes).unwrap();
+        let message = read_points(&path).unwrap_err().to_string();
+        assert!(
+            message.contains("points.csv") && message.contains("UTF-16"),
+            "{message}"
+        );
+        let mesh = dir.path().join("mesh.vtu");
+        let mut bytes = bom.to_vec();
+        bytes.extend(
+            "<VTKFile type=\"UnstructuredGrid\">"
+                .encode_utf16()
+                .flat_map(encode),
+        );
+        std::fs::write(&mesh, &bytes).unwrap();
+        let message = cgcontact_io::read_mesh(&mesh, &cgcontact_io::DisplacementArray::Default)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            message.contains("mesh.vtu") && message.contains("UTF-16"),
+            "{message}"
+        );
+    }
+}
