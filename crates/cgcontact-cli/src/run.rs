@@ -56,7 +56,8 @@ pub enum PrecisionName {
     F32,
 }
 
-/// Flags shared by the commands that search.
+/// Flags shared by the commands that search. Numbers take negative values (`allow_negative_numbers`)
+/// so that `--tol -1` is refused naming the flag, not as an unexpected argument `-1`.
 #[derive(Args, Debug, Clone)]
 pub struct SearchArgs {
     /// Search strategy.
@@ -66,13 +67,13 @@ pub struct SearchArgs {
     #[arg(long, value_enum, default_value_t = PrecisionName::F64)]
     pub precision: PrecisionName,
     /// Newton tolerance on the step, in ξ units [default: 1e-10 in f64, 1e-5 in f32].
-    #[arg(long, value_name = "T")]
+    #[arg(long, value_name = "T", allow_negative_numbers = true)]
     pub tol: Option<f64>,
     /// Newton iteration limit per candidate cell.
-    #[arg(long, value_name = "N", default_value_t = Settings::MAX_ITER)]
+    #[arg(long, value_name = "N", default_value_t = Settings::MAX_ITER, allow_negative_numbers = true)]
     pub max_iter: u32,
     /// Worker threads [default: all cores].
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", allow_negative_numbers = true)]
     pub threads: Option<usize>,
     /// Print one JSON object on stdout instead of the text summary.
     #[arg(long)]
@@ -82,7 +83,12 @@ pub struct SearchArgs {
     pub quiet: bool,
     /// Time the query N more times after the first (a warm-up), reusing the answer buffer as a
     /// solver loop does, and report the minimum and the median.
-    #[arg(long, value_name = "N", default_value_t = 0)]
+    #[arg(
+        long,
+        value_name = "N",
+        default_value_t = 0,
+        allow_negative_numbers = true
+    )]
     pub repeat: u32,
 }
 
@@ -123,25 +129,29 @@ impl SearchArgs {
     pub fn pool(&self) -> Result<rayon::ThreadPool> {
         let mut builder = rayon::ThreadPoolBuilder::new();
         if let Some(n) = self.threads {
-            if n == 0 {
-                bail!("--threads must be at least 1");
-            }
-            let cores = std::thread::available_parallelism().map_or(1, usize::from);
-            let cap = THREADS_PER_CORE * cores;
-            let n = if n > cap {
-                if !self.quiet {
-                    eprintln!(
-                        "cgcontact: warning: --threads {n} capped at {cap} ({THREADS_PER_CORE} per available core, {cores} here)"
-                    );
-                }
-                cap
-            } else {
-                n
-            };
-            builder = builder.num_threads(n);
+            builder = builder.num_threads(capped_threads(n, self.quiet)?);
         }
         builder.build().context("cannot start the worker threads")
     }
+}
+
+/// A `--threads N` count checked (at least 1) and capped at [`THREADS_PER_CORE`] per available
+/// core, with a warning unless `quiet`.
+pub fn capped_threads(n: usize, quiet: bool) -> Result<usize> {
+    if n == 0 {
+        bail!("--threads must be at least 1");
+    }
+    let cores = std::thread::available_parallelism().map_or(1, usize::from);
+    let cap = THREADS_PER_CORE * cores;
+    if n <= cap {
+        return Ok(n);
+    }
+    if !quiet {
+        eprintln!(
+            "cgcontact: warning: --threads {n} capped at {cap} ({THREADS_PER_CORE} per available core, {cores} here)"
+        );
+    }
+    Ok(cap)
 }
 
 /// The outcome of a search: answers, timings, and what the summary prints.

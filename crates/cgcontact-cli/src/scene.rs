@@ -65,7 +65,12 @@ pub struct SceneArgs {
     #[arg(long, value_enum, default_value_t = FormatName::Vtu)]
     format: FormatName,
     /// Cells per axis of the `block` scene [default: 40,80,40].
-    #[arg(long, value_name = "NX,NY,NZ", value_delimiter = ',')]
+    #[arg(
+        long,
+        value_name = "NX,NY,NZ",
+        value_delimiter = ',',
+        allow_negative_numbers = true
+    )]
     cells: Option<Vec<u32>>,
     /// Lattice spacing: one value, or three for anisotropic cells [default: the scene's].
     // Negative numbers are taken as values, so that the check below names them.
@@ -107,13 +112,13 @@ pub struct SceneArgs {
     )]
     scale: f64,
     /// Number of points made from known (cell, ξ) [default: 10,000; 1,000,000 for `block`].
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", allow_negative_numbers = true)]
     known: Option<usize>,
     /// Seed of the jitter and the known points.
-    #[arg(long, default_value_t = 2019)]
+    #[arg(long, default_value_t = 2019, allow_negative_numbers = true)]
     seed: u64,
     /// `sphere-adaptive`: refinement levels below the base lattice [default: 2].
-    #[arg(long, value_name = "L")]
+    #[arg(long, value_name = "L", allow_negative_numbers = true)]
     levels: Option<u8>,
     /// `sphere-adaptive`: cells closer than this to the contact patch's centre are refined
     /// [default: the sphere's radius].
@@ -196,6 +201,10 @@ pub fn run(args: &SceneArgs) -> Result<()> {
     }
     if let Some(offset) = &args.offset {
         knobs.offset = vector(offset, "offset")?;
+        // NaN passes the range check below (every comparison with it is false).
+        if !knobs.offset.is_finite() {
+            bail!("--offset {} must be finite", knobs.offset);
+        }
     }
     if let Some(known) = args.known {
         if known as u64 > MAX_SCENE_SIZE {

@@ -27,7 +27,7 @@ use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
@@ -57,7 +57,7 @@ pub struct TradeoffArgs {
     #[arg(long)]
     quick: bool,
     /// Worker threads of the "all threads" column [default: all cores].
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", allow_negative_numbers = true)]
     threads: Option<usize>,
     /// A log of benches/gslib/run.sh: adds gslib findpts's points/s on the same blocks to the
     /// scale section and its plot.
@@ -67,8 +67,9 @@ pub struct TradeoffArgs {
 
 pub fn run(args: &TradeoffArgs) -> Result<()> {
     let threads = match args.threads {
-        Some(0) => bail!("--threads must be at least 1"),
-        Some(n) => n,
+        // As for the other commands: more threads than 4 per core only add switching (and
+        // `--threads 100000` tried to start them all).
+        Some(n) => crate::run::capped_threads(n, false)?,
         None => std::thread::available_parallelism().map_or(1, |n| n.get()),
     };
     let pool = |n: usize| {

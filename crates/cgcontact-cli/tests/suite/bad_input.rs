@@ -328,7 +328,11 @@ fn bad_flag_values_rejected_by_the_parser_exit_2() {
         (&["--strategy", "bogus"][..], &["--strategy", "bogus"][..]),
         (&["--precision", "f16"], &["--precision", "f16"]),
         (&["--threads", "x"], &["--threads", "x"]),
-        (&["--max-iter", "-3"], &["-3"]),
+        (&["--max-iter", "-3"], &["--max-iter", "-3"]),
+        // A negative number was "unexpected argument '-1' found", naming no flag.
+        (&["--tol", "-1"], &["--tol", "-1"]),
+        (&["--threads", "-2"], &["--threads", "-2"]),
+        (&["--repeat", "-1"], &["--repeat", "-1"]),
         (&["--tol", "abc"], &["--tol", "abc"]),
         (&["--no-such-flag"], &["--no-such-flag"]),
     ] {
@@ -452,6 +456,12 @@ fn scene_numbers_out_of_range_are_refused() {
         (&["block", "--h", "-1"], "--h [-1, -1, -1]"),
         (&["sphere-fine", "--sink", "nan"], "--sink NaN"),
         (&["sphere-fine", "--offset", "1e120"], "--offset"),
+        // NaN passed the range check and failed in the lattice, naming no flag.
+        (&["block", "--offset", "nan"], "--offset"),
+        (&["block", "--offset", "0,nan,0"], "--offset"),
+        // Negative counts were "unexpected argument", naming no flag.
+        (&["block", "--known", "-1"], "--known"),
+        (&["sphere-adaptive", "--levels", "-1"], "--levels"),
         (&["sphere-adaptive", "--cells", "10,10,10"], "--cells"),
     ] {
         let output = Command::new(env!("CARGO_BIN_EXE_cgcontact"))

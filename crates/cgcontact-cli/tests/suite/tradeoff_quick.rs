@@ -220,3 +220,20 @@ fn section<'a>(md: &'a str, heading: &str) -> impl Iterator<Item = &'a str> {
         .skip(1)
         .take_while(|l| !l.starts_with("## "))
 }
+
+/// `tradeoff --threads` started as many threads as asked (100,000 tried to start them all),
+/// where every other command caps them at 4 per available core: now capped too, with the same
+/// warning, and the report still written.
+#[test]
+fn tradeoff_threads_are_capped_as_elsewhere() {
+    let dir = tempfile::tempdir().expect("temporary folder");
+    let output = tradeoff(&["--threads", "1000"], dir.path(), None);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success(), "{stderr}");
+    assert!(stderr.contains("--threads 1000 capped at"), "{stderr}");
+    let md = std::fs::read_to_string(dir.path().join("tradeoff.md")).expect("tradeoff.md");
+    assert!(
+        !md.contains("1000 threads"),
+        "the report names the threads asked for"
+    );
+}
