@@ -102,8 +102,8 @@ class Locator:
         the point. Cells are numbered as the body's input (rows of `hexes`, cells of the file,
         or lattice cells). A NaN or infinite point raises ValueError naming its row. With
         `out=(cell, xi)` (C-contiguous, aligned, writeable int64[n] and float64[n, 3] arrays
-        sharing no memory with `points` or each other) the answers are written there and `out`
-        is returned."""
+        sharing no memory with `points` or each other, nor in use by a call in another thread)
+        the answers are written there and `out` is returned."""
     def relocate(
         self,
         points: npt.ArrayLike,

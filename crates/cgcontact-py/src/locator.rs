@@ -528,16 +528,17 @@ fn describe_out(out: &Bound<'_, PyAny>) -> String {
     }
 }
 
-/// The error for an `out` array that cannot be written: read-only, or sharing memory with the
-/// points (read in place) or with the other `out` array.
+/// The error for an `out` array that cannot be written: read-only, sharing memory with the
+/// points (read in place) or with the other `out` array, or borrowed by a call running in
+/// another thread (numpy's borrow flags cannot tell these apart).
 fn out_borrow(e: BorrowError, name: &str) -> PyErr {
     match e {
         BorrowError::NotWriteable => {
             PyValueError::new_err(format!("out: the {name} array is read-only"))
         }
         _ => PyValueError::new_err(format!(
-            "out: the {name} array shares memory with the points or with the other out array; \
-             give arrays of their own"
+            "out: the {name} array shares memory with the points or with the other out array, \
+             or another call is writing to it; give each call arrays of its own"
         )),
     }
 }

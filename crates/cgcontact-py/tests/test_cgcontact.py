@@ -994,3 +994,23 @@ def test_the_runtime_docstrings_say_what_the_constructors_take():
     assert "active" in cgcontact.Body.__doc__ and "i + nx (j + ny k)" in cgcontact.Body.__doc__
     for word in ["strategy", "precision", "tol", "max_iter", "threads"]:
         assert word in cgcontact.Locator.__doc__, word
+
+
+def test_out_arrays_in_use_by_another_call_are_named_so():
+    """The error said the array shared memory with the points or the other out array: here it
+    shares nothing, another thread's call is writing to it."""
+    body = cgcontact.Body((0, 0, 0), (1, 1, 1), (20, 20, 20))
+    points = np.random.default_rng(5).uniform(0, 20, (100_000, 3))
+    out = (np.zeros(len(points), np.int64), np.zeros((len(points), 3)))
+    slow = cgcontact.Locator(body, strategy="centroid", threads=1)  # about 1 s here
+    busy = threading.Thread(target=slow.locate, args=(points,), kwargs={"out": out})
+    busy.start()
+    time.sleep(0.3)
+    try:
+        if not busy.is_alive():
+            pytest.skip("the first call ended before the second began")
+        with pytest.raises(ValueError, match="another call is writing to it"):
+            cgcontact.Locator(body).locate(points.copy(), out=out)
+    finally:
+        busy.join()
+    np.testing.assert_array_equal(out[0], cgcontact.Locator(body).locate(points)[0])
