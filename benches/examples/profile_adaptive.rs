@@ -1,9 +1,11 @@
 //! A fixed single-threaded load on the `adaptive` bench's scene, for profilers (perf, callgrind).
 //!
-//! Run: `cargo run --release -p cgcontact-benches --example profile_adaptive [repeats] [f32] [uniform] [big] [table] [each] [points=N]`
+//! Run: `cargo run --release -p cgcontact-benches --example profile_adaptive [repeats] [f32] [uniform] [big] [table] [each] [points=N] [levels=L] [radius=R] [stats]`
 //! (`uniform`: the uniform block of about as many cells instead; `big`: the bench's 1.3 M-node
 //! block; `table`: the body stores its corner table; `each`: one `locate` call per
-//! point instead of `locate_all_into`; `points=N`: N known points instead of 1 M).
+//! point instead of `locate_all_into`; `points=N`: N known points instead of 1 M; `levels=L`
+//! and `radius=R`: refined L levels (2 by default) within R (1.5) of the top face's centre;
+//! `stats`: the body's leaves, nodes and heap bytes per node on stderr).
 
 use std::time::Instant;
 
@@ -36,7 +38,23 @@ fn main() -> Result<(), cgcontact::Error> {
     } else {
         (DVec3::splat(0.25), [20, 40, 20])
     };
-    let mut scene = adaptive_block(base, h, 2, 1.5, points, 7)?;
+    let levels: u8 = args
+        .iter()
+        .find_map(|a| a.strip_prefix("levels="))
+        .map_or(2, |n| n.parse().expect("levels=N with N a number"));
+    let radius: f64 = args
+        .iter()
+        .find_map(|a| a.strip_prefix("radius="))
+        .map_or(1.5, |r| r.parse().expect("radius=R with R a number"));
+    let mut scene = adaptive_block(base, h, levels, radius, points, 7)?;
+    if has("stats") {
+        eprintln!(
+            "{} leaves, {} nodes, {:.1} bytes per node",
+            scene.body.cell_count(),
+            scene.body.node_count(),
+            scene.body.heap_bytes() as f64 / scene.body.node_count() as f64
+        );
+    }
     scene.body.set_corner_table(has("table"));
     let run = |locator: &dyn Locator, xs: &[DVec3]| {
         let one = rayon::ThreadPoolBuilder::new()

@@ -9,22 +9,39 @@
 //! unrefined cell owning its lowest corner alone (L = 0), or a cell refined uniformly L levels
 //! ((2^L)³ nodes). Its node at local coordinates q is its first node plus q's rank on that
 //! lattice: no table. The other owners (around level changes, where hanging nodes sit on their
-//! faces) keep a 64-bit mask of the points they hold when those lie on a lattice at most 2 levels
-//! down (a node's number is then the count of the bits below its own), or else list their nodes'
-//! local coordinates, searched by bisection. Memory: 8 bytes per cell of the owner grid (dense) or
-//! per owner (sparse, plus the map), 8 per masked owner, and 4 or 8 per node of a listing owner.
+//! faces) keep a mask of the points they hold on the coarsest lattice L holding them all (a
+//! node's number is then the count of the bits below its own): one 64-bit word for L ≤ 2; for
+//! 3 ≤ L ≤ 5, 8^L / 64 words and a 16-bit count of the bits before each word, where that takes
+//! no more memory than a list. Else they list their nodes' local coordinates, searched by
+//! bisection. Memory: 8 bytes per cell of the owner grid (dense) or per owner (sparse, plus the
+//! map), 8 per masked owner of L ≤ 2 and 10 · 8^(L−2) per deeper one (no more than its list),
+//! and 4 or 8 per node of a listing owner.
 
 use crate::idmap::IdMap;
 use crate::lattice::CORNER_OFFSETS;
 
 /// Tag of an owner that lists its nodes; the other bits are the list's start in `local`.
 const LIST: u32 = 1 << 31;
-/// Tag of an owner whose nodes are some of the points of the level-L lattice in its box, L ≤ 2:
-/// one bit per point in a 64-bit mask, a node's number the count of the bits below its own. The
-/// low 5 bits are L, the next 25 the mask's index in `masks`.
+/// Tag of an owner whose nodes are some of the points of the level-L lattice in its box,
+/// L ≤ [`MAX_MASK_LEVEL`]: one bit per point ([`mask_words`] words), a node's number the count
+/// of the bits below its own. The low 5 bits are L, the next 25 the mask's first word in `masks`.
 const MASK: u32 = 1 << 30;
-/// Masks at most (25 bits of index); beyond, owners list their nodes.
+/// Mask words at most (25 bits of index); beyond, owners list their nodes.
 const MAX_MASKS: usize = 1 << 25;
+/// The deepest level of a mask: its counts of the bits before each word (below 8^5) fit 16 bits.
+const MAX_MASK_LEVEL: u32 = 5;
+
+/// The words of a level-`level` mask: its 8^level bits (at least one word), then for more than
+/// one word the 16-bit count of the bits before each word, 4 to a word.
+#[inline(always)]
+fn mask_words(level: u32) -> (usize, usize) {
+    if level <= 2 {
+        (1, 0)
+    } else {
+        let words = 1usize << (3 * level - 6);
+        (words, words / 4)
+    }
+}
 
 /// An owner cell: its first node, and its shape (the level L of a full owner, [`MASK`] with its
 /// mask's index and level, or [`LIST`] with the start of its local coordinates).
@@ -157,16 +174,28 @@ impl Nodes {
                 .min()
                 .unwrap_or(f);
             let level = f - zeros.min(f);
+            let (words, counts) = mask_words(level);
+            // A deeper mask where it takes no more memory than the list (4 or 8 bytes a node).
+            let list_bytes = run.len() * if 3 * f <= u32::BITS { 4 } else { 8 };
+            let masked =
+                level <= 2 || (level <= MAX_MASK_LEVEL && 8 * (words + counts) <= list_bytes);
             let shape = if run.len() == 1 << (3 * level) {
                 level
-            } else if level <= 2 && masks.len() < MAX_MASKS {
+            } else if masked && masks.len() + words + counts <= MAX_MASKS {
                 let s = f - level;
-                let mask = run.iter().fold(0u64, |mask, &(_, key)| {
+                let first = masks.len();
+                masks.resize(first + words + counts, 0);
+                for &(_, key) in run {
                     let q = unpack(key, f).map(|v| v >> s);
-                    mask | 1 << (q[0] | q[1] << level | q[2] << (2 * level))
-                });
-                masks.push(mask);
-                MASK | ((masks.len() as u32 - 1) << 5) | level
+                    let bit = (q[0] | q[1] << level | q[2] << (2 * level)) as usize;
+                    masks[first + bit / 64] |= 1 << (bit % 64);
+                }
+                let mut before = 0u64;
+                for w in 0..counts * 4 {
+                    masks[first + words + w / 4] |= before << (16 * (w % 4));
+                    before += u64::from(masks[first + w].count_ones());
+                }
+                MASK | ((first as u32) << 5) | level
             } else {
                 let shape = LIST | local.len() as u32;
                 local.extend(run.iter().map(|&(_, key)| key));
@@ -282,9 +311,7 @@ impl Nodes {
             };
             let bit = off[0] | (off[1] << level) | (off[2] << (2 * level));
             if owner.shape & MASK != 0 {
-                let mask = self.masks[((owner.shape & !MASK) >> 5) as usize];
-                ((mask >> bit) & 1 == 1)
-                    .then(|| owner.first + (mask & ((1 << bit) - 1)).count_ones())
+                self.mask_rank(owner.shape, bit).map(|r| owner.first + r)
             } else {
                 // A full owner is never empty (empty owners are empty lists).
                 Some(owner.first + bit)
@@ -295,6 +322,55 @@ impl Nodes {
             let key = pack(q.map(|v| v << (self.finest - l)), self.finest);
             Some(owner.first + self.local.find(list, key)? as u32)
         }
+    }
+
+    /// The rank among a masked owner's nodes (shape `shape`) of the point `bit` of its level's
+    /// lattice in its box, if the owner holds that point.
+    #[inline(always)]
+    fn mask_rank(&self, shape: u32, bit: u32) -> Option<u32> {
+        let first = ((shape & !MASK) >> 5) as usize;
+        let level = shape & 31;
+        let w = (bit / 64) as usize;
+        let word = self.masks[first + w];
+        let r = bit % 64;
+        if (word >> r) & 1 == 0 {
+            return None;
+        }
+        let below = (word & ((1 << r) - 1)).count_ones();
+        if level <= 2 {
+            return Some(below);
+        }
+        let (words, _) = mask_words(level);
+        let before = (self.masks[first + words + w / 4] >> (16 * (w % 4))) & 0xffff;
+        Some(before as u32 + below)
+    }
+
+    /// The point of its level's lattice (its bit) that a masked owner's node of rank `i` is.
+    fn mask_select(&self, shape: u32, i: u32) -> u32 {
+        let first = ((shape & !MASK) >> 5) as usize;
+        let (words, _) = mask_words(shape & 31);
+        let before = |w: usize| {
+            if words == 1 {
+                0
+            } else {
+                ((self.masks[first + words + w / 4] >> (16 * (w % 4))) & 0xffff) as u32
+            }
+        };
+        // The last word with at most i bits before it holds the i-th (word 0 has none before).
+        let (mut w, mut past) = (0, words);
+        while past - w > 1 {
+            let mid = (w + past) / 2;
+            if before(mid) <= i {
+                w = mid;
+            } else {
+                past = mid;
+            }
+        }
+        let mut word = self.masks[first + w];
+        for _ in 0..i - before(w) {
+            word &= word - 1;
+        }
+        (w * 64) as u32 + word.trailing_zeros()
     }
 
     /// The 8 corner nodes (VTK order) of the cell of level `l` at `ijk` (on that level's
@@ -369,13 +445,11 @@ impl Nodes {
                 let owner = near[e as usize];
                 // A masked owner on the cell's level (at a refinement's edge, or on the body's
                 // upper faces): the corner's rank is its bit.
-                if owner.shape & (LIST | MASK | 31) == MASK | l {
-                    let mask = self.masks[((owner.shape & !MASK) >> 5) as usize];
-                    let bit = ranks[c];
-                    if (mask >> bit) & 1 == 1 {
-                        nodes[c] = owner.first + (mask & ((1 << bit) - 1)).count_ones();
-                        continue;
-                    }
+                if owner.shape & (LIST | MASK | 31) == MASK | l
+                    && let Some(r) = self.mask_rank(owner.shape, ranks[c])
+                {
+                    nodes[c] = owner.first + r;
+                    continue;
                 }
                 // The corner's local coordinates in its owner: lo + off, less the owner's side
                 // where the step crossed into the next owner (bit a of e, set only where off[a]
@@ -432,11 +506,7 @@ impl Nodes {
             let level = owner.shape & 31;
             // The point's rank on the level's lattice: i itself, or the i-th bit of the mask.
             let i = if owner.shape & MASK != 0 {
-                let mut mask = self.masks[((owner.shape & !MASK) >> 5) as usize];
-                for _ in 0..i {
-                    mask &= mask - 1;
-                }
-                mask.trailing_zeros()
+                self.mask_select(owner.shape, i)
             } else {
                 i
             };
@@ -573,6 +643,123 @@ mod tests {
         assert_eq!(nodes.at([0, 0, 0]), Some(0));
         assert_eq!(nodes.at([3, 3, 3]), Some(63));
         assert!(!nodes.masks.is_empty() && nodes.local.is_empty());
+    }
+
+    /// Owners holding some of the points of their level-3, 4 and 5 lattices: masks where they
+    /// cost no more memory than lists (many points), lists where they would (few). Every node is
+    /// numbered as a list numbers it (owner by owner, then z, y, x), found again at its position,
+    /// and given by `corners` for every cell whose corners are nodes.
+    #[test]
+    fn deep_masks_number_as_lists_do() {
+        let cells = [2, 2, 2];
+        let finest = 5u32;
+        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            seed
+        };
+        let mut positions = Vec::new();
+        // (owner, level, points drawn): 300 of 512, 2,000 of 4,096 and 3,000 of 32,768 points
+        // (masks: 80, 640 and 5,120 bytes against lists of 1,200, 8,000 and 12,000); 10 of 512
+        // and 100 of 4,096 (lists: 40 and 400 bytes against masks of 80 and 640).
+        for (b, level, count) in [
+            ([0, 0, 0], 3, 300),
+            ([1, 0, 0], 4, 2_000),
+            ([0, 1, 0], 5, 3_000),
+            ([1, 1, 0], 3, 10),
+            ([0, 0, 1], 4, 100),
+        ] {
+            let side = 1u64 << level;
+            for _ in 0..count {
+                let r = next();
+                let q = [r % side, (r >> 20) % side, (r >> 40) % side];
+                positions.push(
+                    [0, 1, 2]
+                        .map(|a: usize| (b[a] << finest) + ((q[a] as u32) << (finest - level))),
+                );
+            }
+            // Its lowest corner, and one point a step of the level away (so that the level is
+            // the one drawn); for the masks, every point of a block of 3³ cells at their level.
+            positions.push(b.map(|v| v << finest));
+            positions.push([0, 1, 2].map(|a| (b[a] << finest) + (1 << (finest - level))));
+            for q in (0..64).filter(|_| count > 200) {
+                let q = [q % 4, (q / 4) % 4, q / 16];
+                positions.push([0, 1, 2].map(|a| (b[a] << finest) + (q[a] << (finest - level))));
+            }
+        }
+        // Every base node, so that the owner grid is dense.
+        for c in 0..27 {
+            positions.push([c % 3, (c / 3) % 3, c / 9].map(|v| v << finest));
+        }
+        let nodes = Nodes::new(cells, finest as u8, positions.clone());
+        let Owners::Dense(owners) = &nodes.owners else {
+            panic!("a dense owner grid");
+        };
+        let shapes: Vec<Option<u32>> = [[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0], [0, 0, 1]]
+            .iter()
+            .map(|b: &[usize; 3]| {
+                let shape = owners[b[0] + 3 * (b[1] + 3 * b[2])].shape;
+                assert!(shape & (MASK | LIST) != 0, "{b:?} is not full");
+                (shape & MASK != 0).then_some(shape & 31)
+            })
+            .collect();
+        assert_eq!(
+            shapes,
+            [Some(3), Some(4), Some(5), None, None],
+            "the masks' levels, None for a list"
+        );
+        // The numbering of lists: by owner cell (x fastest), then (z, y, x) inside.
+        let mut distinct = positions.clone();
+        distinct.sort_unstable_by_key(|p| {
+            let b = p.map(|v| v >> finest);
+            (b[2], b[1], b[0], p[2], p[1], p[0])
+        });
+        distinct.dedup();
+        let listed: Vec<[u32; 3]> = nodes.positions().collect();
+        assert_eq!(listed, distinct);
+        for (node, &p) in listed.iter().enumerate() {
+            assert_eq!(nodes.at(p), Some(node as u32), "{p:?}");
+            assert_eq!(nodes.position(node as u32), p);
+        }
+        // Every point of the finest lattice in the grid: a node exactly where one is.
+        let mut sorted = distinct.clone();
+        sorted.sort_unstable();
+        let side = 2 << finest;
+        for z in 0..=side {
+            for y in 0..=side {
+                for x in 0..=side {
+                    let p = [x, y, z];
+                    assert_eq!(
+                        nodes.at(p).is_some(),
+                        sorted.binary_search(&p).is_ok(),
+                        "{p:?}"
+                    );
+                }
+            }
+        }
+        // `corners` of every cell whose corners are nodes, on every level.
+        let mut checked = [0; 6];
+        for l in 0..=finest {
+            let s = finest - l;
+            for k in 0..2 << l {
+                for j in 0..2 << l {
+                    for i in 0..2 << l {
+                        let at: Vec<Option<u32>> = CORNER_OFFSETS
+                            .iter()
+                            .map(|o| nodes.at([(i + o[0]) << s, (j + o[1]) << s, (k + o[2]) << s]))
+                            .collect();
+                        if at.iter().all(Option::is_some) {
+                            let expected: Vec<u32> = at.into_iter().flatten().collect();
+                            assert_eq!(nodes.corners(l, [i, j, k]).to_vec(), expected);
+                            checked[l as usize] += 1;
+                        }
+                    }
+                }
+            }
+        }
+        assert!(checked[3..].iter().all(|&n| n >= 27), "{checked:?}");
     }
 
     #[test]
