@@ -1139,7 +1139,7 @@ impl DistributedLocator<'_> {
 
     /// The local gap finder at `distance`, or why this rank refuses the query.
     fn finder(&self, distance: f64) -> Result<Option<LocalFinder<'_>>, Error> {
-        if !(distance.is_finite() && distance >= 0.0) {
+        if !(0.0..=cgcontact::MAX_DISPLACEMENT).contains(&distance) {
             return Err(Error::GapDistance(distance));
         }
         if distance > self.body.gap_distance {
@@ -1581,7 +1581,9 @@ fn scan_cells<R: Record>(lattice: &Lattice, cells: &[R], config: &Config) -> Res
     if config.block == 0 || config.block > 1 << 20 {
         return Err(Error::BlockSize(config.block));
     }
-    if !(config.gap_distance.is_finite() && config.gap_distance >= 0.0) {
+    // The core's gap finder takes distances up to MAX_DISPLACEMENT: a body set up for more
+    // would fail only at its first gap query, after a setup whose halos spanned the lattice.
+    if !(0.0..=cgcontact::MAX_DISPLACEMENT).contains(&config.gap_distance) {
         return Err(Error::GapDistance(config.gap_distance));
     }
     config.settings.validate()?;

@@ -61,8 +61,9 @@ pub enum Error {
     /// The block size is 0 or over 2^20.
     #[error("block size {0}: it must be between 1 and 2^20 cells")]
     BlockSize(u32),
-    /// The gap search distance is negative, NaN or infinite.
-    #[error("gap distance {0}: it must be finite and at least 0")]
+    /// The gap search distance is negative, NaN, or above [`cgcontact::MAX_DISPLACEMENT`] (the
+    /// core's gap finder's limit).
+    #[error("gap distance {0}: it must be between 0 and {max:e}", max = cgcontact::MAX_DISPLACEMENT)]
     GapDistance(f64),
     /// A gap query on a body set up for a shorter gap distance.
     #[error("gap distance {asked} is beyond the {set_up} the body was set up for")]

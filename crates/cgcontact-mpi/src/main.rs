@@ -49,7 +49,11 @@ Each rank reads the whole mesh and keeps its partition's cells (slabs across the
 axis, Morton runs, or scattered; the leaves of an adaptive mesh go with the base cell they lie
 in), and keeps a contiguous run of the points' rows. Every rank must be given the same arguments
 (but --threads) and read the same files: else exit code 2, on every rank. Exit code 2 on bad
-input, on every rank.")]
+input, on every rank.
+
+Rank 0 prints the summary (or --json) through mpirun, which does not report a failure to write
+it: Open MPI's mpirun exits 0 with its standard output on a full disk. The results file is
+written by rank 0 itself, atomically, and checked: keep what you need in --out.")]
 struct LocateArgs {
     /// The mesh (.vtk or .vtu).
     #[arg(long, value_name = "FILE")]
@@ -603,6 +607,15 @@ fn check_args(args: &LocateArgs, rank: i32) -> Result<()> {
         && !(d.is_finite() && d >= 0.0)
     {
         bail!("--gap {d}: the search distance must be a finite number at least 0");
+    }
+    // The core's gap finder's limit: beyond it the gap query would fail only after the search.
+    if let Some(d) = args.gap
+        && d > cgcontact::MAX_DISPLACEMENT
+    {
+        bail!(
+            "--gap {d}: the search distance must be at most {:e}",
+            cgcontact::MAX_DISPLACEMENT
+        );
     }
     if let Some(out) = args.out.as_ref().filter(|_| rank == 0) {
         for (flag, input) in [("--mesh", &args.mesh), ("--points", &args.points)] {

@@ -790,3 +790,36 @@ fn ranks_given_different_arguments_or_files_are_refused() {
         "mesh.vtu: the ranks read different contents",
     );
 }
+
+/// `--gap` beyond the core gap finder's limit (`MAX_DISPLACEMENT`): refused with the other flags,
+/// before any file is read (here a missing mesh, whose error would otherwise come first). Before,
+/// it was taken, every rank's halo spanned the lattice, and the run failed at the gap query,
+/// after the search.
+#[test]
+fn a_gap_beyond_the_core_limit_is_refused_before_any_file_is_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let points = dir.path().join("points.csv");
+    std::fs::write(&points, "x,y,z\n0,0,0\n").unwrap();
+    let missing = dir.path().join("missing.vtu");
+    let beyond = format!("{:e}", cgcontact::MAX_DISPLACEMENT * 10.0);
+    let result = mpirun(
+        2,
+        &[
+            "locate",
+            "--mesh",
+            missing.to_str().unwrap(),
+            "--points",
+            points.to_str().unwrap(),
+            "--gap",
+            &beyond,
+        ],
+    );
+    let stderr = String::from_utf8_lossy(&result.stderr);
+    assert_eq!(result.status.code(), Some(2), "{stderr}");
+    assert_eq!(stderr.matches("cgcontact-mpi:").count(), 1, "{stderr}");
+    assert!(stderr.contains("--gap"), "{stderr}");
+    assert!(
+        !stderr.contains("missing.vtu"),
+        "the mesh was read first: {stderr}"
+    );
+}

@@ -548,6 +548,27 @@ fn refusals_agree(world: &SimpleCommunicator) {
             ),
         );
     }
+    // A gap distance beyond the core's gap finder's on the last rank: refused at setup, not at
+    // the first gap query (before, the setup took it, with halos spanning the lattice).
+    let mine: Vec<OwnedCell> = (0..24)
+        .filter(|c| c % size as u32 == rank as u32)
+        .map(good)
+        .collect();
+    let config = Config {
+        gap_distance: if rank == last { 1e300 } else { 1.0 },
+        ..Config::default()
+    };
+    match DistributedBody::new(world, lattice, &mine, config) {
+        Err(Error::GapDistance(d)) if rank == last && d == 1e300 => {}
+        Err(Error::OnAnotherRank { rank: r }) if rank != last && r == last => {}
+        other => fail(
+            world,
+            &format!(
+                "gap distance 1e300 on rank {last}: rank {rank} got {:?}",
+                other.map(|_| ())
+            ),
+        ),
+    }
     // No cell anywhere.
     match DistributedBody::new(world, lattice, &[], Config::default()) {
         Err(Error::EmptyBody) => {}
