@@ -296,7 +296,7 @@ fn locate(world: &SimpleCommunicator, args: &LocateArgs) -> Result<(), Failure> 
         ));
     }
     // Every flag and the output checked before any file is read.
-    agree(world, check_args(args, rank))?;
+    agree(world, check_args(args, rank, size))?;
     // The local search runs on rayon's global pool (a communicator cannot enter another pool's
     // threads).
     agree(
@@ -594,7 +594,7 @@ fn capped_threads(args: &LocateArgs, rank: i32) -> usize {
 /// Refuse, before any file is read, what cannot work: a block size out of range, no threads, an
 /// output that is an input, in a missing folder or in one rank 0 cannot write in. Only rank 0
 /// writes, so only rank 0 checks the output (another node need not see its folder).
-fn check_args(args: &LocateArgs, rank: i32) -> Result<()> {
+fn check_args(args: &LocateArgs, rank: i32, size: usize) -> Result<()> {
     if let Some(block) = args.block
         && (block == 0 || block > 1 << 20)
     {
@@ -616,6 +616,21 @@ fn check_args(args: &LocateArgs, rank: i32) -> Result<()> {
             "--gap {d}: the search distance must be at most {:e}",
             cgcontact::MAX_DISPLACEMENT
         );
+    }
+    // Every rank reads the inputs itself: a pipe or standard input (`--points /dev/stdin`,
+    // `<(...)`) reaches one rank, and the others would read nothing, or no such file.
+    for (flag, input) in [("--mesh", &args.mesh), ("--points", &args.points)] {
+        if size > 1
+            && let Ok(meta) = std::fs::metadata(input)
+            && !meta.is_file()
+            && !meta.is_dir()
+        {
+            bail!(
+                "{flag} {}: not a regular file; each of the {size} ranks reads it, and a pipe or \
+                 standard input reaches only one: give a file",
+                input.display()
+            );
+        }
     }
     if let Some(out) = args.out.as_ref().filter(|_| rank == 0) {
         for (flag, input) in [("--mesh", &args.mesh), ("--points", &args.points)] {

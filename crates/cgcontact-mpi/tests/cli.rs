@@ -823,3 +823,63 @@ fn a_gap_beyond_the_core_limit_is_refused_before_any_file_is_read() {
         "the mesh was read first: {stderr}"
     );
 }
+
+/// `--points /dev/stdin` (or any pipe) over several ranks: mpirun gives standard input to rank 0
+/// alone, so the other ranks read nothing. Refused with one message saying why, before any
+/// file is read; one rank reads it as `cgcontact locate` does. Before, the message was
+/// `/dev/stdin: no data rows`, from a rank that had been given none.
+#[test]
+fn points_from_a_pipe_are_refused_over_several_ranks_with_the_reason() {
+    use std::io::Write;
+    let dir = tempfile::tempdir().unwrap();
+    let body = cgcontact_scenes::hanging_node_moved(0.0).unwrap();
+    let mesh = dir.path().join("mesh.vtu");
+    cgcontact_io::write_adaptive_mesh(&mesh, &body, cgcontact_io::MeshFormat::Xml).unwrap();
+    let csv = "x,y,z\n0.5,0.5,0.5\n1.5,0.25,0.25\n";
+    let points = dir.path().join("points.csv");
+    std::fs::write(&points, csv).unwrap();
+    let with_stdin = |ranks: usize, out: &Path| {
+        let mut command = Command::new("mpirun");
+        command.arg("--oversubscribe");
+        if is_root() {
+            command.arg("--allow-run-as-root");
+        }
+        let mut child = command
+            .args(["-np", &ranks.to_string()])
+            .arg(env!("CARGO_BIN_EXE_cgcontact-mpi"))
+            .args(["locate", "--quiet", "--points", "/dev/stdin", "--mesh"])
+            .arg(&mesh)
+            .arg("--out")
+            .arg(out)
+            .stdin(std::process::Stdio::piped())
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        // mpirun may not read it all before the ranks stop: a closed pipe is no failure here.
+        let _ = child.stdin.take().unwrap().write_all(csv.as_bytes());
+        child.wait_with_output().unwrap()
+    };
+    let out = dir.path().join("results.csv");
+    let result = with_stdin(2, &out);
+    let stderr = String::from_utf8_lossy(&result.stderr);
+    assert_eq!(result.status.code(), Some(2), "{stderr}");
+    assert_eq!(stderr.matches("cgcontact-mpi:").count(), 1, "{stderr}");
+    assert!(stderr.contains("not a regular file"), "{stderr}");
+    assert!(!out.exists());
+    // One rank: the serial file.
+    let serial = dir.path().join("serial.csv");
+    run(Command::new(cgcontact())
+        .args(["locate", "--quiet", "--mesh"])
+        .arg(&mesh)
+        .arg("--points")
+        .arg(&points)
+        .arg("--out")
+        .arg(&serial));
+    let result = with_stdin(1, &out);
+    assert!(result.status.success(), "{result:?}");
+    assert_eq!(
+        std::fs::read(&out).unwrap(),
+        std::fs::read(&serial).unwrap()
+    );
+}
