@@ -482,12 +482,14 @@ fn locate(world: &SimpleCommunicator, args: &LocateArgs) -> Result<(), Failure> 
     if rank == 0 && (args.json || !args.quiet) {
         let (answers, _) = gathered.as_ref().expect("rank 0 gathers");
         let located_count = answers.iter().filter(|a| matches!(a, Ok(Some(_)))).count();
+        let invalid_count = answers.iter().filter(|a| a.is_err()).count();
         let text = summary_text(
             args,
             &Summary {
                 ranks: size,
                 points: n,
                 located: located_count,
+                invalid: invalid_count,
                 cells: cell_count,
                 block,
                 blocks: distributed.stats().blocks,
@@ -694,6 +696,9 @@ struct Summary<'a> {
     ranks: usize,
     points: usize,
     located: usize,
+    /// Points refused for NaN or infinite coordinates (neither located nor not located, as
+    /// `cgcontact locate` counts them).
+    invalid: usize,
     cells: usize,
     /// The blocks' edge, in (base) cells.
     block: u32,
@@ -704,6 +709,13 @@ struct Summary<'a> {
     gap_seconds: Option<f64>,
     total_seconds: f64,
     per_rank: &'a [f64],
+}
+
+impl Summary<'_> {
+    /// Points searched and not found.
+    fn not_located(&self) -> usize {
+        self.points - self.located - self.invalid
+    }
 }
 
 fn summary_text(args: &LocateArgs, s: &Summary<'_>) -> String {
@@ -721,13 +733,15 @@ fn summary_text(args: &LocateArgs, s: &Summary<'_>) -> String {
             })
             .collect();
         return format!(
-            "{{\"ranks\": {}, \"partition\": \"{}\", \"block\": {}, \"threads\": {}, \"points\": {}, \"located\": {}, \"cells\": {}, \"blocks\": {}, \"read_seconds\": {}, \"query_seconds\": {}, \"points_per_second\": {}, \"gap_seconds\": {}, \"total_seconds\": {}, \"per_rank\": [{}]}}\n",
+            "{{\"ranks\": {}, \"partition\": \"{}\", \"block\": {}, \"threads\": {}, \"points\": {}, \"located\": {}, \"not_located\": {}, \"invalid_points\": {}, \"cells\": {}, \"blocks\": {}, \"read_seconds\": {}, \"query_seconds\": {}, \"points_per_second\": {}, \"gap_seconds\": {}, \"total_seconds\": {}, \"per_rank\": [{}]}}\n",
             s.ranks,
             args.partition.name(),
             s.block,
             args.threads,
             s.points,
             s.located,
+            s.not_located(),
+            s.invalid,
             s.cells,
             s.blocks,
             s.read_seconds,
@@ -741,13 +755,18 @@ fn summary_text(args: &LocateArgs, s: &Summary<'_>) -> String {
     }
     let mut lines = vec![
         format!(
-            "{} ranks ({} partition), {} cells, {} points: {} located, {} not located",
+            "{} ranks ({} partition), {} cells, {} points: {} located, {} not located{}",
             s.ranks,
             args.partition.name(),
             s.cells,
             s.points,
             s.located,
-            s.points - s.located
+            s.not_located(),
+            if s.invalid > 0 {
+                format!(", {} with NaN/inf coordinates", s.invalid)
+            } else {
+                String::new()
+            }
         ),
         format!(
             "query {:.3} ms ({:.3e} points/s), slowest rank; files read in {:.3} s",

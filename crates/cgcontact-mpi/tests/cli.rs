@@ -883,3 +883,50 @@ fn points_from_a_pipe_are_refused_over_several_ranks_with_the_reason() {
         std::fs::read(&serial).unwrap()
     );
 }
+
+/// The number after `"key": ` in a JSON text.
+fn json_count(json: &str, key: &str) -> Option<u64> {
+    let at = json.find(&format!("\"{key}\": "))? + key.len() + 4;
+    json[at..]
+        .split(|c: char| !c.is_ascii_digit())
+        .next()?
+        .parse()
+        .ok()
+}
+
+/// Points with NaN or infinite coordinates are counted apart, as `cgcontact locate` counts them:
+/// `not_located` and `invalid_points` in `--json` are the serial command's. Before, they were
+/// counted as not located, and `--json` had neither field.
+#[test]
+fn points_with_nan_coordinates_are_counted_as_cgcontact_locate_counts_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let body = cgcontact_scenes::hanging_node_moved(0.0).unwrap();
+    let mesh = dir.path().join("mesh.vtu");
+    cgcontact_io::write_adaptive_mesh(&mesh, &body, cgcontact_io::MeshFormat::Xml).unwrap();
+    let points = dir.path().join("points.csv");
+    std::fs::write(
+        &points,
+        "x,y,z\n0.5,0.5,0.5\nNaN,0,0\n9,9,9\ninf,1,1\n1.5,0.25,0.25\n-9,0,0\n",
+    )
+    .unwrap();
+    let args = [
+        "locate",
+        "--json",
+        "--mesh",
+        mesh.to_str().unwrap(),
+        "--points",
+        points.to_str().unwrap(),
+    ];
+    let serial = Command::new(cgcontact()).args(args).output().unwrap();
+    let serial = String::from_utf8_lossy(&serial.stdout);
+    for ranks in [1, 3] {
+        let result = mpirun(ranks, &args);
+        assert!(result.status.success(), "{result:?}");
+        let json = String::from_utf8_lossy(&result.stdout);
+        for key in ["located", "not_located", "invalid_points"] {
+            let want = json_count(&serial, key);
+            assert!(want.is_some(), "{key} in {serial}");
+            assert_eq!(json_count(&json, key), want, "{key}, {ranks} ranks: {json}");
+        }
+    }
+}
