@@ -12,7 +12,8 @@
 //!
 //! Every step computes what [`super::AdaptiveLocator`]'s scalar search computes, with the same
 //! IEEE operations in the same order, so the answers are bitwise [`Locator::locate`]'s; a lane
-//! that leaves this path (refused, in a hole, missed in its predicted leaf) is answered by it.
+//! that leaves this path (refused, in a hole) is answered by it, and one that missed in its
+//! predicted leaf by the search's next step (`after_miss`).
 
 use glam::DVec3;
 
@@ -230,6 +231,15 @@ impl AdaptiveLocator<'_> {
             );
             found = write_hits(out, inverted, |l| CellId(leaf.id[l]));
         }
-        answer_the_rest(out, points, found, admitted, finite, |x| self.locate(x));
+        // The lanes whose inversion in their predicted leaf failed: the search goes on from there.
+        let mut missed = take & !found;
+        while missed != 0 {
+            let l = missed.trailing_zeros() as usize;
+            missed &= missed - 1;
+            out[l] = self.after_miss(points[l], t_guess.lane(l), leaf.id[l]);
+        }
+        answer_the_rest(out, points, found | take, admitted, finite, |x| {
+            self.locate(x)
+        });
     }
 }

@@ -317,6 +317,62 @@ impl<'a> AdaptiveLocator<'a> {
         )
     }
 
+    /// [`Locator::locate`] for a point whose inversion in lanes failed in its predicted leaf
+    /// `first` (the leaf at `t_guess`): the guess and the leaf, which the lanes computed bitwise
+    /// as the search does, are taken as they are, and the search goes on from there. The lanes'
+    /// inside test leaves out the rounding allowance of `admit`'s options, so the leaf is
+    /// inverted once more with them before `search_box`: the answer is `locate`'s, counts
+    /// included.
+    #[inline(never)]
+    pub(super) fn after_miss(&self, x: DVec3, t_guess: DVec3, first: u32) -> Answer {
+        let Some(length) = self.admit.admit(x)? else {
+            return Ok(None);
+        };
+        let options = self.admit.options(&self.newton, length);
+        Ok(match self.settings.precision {
+            Precision::F64 => self.after_miss_with::<Hex8Map>(x, t_guess, first, &options),
+            Precision::F32 => self.after_miss_with::<Hex8Map32>(x, t_guess, first, &options),
+        })
+    }
+
+    /// `search_with` from its first visit on.
+    #[inline(always)]
+    fn after_miss_with<K: Kernel>(
+        &self,
+        x: DVec3,
+        mut t_guess: DVec3,
+        first: u32,
+        options: &NewtonOptions,
+    ) -> Option<Hit> {
+        let body = self.body;
+        let (collect, mut inversions) = (&mut Collect::First, 0);
+        let leaf = body.leaves.at(first);
+        let u = body.leaf_displacements(first);
+        let hit = self.visit::<K>(
+            x,
+            first,
+            leaf,
+            &u,
+            t_guess,
+            options,
+            collect,
+            &mut inversions,
+        );
+        if hit.is_some() {
+            return hit;
+        }
+        let t_x = (x - body.lattice().origin()) * self.inv_h;
+        self.search_box::<K>(
+            x,
+            t_x,
+            &mut t_guess,
+            Some(first),
+            options,
+            collect,
+            &mut inversions,
+        )
+    }
+
     /// After a miss in the predicted leaf `first`: refine the guess by the fixed point
     /// X ← x − ũ(X), as the uniform locator does, then try every other leaf meeting x − the
     /// displacement range whose deformed corners' bounds hold x, nearest the guess first. Out of
