@@ -233,14 +233,35 @@ impl<'a> AdaptiveLocator<'a> {
         t_x: DVec3,
         t_at: DVec3,
     ) -> (DVec3, Option<(u32, Leaf, [DVec3; 8])>) {
+        self.guess_known::<K>(t_x, t_at, None)
+    }
+
+    /// [`Self::guess`] where the leaf `known` (id, leaf, displacements) may be the one at
+    /// `t_at`: its displacements are then reused, not computed again.
+    #[inline(always)]
+    fn guess_known<K: Kernel>(
+        &self,
+        t_x: DVec3,
+        t_at: DVec3,
+        known: Option<&(u32, Leaf, [DVec3; 8])>,
+    ) -> (DVec3, Option<(u32, Leaf, [DVec3; 8])>) {
         let Some((id, leaf)) = self.body.forest.leaf_at(t_at) else {
             return (t_x, None);
         };
-        let u = self.body.leaf_displacements(id);
-        let u_map = self.u_map::<K>(&u);
+        let u = match known {
+            Some(&(at, _, u)) if at == id => u,
+            _ => self.body.leaf_displacements(id),
+        };
+        (self.guess_in::<K>(t_x, t_at, leaf, &u), Some((id, leaf, u)))
+    }
+
+    /// The guess t_x − ũ(t_at) of [`Self::guess`], `leaf` (displacements `u`) holding `t_at`.
+    #[inline(always)]
+    fn guess_in<K: Kernel>(&self, t_x: DVec3, t_at: DVec3, leaf: Leaf, u: &[DVec3; 8]) -> DVec3 {
+        let u_map = self.u_map::<K>(u);
         let xi = Self::undeformed_xi(t_at, leaf.level, leaf.ijk).clamp(DVec3::NEG_ONE, DVec3::ONE);
         let u_at = self.frame.displacement::<K>(u_map.map_f64(xi));
-        (t_x - u_at * self.inv_h, Some((id, leaf, u)))
+        t_x - u_at * self.inv_h
     }
 
     /// Invert leaf `id` for `x` from the guess `t_guess` and collect the hit: `Some` when the
@@ -294,8 +315,8 @@ impl<'a> AdaptiveLocator<'a> {
             CandidateOrder::Predicted => self.guess::<K>(t_x, t_x),
             CandidateOrder::Undeformed => (t_x, None),
         };
-        let first = body.forest.leaf_at(t_guess);
-        if let Some((id, leaf)) = first {
+        let mut first = None;
+        if let Some((id, leaf)) = body.forest.leaf_at(t_guess) {
             // Most often the leaf holding x itself: its displacements are at hand.
             let u = match at_x {
                 Some((at, _, u)) if at == id => u,
@@ -305,16 +326,9 @@ impl<'a> AdaptiveLocator<'a> {
             if hit.is_some() {
                 return hit;
             }
+            first = Some((id, leaf, u));
         }
-        self.search_box::<K>(
-            x,
-            t_x,
-            &mut t_guess,
-            first.map(|(id, _)| id),
-            options,
-            collect,
-            inversions,
-        )
+        self.search_box::<K>(x, t_x, &mut t_guess, first, options, collect, inversions)
     }
 
     /// [`Locator::locate`] for a point whose inversion in lanes failed in its predicted leaf
@@ -366,17 +380,19 @@ impl<'a> AdaptiveLocator<'a> {
             x,
             t_x,
             &mut t_guess,
-            Some(first),
+            Some((first, leaf, u)),
             options,
             collect,
             &mut inversions,
         )
     }
 
-    /// After a miss in the predicted leaf `first`: refine the guess by the fixed point
-    /// X ← x − ũ(X), as the uniform locator does, then try every other leaf meeting x − the
-    /// displacement range whose deformed corners' bounds hold x, nearest the guess first. Out of
-    /// line: the common path stays small.
+    /// After a miss in the predicted leaf `first` (the leaf at `t_guess`, with its
+    /// displacements): refine the guess by the fixed point X ← x − ũ(X), as the uniform locator
+    /// does, then try every other leaf meeting x − the displacement range whose deformed
+    /// corners' bounds hold x, nearest the guess first. The displacements of a leaf met again
+    /// (the first step starts in `first`; the refined guess is often in the leaf of the step
+    /// before) are reused. Out of line: the common path stays small.
     #[allow(clippy::too_many_arguments)]
     #[inline(never)]
     fn search_box<K: Kernel>(
@@ -384,17 +400,22 @@ impl<'a> AdaptiveLocator<'a> {
         x: DVec3,
         t_x: DVec3,
         t_guess: &mut DVec3,
-        first: Option<u32>,
+        first: Option<(u32, Leaf, [DVec3; 8])>,
         options: &NewtonOptions,
         collect: &mut Collect<'_>,
         inversions: &mut u32,
     ) -> Option<Hit> {
         let body = self.body;
+        let mut known = None;
         if self.settings.order == CandidateOrder::Predicted {
-            for _ in 0..2 {
-                *t_guess = self.guess::<K>(t_x, *t_guess).0;
-            }
+            // The first step from the guess, in `first` (no lookup); the second where it leads.
+            (*t_guess, known) = match first {
+                Some((_, leaf, u)) => (self.guess_in::<K>(t_x, *t_guess, leaf, &u), first),
+                None => self.guess::<K>(t_x, *t_guess),
+            };
+            (*t_guess, known) = self.guess_known::<K>(t_x, *t_guess, known.as_ref());
         }
+        let first = first.map(|(id, _, _)| id);
         let t_guess = *t_guess;
         // The filters widen by the largest of the per-axis tolerances of an undeformed finest leaf.
         let tau = self.admit.tau(options);
@@ -403,7 +424,10 @@ impl<'a> AdaptiveLocator<'a> {
         let low = t_x - (range.high + w) * self.inv_h;
         let high = t_x - (range.low - w) * self.inv_h;
         let reaches = |id: u32, leaf: Leaf| {
-            let u = body.leaf_displacements(id);
+            let u = match known {
+                Some((at, _, u)) if at == id => u,
+                _ => body.leaf_displacements(id),
+            };
             reach::cell_reaches(
                 x - body.leaf_origin(leaf),
                 body.spacing(leaf.level),
