@@ -60,7 +60,7 @@ pub struct LocateArgs {
     #[arg(long)]
     all_owners: bool,
     /// Also measure each point's signed gap to the mesh's deformed boundary surface, within
-    /// distance D.
+    /// distance D (0 to 1e150).
     ///
     /// Appends the columns gap,cx,cy,cz,nx,ny,nz,face_cell,face to every results row: the signed
     /// distance (negative inside the body), the closest surface point, the unit outward normal
@@ -85,8 +85,12 @@ pub fn run(args: &LocateArgs) -> Result<()> {
         );
     }
     if let Some(d) = args.gap {
-        if !(d.is_finite() && d >= 0.0) {
-            anyhow::bail!("--gap {d}: the search distance must be a finite number at least 0");
+        // The gap finder's own range (distances beyond it would overflow when squared).
+        if !(0.0..=cgcontact::MAX_DISPLACEMENT).contains(&d) {
+            anyhow::bail!(
+                "--gap {d:?}: the search distance must be a number from 0 to {:e}",
+                cgcontact::MAX_DISPLACEMENT
+            );
         }
     }
     let pool = args.search.check()?;

@@ -309,6 +309,10 @@ fn bad_flag_values_checked_by_the_tool_are_one_line_errors() {
         (&["--tol", "nan"], "tol"),
         (&["--tol", "inf"], "tol"),
         (&["--max-iter", "0"], "max-iter"),
+        // Beyond the core's limit on distances (it was an internal error, after the search).
+        (&["--gap", "1e300"], "--gap 1e300"),
+        (&["--gap=-1"], "--gap -1"),
+        (&["--gap", "nan"], "--gap NaN"),
     ] {
         assert_one_line_error(
             &format!("{flags:?}"),
