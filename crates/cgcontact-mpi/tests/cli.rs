@@ -70,6 +70,18 @@ fn run(command: &mut Command) {
     );
 }
 
+/// The two cells of `cgcontact_scenes::hanging_node_moved(moved)` (the second refined once, its
+/// first hanging node moved by `moved`) as `mesh.vtu` in `dir`, and the points `csv` as
+/// `points.csv`.
+fn two_cells(dir: &Path, moved: f64, csv: &str) -> (PathBuf, PathBuf) {
+    let body = cgcontact_scenes::hanging_node_moved(moved).unwrap();
+    let mesh = dir.join("mesh.vtu");
+    cgcontact_io::write_adaptive_mesh(&mesh, &body, cgcontact_io::MeshFormat::Xml).unwrap();
+    let points = dir.join("points.csv");
+    std::fs::write(&points, csv).unwrap();
+    (mesh, points)
+}
+
 /// The point of a cell at ξ.
 type PointAt<'a> = dyn Fn(CellId, DVec3) -> Option<DVec3> + 'a;
 
@@ -238,11 +250,7 @@ fn results_files_are_byte_for_byte_those_of_cgcontact_locate() {
 #[test]
 fn a_broken_hanging_node_warns_once_and_strict_refuses() {
     let dir = tempfile::tempdir().unwrap();
-    let body = cgcontact_scenes::hanging_node_moved(0.01).unwrap();
-    let mesh = dir.path().join("mesh.vtu");
-    cgcontact_io::write_adaptive_mesh(&mesh, &body, cgcontact_io::MeshFormat::Xml).unwrap();
-    let points = dir.path().join("points.csv");
-    std::fs::write(&points, "x,y,z\n0.5,0.5,0.5\n1.5,0.25,0.25\n").unwrap();
+    let (mesh, points) = two_cells(dir.path(), 0.01, "x,y,z\n0.5,0.5,0.5\n1.5,0.25,0.25\n");
     let out = dir.path().join("results.csv");
     let (mesh, points, out) = (
         mesh.to_str().unwrap(),
@@ -283,11 +291,7 @@ fn a_broken_hanging_node_warns_once_and_strict_refuses() {
 #[test]
 fn absurd_thread_counts_are_capped_with_one_warning() {
     let dir = tempfile::tempdir().unwrap();
-    let body = cgcontact_scenes::hanging_node_moved(0.0).unwrap();
-    let mesh = dir.path().join("mesh.vtu");
-    cgcontact_io::write_adaptive_mesh(&mesh, &body, cgcontact_io::MeshFormat::Xml).unwrap();
-    let points = dir.path().join("points.csv");
-    std::fs::write(&points, "x,y,z\n0.5,0.5,0.5\n").unwrap();
+    let (mesh, points) = two_cells(dir.path(), 0.0, "x,y,z\n0.5,0.5,0.5\n");
     let out = dir.path().join("results.csv");
     let args = [
         "locate",
@@ -454,11 +458,7 @@ fn an_unwritable_output_folder_is_refused_before_any_file_is_read() {
 #[test]
 fn shared_flags_are_taken_as_cgcontact_locate_takes_them() {
     let dir = tempfile::tempdir().unwrap();
-    let body = cgcontact_scenes::hanging_node_moved(0.0).unwrap();
-    let mesh = dir.path().join("mesh.vtu");
-    cgcontact_io::write_adaptive_mesh(&mesh, &body, cgcontact_io::MeshFormat::Xml).unwrap();
-    let points = dir.path().join("points.csv");
-    std::fs::write(&points, "x,y,z\n0.5,0.5,0.5\n").unwrap();
+    let (mesh, points) = two_cells(dir.path(), 0.0, "x,y,z\n0.5,0.5,0.5\n");
     let base = [
         "locate",
         "--mesh",
@@ -575,11 +575,7 @@ fn a_full_or_closed_standard_output_ends_as_cgcontact_locate_ends() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
-    let body = cgcontact_scenes::hanging_node_moved(0.0).unwrap();
-    let mesh = dir.path().join("mesh.vtu");
-    cgcontact_io::write_adaptive_mesh(&mesh, &body, cgcontact_io::MeshFormat::Xml).unwrap();
-    let points = dir.path().join("points.csv");
-    std::fs::write(&points, "x,y,z\n0.5,0.5,0.5\n").unwrap();
+    let (mesh, points) = two_cells(dir.path(), 0.0, "x,y,z\n0.5,0.5,0.5\n");
     let args = [
         "locate",
         "--mesh",
@@ -637,11 +633,11 @@ fn a_full_or_closed_standard_output_ends_as_cgcontact_locate_ends() {
 #[test]
 fn json_with_quiet_still_prints_the_json() {
     let dir = tempfile::tempdir().unwrap();
-    let body = cgcontact_scenes::hanging_node_moved(0.0).unwrap();
-    let mesh = dir.path().join("mesh.vtu");
-    cgcontact_io::write_adaptive_mesh(&mesh, &body, cgcontact_io::MeshFormat::Xml).unwrap();
-    let points = dir.path().join("points.csv");
-    std::fs::write(&points, "x,y,z\n0.5,0.5,0.5\n1.5,0.25,0.25\n9,9,9\n").unwrap();
+    let (mesh, points) = two_cells(
+        dir.path(),
+        0.0,
+        "x,y,z\n0.5,0.5,0.5\n1.5,0.25,0.25\n9,9,9\n",
+    );
     let args = [
         "locate",
         "--mesh",
@@ -832,12 +828,8 @@ fn a_gap_beyond_the_core_limit_is_refused_before_any_file_is_read() {
 fn points_from_a_pipe_are_refused_over_several_ranks_with_the_reason() {
     use std::io::Write;
     let dir = tempfile::tempdir().unwrap();
-    let body = cgcontact_scenes::hanging_node_moved(0.0).unwrap();
-    let mesh = dir.path().join("mesh.vtu");
-    cgcontact_io::write_adaptive_mesh(&mesh, &body, cgcontact_io::MeshFormat::Xml).unwrap();
     let csv = "x,y,z\n0.5,0.5,0.5\n1.5,0.25,0.25\n";
-    let points = dir.path().join("points.csv");
-    std::fs::write(&points, csv).unwrap();
+    let (mesh, points) = two_cells(dir.path(), 0.0, csv);
     let with_stdin = |ranks: usize, out: &Path| {
         let mut command = Command::new("mpirun");
         command.arg("--oversubscribe");
@@ -900,15 +892,11 @@ fn json_count(json: &str, key: &str) -> Option<u64> {
 #[test]
 fn points_with_nan_coordinates_are_counted_as_cgcontact_locate_counts_them() {
     let dir = tempfile::tempdir().unwrap();
-    let body = cgcontact_scenes::hanging_node_moved(0.0).unwrap();
-    let mesh = dir.path().join("mesh.vtu");
-    cgcontact_io::write_adaptive_mesh(&mesh, &body, cgcontact_io::MeshFormat::Xml).unwrap();
-    let points = dir.path().join("points.csv");
-    std::fs::write(
-        &points,
+    let (mesh, points) = two_cells(
+        dir.path(),
+        0.0,
         "x,y,z\n0.5,0.5,0.5\nNaN,0,0\n9,9,9\ninf,1,1\n1.5,0.25,0.25\n-9,0,0\n",
-    )
-    .unwrap();
+    );
     let args = [
         "locate",
         "--json",
