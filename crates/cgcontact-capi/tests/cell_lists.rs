@@ -1,7 +1,9 @@
-//! `cgc_body_inverted_cells`: a node moved through its neighbour inverts the cells known by
-//! construction, named as `cgc_locate` names cells (lattice, reordered mesh, adaptive mesh); an
-//! undeformed or mildly deformed body has none; the two-call pattern and bad arguments answer
-//! with their error codes.
+//! The body's cell lists. `cgc_body_inverted_cells`: a node moved through its neighbour inverts
+//! the cells known by construction, named as `cgc_locate` names cells (lattice, reordered mesh,
+//! adaptive mesh); an undeformed or mildly deformed body has none; the two-call pattern and bad
+//! arguments answer with their error codes. `cgc_body_unresolved_cells`: cells far from the
+//! origin, sheared so that a rounding of y moves ξ_z by more than a tenth of the cell, are named
+//! by construction (lattice and reordered mesh); a milder shear names none.
 
 use std::ffi::CStr;
 use std::ptr;
@@ -25,19 +27,30 @@ impl Drop for Handle {
     }
 }
 
-/// The list through the two-call pattern: the count, then the cells.
-fn inverted(body: &Handle) -> Vec<i64> {
+/// One of the body's cell lists (`cgc_body_inverted_cells` or `cgc_body_unresolved_cells`).
+type CellList = unsafe extern "C" fn(*const CgcBody, *mut i64, usize, *mut usize) -> CgcError;
+
+/// A list through the two-call pattern: the count, then the cells.
+fn listed(body: &Handle, list: CellList) -> Vec<i64> {
     let mut count = usize::MAX;
     // SAFETY: a live handle; NULL cells with capacity 0; `count` is writable.
-    let code = unsafe { cgc_body_inverted_cells(body.0, ptr::null_mut(), 0, &mut count) };
+    let code = unsafe { list(body.0, ptr::null_mut(), 0, &mut count) };
     assert_eq!(code, CgcError::Ok, "{}", last_error());
     let mut cells = vec![-7i64; count];
     let mut again = usize::MAX;
     // SAFETY: `cells` holds `count` values.
-    let code = unsafe { cgc_body_inverted_cells(body.0, cells.as_mut_ptr(), count, &mut again) };
+    let code = unsafe { list(body.0, cells.as_mut_ptr(), count, &mut again) };
     assert_eq!(code, CgcError::Ok, "{}", last_error());
     assert_eq!(again, count);
     cells
+}
+
+fn inverted(body: &Handle) -> Vec<i64> {
+    listed(body, cgc_body_inverted_cells)
+}
+
+fn unresolved(body: &Handle) -> Vec<i64> {
+    listed(body, cgc_body_unresolved_cells)
 }
 
 fn set(body: &Handle, u: &[[f64; 3]]) {
@@ -276,4 +289,125 @@ fn too_small_a_buffer_and_null_pointers_are_errors_that_write_no_cell() {
         );
         assert!(last_error().contains("cells is NULL"), "{}", last_error());
     }
+}
+
+/// Three cells along x at (−1e7)³, 1.6e-5 thin along z: node (i, j, k) is i + 4 (j + 2 k), cell
+/// i is i. At 1e7 a coordinate is known to 4 ε |x| ≈ 8.9e-9, half a thousandth of the cell's
+/// thickness: unsheared, every cell resolves.
+const FAR_ORIGIN: [f64; 3] = [-1e7; 3];
+const FAR_H: [f64; 3] = [0.03125, 0.001953125, 1.5625e-5];
+const FAR_NODES: usize = 4 * 2 * 2;
+
+fn far_node(i: usize, j: usize, k: usize) -> usize {
+    i + 4 * (j + 2 * k)
+}
+
+/// u_z = s (y − y0) on the nodes with i ≤ 1, 0 on the others: cell 0 is sheared by dz/dy = s,
+/// cell 1 by s/2 at its centre, cell 2 not at all. A rounding of y moves ξ_z by
+/// 2 s · 8.9e-9 / 1.6e-5 ≈ 1.1e-3 s in cell 0 and half that in cell 1, z's own rounding adding
+/// about 1.1e-3: with s = 1000 cells 0 and 1 exceed a tenth of the cell; with s = 10 none does.
+fn sheared(s: f64) -> Vec<[f64; 3]> {
+    let mut u = vec![[0.0; 3]; FAR_NODES];
+    for k in 0..2 {
+        for j in 0..2 {
+            for i in 0..2 {
+                u[far_node(i, j, k)] = [0.0, 0.0, s * j as f64 * FAR_H[1]];
+            }
+        }
+    }
+    u
+}
+
+#[test]
+fn lattice_cells_sheared_beyond_the_coordinates_resolution_are_named() {
+    let counts = [3u32, 1, 1];
+    let mut body = ptr::null_mut();
+    // SAFETY: 3 values each; no active mask.
+    let code = unsafe {
+        cgc_body_from_lattice(
+            FAR_ORIGIN.as_ptr(),
+            FAR_H.as_ptr(),
+            counts.as_ptr(),
+            ptr::null(),
+            0,
+            &mut body,
+        )
+    };
+    assert_eq!(code, CgcError::Ok, "{}", last_error());
+    let body = Handle(body);
+    assert_eq!(unresolved(&body), Vec::<i64>::new(), "undeformed");
+    set(&body, &sheared(1e3));
+    assert_eq!(unresolved(&body), [0, 1]);
+    set(&body, &sheared(10.0));
+    assert_eq!(unresolved(&body), Vec::<i64>::new(), "a milder shear");
+
+    // The two-call pattern's errors, as for the inverted cells.
+    set(&body, &sheared(1e3));
+    let mut one = [-7i64];
+    let mut count = 0;
+    // SAFETY: `one` holds 1 value, `count` is writable.
+    let code = unsafe { cgc_body_unresolved_cells(body.0, one.as_mut_ptr(), 1, &mut count) };
+    assert_eq!(code, CgcError::LengthMismatch);
+    assert_eq!(
+        (count, one),
+        (2, [-7]),
+        "the number needed, no cell written"
+    );
+    assert!(
+        last_error().contains("2 unresolved cells, room for 1"),
+        "{}",
+        last_error()
+    );
+    // SAFETY: NULL pointers are refused before anything is read or written.
+    unsafe {
+        assert_eq!(
+            cgc_body_unresolved_cells(ptr::null(), ptr::null_mut(), 0, &mut count),
+            CgcError::NullPointer
+        );
+        assert_eq!(
+            cgc_body_unresolved_cells(body.0, ptr::null_mut(), 2, &mut count),
+            CgcError::NullPointer
+        );
+    }
+}
+
+/// The same cells given as a mesh, nodes and cells listed in reverse (1-based): the list is in
+/// the mesh's cell numbers, ascending, as `cgc_locate` answers.
+#[test]
+fn unresolved_mesh_cells_are_named_by_their_place_in_the_mesh() {
+    let nodes: Vec<f64> = (0..FAR_NODES)
+        .rev()
+        .flat_map(|n| {
+            let ijk = [n % 4, (n / 4) % 2, n / 8];
+            [0, 1, 2].map(|a| FAR_ORIGIN[a] + ijk[a] as f64 * FAR_H[a])
+        })
+        .collect();
+    let renumber = |n: usize| (FAR_NODES - n) as i64; // 1-based, reversed
+    let cells: Vec<i64> = (0..3)
+        .rev()
+        .flat_map(|i| {
+            [
+                far_node(i, 0, 0),
+                far_node(i + 1, 0, 0),
+                far_node(i + 1, 1, 0),
+                far_node(i, 1, 0),
+                far_node(i, 0, 1),
+                far_node(i + 1, 0, 1),
+                far_node(i + 1, 1, 1),
+                far_node(i, 1, 1),
+            ]
+            .map(renumber)
+        })
+        .collect();
+    let mut body = ptr::null_mut();
+    // SAFETY: 3 FAR_NODES coordinates and 8 × 3 node numbers.
+    let code =
+        unsafe { cgc_body_from_mesh(nodes.as_ptr(), FAR_NODES, cells.as_ptr(), 3, 1, &mut body) };
+    assert_eq!(code, CgcError::Ok, "{}", last_error());
+    let body = Handle(body);
+    let lattice_u = sheared(1e3);
+    let u: Vec<[f64; 3]> = (0..FAR_NODES).rev().map(|n| lattice_u[n]).collect();
+    set(&body, &u);
+    // Lattice cells 0 and 1 are the mesh's cells 2 and 1.
+    assert_eq!(unresolved(&body), [1, 2]);
 }
