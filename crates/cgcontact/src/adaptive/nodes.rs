@@ -590,6 +590,32 @@ mod tests {
         (p, cells, 2)
     }
 
+    /// Every cell of every level whose corners are all nodes: `corners` gives `at` of each.
+    /// Returns how many cells were checked on each level.
+    fn corners_are_found(nodes: &Nodes, cells: [u32; 3], finest: u8) -> Vec<usize> {
+        let finest = u32::from(finest);
+        let mut checked = vec![0; finest as usize + 1];
+        for l in 0..=finest {
+            let s = finest - l;
+            for k in 0..cells[2] << l {
+                for j in 0..cells[1] << l {
+                    for i in 0..cells[0] << l {
+                        let at: Vec<Option<u32>> = CORNER_OFFSETS
+                            .iter()
+                            .map(|o| nodes.at([(i + o[0]) << s, (j + o[1]) << s, (k + o[2]) << s]))
+                            .collect();
+                        if at.iter().all(Option::is_some) {
+                            let expected: Vec<u32> = at.into_iter().flatten().collect();
+                            assert_eq!(nodes.corners(l, [i, j, k]).to_vec(), expected);
+                            checked[l as usize] += 1;
+                        }
+                    }
+                }
+            }
+        }
+        checked
+    }
+
     #[test]
     fn every_position_is_numbered_once_and_found_again() {
         let (positions, cells, finest) = scene();
@@ -618,26 +644,7 @@ mod tests {
             }
         }
         assert_eq!(nodes.at([u32::MAX; 3]), None);
-        // Every cell of every level whose corners are nodes: `corners` gives `at` of each.
-        let mut cells_checked = 0;
-        for l in 0..=u32::from(finest) {
-            let s = u32::from(finest) - l;
-            for k in 0..cells[2] << l {
-                for j in 0..cells[1] << l {
-                    for i in 0..cells[0] << l {
-                        let at: Vec<Option<u32>> = CORNER_OFFSETS
-                            .iter()
-                            .map(|o| nodes.at([(i + o[0]) << s, (j + o[1]) << s, (k + o[2]) << s]))
-                            .collect();
-                        if at.iter().all(Option::is_some) {
-                            let expected: Vec<u32> = at.into_iter().flatten().collect();
-                            assert_eq!(nodes.corners(l, [i, j, k]).to_vec(), expected);
-                            cells_checked += 1;
-                        }
-                    }
-                }
-            }
-        }
+        let cells_checked: usize = corners_are_found(&nodes, cells, finest).iter().sum();
         assert!(cells_checked > 64 + 8 + 1, "{cells_checked}");
         // Full owners: cell (0, 0, 0) at level 2 owns its 64 nodes, first; masks exist.
         assert_eq!(nodes.at([0, 0, 0]), Some(0));
@@ -739,26 +746,7 @@ mod tests {
                 }
             }
         }
-        // `corners` of every cell whose corners are nodes, on every level.
-        let mut checked = [0; 6];
-        for l in 0..=finest {
-            let s = finest - l;
-            for k in 0..2 << l {
-                for j in 0..2 << l {
-                    for i in 0..2 << l {
-                        let at: Vec<Option<u32>> = CORNER_OFFSETS
-                            .iter()
-                            .map(|o| nodes.at([(i + o[0]) << s, (j + o[1]) << s, (k + o[2]) << s]))
-                            .collect();
-                        if at.iter().all(Option::is_some) {
-                            let expected: Vec<u32> = at.into_iter().flatten().collect();
-                            assert_eq!(nodes.corners(l, [i, j, k]).to_vec(), expected);
-                            checked[l as usize] += 1;
-                        }
-                    }
-                }
-            }
-        }
+        let checked = corners_are_found(&nodes, cells, finest as u8);
         assert!(checked[3..].iter().all(|&n| n >= 27), "{checked:?}");
     }
 
