@@ -82,6 +82,15 @@ fn two_cells(dir: &Path, moved: f64, csv: &str) -> (PathBuf, PathBuf) {
     (mesh, points)
 }
 
+/// A refusal: exit code 2 and one message, holding `cause`; returns the message.
+fn refused_with(result: &Output, cause: &str) -> String {
+    let stderr = String::from_utf8_lossy(&result.stderr).into_owned();
+    assert_eq!(result.status.code(), Some(2), "hung or went on: {stderr}");
+    assert_eq!(stderr.matches("cgcontact-mpi:").count(), 1, "{stderr}");
+    assert!(stderr.contains(cause), "{cause} not in {stderr}");
+    stderr
+}
+
 /// The point of a cell at ξ.
 type PointAt<'a> = dyn Fn(CellId, DVec3) -> Option<DVec3> + 'a;
 
@@ -440,11 +449,7 @@ fn an_unwritable_output_folder_is_refused_before_any_file_is_read() {
         "{serial_stderr}"
     );
     for ranks in [1, 3] {
-        let result = mpirun(ranks, &args);
-        let stderr = String::from_utf8_lossy(&result.stderr);
-        assert_eq!(result.status.code(), Some(2), "{stderr}");
-        assert_eq!(stderr.matches("cgcontact-mpi:").count(), 1, "{stderr}");
-        assert!(stderr.contains("cannot write in /proc"), "{stderr}");
+        let stderr = refused_with(&mpirun(ranks, &args), "cannot write in /proc");
         assert!(
             !stderr.contains("missing.vtu"),
             "the mesh was read first: {stderr}"
@@ -753,10 +758,7 @@ fn ranks_given_different_arguments_or_files_are_refused() {
     );
     std::fs::remove_file(&out).unwrap();
     let refused = |result: Output, cause: &str| {
-        let stderr = String::from_utf8_lossy(&result.stderr);
-        assert_eq!(result.status.code(), Some(2), "hung or went on: {stderr}");
-        assert_eq!(stderr.matches("cgcontact-mpi:").count(), 1, "{stderr}");
-        assert!(stderr.contains(cause), "{cause} not in {stderr}");
+        let stderr = refused_with(&result, cause);
         assert!(!out.exists(), "{stderr}");
     };
     refused(
@@ -810,10 +812,7 @@ fn a_gap_beyond_the_core_limit_is_refused_before_any_file_is_read() {
             &beyond,
         ],
     );
-    let stderr = String::from_utf8_lossy(&result.stderr);
-    assert_eq!(result.status.code(), Some(2), "{stderr}");
-    assert_eq!(stderr.matches("cgcontact-mpi:").count(), 1, "{stderr}");
-    assert!(stderr.contains("--gap"), "{stderr}");
+    let stderr = refused_with(&result, "--gap");
     assert!(
         !stderr.contains("missing.vtu"),
         "the mesh was read first: {stderr}"
@@ -854,10 +853,7 @@ fn points_from_a_pipe_are_refused_over_several_ranks_with_the_reason() {
     };
     let out = dir.path().join("results.csv");
     let result = with_stdin(2, &out);
-    let stderr = String::from_utf8_lossy(&result.stderr);
-    assert_eq!(result.status.code(), Some(2), "{stderr}");
-    assert_eq!(stderr.matches("cgcontact-mpi:").count(), 1, "{stderr}");
-    assert!(stderr.contains("not a regular file"), "{stderr}");
+    refused_with(&result, "not a regular file");
     assert!(!out.exists());
     // One rank: the serial file.
     let serial = dir.path().join("serial.csv");
