@@ -9,15 +9,7 @@ use cgcontact::glam::DVec3;
 use cgcontact_io::{DisplacementArray, HexMesh, MeshFormat, parse_hex_mesh, write_mesh};
 
 fn mesh() -> HexMesh {
-    let body = common::body_with_holes(DVec3::new(1.0, -2.0, 0.5), DVec3::splat(0.5), [3, 2, 2], 7);
-    let mut mesh = HexMesh::from_body(&body);
-    mesh.displacement = Some(
-        mesh.points
-            .iter()
-            .map(|p| DVec3::new(0.01 * p.y, -0.02 * p.x, 0.005))
-            .collect(),
-    );
-    mesh
+    common::displaced_mesh(7)
 }
 
 /// `bytes` with `block` inserted after the `DATASET UNSTRUCTURED_GRID` line.

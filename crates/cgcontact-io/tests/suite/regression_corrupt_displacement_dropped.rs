@@ -7,16 +7,7 @@ use cgcontact::glam::DVec3;
 use cgcontact_io::{DisplacementArray, HexMesh, MeshFormat, parse_hex_mesh, write_mesh};
 
 fn mesh() -> HexMesh {
-    let body = common::body_with_holes(DVec3::new(1.0, -2.0, 0.5), DVec3::splat(0.5), [3, 2, 2], 5);
-    let mut mesh = HexMesh::from_body(&body);
-    // Displacements that are not all zero, so that dropping them would change every answer.
-    mesh.displacement = Some(
-        mesh.points
-            .iter()
-            .map(|p| DVec3::new(0.01 * p.y, -0.02 * p.x, 0.005))
-            .collect(),
-    );
-    mesh
+    common::displaced_mesh(5)
 }
 
 /// Both ways of asking for the array refuse the file, naming the array.

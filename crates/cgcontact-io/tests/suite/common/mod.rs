@@ -10,6 +10,25 @@ use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
+/// [`body_with_holes`] at (1, −2, 0.5), spacing 0.5, 3 × 2 × 2 cells, as a mesh carrying
+/// displacements that are not all zero (dropping them would change every answer).
+pub fn displaced_mesh(seed: u64) -> cgcontact_io::HexMesh {
+    let body = body_with_holes(
+        DVec3::new(1.0, -2.0, 0.5),
+        DVec3::splat(0.5),
+        [3, 2, 2],
+        seed,
+    );
+    let mut mesh = cgcontact_io::HexMesh::from_body(&body);
+    mesh.displacement = Some(
+        mesh.points
+            .iter()
+            .map(|p| DVec3::new(0.01 * p.y, -0.02 * p.x, 0.005))
+            .collect(),
+    );
+    mesh
+}
+
 /// A lattice body with about a fifth of its cells missing (the two extreme corner cells kept, so the
 /// detected lattice is the same) and a smooth displacement of about a tenth of a cell.
 pub fn body_with_holes(origin: DVec3, h: DVec3, n: [u32; 3], seed: u64) -> Body {
