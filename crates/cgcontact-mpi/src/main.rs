@@ -605,17 +605,13 @@ fn check_args(args: &LocateArgs, rank: i32, size: usize) -> Result<()> {
     if args.threads == 0 {
         bail!("--threads 0: at least one thread searches");
     }
+    // The core's gap finder's range (beyond it the gap query would fail only after the search),
+    // in `cgcontact locate`'s words.
     if let Some(d) = args.gap
-        && !(d.is_finite() && d >= 0.0)
-    {
-        bail!("--gap {d}: the search distance must be a finite number at least 0");
-    }
-    // The core's gap finder's limit: beyond it the gap query would fail only after the search.
-    if let Some(d) = args.gap
-        && d > cgcontact::MAX_DISPLACEMENT
+        && !(0.0..=cgcontact::MAX_DISPLACEMENT).contains(&d)
     {
         bail!(
-            "--gap {d}: the search distance must be at most {:e}",
+            "--gap {d:?}: the search distance must be a number from 0 to {:e}",
             cgcontact::MAX_DISPLACEMENT
         );
     }
