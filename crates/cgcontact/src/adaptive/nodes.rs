@@ -495,28 +495,39 @@ impl Nodes {
     }
 
     fn local_position(&self, cell: u32, owner: Owner, node: u32) -> [u32; 3] {
-        let f = self.finest;
-        let b = [
+        let i = node - owner.first;
+        if owner.shape & LIST != 0 {
+            let f = self.finest;
+            let q = unpack(self.local.get(((owner.shape & !LIST) + i) as usize), f);
+            let b = self.owner_cell(cell);
+            return [0, 1, 2].map(|a| (b[a] << f) + q[a]);
+        }
+        // The point's rank on the level's lattice: i itself, or the i-th bit of the mask.
+        let i = if owner.shape & MASK != 0 {
+            self.mask_select(owner.shape, i)
+        } else {
+            i
+        };
+        self.point_position(cell, owner.shape & 31, i)
+    }
+
+    /// The owner grid's indices of owner cell `cell`.
+    fn owner_cell(&self, cell: u32) -> [u32; 3] {
+        [
             cell % self.grid[0],
             (cell / self.grid[0]) % self.grid[1],
             cell / (self.grid[0] * self.grid[1]),
-        ];
-        let i = node - owner.first;
-        let q = if owner.shape & LIST == 0 {
-            let level = owner.shape & 31;
-            // The point's rank on the level's lattice: i itself, or the i-th bit of the mask.
-            let i = if owner.shape & MASK != 0 {
-                self.mask_select(owner.shape, i)
-            } else {
-                i
-            };
-            let m = (1 << level) - 1;
-            let off = [i & m, (i >> level) & m, i >> (2 * level)];
-            off.map(|v| v << (f - level))
-        } else {
-            unpack(self.local.get(((owner.shape & !LIST) + i) as usize), f)
-        };
-        [0, 1, 2].map(|a| (b[a] << f) + q[a])
+        ]
+    }
+
+    /// The finest-level coordinates of the point of rank `i` on level `level`'s lattice in owner
+    /// cell `cell`'s box.
+    fn point_position(&self, cell: u32, level: u32, i: u32) -> [u32; 3] {
+        let f = self.finest;
+        let b = self.owner_cell(cell);
+        let m = (1 << level) - 1;
+        let off = [i & m, (i >> level) & m, i >> (2 * level)];
+        [0, 1, 2].map(|a| (b[a] << f) + (off[a] << (f - level)))
     }
 
     /// Every node's finest-level coordinates, in node order.
@@ -536,7 +547,22 @@ impl Nodes {
             ),
         };
         owners.flat_map(move |(cell, owner, next)| {
-            (owner.first..next).map(move |node| self.local_position(cell, owner, node))
+            // A masked owner's points in bit order, word by word, rather than a select per node.
+            let masked = owner.shape & (LIST | MASK) == MASK;
+            let first = ((owner.shape & !MASK) >> 5) as usize;
+            let (mut w, mut word) = (0, if masked { self.masks[first] } else { 0 });
+            (owner.first..next).map(move |node| {
+                if !masked {
+                    return self.local_position(cell, owner, node);
+                }
+                while word == 0 {
+                    w += 1;
+                    word = self.masks[first + w];
+                }
+                let bit = (w * 64) as u32 + word.trailing_zeros();
+                word &= word - 1;
+                self.point_position(cell, owner.shape & 31, bit)
+            })
         })
     }
 
