@@ -196,16 +196,7 @@ fn an_adaptive_leaf_is_named_by_its_place_in_the_mesh() {
         });
         n as i64
     }
-    let offsets = [
-        [0, 0, 0],
-        [1, 0, 0],
-        [1, 1, 0],
-        [0, 1, 0],
-        [0, 0, 1],
-        [1, 0, 1],
-        [1, 1, 1],
-        [0, 1, 1],
-    ];
+    let offsets = cgcontact::CORNER_OFFSETS.map(|o| o.map(i64::from));
     let mut cells = Vec::new();
     // Leaves in the order x, y, z fastest; then the coarse cell.
     let mut boxes: Vec<([i64; 3], i64)> = Vec::new();

@@ -91,6 +91,15 @@ fn refused_with(result: &Output, cause: &str) -> String {
     stderr
 }
 
+/// [`refused_with`], before the mesh (a `missing.vtu`) was read.
+fn refused_before_reading(result: &Output, cause: &str) {
+    let stderr = refused_with(result, cause);
+    assert!(
+        !stderr.contains("missing.vtu"),
+        "the mesh was read first: {stderr}"
+    );
+}
+
 /// The point of a cell at ξ.
 type PointAt<'a> = dyn Fn(CellId, DVec3) -> Option<DVec3> + 'a;
 
@@ -449,11 +458,7 @@ fn an_unwritable_output_folder_is_refused_before_any_file_is_read() {
         "{serial_stderr}"
     );
     for ranks in [1, 3] {
-        let stderr = refused_with(&mpirun(ranks, &args), "cannot write in /proc");
-        assert!(
-            !stderr.contains("missing.vtu"),
-            "the mesh was read first: {stderr}"
-        );
+        refused_before_reading(&mpirun(ranks, &args), "cannot write in /proc");
     }
 }
 
@@ -812,11 +817,7 @@ fn a_gap_beyond_the_core_limit_is_refused_before_any_file_is_read() {
             &beyond,
         ],
     );
-    let stderr = refused_with(&result, "--gap");
-    assert!(
-        !stderr.contains("missing.vtu"),
-        "the mesh was read first: {stderr}"
-    );
+    refused_before_reading(&result, "--gap");
 }
 
 /// `--points /dev/stdin` (or any pipe) over several ranks: mpirun gives standard input to rank 0
