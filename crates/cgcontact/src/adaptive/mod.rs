@@ -443,12 +443,15 @@ impl AdaptiveBody {
     }
 
     /// How far the hanging nodes are from their constraints: the count farther than `tol`
-    /// (largest component, length units), and the worst node.
+    /// (largest component, length units), and the worst node. A NaN tolerance holds no node
+    /// within it: every hanging node is counted.
     #[must_use]
     pub fn check_constraints(&self, tol: f64) -> ConstraintReport {
         self.constraint_report(|off| {
             let by = off.max_element();
-            (by > tol, (by, by), by)
+            // Written so that a NaN tolerance counts the node (`by > tol` passed every node).
+            let within = by <= tol;
+            (!within, (by, by), by)
         })
     }
 
@@ -457,7 +460,8 @@ impl AdaptiveBody {
     /// node is the one farthest beyond, in shares of the tolerance (its `by`: that component's
     /// offset, length units). On a lattice of spacings 1 : 1e-3, an offset of 1e-12 along x is
     /// 1e-12 of a cell, along y 1e-9 of one: one tolerance for every axis is either loose on
-    /// the short axis or strict on the long ones.
+    /// the short axis or strict on the long ones. A NaN component holds no offset along its
+    /// axis within it.
     #[must_use]
     pub fn check_constraints_per_axis(&self, tol: DVec3) -> ConstraintReport {
         self.constraint_report(|off| {
@@ -468,7 +472,8 @@ impl AdaptiveBody {
             });
             let axis = (0..3).fold(0, |m, a| if share[a] > share[m] { a } else { m });
             // Ties (a zero tolerance: every offset infinitely beyond) go to the larger offset.
-            (off.cmpgt(tol).any(), (share[axis], off[axis]), off[axis])
+            // `!cmple(..).all()`, not `cmpgt(..).any()`: a NaN tolerance counts the node.
+            (!off.cmple(tol).all(), (share[axis], off[axis]), off[axis])
         })
     }
 

@@ -479,6 +479,43 @@ fn constraints_checked_per_axis_on_an_anisotropic_lattice() {
     }
 }
 
+/// A NaN tolerance failed every comparison `offset > tol`: a body whose hanging nodes were all
+/// far off their constraints was reported to hold them. It now holds none within it; each
+/// node's offset is checked against its constraint's weights from the public API.
+#[test]
+fn a_nan_constraint_tolerance_holds_no_hanging_node() {
+    let lattice = Lattice::new(DVec3::ZERO, DVec3::ONE, [2, 1, 1]).unwrap();
+    let mut leaves = vec![Leaf::new(0, [0, 0, 0])];
+    leaves.extend(Leaf::new(0, [1, 0, 0]).children());
+    let mut body = AdaptiveBody::from_leaves(lattice, leaves).unwrap();
+    deform(&mut body, 0.02, 0.01, 11);
+    let mut u = body.displacements().to_vec();
+    let hanging: Vec<usize> = body.hanging_nodes().collect();
+    for (k, &node) in hanging.iter().enumerate() {
+        u[node] += DVec3::new(0.1, -0.05, 0.02) * (k + 1) as f64;
+    }
+    body.set_displacements(&u).unwrap();
+    let offset = |node: usize| {
+        let bound = body
+            .constraint(node)
+            .unwrap()
+            .iter()
+            .fold(DVec3::ZERO, |s, &(p, w)| s + w * u[p]);
+        (u[node] - bound).abs()
+    };
+    // Every hanging node is off by at least 0.02 on some axis.
+    assert!(hanging.iter().all(|&n| offset(n).max_element() > 0.01));
+    assert_eq!(body.check_constraints(0.01).violating, hanging.len());
+    for report in [
+        body.check_constraints(f64::NAN),
+        body.check_constraints_per_axis(DVec3::splat(f64::NAN)),
+        body.check_constraints_per_axis(DVec3::new(1.0, 1.0, f64::NAN)),
+    ] {
+        assert!(!report.holds(), "{report:?}");
+        assert_eq!(report.violating, hanging.len(), "{report:?}");
+    }
+}
+
 #[test]
 fn a_level_jump_of_two_constrains_to_the_coarsest_leaf() {
     // Base cell 1 split twice in its corner against base cell 0: nodes of the level-2 leaves on the
