@@ -348,10 +348,12 @@ fn last_node_min_distance(positions: &[DVec3]) -> f64 {
 
 /// The minimum distance over all pairs of `positions` (exact; 0 for fewer than two).
 ///
-/// Buckets of side `d0`, any pair's distance (the first two points'), shrunk to the smallest distance
-/// seen between consecutive points (in lattice order these are mostly lattice neighbours, so `d0` is of
-/// the order of the answer and buckets hold few points). Every pair closer than `d0` lies in
-/// neighbouring buckets, so scanning the 27 neighbours of each bucket finds the minimum.
+/// Buckets of side 1.5 `d0`, `d0` the smallest distance between consecutive points (in lattice
+/// order these are mostly lattice neighbours, so `d0` is of the order of the answer and buckets
+/// hold few points). Every pair closer than `d0` lies in neighbouring buckets, so scanning the 27
+/// neighbours of each bucket finds the minimum. The side is at least 2^-40 of the points' extent:
+/// bucket keys stay far below 2^53, where f64 counts every bucket, and i64's range (two nodes
+/// 1e-7 apart beside one moved 1e13 away made keys of 1e20, which saturated, and overflowed).
 fn global_min_distance(positions: &[DVec3]) -> f64 {
     if positions.len() < 2 {
         return 0.0;
@@ -364,7 +366,15 @@ fn global_min_distance(positions: &[DVec3]) -> f64 {
     if d0.is_nan() || d0 <= 0.0 {
         return d0.max(0.0);
     }
-    let key = |p: DVec3| (p / d0).floor().as_i64vec3().to_array();
+    let (low, high) = positions
+        .iter()
+        .fold((positions[0], positions[0]), |(l, h), &p| {
+            (l.min(p), h.max(p))
+        });
+    // A pair closer than d0 is at most 2/3 of a bucket apart per axis: the roundings of the keys
+    // (2^-52 of at most 2^40 buckets) cannot put it two buckets apart.
+    let side = 1.5 * d0.max((high - low).max_element() * 2f64.powi(-40));
+    let key = |p: DVec3| ((p - low) / side).floor().as_i64vec3().to_array();
     let mut buckets: HashMap<[i64; 3], Vec<u32>> = HashMap::with_capacity(positions.len());
     for (i, &p) in positions.iter().enumerate() {
         buckets.entry(key(p)).or_default().push(i as u32);
@@ -421,6 +431,32 @@ mod tests {
         positions[17] = positions[311] + DVec3::new(1e-3, -2e-3, 5e-4);
         assert_eq!(global_min_distance(&positions), all_pairs(&positions));
         assert_eq!(global_min_distance(&positions[..1]), 0.0);
+    }
+
+    /// Two nodes 1e-7 apart and one moved 1e13 away (both within the body's limits): the
+    /// bucket key of the far node, 1e20 buckets out, saturated at i64::MAX and its neighbour
+    /// `key + 1` overflowed (a panic where overflow is checked, a wrong bucket elsewhere).
+    #[test]
+    fn far_nodes_beside_a_close_pair_keep_the_exact_minimum() {
+        use cgcontact::{Body, Lattice};
+        let lattice = Lattice::new(DVec3::ZERO, DVec3::ONE, [2, 1, 1]).unwrap();
+        let mut body = Body::full(lattice);
+        body.update_displacements(|node, _, u| match node {
+            1 => *u = DVec3::new(-1.0 + 1e-7, 0.0, 0.0),
+            5 => *u = DVec3::splat(1e13),
+            11 => *u = DVec3::new(-1e13, 0.0, 0.0),
+            _ => {}
+        })
+        .unwrap();
+        let filter = NodeRadius::new(&body, Settings::default()).unwrap();
+        assert_eq!(filter.radius(), all_pairs(&filter.positions));
+        assert!(filter.radius() > 0.0 && filter.radius() < 2e-7);
+        // Every node far out on both sides, a pair among them close.
+        let mut far: Vec<DVec3> = (0..50)
+            .map(|i| DVec3::new(1e14 * f64::from(i) - 2.5e15, 3e13, -7e13))
+            .collect();
+        far[31] = far[7] + DVec3::new(0.0, 1e-3, 0.0);
+        assert_eq!(global_min_distance(&far), all_pairs(&far));
     }
 
     #[test]
