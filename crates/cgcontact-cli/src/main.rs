@@ -41,6 +41,9 @@ enum Command {
     Tradeoff(tradeoff::TradeoffArgs),
 }
 
+/// The exit code of a run ended by Ctrl-C or SIGTERM: 128 + SIGINT's number, as shells report.
+const INTERRUPTED: i32 = 130;
+
 fn main() -> ExitCode {
     let cli = match Cli::try_parse() {
         Ok(cli) => cli,
@@ -49,6 +52,13 @@ fn main() -> ExitCode {
     // Panics print nothing by themselves: the I/O crate catches the VTK parser's panics on malformed
     // files and turns them into errors, and a bug of ours must still end in one line, not a trace.
     std::panic::set_hook(Box::new(|_| {}));
+    // Ctrl-C or SIGTERM: no hidden temporary file is left beside an output; every output is as it
+    // was or complete. Without the handler (it could not be set), the signal's default applies.
+    let _ = ctrlc::set_handler(|| {
+        cgcontact_io::abandon_writes();
+        eprintln!("cgcontact: interrupted; outputs not yet complete were left as they were");
+        std::process::exit(INTERRUPTED);
+    });
     let result = std::panic::catch_unwind(|| match cli.command {
         Command::Demo(args) => demo::run(&args),
         Command::Locate(args) => locate::run(&args),

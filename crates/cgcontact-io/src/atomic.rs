@@ -4,11 +4,57 @@
 //! in the target's folder, which is flushed, synced and then renamed over the target. A failure
 //! (a full disk, an error of the writer) removes the temporary file and leaves the target as it
 //! was; a process killed mid-write leaves at most a hidden `.NAME.XXXXXX.partial` file beside an
-//! intact target.
+//! intact target. A program that catches its interruption (Ctrl-C, `kill`) calls
+//! [`abandon_writes`] before it exits, and leaves not even that.
 
 use std::fs::OpenOptions;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
+use std::sync::{Mutex, MutexGuard};
+
+/// The temporary files being written now, by every thread. Held while a temporary file is renamed
+/// over its target, so that [`abandon_writes`] sees each write either whole or not begun.
+static IN_PROGRESS: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+fn in_progress() -> MutexGuard<'static, Vec<PathBuf>> {
+    // A writer that panicked left the list as valid as ever.
+    IN_PROGRESS.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// Remove the temporary file of every write in progress, and keep every write, in progress or
+/// later, from reaching its target: for a program about to exit on an interruption (a signal
+/// handler's thread). Each target is left as it was before its write, or complete. Returns how
+/// many temporary files were removed.
+///
+/// Writes that call [`write_file`] afterwards wait forever before their rename: call this only
+/// when the process exits next.
+pub fn abandon_writes() -> usize {
+    let guard = in_progress();
+    let removed = guard
+        .iter()
+        .filter(|path| std::fs::remove_file(path).is_ok())
+        .count();
+    // The list stays locked until the process exits: no write begun before or after is renamed
+    // over its target.
+    std::mem::forget(guard);
+    removed
+}
+
+/// A temporary file on the [`IN_PROGRESS`] list while it lives. Dropped, it removes the file (if
+/// it was not renamed) before it leaves the list, so that the file is never off the list and still
+/// there.
+struct Registered(PathBuf);
+
+impl Drop for Registered {
+    fn drop(&mut self) {
+        let mut list = in_progress();
+        // Gone already when renamed over its target.
+        let _ = std::fs::remove_file(&self.0);
+        if let Some(at) = list.iter().position(|p| *p == self.0) {
+            list.swap_remove(at);
+        }
+    }
+}
 
 use crate::{ErrorKind, IoError};
 
@@ -52,7 +98,15 @@ pub fn write_file(
     // As `File::create` makes it (0666 less the umask), not the temporary file's usual 0600.
     #[cfg(unix)]
     builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666));
-    let mut temp = builder.tempfile_in(&folder).map_err(io)?;
+    // Made under the list's lock, and on the list until it is renamed or removed: after
+    // `abandon_writes`, no temporary file is made.
+    let (mut temp, _registered) = {
+        let mut list = in_progress();
+        let temp = builder.tempfile_in(&folder).map_err(io)?;
+        let path = temp.path().to_path_buf();
+        list.push(path.clone());
+        (temp, Registered(path))
+    };
     {
         let mut out = Recorder::new(BufWriter::new(temp.as_file_mut()));
         finish(write(&mut out), out).map_err(in_file)?;
@@ -64,7 +118,11 @@ pub fn write_file(
             .set_permissions(meta.permissions())
             .map_err(io)?;
     }
-    temp.persist(&target).map_err(|e| io(e.error))?;
+    // Renamed only while no `abandon_writes` runs (it never releases the list).
+    let list = in_progress();
+    let persisted = temp.persist(&target);
+    drop(list);
+    persisted.map_err(|e| io(e.error))?;
     Ok(())
 }
 

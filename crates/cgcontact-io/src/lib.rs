@@ -58,7 +58,7 @@ mod vtk_read;
 mod vtk_write;
 
 pub use adaptive_mesh::{AdaptiveMesh, MeshBody};
-pub use atomic::write_file;
+pub use atomic::{abandon_writes, write_file};
 pub use csv_io::{
     GAP_HEADER, RESULTS_HEADER, ResultRow, parse_points, parse_results, read_points, read_results,
     write_owner_rows, write_points, write_results, write_results_counted, write_results_to,

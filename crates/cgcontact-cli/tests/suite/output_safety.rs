@@ -423,3 +423,52 @@ fn every_file_of_scene_demo_and_tradeoff_is_checked_before_the_work() {
         assert!(!out.join(written).exists(), "{command:?} wrote {written}");
     }
 }
+
+/// Ctrl-C or SIGTERM in the middle of a run: exit code 130, one line saying so, the output as it
+/// was and no temporary file beside it. The run waits on its points, a named pipe no one writes.
+#[cfg(target_os = "linux")]
+#[test]
+fn an_interrupted_run_exits_130_and_leaves_its_output_as_it_was() {
+    let (dir, mesh, _) = scene();
+    let pipe = dir.path().join("points.pipe");
+    let made = Command::new("mkfifo").arg(&pipe).status().unwrap();
+    assert!(made.success());
+    let out = dir.path().join("results.csv");
+    for signal in ["-INT", "-TERM"] {
+        std::fs::write(&out, "old\n").unwrap();
+        let run = Command::new(env!("CARGO_BIN_EXE_cgcontact"))
+            .args(["locate", "--mesh", s(&mesh), "--points", s(&pipe)])
+            .args(["--out", s(&out)])
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        // Time to set the handler and read the mesh; the run then waits for a writer.
+        std::thread::sleep(std::time::Duration::from_millis(1000));
+        let sent = Command::new("kill")
+            .args([signal, &run.id().to_string()])
+            .status()
+            .unwrap();
+        assert!(sent.success());
+        let output = run.wait_with_output().unwrap();
+        let message = stderr(&output);
+        assert_eq!(output.status.code(), Some(130), "{signal}: {message}");
+        assert_eq!(message.lines().count(), 1, "{message}");
+        assert!(message.contains("interrupted"), "{message}");
+        assert_eq!(std::fs::read_to_string(&out).unwrap(), "old\n");
+        let mut names: Vec<_> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        assert_eq!(
+            names,
+            [
+                "known.csv",
+                "mesh.vtu",
+                "points.csv",
+                "points.pipe",
+                "results.csv"
+            ]
+        );
+    }
+}
