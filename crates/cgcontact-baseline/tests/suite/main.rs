@@ -5,4 +5,5 @@ mod adaptive;
 mod agree_with_lattice;
 mod common;
 mod extremes_oracle;
+mod hostile_inputs;
 mod seed_filters_failure_counts;
