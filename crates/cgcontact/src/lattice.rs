@@ -91,9 +91,13 @@ impl Lattice {
     /// (8 ε₆₄ M / h_k, the inside test's allowance), exceeds [`Lattice::RESOLUTION`] on some axis.
     /// Past that, the nodes themselves are off by a visible share of a cell, and a point could
     /// be called inside cells it is far outside of (at 1e12 with h = 1e-4, by 0.6 h).
-    /// Also refuses a spacing outside [[`Lattice::MIN_SPACING`], [`Lattice::MAX_SPACING`]].
+    /// Also refuses a spacing outside [[`Lattice::MIN_SPACING`], [`Lattice::MAX_SPACING`]], and
+    /// a NaN one.
     pub fn check_resolution(&self, h: DVec3) -> Result<(), Error> {
-        if h.min_element() < Self::MIN_SPACING || h.max_element() > Self::MAX_SPACING {
+        // Per axis: `min_element` and `max_element` skip a NaN component, which then passed.
+        let in_range = h.cmpge(DVec3::splat(Self::MIN_SPACING)).all()
+            && h.cmple(DVec3::splat(Self::MAX_SPACING)).all();
+        if !in_range {
             return Err(Error::InvalidLattice(format!(
                 "spacing {:?} lies outside [{:e}, {:e}]: a cell's volume, the Newton \
                  inversion's determinant, would under- or overflow f64",
@@ -411,6 +415,24 @@ mod tests {
         let inside = DVec3::new(1.9, 0.5, 0.5) + by;
         let found = locator.locate(inside).unwrap().map(|h| h.cell);
         assert_eq!(found, Some(lattice.cell_id([1, 0, 0])));
+    }
+
+    /// `check_resolution` read the spacing through `min_element` and `max_element`, which skip
+    /// NaN: a spacing with a NaN component was accepted. Every component is now checked.
+    #[test]
+    fn a_nan_spacing_is_refused_by_the_resolution_check() {
+        let l = lattice();
+        for a in 0..3 {
+            let mut h = l.h();
+            h[a] = f64::NAN;
+            let error = l.check_resolution(h).unwrap_err();
+            assert!(error.to_string().contains("lies outside"), "{error}");
+            // The same spacing with that component in range passes, out of range does not.
+            h[a] = l.h()[a];
+            l.check_resolution(h).unwrap();
+            h[a] = Lattice::MAX_SPACING * 2.0;
+            assert!(l.check_resolution(h).is_err());
+        }
     }
 
     #[test]
