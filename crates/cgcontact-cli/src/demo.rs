@@ -44,7 +44,7 @@ pub struct DemoArgs {
 
 pub fn run(args: &DemoArgs) -> Result<()> {
     let pool = args.search.check()?;
-    prepare_folder("--out", &args.out)?;
+    let _made = prepare_folder("--out", &args.out)?;
     let (knobs, name) = match (args.coarse, args.adaptive) {
         (true, false) => (SphereOnBlock::coarse(), "sphere-coarse"),
         (false, false) => (SphereOnBlock::fine(), "sphere-fine"),

@@ -110,6 +110,7 @@ pub fn run(args: &LocateArgs) -> Result<()> {
         outputs.extend(files.iter().map(|f| ("--vtk", f.clone())));
     }
     // The --vtk folder need not exist yet: its files are checked against the inputs first.
+    let mut _made = None;
     if let Some(dir) = &args.vtk {
         if dir.exists() && !dir.is_dir() {
             anyhow::bail!("{}: --vtk names a file, not a folder", dir.display());
@@ -120,7 +121,7 @@ pub fn run(args: &LocateArgs) -> Result<()> {
             .cloned()
             .collect();
         check_outputs(&inputs, &existing)?;
-        prepare_folder("--vtk", dir)?;
+        _made = Some(prepare_folder("--vtk", dir)?);
     }
     check_outputs(&inputs, &outputs)?;
     let mesh = read_body(

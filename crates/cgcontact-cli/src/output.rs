@@ -154,10 +154,20 @@ fn names_a_folder(path: &Path) -> bool {
 }
 
 /// Check that `dir` (a `--vtk` or `--out` folder) is a folder or can be made one, and create it.
-pub fn prepare_folder(flag: &str, dir: &Path) -> Result<()> {
+/// The folders it made are removed again when the returned guard drops while they are still empty:
+/// a run that fails before it writes anything leaves no empty folder behind.
+pub fn prepare_folder(flag: &str, dir: &Path) -> Result<MadeFolders> {
     if dir.exists() && !dir.is_dir() {
         bail!("{}: {flag} names a file, not a folder", dir.display());
     }
+    // The folders that do not exist yet, deepest first.
+    let made = MadeFolders(
+        dir.ancestors()
+            .filter(|a| !a.as_os_str().is_empty())
+            .take_while(|a| std::fs::symlink_metadata(a).is_err())
+            .map(Path::to_path_buf)
+            .collect(),
+    );
     std::fs::create_dir_all(dir)
         .map_err(|e| anyhow::anyhow!("{}: {flag}: cannot create the folder: {e}", dir.display()))?;
     // A folder we cannot write to fails now, not after the work.
@@ -167,5 +177,21 @@ pub fn prepare_folder(flag: &str, dir: &Path) -> Result<()> {
             dir.display()
         )
     })?;
-    Ok(())
+    Ok(made)
+}
+
+/// The folders [`prepare_folder`] made, deepest first; each one still empty when this drops is
+/// removed.
+#[must_use = "the folders are removed at once when this drops"]
+pub struct MadeFolders(Vec<PathBuf>);
+
+impl Drop for MadeFolders {
+    fn drop(&mut self) {
+        for folder in &self.0 {
+            // Fails, and keeps the folder, once anything was written in it.
+            if std::fs::remove_dir(folder).is_err() {
+                break;
+            }
+        }
+    }
 }

@@ -253,7 +253,7 @@ pub fn run(args: &SceneArgs) -> Result<()> {
             bail!("--levels {levels} is more than 8: the scene would have billions of cells");
         }
     }
-    prepare_folder("--out", &args.out)?;
+    let _made = prepare_folder("--out", &args.out)?;
     let format = match args.format {
         FormatName::Vtu => MeshFormat::Xml,
         FormatName::Vtk => MeshFormat::LegacyAscii,

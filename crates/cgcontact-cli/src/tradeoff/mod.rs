@@ -81,7 +81,7 @@ pub fn run(args: &TradeoffArgs) -> Result<()> {
     let (one, all) = (pool(1)?, pool(threads)?);
     // Read before the long measurements, so that a bad log fails at once.
     let gslib = args.gslib.as_deref().map(Gslib::read).transpose()?;
-    crate::output::prepare_folder("--out", &args.out)?;
+    let _made = crate::output::prepare_folder("--out", &args.out)?;
     // Each file's name free for a file, before minutes of measurements.
     let files = ["tradeoff.md", "tradeoff.svg", "scale.svg"].map(|f| ("--out", args.out.join(f)));
     crate::output::check_outputs(&[], &files)?;

@@ -472,3 +472,25 @@ fn an_interrupted_run_exits_130_and_leaves_its_output_as_it_was() {
         );
     }
 }
+
+/// A run that fails after its `--vtk` folder was made (reading the points) removes the folders
+/// it made, and only those; a run that writes keeps them.
+#[test]
+fn a_failed_run_leaves_no_folder_it_made() {
+    let (dir, mesh, points) = scene();
+    let bad = dir.path().join("bad.csv");
+    std::fs::write(&bad, "x,y,z\n1,2\n").unwrap();
+    let new = dir.path().join("new");
+    let vtk = new.join("deeper/vtk");
+    let run = locate(&mesh, &bad, &["--vtk", s(&vtk)]);
+    refused(&run, &["bad.csv", "line 2"], &[]);
+    assert!(!new.exists());
+    // A folder that was there stays, though empty.
+    std::fs::create_dir(&new).unwrap();
+    let run = locate(&mesh, &bad, &["--vtk", s(&vtk)]);
+    refused(&run, &["bad.csv"], &[]);
+    assert!(new.is_dir() && !new.join("deeper").exists());
+    let run = locate(&mesh, &points, &["--vtk", s(&vtk)]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    assert!(vtk.join("mesh.vtu").is_file() && vtk.join("points.vtu").is_file());
+}
