@@ -404,7 +404,18 @@ pub unsafe extern "C" fn cgc_locator_query_seconds(
     seconds: *mut f64,
 ) -> CgcError {
     guard(|| {
-        // SAFETY: the caller guarantees a live handle, readable points and a writable output.
+        let n3 = n_points.checked_mul(3).ok_or_else(|| {
+            Failure::new(
+                CgcError::LengthMismatch,
+                format!("points: {n_points} points do not fit in memory"),
+            )
+        })?;
+        raw::disjoint(&[
+            raw::region(points, n3, "points")?,
+            raw::region(seconds.cast_const(), 1, "seconds")?,
+        ])?;
+        // SAFETY: the caller guarantees a live handle, readable points and a writable output,
+        // which was just checked not to overlap the points.
         let (locator, points, seconds) = unsafe {
             (
                 raw::handle(locator, "locator")?,

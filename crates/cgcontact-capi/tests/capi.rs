@@ -575,6 +575,29 @@ fn query_seconds_times_the_library() {
     assert!(seconds >= 0.0 && seconds.is_finite());
 }
 
+/// `*seconds` inside the points was written over a point (the header refuses outputs over the
+/// inputs, "as cgc_locate"); now refused before anything is written.
+#[test]
+fn query_seconds_over_the_points_is_refused() {
+    let body = block();
+    let (points, _) = known_points(&body);
+    let handles = lattice_handles(&body);
+    let mut given = flat(&points);
+    let before = bits(&given);
+    // SAFETY: the points hold 3 n values; `seconds` over the second coordinate is what is tested.
+    let code = unsafe {
+        let seconds = given.as_mut_ptr().add(1);
+        cgc_locator_query_seconds(handles.locator, given.as_ptr(), points.len(), 1, seconds)
+    };
+    assert_eq!(code, CgcError::InvalidArgument);
+    assert!(
+        last_error().starts_with("points and seconds overlap"),
+        "{}",
+        last_error()
+    );
+    assert_eq!(bits(&given), before, "a point was written");
+}
+
 /// Raw handles shared by the threads of one test (the C ABI documents them as thread-safe).
 #[derive(Clone, Copy)]
 struct Shared(*mut CgcBody, *mut CgcLocator);
