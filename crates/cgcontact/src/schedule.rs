@@ -33,7 +33,7 @@ pub enum Schedule {
     Input,
     /// The points grouped by lattice blocks of 2^`log2_cells` cells per axis (blocks of the base
     /// lattice on an adaptive body), blocks in lattice order, then answered block by block. The
-    /// block is enlarged while the lattice has more than 2^20 blocks.
+    /// block is enlarged while the lattice has more than 2^32 blocks.
     Blocked {
         /// Base 2 logarithm of a block's edge, in cells.
         log2_cells: u8,
