@@ -13,7 +13,7 @@ use clap::Args;
 use std::time::Instant;
 
 use crate::output::{check_outputs, prepare_folder, write_owner_rows};
-use crate::run::{GapSummary, SearchArgs, Searched, StrategyName, search_listing_owners};
+use crate::run::{GapSummary, SearchArgs, Searched, StrategyName, reading, search_listing_owners};
 
 /// Locate the points of a CSV file in a VTK mesh of hexahedra on a cartesian lattice.
 #[derive(Args, Debug)]
@@ -124,10 +124,13 @@ pub fn run(args: &LocateArgs) -> Result<()> {
         _made = Some(prepare_folder("--vtk", dir)?);
     }
     check_outputs(&inputs, &outputs)?;
-    let mesh = read_body(
-        &args.mesh,
-        &DisplacementArray::from_option(args.displacement.as_deref()),
-    )?;
+    let quiet = args.search.quiet || args.search.json;
+    let mesh = reading(&args.mesh, quiet, || {
+        read_body(
+            &args.mesh,
+            &DisplacementArray::from_option(args.displacement.as_deref()),
+        )
+    })?;
     if let MeshBody::Adaptive(adaptive) = &mesh
         && let Some(message) = adaptive.constraint_problem(&args.mesh)
     {
@@ -138,7 +141,7 @@ pub fn run(args: &LocateArgs) -> Result<()> {
             eprintln!("cgcontact: warning: {message} (--strict refuses such a mesh)");
         }
     }
-    let points = read_points(&args.points)?;
+    let points = reading(&args.points, quiet, || read_points(&args.points))?;
     let body: BodyRef<'_> = match &mesh {
         MeshBody::Uniform(m) => (&m.body).into(),
         MeshBody::Adaptive(m) => (&m.body).into(),

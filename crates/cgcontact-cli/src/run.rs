@@ -644,6 +644,40 @@ pub struct Searched {
     pub summary: Summary,
 }
 
+/// `read()`, the reading of the input `path`, with a spinner on stderr (the file's name and size,
+/// the time so far) once it has lasted a second: a mesh of a few gigabytes takes a while. Never
+/// shown when stderr is not a terminal or the user asked for quiet.
+pub fn reading<T>(path: &std::path::Path, quiet: bool, read: impl FnOnce() -> T) -> T {
+    if quiet || !std::io::stderr().is_terminal() {
+        return read();
+    }
+    let size = std::fs::metadata(path).map_or(0, |m| m.len());
+    let spinner = ProgressBar::with_draw_target(None, ProgressDrawTarget::hidden());
+    spinner.set_style(
+        ProgressStyle::with_template("{spinner} reading {msg} ({elapsed})")
+            .expect("the template is valid"),
+    );
+    spinner.set_message(format!("{} ({:.1} MB)", path.display(), size as f64 / 1e6));
+    let (done, finished) = std::sync::mpsc::channel::<()>();
+    let value = std::thread::scope(|scope| {
+        let shown = spinner.clone();
+        scope.spawn(move || {
+            // Shown after a second unless the reading ended first (its sender dropped).
+            if finished.recv_timeout(std::time::Duration::from_secs(1))
+                == Err(std::sync::mpsc::RecvTimeoutError::Timeout)
+            {
+                shown.set_draw_target(ProgressDrawTarget::stderr());
+                shown.enable_steady_tick(std::time::Duration::from_millis(120));
+            }
+        });
+        let value = read();
+        drop(done);
+        value
+    });
+    spinner.finish_and_clear();
+    value
+}
+
 /// A progress bar on stderr for the step `what` ("locating"), hidden until shown (by the caller,
 /// after a second) and never shown when stderr is not a terminal or the user asked for quiet.
 fn progress_bar(len: u64, quiet: bool, what: &str) -> Option<ProgressBar> {
