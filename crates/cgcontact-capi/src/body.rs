@@ -227,6 +227,14 @@ impl BodyState {
                 ));
             }
         }
+        if fill {
+            // The values given at hanging nodes are ignored once found finite: zeros in their
+            // place, which `fill_hanging` overwrites, so that the body's limit on a displacement's
+            // size does not refuse a value it would not keep (no hanging nodes: nothing to do).
+            for &(node, _) in &self.hanging.rows {
+                self.scratch[node as usize] = DVec3::ZERO;
+            }
+        }
         let caller_nodes = |e| in_caller_nodes(e, &self.scratch, self.source_of_slot.as_deref());
         match &mut self.body {
             AnyBody::Uniform(body) => body

@@ -434,6 +434,48 @@ fn hanging_nodes_off_their_constraint_are_refused_or_filled() {
     assert_eq!(bits(&handles.locate(&points)), bits(&after));
 }
 
+/// With `CGC_FILL_HANGING` the values given at hanging nodes are ignored (finite is all the header
+/// asks), but one beyond the body's displacement limit was refused as "too large", naming a node
+/// whose value the call was about to replace.
+#[test]
+fn filled_hanging_nodes_may_hold_any_finite_value() {
+    let body = scene();
+    let input = input(&body);
+    let handles = Handles::new(&input, CGC_STRATEGY_LATTICE, CGC_PRECISION_F64);
+    let (points, _) = points(&body);
+    let before = handles.locate(&points);
+    let mut u = input.u.clone();
+    for k in body.hanging_nodes() {
+        let x = body.node_position(k).unwrap().to_array();
+        for n in (0..input.n_nodes()).filter(|&n| input.nodes[3 * n..3 * n + 3] == x) {
+            u[3 * n..3 * n + 3].copy_from_slice(&[1e300, -1e300, f64::MAX]);
+        }
+    }
+    assert_eq!(
+        handles.set(&u, CGC_LAYOUT_NODE_MAJOR | CGC_FILL_HANGING),
+        CgcError::Ok,
+        "{}",
+        last_error()
+    );
+    let after = handles.locate(&points);
+    assert_eq!(after.0, before.0);
+    let off = after
+        .1
+        .iter()
+        .zip(&before.1)
+        .filter(|(a, _)| !a.is_nan())
+        .map(|(a, b)| (*a - *b).abs().max_element())
+        .fold(0.0, f64::max);
+    assert!(off < 1e-12, "ξ off by {off:e}");
+    // Without the flag the same values are checked, and refused.
+    assert_eq!(
+        handles.set(&u, CGC_LAYOUT_NODE_MAJOR),
+        CgcError::HangingConstraint,
+        "{}",
+        last_error()
+    );
+}
+
 #[test]
 fn duplicated_nodes_must_agree_on_adaptive_meshes() {
     let body = scene();
