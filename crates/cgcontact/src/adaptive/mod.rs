@@ -68,11 +68,19 @@ impl Leaf {
     }
 
     /// The 8 leaves of the next level that refine this one, in binary order (bit 0: +x, ...).
+    ///
+    /// A leaf of level 255, or with an index of 2^31 or more, has no children a body can hold:
+    /// its level, or those indices, saturate (at 255 and `u32::MAX`), into leaves that
+    /// [`AdaptiveBody::from_leaves`] refuses.
     #[must_use]
     pub fn children(self) -> [Leaf; 8] {
         std::array::from_fn(|c| Leaf {
-            level: self.level + 1,
-            ijk: [0, 1, 2].map(|a| 2 * self.ijk[a] + ((c as u32 >> a) & 1)),
+            level: self.level.saturating_add(1),
+            ijk: [0, 1, 2].map(|a| {
+                self.ijk[a]
+                    .checked_mul(2)
+                    .map_or(u32::MAX, |v| v + ((c as u32 >> a) & 1))
+            }),
         })
     }
 
@@ -85,7 +93,10 @@ impl Leaf {
     /// ```
     #[must_use]
     pub fn base(self) -> [u32; 3] {
-        self.ijk.map(|v| v >> self.level)
+        // Checked: a shift by 32 or more overflowed (a level that no body holds, but a `Leaf`
+        // can be made with it); the quotient is then 0.
+        self.ijk
+            .map(|v| v.checked_shr(u32::from(self.level)).unwrap_or(0))
     }
 }
 

@@ -680,6 +680,47 @@ fn bad_leaves_are_errors_naming_the_leaf() {
     assert!(body.set_displacements(&u[1..]).is_err());
 }
 
+/// `Leaf::children` overflowed its level past 255 and its indices past 2^31, and `Leaf::base`
+/// shifted by the level (a panic past level 31 where overflow is checked, a wrong base cell
+/// where it is not). The base is now the exact quotient, and children that cannot exist
+/// saturate into leaves that `from_leaves` refuses.
+#[test]
+fn leaf_arithmetic_at_the_ends_of_its_ranges_does_not_overflow() {
+    for level in [0, 1, 19, 20, 31, 32, 33, 63, 64, 200, u8::MAX] {
+        for ijk in [
+            [0, 1, 2],
+            [u32::MAX, 1 << 31, (1 << 31) - 1],
+            [12345, 0, u32::MAX],
+        ] {
+            let leaf = Leaf::new(level, ijk);
+            let expected = ijk.map(|v| u32::try_from(u64::from(v) >> level.min(63)).unwrap());
+            assert_eq!(leaf.base(), expected, "{leaf:?}");
+            for (c, child) in leaf.children().into_iter().enumerate() {
+                if level < u8::MAX && ijk.iter().all(|&v| v < 1 << 31) {
+                    assert_eq!(child.level, level + 1);
+                    let bits = [0, 1, 2].map(|a| (c as u32 >> a) & 1);
+                    assert_eq!(child.ijk, [0, 1, 2].map(|a| 2 * ijk[a] + bits[a]));
+                    if level < 20 {
+                        assert_eq!(child.base(), leaf.base(), "{child:?}");
+                    }
+                }
+            }
+        }
+    }
+    let lattice = Lattice::new(DVec3::ZERO, DVec3::ONE, [2, 2, 2]).unwrap();
+    for parent in [
+        Leaf::new(u8::MAX, [0, 0, 0]),
+        Leaf::new(3, [1 << 31, 0, 0]),
+        Leaf::new(0, [0, u32::MAX, 0]),
+    ] {
+        let refused = AdaptiveBody::from_leaves(lattice, parent.children().to_vec());
+        assert!(
+            matches!(refused, Err(Error::InvalidLeaf { .. })),
+            "{parent:?}: {refused:?}"
+        );
+    }
+}
+
 #[test]
 fn six_levels_in_one_corner_allocate_with_the_leaves() {
     // A 10³ base lattice refined 6 levels toward its lowest corner: the finest level's lattice
