@@ -89,8 +89,8 @@ class Locator:
         threads: Optional[int] = None,
     ) -> "Locator":
         """`tol`: Newton step tolerance in xi units (default 1e-10 in f64, 1e-5 in f32);
-        `max_iter`: Newton iterations per candidate cell; `threads`: a pool of its own (None:
-        every core)."""
+        `max_iter`: Newton iterations per candidate cell; `threads`: a pool of its own, 1 to
+        1024 (None: every core)."""
     @property
     def strategy(self) -> _Strategy: ...
     def locate(

@@ -27,6 +27,9 @@ type Located<'py> = (Bound<'py, PyArray1<i64>>, Bound<'py, PyArray2<f64>>);
 /// Points per piece of a query: a worker's answer buffer (about 60 kB) stays in its cache.
 const PIECE: usize = 1024;
 
+/// The most threads a locator's own pool may have.
+const MAX_THREADS: usize = 1024;
+
 /// The search strategies, named as the command line's `--strategy`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Strategy {
@@ -114,8 +117,8 @@ fn refused(what: &str, points: &[DVec3], row: usize) -> PyErr {
 /// `strategy` is one of "lattice" (this library's), "centroid", "noderad", "noderad-seed",
 /// "rtree" or "brute" (the command line's baselines); `precision` "f64" or "f32"; `tol` the
 /// Newton step tolerance in xi units (default 1e-10 in f64, 1e-5 in f32); `max_iter` the Newton
-/// iteration limit per candidate cell; `threads` the worker threads of a pool of its own (None:
-/// every core, rayon's global pool).
+/// iteration limit per candidate cell; `threads` the worker threads of a pool of its own, 1 to
+/// 1024 (None: every core, rayon's global pool).
 ///
 /// The locator shares its body: each query searches the body's current displacements (the
 /// strategy's setup, a pass over the nodes for the lattice strategy, runs again at each query).
@@ -244,9 +247,14 @@ impl PyLocator {
         let pool = match threads {
             None => None,
             Some(0) => return Err(PyValueError::new_err("threads must be at least 1")),
+            Some(n) if n > MAX_THREADS => {
+                return Err(PyValueError::new_err(format!(
+                    "threads {n}: at most {MAX_THREADS}"
+                )));
+            }
             Some(n) => Some(
                 rayon::ThreadPoolBuilder::new()
-                    .num_threads(n.min(1024))
+                    .num_threads(n)
                     .build()
                     .map_err(|e| PyValueError::new_err(format!("{n} threads: {e}")))?,
             ),

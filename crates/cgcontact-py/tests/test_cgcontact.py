@@ -340,6 +340,7 @@ def test_queries_release_the_gil():
         (lambda l, b: cgcontact.Locator(b, tol=-1.0), None),
         (lambda l, b: cgcontact.Locator(b, max_iter=0), None),
         (lambda l, b: cgcontact.Locator(b, threads=0), "threads"),
+        (lambda l, b: cgcontact.Locator(b, threads=1025), "at most 1024"),
         (lambda l, b: cgcontact.Body((0, 0, 0), (0, 1, 1), (1, 1, 1)), None),
         (lambda l, b: cgcontact.Body((0, 0, 0), (1, 1, 1), (2, 2, 2), active=[True] * 7),
          r"shape \(8,\)"),
