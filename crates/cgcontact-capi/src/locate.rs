@@ -152,10 +152,15 @@ pub unsafe extern "C" fn cgc_locator_new(
     guard(|| {
         // SAFETY: the caller guarantees a live handle.
         let body = unsafe { raw::handle(body, "body") }?;
-        // SAFETY: the caller guarantees a readable struct when not NULL.
-        let given = unsafe { settings.as_ref() };
+        let given = if settings.is_null() {
+            None
+        } else {
+            // SAFETY: the caller guarantees a readable struct when not NULL; `slice` checks its
+            // alignment.
+            Some(unsafe { raw::slice(settings, 1, "settings") }?[0])
+        };
         let given = match given {
-            Some(s) => *s,
+            Some(s) => s,
             None => {
                 let mut s = std::mem::MaybeUninit::<CgcSettings>::uninit();
                 // SAFETY: `s` is writable; on success it is initialised.

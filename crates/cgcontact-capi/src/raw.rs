@@ -172,8 +172,17 @@ pub(crate) unsafe fn give<T>(out: *mut *mut T, value: T, what: &str) -> Result<(
             format!("{what} is NULL"),
         ));
     }
-    // SAFETY: `out` is non-null and the caller guarantees it is writable; `write` does not read
-    // (or drop) whatever it held before.
+    if !out.is_aligned() {
+        return Err(Failure::new(
+            CgcError::InvalidArgument,
+            format!(
+                "{what} is not aligned to {} bytes (address {out:p})",
+                align_of::<*mut T>()
+            ),
+        ));
+    }
+    // SAFETY: `out` is non-null and aligned, and the caller guarantees it is writable; `write`
+    // does not read (or drop) whatever it held before.
     unsafe { out.write(Box::into_raw(Box::new(value))) };
     Ok(())
 }

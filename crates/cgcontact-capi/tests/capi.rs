@@ -843,6 +843,92 @@ fn overlapping_outputs_are_refused_before_anything_is_written() {
     }
 }
 
+/// A misaligned `out` or `settings` was written or read through as if aligned (undefined
+/// behaviour in Rust, where every other pointer argument is checked); now refused as the arrays
+/// are, with nothing written.
+#[test]
+fn misaligned_handle_outputs_and_settings_are_refused() {
+    let body = block();
+    let handles = lattice_handles(&body);
+    let (origin, h, counts) = ([0.0; 3], [1.0; 3], [2u32, 2, 2]);
+    let mesh_nodes: Vec<f64> = (0..8)
+        .flat_map(|c| [(c & 1) as f64, ((c >> 1) & 1) as f64, (c >> 2) as f64])
+        .collect();
+    let mesh_cell: [i64; 8] = [0, 1, 3, 2, 4, 5, 7, 6];
+    let mut words = [0u64; 16];
+    let base = words.as_mut_ptr().cast::<u8>();
+    // SAFETY: every pointer points to enough memory (words holds 128 bytes); the misalignment is
+    // what is tested, and the library refuses it before any read or write through the pointer.
+    unsafe {
+        let odd_out = base.add(1);
+        assert_eq!(
+            cgc_body_from_lattice(
+                origin.as_ptr(),
+                h.as_ptr(),
+                counts.as_ptr(),
+                ptr::null(),
+                0,
+                odd_out.cast()
+            ),
+            CgcError::InvalidArgument
+        );
+        assert!(
+            last_error().contains("out is not aligned"),
+            "{}",
+            last_error()
+        );
+        assert_eq!(
+            cgc_body_from_mesh(
+                mesh_nodes.as_ptr(),
+                8,
+                mesh_cell.as_ptr(),
+                1,
+                0,
+                odd_out.cast()
+            ),
+            CgcError::InvalidArgument
+        );
+        assert!(
+            last_error().contains("out is not aligned"),
+            "{}",
+            last_error()
+        );
+        assert_eq!(
+            cgc_locator_new(handles.body, ptr::null(), odd_out.cast()),
+            CgcError::InvalidArgument
+        );
+        assert!(
+            last_error().contains("out is not aligned"),
+            "{}",
+            last_error()
+        );
+        assert!(words.iter().all(|&w| w == 0), "a handle was written");
+
+        let mut settings = std::mem::zeroed::<CgcSettings>();
+        assert_eq!(
+            cgc_settings_init(CGC_PRECISION_F64, &mut settings),
+            CgcError::Ok
+        );
+        let odd_settings = base.add(4);
+        ptr::copy_nonoverlapping(
+            (&raw const settings).cast::<u8>(),
+            odd_settings,
+            size_of::<CgcSettings>(),
+        );
+        let mut locator = ptr::null_mut();
+        assert_eq!(
+            cgc_locator_new(handles.body, odd_settings.cast(), &mut locator),
+            CgcError::InvalidArgument
+        );
+        assert!(
+            last_error().contains("settings is not aligned"),
+            "{}",
+            last_error()
+        );
+        assert!(locator.is_null());
+    }
+}
+
 /// A NULL mask with a length was read as "every cell active": the caller's flags were dropped.
 #[test]
 fn a_null_active_mask_with_a_length_is_refused() {
