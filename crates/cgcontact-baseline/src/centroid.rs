@@ -95,7 +95,7 @@ impl<'a> CentroidRadius<'a> {
         let centroids = body
             .cells()
             .map(|cell| {
-                let level = body.level(cell);
+                let level = body.level_of(cell);
                 let largest = &mut half_diagonals[usize::from(level)];
                 let corners = cells.origin_relative_corners(cell);
                 for (a, b) in SPACE_DIAGONALS {

@@ -62,9 +62,19 @@ impl<'a> BodyRef<'a> {
         }
     }
 
-    /// Refinement level of `cell` (0 for every cell of a uniform body).
+    /// Refinement level of `cell`: 0 for an active cell of a uniform body, the leaf's level on an
+    /// adaptive one; `None` when `cell` is none of the body's cells.
     #[must_use]
-    pub fn level(&self, cell: CellId) -> u8 {
+    pub fn level(&self, cell: CellId) -> Option<u8> {
+        match self {
+            Self::Uniform(body) => body.is_active(cell).then_some(0),
+            Self::Adaptive(body) => body.leaves().get(cell.index()).map(|leaf| leaf.level),
+        }
+    }
+
+    /// [`BodyRef::level`] of a cell the strategies took from the body (no check on a uniform
+    /// body: the filters' inner loops call it).
+    pub(crate) fn level_of(&self, cell: CellId) -> u8 {
         match self {
             Self::Uniform(_) => 0,
             Self::Adaptive(body) => {

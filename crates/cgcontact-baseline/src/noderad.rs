@@ -150,7 +150,7 @@ impl<'a> NodeRadius<'a> {
                 let mut first = vec![0u32; nodes + 1];
                 for cell in body.cells() {
                     let corners = cells.origin_relative_corners(cell);
-                    let level = body.level(cell);
+                    let level = body.level_of(cell);
                     let corner_nodes = adaptive
                         .cell_nodes(cell)
                         .expect("cells come from the body's leaves");
@@ -280,7 +280,7 @@ impl<'a> NodeRadius<'a> {
                     }
                     let of_node = &leaves[first[node] as usize..first[node + 1] as usize];
                     for &cell in of_node {
-                        if distance <= self.radii[usize::from(body.level(cell))] {
+                        if distance <= self.radii[usize::from(body.level_of(cell))] {
                             found.push(cell);
                         }
                     }

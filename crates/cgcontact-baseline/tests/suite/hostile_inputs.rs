@@ -12,7 +12,7 @@ use cgcontact::{
     AdaptiveBody, AdaptiveLocator, Answer, Body, CandidateOrder, CellId, Error, GapFinder, Hit,
     Lattice, LatticeLocator, Leaf, Locator, PointError, Precision, Settings,
 };
-use cgcontact_baseline::{BruteForce, CentroidRadius, NodeRadius, RTree};
+use cgcontact_baseline::{BodyRef, BruteForce, CentroidRadius, NodeRadius, RTree};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -479,4 +479,30 @@ fn hostile_leaves_are_refused_or_located_as_brute_force() {
         assert!(locator.locate(DVec3::NAN).is_err());
     }
     assert!(built > 100, "{built}");
+}
+
+/// `BodyRef::level` of a cell the body does not have panicked on an adaptive body ("a leaf of
+/// the body") and answered 0 on a uniform one; it now answers `None` for both, and each leaf's
+/// own level, or 0 for each active cell, otherwise.
+#[test]
+fn body_ref_level_answers_only_for_the_bodys_cells() {
+    let lattice = Lattice::new(DVec3::ZERO, DVec3::ONE, [2, 1, 1]).unwrap();
+    let mut leaves = vec![Leaf::new(0, [0, 0, 0])];
+    let children = Leaf::new(0, [1, 0, 0]).children();
+    leaves.extend(children[1..].iter().copied());
+    leaves.extend(children[0].children());
+    let adaptive = AdaptiveBody::from_leaves(lattice, leaves.clone()).unwrap();
+    let body = BodyRef::from(&adaptive);
+    for (id, leaf) in leaves.iter().enumerate() {
+        assert_eq!(body.level(CellId(id as u32)), Some(leaf.level));
+    }
+    for id in [leaves.len() as u32, 1 << 20, u32::MAX] {
+        assert_eq!(body.level(CellId(id)), None);
+    }
+    let uniform = Body::from_cells(lattice, [CellId(1)]).unwrap();
+    let body = BodyRef::from(&uniform);
+    assert_eq!(body.level(CellId(1)), Some(0));
+    for id in [0, 2, u32::MAX] {
+        assert_eq!(body.level(CellId(id)), None);
+    }
 }
