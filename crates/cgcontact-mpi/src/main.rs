@@ -97,13 +97,28 @@ struct LocateArgs {
     quiet: bool,
 }
 
+/// This process's rank as its launcher sets it in the environment (Open MPI's mpirun, PMIx,
+/// MPICH's Hydra and other PMI launchers, MVAPICH, Slurm's srun), before MPI is initialised;
+/// `None` when run alone.
+fn launcher_rank() -> Option<u64> {
+    [
+        "OMPI_COMM_WORLD_RANK",
+        "PMIX_RANK",
+        "PMI_RANK",
+        "MV2_COMM_WORLD_RANK",
+        "SLURM_PROCID",
+    ]
+    .iter()
+    .find_map(|name| std::env::var(name).ok()?.trim().parse().ok())
+}
+
 fn main() -> ExitCode {
     let cli = match Cli::try_parse() {
         Ok(cli) => cli,
         Err(e) => {
-            // Every rank parses the same arguments: rank 0 alone speaks.
-            let rank = std::env::var("OMPI_COMM_WORLD_RANK").unwrap_or_default();
-            if rank.is_empty() || rank == "0" {
+            // Every rank parses the same arguments: rank 0 alone speaks (MPI is not running yet:
+            // the launcher's variables tell the rank).
+            if launcher_rank().is_none_or(|rank| rank == 0) {
                 let _ = e.print();
             }
             return if e.use_stderr() {

@@ -915,3 +915,35 @@ fn points_with_nan_coordinates_are_counted_as_cgcontact_locate_counts_them() {
         }
     }
 }
+
+/// A flag clap refuses is reported by rank 0 alone, whichever launcher set the rank (its
+/// variables are read before MPI starts), and by a process run alone.
+#[test]
+fn a_refused_flag_is_reported_by_rank_0_alone_under_any_launcher() {
+    let bad = ["locate", "--no-such-flag"];
+    let launchers = [
+        "OMPI_COMM_WORLD_RANK",
+        "PMIX_RANK",
+        "PMI_RANK",
+        "MV2_COMM_WORLD_RANK",
+        "SLURM_PROCID",
+    ];
+    let run = |vars: &[(&str, &str)]| {
+        let mut command = Command::new(env!("CARGO_BIN_EXE_cgcontact-mpi"));
+        for name in launchers {
+            command.env_remove(name);
+        }
+        let out = command
+            .args(bad)
+            .envs(vars.iter().copied())
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(2), "{vars:?}");
+        String::from_utf8_lossy(&out.stderr).into_owned()
+    };
+    assert!(run(&[]).contains("--no-such-flag"));
+    for name in launchers {
+        assert!(run(&[(name, "0")]).contains("--no-such-flag"), "{name}=0");
+        assert_eq!(run(&[(name, "3")]), "", "{name}=3");
+    }
+}
