@@ -322,7 +322,7 @@ const char *cgc_last_error(void);
 // gap the solver needs, not more.
 //
 // Each output may be NULL, to skip it; those given hold `n_points` values (`3 n_points` for
-// `closest` and `normal`). `distance` must be finite and ≥ 0 (else
+// `closest` and `normal`). `distance` must be finite, ≥ 0 and ≤ 1e150 (else
 // `CGC_ERROR_INVALID_ARGUMENT`, and nothing is written). Answers use the body's displacements at
 // the time of the call, on the locator's threads; the search is the lattice's for either
 // strategy, with the locator's precision and tolerances deciding the sign near the surface.

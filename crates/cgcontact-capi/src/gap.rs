@@ -130,7 +130,7 @@ fn answer_all<L: Surface + Sync>(
 /// gap the solver needs, not more.
 ///
 /// Each output may be NULL, to skip it; those given hold `n_points` values (`3 n_points` for
-/// `closest` and `normal`). `distance` must be finite and ≥ 0 (else
+/// `closest` and `normal`). `distance` must be finite, ≥ 0 and ≤ 1e150 (else
 /// `CGC_ERROR_INVALID_ARGUMENT`, and nothing is written). Answers use the body's displacements at
 /// the time of the call, on the locator's threads; the search is the lattice's for either
 /// strategy, with the locator's precision and tolerances deciding the sign near the surface.
@@ -180,11 +180,13 @@ pub unsafe extern "C" fn cgc_gap(
                 optional(face, n_points, "face")?,
             )
         };
-        if !(distance.is_finite() && distance >= 0.0) {
+        if !(0.0..=cgcontact::MAX_DISPLACEMENT).contains(&distance) {
             return Err(Failure::new(
                 CgcError::InvalidArgument,
                 format!(
-                    "distance is {distance}; the gap search distance must be finite and at least 0"
+                    "distance is {distance}; the gap search distance must be finite, at least 0 \
+                     and at most {:e}",
+                    cgcontact::MAX_DISPLACEMENT
                 ),
             ));
         }

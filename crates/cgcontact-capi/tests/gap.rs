@@ -412,7 +412,16 @@ fn bad_arguments_are_error_codes_and_write_nothing() {
     let body = block();
     let handles = Handles::lattice(body.lattice(), field);
     let points = spread(&body)[..10].to_vec();
-    for distance in [-0.1, f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+    // Beyond 1e150 too: finite, but refused by the search (its square would overflow), which the
+    // header did not say.
+    for distance in [
+        -0.1,
+        f64::NAN,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        1e151,
+        f64::MAX,
+    ] {
         let (code, got) = gaps(handles.locator, &points, distance);
         assert_eq!(code, CgcError::InvalidArgument, "distance {distance}");
         assert!(
@@ -422,6 +431,7 @@ fn bad_arguments_are_error_codes_and_write_nothing() {
         );
         assert_eq!(got.bits(), Gaps::new(10).bits(), "nothing written");
     }
+    assert_eq!(gaps(handles.locator, &points, 1e150).0, CgcError::Ok);
     // A distance of 0: only points on the surface have a gap.
     let (code, got) = gaps(handles.locator, &points, 0.0);
     assert_eq!(code, CgcError::Ok);
