@@ -146,7 +146,7 @@ typedef struct {
   // A point is inside a cell when every |ξ_k| ≤ 1 + inside_tol (plus a rounding allowance); ≥ 0.
   double inside_tol;
   // Threads for a query: 0 for every core (one pool shared by the process), else a pool of its
-  // own of this many threads.
+  // own of this many threads, at most 1024.
   uint32_t threads;
 } cgc_settings;
 

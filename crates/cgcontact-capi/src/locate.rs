@@ -31,6 +31,9 @@ pub const CGC_POINT_OUTSIDE: u8 = 1;
 /// The point has a NaN or infinite coordinate: cell −1, ξ NaN.
 pub const CGC_POINT_NON_FINITE: u8 = 2;
 
+/// The most threads a locator's own pool may have (`CgcSettings::threads`).
+const MAX_THREADS: u32 = 1024;
+
 /// Settings of a locator. Start from `cgc_settings_init`, then change fields.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -46,7 +49,7 @@ pub struct CgcSettings {
     /// A point is inside a cell when every |ξ_k| ≤ 1 + inside_tol (plus a rounding allowance); ≥ 0.
     pub inside_tol: f64,
     /// Threads for a query: 0 for every core (one pool shared by the process), else a pool of its
-    /// own of this many threads.
+    /// own of this many threads, at most 1024.
     pub threads: u32,
 }
 
@@ -194,9 +197,18 @@ pub unsafe extern "C" fn cgc_locator_new(
         settings.validate()?;
         let pool = match given.threads {
             0 => None,
+            n if n > MAX_THREADS => {
+                return Err(Failure::new(
+                    CgcError::InvalidArgument,
+                    format!(
+                        "threads is {n}; a locator's own pool has at most {MAX_THREADS} threads \
+                         (0: every core, the shared pool)"
+                    ),
+                ));
+            }
             n => Some(
                 rayon::ThreadPoolBuilder::new()
-                    .num_threads(n.min(1024) as usize)
+                    .num_threads(n as usize)
                     .build()
                     .map_err(|e| {
                         Failure::new(CgcError::InvalidArgument, format!("{n} threads: {e}"))

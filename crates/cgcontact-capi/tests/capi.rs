@@ -929,6 +929,45 @@ fn misaligned_handle_outputs_and_settings_are_refused() {
     }
 }
 
+/// A thread count above 1024 (say a negative int cast to uint32_t) was quietly capped to a pool of
+/// 1024 threads; it is refused, naming the count and the limit, as the Python binding does.
+#[test]
+fn too_many_threads_are_refused_not_capped() {
+    let body = block();
+    let handles = lattice_handles(&body);
+    // SAFETY: valid pointers; the settings are initialised by cgc_settings_init.
+    unsafe {
+        let mut settings = std::mem::zeroed::<CgcSettings>();
+        assert_eq!(
+            cgc_settings_init(CGC_PRECISION_F64, &mut settings),
+            CgcError::Ok
+        );
+        for threads in [1025, u32::MAX] {
+            settings.threads = threads;
+            let mut locator = ptr::null_mut();
+            assert_eq!(
+                cgc_locator_new(handles.body, &settings, &mut locator),
+                CgcError::InvalidArgument,
+                "{threads} threads"
+            );
+            assert!(
+                last_error().contains(&format!("threads is {threads}"))
+                    && last_error().contains("at most 1024"),
+                "{}",
+                last_error()
+            );
+            assert!(locator.is_null());
+        }
+        settings.threads = 2;
+        let mut locator = ptr::null_mut();
+        assert_eq!(
+            cgc_locator_new(handles.body, &settings, &mut locator),
+            CgcError::Ok
+        );
+        cgc_locator_free(locator);
+    }
+}
+
 /// A NULL mask with a length was read as "every cell active": the caller's flags were dropped.
 #[test]
 fn a_null_active_mask_with_a_length_is_refused() {
