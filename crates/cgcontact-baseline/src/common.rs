@@ -195,7 +195,7 @@ pub(crate) struct Cells<'a> {
 impl<'a> Cells<'a> {
     /// Checks the settings and the displacement bound (the body itself refuses non-finite values).
     pub(crate) fn new(body: BodyRef<'a>, settings: Settings) -> Result<Self, Error> {
-        settings.validate()?;
+        settings.validate_for(body.finest_spacing())?;
         Ok(Self {
             body,
             settings,

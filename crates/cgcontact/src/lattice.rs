@@ -392,6 +392,65 @@ mod tests {
         }
     }
 
+    /// The f32 kernel's Jacobian determinant, about (h/2)³, left f32's range for spacings of
+    /// 1e-13 or 1e14, which the lattice accepts: every point of every cell was then reported
+    /// outside, silently. At both ends of f32's range a point is found in its cell, at its ξ,
+    /// on a uniform and on an adaptive body (whose finest spacing counts); beyond, f32 settings
+    /// are refused, and f64 still finds the point.
+    #[test]
+    fn f32_finds_points_at_the_ends_of_its_spacing_range_and_is_refused_beyond() {
+        use crate::{AdaptiveBody, AdaptiveLocator, Body, Error, LatticeLocator, Leaf, Locator};
+        use crate::{GapFinder, Settings};
+        let xi = DVec3::new(0.25, -0.5, 0.75);
+        let check = |h: DVec3, settings: Settings| -> Result<(), Error> {
+            let lattice = Lattice::new(DVec3::ZERO, h, [2, 2, 2]).unwrap();
+            let mut body = Body::full(lattice);
+            body.update_displacements(|n, _, u| *u = h * 0.05 * (n % 3) as f64)
+                .unwrap();
+            let cell = lattice.cell_id([1, 0, 1]);
+            let x = body.point_at(cell, xi).unwrap();
+            let locator = LatticeLocator::new(&body, settings)?;
+            let hit = locator.locate(x).unwrap().expect("inside its cell");
+            assert_eq!(hit.cell, cell, "{h}");
+            assert!((hit.xi - xi).abs().max_element() < 1e-5, "{h}: {}", hit.xi);
+            let gap = GapFinder::new(&locator, 2.0 * h.max_element()).unwrap();
+            assert!(gap.gap(x).unwrap().unwrap().gap < 0.0, "{h}");
+            // Base cells of 2 h, one split: its leaves have spacing h.
+            let base = Lattice::new(DVec3::ZERO, 2.0 * h, [2, 1, 1]).unwrap();
+            let mut leaves = vec![Leaf::new(0, [1, 0, 0])];
+            leaves.extend(Leaf::new(0, [0, 0, 0]).children());
+            let adaptive = AdaptiveBody::from_leaves(base, leaves).unwrap();
+            let locator = AdaptiveLocator::new(&adaptive, settings)?;
+            let leaf = crate::CellId(3);
+            let x = adaptive.point_at(leaf, xi).unwrap();
+            let hit = locator.locate(x).unwrap().expect("inside its leaf");
+            assert_eq!(hit.cell, leaf, "{h}");
+            assert!((hit.xi - xi).abs().max_element() < 1e-5, "{h}: {}", hit.xi);
+            Ok(())
+        };
+        let (low, high) = (Settings::F32_MIN_SPACING, Settings::F32_MAX_SPACING);
+        for h in [
+            DVec3::splat(low),
+            DVec3::splat(high),
+            DVec3::new(low, 10.0 * low, 100.0 * low),
+            DVec3::new(high / 100.0, high, high / 10.0),
+        ] {
+            check(h, Settings::f32()).unwrap();
+            check(h, Settings::default()).unwrap();
+        }
+        // 1e-13 and 1e14: where the f32 kernel had found nothing.
+        for h in [
+            DVec3::splat(low / 100.0),
+            DVec3::splat(high * 1000.0),
+            DVec3::new(low, low, low / 100.0),
+            DVec3::new(high, high * 1000.0, high),
+        ] {
+            let refused = check(h, Settings::f32());
+            assert!(matches!(refused, Err(Error::InvalidSettings(_))), "{h}");
+            check(h, Settings::default()).unwrap();
+        }
+    }
+
     /// Displaced far from the origin, a body's coordinates cannot resolve its cells: translated
     /// by 1e14 with h = 1, a point 0.05 h outside a cell was found inside it. Such displacements
     /// are refused; at half the limit, points 0.1 h outside and inside a face are told apart.

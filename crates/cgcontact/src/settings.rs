@@ -192,6 +192,15 @@ impl Settings {
         }
     }
 
+    /// The smallest spacing (per axis, of a body's finest cells) the f32 kernel resolves: a
+    /// cell's Jacobian determinant, about (h/2)³, and its reciprocal stay normal f32 numbers,
+    /// with room for cells squeezed or stretched a thousandfold. Beyond, the f32 kernel found no
+    /// point at all inside cells of spacing 1e-13 or 1e14 (every strategy, since they share it).
+    /// f64 takes every spacing a [`Lattice`] accepts.
+    pub const F32_MIN_SPACING: f64 = 1e-11;
+    /// See [`Settings::F32_MIN_SPACING`].
+    pub const F32_MAX_SPACING: f64 = 1e11;
+
     /// Check ranges: tolerances finite and non-negative, at least one iteration.
     pub fn validate(&self) -> Result<(), Error> {
         if !(self.newton_tol.is_finite() && self.newton_tol > 0.0) {
@@ -210,6 +219,26 @@ impl Settings {
             return Err(Error::InvalidSettings(
                 "the iteration limit must be at least 1".into(),
             ));
+        }
+        Ok(())
+    }
+
+    /// [`Settings::validate`], and that the kernel of this precision resolves cells of spacing
+    /// `h` (a body's lattice's, or an adaptive body's finest level's): with f32, every component
+    /// within [[`Settings::F32_MIN_SPACING`], [`Settings::F32_MAX_SPACING`]]. Every locator
+    /// checks it when it is built.
+    pub fn validate_for(&self, h: DVec3) -> Result<(), Error> {
+        self.validate()?;
+        let in_range = h.cmpge(DVec3::splat(Self::F32_MIN_SPACING)).all()
+            && h.cmple(DVec3::splat(Self::F32_MAX_SPACING)).all();
+        if self.precision == Precision::F32 && !in_range {
+            return Err(Error::InvalidSettings(format!(
+                "the f32 kernel cannot resolve cells of spacing {:?}: each must lie in [{:e}, \
+                 {:e}] (a cell's Jacobian determinant would under- or overflow f32); use f64",
+                h.to_array(),
+                Self::F32_MIN_SPACING,
+                Self::F32_MAX_SPACING
+            )));
         }
         Ok(())
     }

@@ -58,8 +58,11 @@ pub struct AdaptiveLocator<'a> {
 
 impl<'a> AdaptiveLocator<'a> {
     /// A locator over `body`: one pass over the displacements for their range.
+    ///
+    /// Errors when the settings are out of range for this body ([`Settings::validate_for`], with
+    /// its finest level's spacing).
     pub fn new(body: &'a AdaptiveBody, settings: Settings) -> Result<Self, Error> {
-        settings.validate()?;
+        settings.validate_for(body.spacing(body.finest))?;
         let u_range = body.u.iter().fold(Range::EMPTY, |r, &u| Range {
             low: r.low.min(u),
             high: r.high.max(u),

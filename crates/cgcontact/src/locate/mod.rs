@@ -249,8 +249,10 @@ pub struct LatticeLocator<'a> {
 impl<'a> LatticeLocator<'a> {
     /// A locator over `body`: one pass over the displacements for their range, and, only when they
     /// spread over more than a few cells, one over the active cells for per-block ranges.
+    ///
+    /// Errors when the settings are out of range for this body ([`Settings::validate_for`]).
     pub fn new(body: &'a Body, settings: Settings) -> Result<Self, Error> {
-        settings.validate()?;
+        settings.validate_for(body.lattice().h())?;
         let u_range = reach::displacement_range(body);
         // Bodies refuse non-finite displacements (every entry point checks), so the range is finite.
         let u_max = u_range.high.max(-u_range.low);
