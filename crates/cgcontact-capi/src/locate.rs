@@ -331,14 +331,20 @@ unsafe fn locate(
     };
     let first_bad = AtomicUsize::new(usize::MAX);
     locator.with(|search, state| {
-        if warm && let Some(i) = cells.iter().position(|&c| state.cells.cell(c).is_err()) {
+        if warm && let Some(i) = cells.iter().position(|&c| !is_hint(state, c)) {
+            let why = if state.cells.cell(cells[i]).is_ok() {
+                format!("lattice cell {} is not active in this body", cells[i])
+            } else {
+                format!(
+                    "the cells are numbered 0 to {}",
+                    state.cells.len() as i64 - 1
+                )
+            };
             return Err(Failure::new(
                 CgcError::InvalidArgument,
                 format!(
-                    "cells[{i}] = {} is not a previous answer: the cells are numbered 0 to {} \
-                     (-1 for none)",
-                    cells[i],
-                    state.cells.len() as i64 - 1
+                    "cells[{i}] = {} is not a previous answer: {why} (-1 for none)",
+                    cells[i]
                 ),
             ));
         }
@@ -388,6 +394,16 @@ unsafe fn locate(
         Ok(())
     })??;
     first_non_finite(points, first_bad.into_inner())
+}
+
+/// Whether `number` may be a previous answer of the body in `state`: −1, or one of its cells (on a
+/// lattice body with inactive cells, a lattice cell number of an active cell).
+fn is_hint(state: &BodyState, number: i64) -> bool {
+    match (state.cells.cell(number), &state.body) {
+        (Err(()), _) => false,
+        (Ok(Some(cell)), AnyBody::Uniform(body)) => body.is_active(cell),
+        (Ok(_), _) => true,
+    }
 }
 
 /// `CGC_ERROR_NON_FINITE_POINT` naming point `first` (0-based), the first a query refused, or

@@ -1166,3 +1166,54 @@ fn relocate_tries_the_hinted_cell_in_the_callers_numbering() {
         }
     }
 }
+
+/// On a lattice body with inactive cells, a previous cell that is an inactive lattice cell is no
+/// cell of the body, which the header refuses as a hint (`CGC_ERROR_INVALID_ARGUMENT`, before
+/// anything is written); it was taken as a hint, so a hint array from another body went unseen.
+#[test]
+fn relocate_refuses_an_inactive_lattice_cell_as_a_hint() {
+    let (origin, h, counts) = ([0.0; 3], [1.0; 3], [3u32, 2, 2]);
+    // Every third cell inactive: cells 0, 3, 6 and 9.
+    let active: Vec<u8> = (0..12).map(|c| u8::from(c % 3 != 0)).collect();
+    let mut handles = Handles {
+        body: ptr::null_mut(),
+        locator: ptr::null_mut(),
+    };
+    // SAFETY: every array holds the length passed.
+    unsafe {
+        assert_eq!(
+            cgc_body_from_lattice(
+                origin.as_ptr(),
+                h.as_ptr(),
+                counts.as_ptr(),
+                active.as_ptr(),
+                active.len(),
+                &mut handles.body,
+            ),
+            CgcError::Ok
+        );
+        assert_eq!(
+            cgc_locator_new(handles.body, ptr::null(), &mut handles.locator),
+            CgcError::Ok
+        );
+    }
+    // A point in active cell 1, then one in inactive cell 0 (found in none).
+    let points = [1.5, 0.5, 0.5, 0.5, 0.5, 0.5];
+    let (mut cells, mut xi) = ([1i64, 3], [0.25; 6]);
+    let (code, status) = relocate(handles.locator, &points, &mut cells, &mut xi);
+    assert_eq!(code, CgcError::InvalidArgument);
+    assert!(
+        last_error().starts_with("cells[1] = 3 is not a previous answer")
+            && last_error().contains("not active"),
+        "{}",
+        last_error()
+    );
+    assert_eq!((cells, xi), ([1, 3], [0.25; 6]), "nothing is written");
+    assert_eq!(status, [9, 9]);
+    // Active cells and −1 are hints, whatever they say.
+    let mut cells = [4i64, -1];
+    let (code, status) = relocate(handles.locator, &points, &mut cells, &mut xi);
+    assert_eq!(code, CgcError::Ok, "{}", last_error());
+    assert_eq!(cells, [1, -1]);
+    assert_eq!(status, [CGC_POINT_INSIDE, CGC_POINT_OUTSIDE]);
+}
