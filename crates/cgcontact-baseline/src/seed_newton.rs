@@ -32,7 +32,13 @@ pub fn seed_eval_loc_coords(map: &Hex8Map, x: DVec3) -> Inversion {
         iterations,
         residual: residual.length(),
     };
-    while residual.length() > SEED_TOL {
+    // Stop only on a residual known to be within the tolerance: a NaN one (a point or a map with
+    // a NaN) iterates, and ends Singular (`residual > SEED_TOL` let it out at ξ = 0, inside).
+    loop {
+        let converged = residual.length() <= SEED_TOL;
+        if converged {
+            break;
+        }
         if iterations == SEED_MAX_ITER {
             return finish(Status::NotConverged, xi, iterations, residual);
         }
@@ -61,6 +67,30 @@ pub fn seed_eval_loc_coords(map: &Hex8Map, x: DVec3) -> Inversion {
 mod tests {
     use super::*;
     use cgcontact::hex8::Kernel;
+
+    /// A NaN point, or a map with a NaN corner, made a NaN residual, which `residual > tol`
+    /// let out of the loop at ξ = 0: `Inside`, the answer the guards exist to prevent. It is
+    /// `Singular` now; a finite point in the same cell is still found at its ξ.
+    #[test]
+    fn a_nan_point_or_corner_is_singular_not_inside() {
+        let mut u = [DVec3::ZERO; 8];
+        u[6] = DVec3::splat(0.2);
+        let map = Hex8Map::lattice_cell(DVec3::ONE, &u);
+        for x in [DVec3::NAN, DVec3::new(0.5, f64::NAN, 0.5)] {
+            let inversion = seed_eval_loc_coords(&map, x);
+            assert_eq!(inversion.status, Status::Singular, "{x}: {inversion:?}");
+        }
+        u[3].y = f64::NAN;
+        let broken = Hex8Map::lattice_cell(DVec3::ONE, &u);
+        let inversion = seed_eval_loc_coords(&broken, DVec3::splat(0.5));
+        assert_eq!(inversion.status, Status::Singular, "{inversion:?}");
+        // The known point: ξ = (0.3, −0.4, 0.5) maps to x; 0.2 of a cell beyond tolerance
+        // from the centre, so the seed iterates and lands within 0.1 of it.
+        let xi = DVec3::new(0.3, -0.4, 0.5);
+        let found = seed_eval_loc_coords(&map, map.map(xi));
+        assert_eq!(found.status, Status::Inside);
+        assert!(found.residual <= SEED_TOL);
+    }
 
     #[test]
     fn stops_at_the_loose_tolerance() {
