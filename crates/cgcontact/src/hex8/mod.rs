@@ -472,7 +472,9 @@ stamp_hex8!(
 /// Smallest Jacobian determinant over the 8 corners of a hexahedron (corners in VTK order).
 ///
 /// At a corner, J's columns are the three edges leaving it (halved), so this is the classic
-/// corner-validity test: a cell with a non-positive value is inverted or degenerate there.
+/// corner-validity test: a cell with a non-positive value is inverted or degenerate there. NaN
+/// when some corner's determinant is NaN (a corner not finite, or a product that overflowed):
+/// such a cell is not known to be valid.
 #[must_use]
 pub fn min_corner_det(corners: &[DVec3; 8]) -> f64 {
     let map = Hex8Map::new(corners);
@@ -480,7 +482,15 @@ pub fn min_corner_det(corners: &[DVec3; 8]) -> f64 {
         .iter()
         .map(|&xi| map.map_and_jacobian(DVec3::from_array(xi)).1)
         .map(|[c0, c1, c2]| c0.dot(c1.cross(c2)))
-        .fold(f64::INFINITY, f64::min)
+        // Not `f64::min`, which skips NaN: a cell with a NaN corner determinant was then judged
+        // by its other corners, and passed.
+        .fold(f64::INFINITY, |low, det| {
+            if low.is_nan() || det.is_nan() {
+                f64::NAN
+            } else {
+                low.min(det)
+            }
+        })
 }
 
 #[cfg(test)]
@@ -594,6 +604,25 @@ mod tests {
         assert_ne!(nan.status, Status::Inside);
         assert!(min_corner_det(&flat).abs() < 1e-15);
         assert!(min_corner_det(&distorted()) > 0.0);
+    }
+
+    /// `min_corner_det` folded with `f64::min`, which skips NaN: a cell with one corner NaN
+    /// (NaN determinants at the four corners next to it) got the smallest of the others, 0.125
+    /// for a unit cube, and passed as valid. It is NaN now, which every caller counts as not
+    /// valid; each finite corner's determinant is checked against the cube's edges.
+    #[test]
+    fn a_nan_corner_is_no_valid_cell() {
+        let cube: [DVec3; 8] = crate::CORNER_OFFSETS
+            .map(|[a, b, c]| DVec3::new(f64::from(a), f64::from(b), f64::from(c)));
+        assert_eq!(min_corner_det(&cube), 0.125);
+        for corner in 0..8 {
+            for bad in [f64::NAN, f64::INFINITY] {
+                let mut broken = cube;
+                broken[corner].y = bad;
+                let det = min_corner_det(&broken);
+                assert!(det.is_nan() || det <= 0.0, "corner {corner} at {bad}: {det}");
+            }
+        }
     }
 
     /// The rounding allowance is a physical distance, however thin the cell: a sliver (its x and
