@@ -291,7 +291,9 @@ void cgc_body_free(cgc_body *body);
 
 // The message of the last failed call on the calling thread, or "" when none failed yet. The
 // string belongs to the library and stays valid until the next failing call on this thread.
-// Thread-safe: each thread has its own message.
+// Thread-safe: each thread has its own message. Calls made while the thread's storage is being
+// destroyed (from an `atexit` handler or a thread-local destructor) still return their codes,
+// but their messages are lost: a fixed message says so.
 const char *cgc_last_error(void);
 
 // The signed gap of `n_points` points to the body's deformed boundary surface, searched within

@@ -84,19 +84,36 @@ thread_local! {
     static LAST_ERROR: RefCell<CString> = RefCell::new(CString::default());
 }
 
+/// What `cgc_last_error` answers on a thread whose storage is being destroyed (a call from an
+/// `atexit` handler or a thread-local destructor), where no message can be kept.
+const NO_STORAGE: &std::ffi::CStr =
+    c"the message is lost: the calling thread's storage is being destroyed (a call at exit)";
+
 /// Records `message` as this thread's last error (interior NUL bytes, which no message of ours
-/// holds, are dropped rather than truncating it).
+/// holds, are dropped rather than truncating it). On a thread whose storage is being destroyed
+/// the message is dropped: the call still returns its code.
 pub(crate) fn set_last_error(message: &str) {
     let text = CString::new(message.replace('\0', "")).unwrap_or_default();
-    LAST_ERROR.with(|last| *last.borrow_mut() = text);
+    let _ = LAST_ERROR.try_with(|last| {
+        if let Ok(mut last) = last.try_borrow_mut() {
+            *last = text;
+        }
+    });
 }
 
 /// The message of the last failed call on the calling thread, or "" when none failed yet. The
 /// string belongs to the library and stays valid until the next failing call on this thread.
-/// Thread-safe: each thread has its own message.
+/// Thread-safe: each thread has its own message. Calls made while the thread's storage is being
+/// destroyed (from an `atexit` handler or a thread-local destructor) still return their codes,
+/// but their messages are lost: a fixed message says so.
 #[unsafe(no_mangle)]
 pub extern "C" fn cgc_last_error() -> *const c_char {
-    catch_unwind(|| LAST_ERROR.with(|last| last.borrow().as_ptr())).unwrap_or(c"".as_ptr())
+    catch_unwind(|| {
+        LAST_ERROR
+            .try_with(|last| last.borrow().as_ptr())
+            .unwrap_or(NO_STORAGE.as_ptr())
+    })
+    .unwrap_or(c"".as_ptr())
 }
 
 /// Runs the body of an entry point: a panic becomes `CgcError::Panic`, an error its code, and either
