@@ -318,7 +318,8 @@ impl Body {
                 _ => None,
             },
             Slots::Sparse { map, .. } => {
-                let key = u32::try_from(node).ok()?;
+                // u32::MAX is the map's empty key, never a node (as in `is_active_sparse`).
+                let key = u32::try_from(node).ok().filter(|&k| k != u32::MAX)?;
                 map.get(key).map(|s| s as usize)
             }
         }
@@ -710,6 +711,16 @@ mod tests {
                 }
             }
             assert!(!body.is_active(CellId(u32::MAX)));
+            // Node u32::MAX is the sparse map's empty key, which it found in every empty slot
+            // (the displacement of slot 0).
+            for node in [
+                l.node_count(),
+                u32::MAX as usize,
+                u32::MAX as usize + 1,
+                usize::MAX,
+            ] {
+                assert_eq!(body.displacement(node), None, "node {node}, {count} cells");
+            }
             // Memory grows with the cells: a few cells take a few kilobytes.
             if count <= 40 {
                 assert!(body.heap_bytes() < 64 * 1024, "{}", body.heap_bytes());
