@@ -18,6 +18,10 @@
 //! distance then shrinks the box, whose cells are each dropped by lower bounds in turn (the cell's
 //! box shifted by the displacement range, its faces', their deformed corners' boxes) before the
 //! coverage of a face is settled and the exact closest point of its quad is found (`quad.rs`).
+//! The box is walked cell by cell of the lattice, active or not: where no cell near the point
+//! bounds the distance first (a point in a hole, or a sparse body on a large lattice), a search
+//! distance of many cells costs the cube of that distance in cells. On a body of 2 cells at
+//! opposite corners of a 1290³ lattice, a distance of 1e4 cells took 13 s per point.
 //!
 //! | file | what |
 //! |---|---|
