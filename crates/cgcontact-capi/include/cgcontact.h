@@ -352,7 +352,9 @@ cgc_error cgc_settings_init(uint32_t precision, cgc_settings *settings);
 
 // A locator over `body` with `settings` (NULL: the f64 defaults). It shares the body: it sees
 // every later `cgc_body_set_displacements`, and keeps the body alive after `cgc_body_free`.
-// Writes the new handle to `*out`.
+// Writes the new handle to `*out`. Settings out of range are `CGC_ERROR_INVALID_ARGUMENT`, as
+// is `CGC_PRECISION_F32` on a body whose finest spacing lies outside [1e-11, 1e11] (the f32
+// kernel cannot resolve such cells: use f64).
 //
 // # Safety
 // `body` must be a live handle or NULL; `settings` readable or NULL; `out` writable or NULL.

@@ -50,6 +50,11 @@ impl AnyBody {
         }
     }
 
+    /// The spacing of the body's finest cells (its lattice's, on a uniform body).
+    pub(crate) fn finest_spacing(&self) -> DVec3 {
+        self.as_ref().finest_spacing()
+    }
+
     fn lattice(&self) -> &Lattice {
         match self {
             Self::Uniform(body) => body.lattice(),

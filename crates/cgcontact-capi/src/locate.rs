@@ -142,7 +142,9 @@ impl CgcLocator {
 
 /// A locator over `body` with `settings` (NULL: the f64 defaults). It shares the body: it sees
 /// every later `cgc_body_set_displacements`, and keeps the body alive after `cgc_body_free`.
-/// Writes the new handle to `*out`.
+/// Writes the new handle to `*out`. Settings out of range are `CGC_ERROR_INVALID_ARGUMENT`, as
+/// is `CGC_PRECISION_F32` on a body whose finest spacing lies outside [1e-11, 1e11] (the f32
+/// kernel cannot resolve such cells: use f64).
 ///
 /// # Safety
 /// `body` must be a live handle or NULL; `settings` readable or NULL; `out` writable or NULL.
@@ -194,7 +196,9 @@ pub unsafe extern "C" fn cgc_locator_new(
             inside_tol: given.inside_tol,
             ..Settings::default()
         };
-        settings.validate()?;
+        // The body's cells never change size: settings its search cannot use (f32 on cells too
+        // small or too large for f32) are refused here, not at every query.
+        settings.validate_for(CgcBody::read(&body.state).body.finest_spacing())?;
         let pool = match given.threads {
             0 => None,
             n if n > MAX_THREADS => {

@@ -1217,3 +1217,49 @@ fn relocate_refuses_an_inactive_lattice_cell_as_a_hint() {
     assert_eq!(cells, [1, -1]);
     assert_eq!(status, [CGC_POINT_INSIDE, CGC_POINT_OUTSIDE]);
 }
+
+/// f32 settings on a body whose cells the f32 kernel cannot resolve (spacing 1e-13) were taken by
+/// `cgc_locator_new`, and every later query then failed with an "invalid setting" error (the
+/// library checks the spacing when a query builds its search): the locator refuses them instead,
+/// once, where the settings are given. f64 settings are fine there.
+#[test]
+fn f32_settings_on_cells_too_small_for_f32_are_refused_by_the_locator() {
+    let (origin, h, counts) = ([0.0; 3], [1e-13; 3], [2u32, 2, 2]);
+    let mut body = ptr::null_mut();
+    // SAFETY: every array holds the length passed; the handles are freed once, here.
+    unsafe {
+        assert_eq!(
+            cgc_body_from_lattice(
+                origin.as_ptr(),
+                h.as_ptr(),
+                counts.as_ptr(),
+                ptr::null(),
+                0,
+                &mut body
+            ),
+            CgcError::Ok
+        );
+        let mut settings = std::mem::zeroed::<CgcSettings>();
+        assert_eq!(
+            cgc_settings_init(CGC_PRECISION_F32, &mut settings),
+            CgcError::Ok
+        );
+        let mut locator = ptr::null_mut();
+        assert_eq!(
+            cgc_locator_new(body, &settings, &mut locator),
+            CgcError::InvalidArgument
+        );
+        assert!(last_error().contains("f32"), "{}", last_error());
+        assert!(locator.is_null());
+        assert_eq!(
+            cgc_locator_new(body, ptr::null(), &mut locator),
+            CgcError::Ok
+        );
+        let points = [1.5e-13, 0.5e-13, 0.5e-13];
+        let (code, cells, _, _) = locate(locator, &points);
+        assert_eq!(code, CgcError::Ok, "{}", last_error());
+        assert_eq!(cells, [1]);
+        cgc_locator_free(locator);
+        cgc_body_free(body);
+    }
+}
