@@ -412,19 +412,23 @@ impl Nodes {
             let up = u32::from(ux) | u32::from(uy) << 1 | u32::from(uz) << 2;
             // Per axis, the rank's part of the corner's coordinate: at `lo`, and one step up (0
             // where that step crosses into the next owner).
-            let (x0, y0, z0) = (lo[0], lo[1] << l, lo[2] << (2 * l));
+            // Wrapping: past level 10 the ranks leave u32 (and 2l its shifts past level 15), but
+            // no owner is full at such a level, so they are never used there (the corners go the
+            // per-corner way below); a debug build must not panic computing them.
+            let rank = |x: u32, y: u32, z: u32| x.wrapping_add(y).wrapping_add(z);
+            let (x0, y0, z0) = (lo[0], lo[1] << l, lo[2].wrapping_shl(2 * l));
             let x1 = if ux { 0 } else { x0 + 1 };
-            let y1 = if uy { 0 } else { y0 + side };
-            let z1 = if uz { 0 } else { z0 + (side << l) };
+            let y1 = if uy { 0 } else { y0.wrapping_add(side) };
+            let z1 = if uz { 0 } else { z0.wrapping_add(side << l) };
             let ranks = [
-                x0 + y0 + z0,
-                x1 + y0 + z0,
-                x1 + y1 + z0,
-                x0 + y1 + z0,
-                x0 + y0 + z1,
-                x1 + y0 + z1,
-                x1 + y1 + z1,
-                x0 + y1 + z1,
+                rank(x0, y0, z0),
+                rank(x1, y0, z0),
+                rank(x1, y1, z0),
+                rank(x0, y1, z0),
+                rank(x0, y0, z1),
+                rank(x1, y0, z1),
+                rank(x1, y1, z1),
+                rank(x0, y1, z1),
             ];
             // The owner of each corner (VTK order): bit a of its offset, where that step crosses.
             const BITS: [u32; 8] = [0, 1, 3, 2, 4, 5, 7, 6];

@@ -747,6 +747,90 @@ fn six_levels_in_one_corner_allocate_with_the_leaves() {
     assert_eq!(locator.locate(x).unwrap().unwrap().cell, cell);
 }
 
+/// A body refined toward one corner down to `MAX_LEVEL`: points made from known (leaf, ξ) in
+/// leaves of every level, on their faces, edges and corners too, are found in their leaf with
+/// their ξ by `locate` and `locate_all`, `locate_owners` gives brute force's owners, and
+/// `relocate_all` from those answers keeps their leaves. A debug build overflowed a corner's rank
+/// from level 16 on.
+#[test]
+fn leaves_of_every_level_to_the_deepest_are_found() {
+    // One base cell: 2^20 finest cells per axis is as many as the library indexes.
+    let lattice = Lattice::new(DVec3::new(-0.75, 0.5, 2.0), DVec3::ONE, [1, 1, 1]).unwrap();
+    let mut leaves = Vec::new();
+    let mut corner = Leaf::new(0, [0, 0, 0]);
+    for level in 0..MAX_LEVEL {
+        let children = corner.children();
+        // Toward the upper corner, then the lower one, in turn: each level's leaves meet the
+        // deeper ones across faces, edges and corners.
+        let deeper = if level % 2 == 0 { 7 } else { 0 };
+        leaves.extend((0..8).filter(|&c| c != deeper).map(|c| children[c]));
+        corner = children[deeper];
+    }
+    leaves.push(corner);
+    let mut body = AdaptiveBody::from_leaves(lattice, leaves).unwrap();
+    assert_eq!(body.finest_level(), MAX_LEVEL);
+    deform(&mut body, 0.02, 0.1, 3);
+    let settings = Settings::default();
+    let locator = AdaptiveLocator::new(&body, settings).unwrap();
+    let mut rng = Rng(11);
+    let mut points = Vec::new();
+    let mut made = Vec::new();
+    for c in 0..body.cell_count() as u32 {
+        for k in 0..4 {
+            // Inside, then on a face, an edge and a corner.
+            let mut xi = rng.vec(-0.9, 0.9);
+            for a in 0..k.min(3) {
+                xi[a] = if rng.below(2) == 0 { -1.0 } else { 1.0 };
+            }
+            points.push(body.point_at(CellId(c), xi).unwrap());
+            made.push((c, xi, k == 0));
+        }
+    }
+    let mut batched = Vec::new();
+    locator.locate_all_into(&points, &mut batched);
+    let mut warm = batched.clone();
+    locator.relocate_all(&points, &mut warm);
+    for (p, (&x, &(c, xi, interior))) in points.iter().zip(&made).enumerate() {
+        let one = locator.locate(x);
+        assert_eq!(one, batched[p], "point {p}");
+        let hit = one.unwrap().unwrap();
+        // ξ as well as the coordinates resolve it in a leaf of that size (1e-9 at level 20).
+        let k = body.corners(hit.cell).unwrap();
+        let edge = (k[1] - k[0])
+            .length()
+            .min((k[3] - k[0]).length())
+            .min((k[4] - k[0]).length());
+        let bound = 1e-12 + 64.0 * f64::EPSILON * (x.abs().max_element() + 1.0) * 2.0 / edge;
+        // Warm from the answer itself: its own leaf again.
+        let again = warm[p].unwrap().unwrap();
+        assert_eq!(again.cell, hit.cell, "point {p}");
+        let moved = (again.xi - hit.xi).abs().max_element();
+        assert!(
+            moved < bound,
+            "point {p}: ξ moved by {moved:e}, beyond {bound:e}"
+        );
+        let owners: Vec<u32> = locator
+            .locate_owners(x)
+            .unwrap()
+            .iter()
+            .map(|h| h.cell.0)
+            .collect();
+        assert_eq!(owners, brute_owners(&body, &settings, x), "point {p}");
+        assert!(
+            owners.contains(&c),
+            "point {p}: leaf {c} not among {owners:?}"
+        );
+        if interior {
+            assert_eq!(hit.cell.0, c, "point {p}");
+            let error = (hit.xi - xi).abs().max_element();
+            assert!(
+                error < bound,
+                "point {p}: ξ off by {error:e}, beyond {bound:e}"
+            );
+        }
+    }
+}
+
 /// The corner table changes where the locators read a leaf's corners, not what they answer: the
 /// same nodes per leaf, and bitwise the same answers, batched and one by one, on random
 /// refinements (balanced or not, with holes) and points anywhere, each leaf's corners checked
