@@ -286,6 +286,37 @@ impl Body {
         }
     }
 
+    /// Calls `f` with each active cell of the lattice box [`low`, `high`] (cell indices, inclusive),
+    /// ascending by id, reading only the active cells whose ids lie between the box's lowest and
+    /// highest: for searches whose box holds far more lattice cells than the body has.
+    pub(crate) fn for_each_active_in(
+        &self,
+        low: [u32; 3],
+        high: [u32; 3],
+        mut f: impl FnMut([u32; 3]),
+    ) {
+        let lattice = &self.lattice;
+        let (first, last) = (lattice.cell_id(low).0, lattice.cell_id(high).0);
+        let mut visit = |c: u32| {
+            let ijk = lattice.cell_ijk(CellId(c)).unwrap_or([u32::MAX; 3]);
+            if (0..3).all(|a| (low[a]..=high[a]).contains(&ijk[a])) {
+                f(ijk);
+            }
+        };
+        match &self.cells {
+            Cells::Sparse { cells, .. } => {
+                let from = cells.partition_point(|&c| c < first);
+                let to = cells.partition_point(|&c| c <= last);
+                cells[from..to].iter().for_each(|&c| visit(c));
+            }
+            Cells::Mask(mask) => {
+                if let Some(range) = mask.get(first as usize..=last as usize) {
+                    range.iter_ones().for_each(|c| visit(first + c as u32));
+                }
+            }
+        }
+    }
+
     /// Number of nodes carrying a displacement (nodes of active cells).
     #[inline]
     #[must_use]

@@ -7,3 +7,4 @@ mod common;
 mod extremes_oracle;
 mod hostile_inputs;
 mod seed_filters_failure_counts;
+mod sparse_far;

@@ -99,6 +99,10 @@ pub(crate) mod sealed {
         Some((lo.min(n - 1), (high as u32).min(n - 1)))
     }
 
+    /// Past this many lattice cells of a box per active cell, `cells_in_box` visits the body's
+    /// active cells in the box instead of testing each lattice cell.
+    const ACTIVE_WALK: u64 = 8;
+
     impl Faces for LatticeLocator<'_> {
         #[inline]
         fn cell_near(&self, t: DVec3) -> Option<Cell> {
@@ -160,6 +164,20 @@ pub(crate) mod sealed {
                     Some(range) => r[a] = range,
                     None => return,
                 }
+            }
+            let box_cells: u64 = r.iter().map(|&(lo, hi)| u64::from(hi - lo + 1)).product();
+            if !full && box_cells > ACTIVE_WALK * self.body().active_count() as u64 {
+                // Far more lattice cells than the body has (a sparse body, a long distance): its
+                // active cells in the box, in the same order (ascending id).
+                let (low, high) = ([r[0].0, r[1].0, r[2].0], [r[0].1, r[1].1, r[2].1]);
+                self.body().for_each_active_in(low, high, |ijk| {
+                    visit(Cell {
+                        id: lattice.cell_id(ijk).0,
+                        level: 0,
+                        ijk,
+                    });
+                });
+                return;
             }
             for k in r[2].0..=r[2].1 {
                 for j in r[1].0..=r[1].1 {

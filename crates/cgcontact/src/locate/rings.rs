@@ -10,6 +10,10 @@ use crate::hex8::{Kernel, NewtonOptions};
 use crate::reach::{self, Candidates, RING_CELLS};
 use crate::settings::CandidateOrder;
 
+/// The ring walk tests each lattice cell of its box; past this many box cells per active cell, the
+/// body's active cells in the box are gathered and sorted instead.
+const ACTIVE_WALK: u64 = 8;
+
 impl LatticeLocator<'_> {
     /// The search after a miss in the predicted cell `first`: every other active cell that can
     /// hold x, nearest first. Kept out of line: the common path stays small.
@@ -54,6 +58,26 @@ impl LatticeLocator<'_> {
             let mut candidates = Candidates::new();
             pyramid.candidates(self.body, x, t_x, low, high, center, tau, &mut candidates);
             candidates.retain(|(_, ijk)| *ijk != first);
+            candidates.sort_unstable_by_key(|(key, _)| *key);
+            for (_, ijk) in candidates {
+                let u = self.body.corner_displacements(ijk);
+                let map = Some(self.u_map::<K>(&u));
+                let hit = self.visit(x, ijk, map, t_guess, options, collect, inversions);
+                if hit.is_some() {
+                    return hit;
+                }
+            }
+            return None;
+        }
+        if box_cells > RING_CELLS && box_cells > ACTIVE_WALK * self.body.active_count() as u64 {
+            // A box holding far more lattice cells than the body has (a sparse body, which keeps
+            // no pyramid, moved far): its active cells in the box, in the ring walk's order.
+            let mut candidates = Candidates::new();
+            self.body.for_each_active_in(low, high, |ijk| {
+                if ijk != first && reaches(ijk, &self.body.corner_displacements(ijk)) {
+                    candidates.push((reach::ring_key(ijk, center), ijk));
+                }
+            });
             candidates.sort_unstable_by_key(|(key, _)| *key);
             for (_, ijk) in candidates {
                 let u = self.body.corner_displacements(ijk);

@@ -560,3 +560,47 @@ fn range(u: &[DVec3]) -> (DVec3, DVec3) {
             (l.min(u), h.max(u))
         })
 }
+
+/// A sparse body (a few cells far apart on a 10⁹-cell lattice, kept in hash maps): the search
+/// boxes of a long distance hold hundreds of millions of lattice cells and a few of the body's.
+/// Gaps, closest points and normals match the oracle, f64 and f32. The search walked every
+/// lattice cell of its box before, for minutes per point.
+#[test]
+fn gaps_on_a_sparse_body_with_cells_far_apart_match_the_oracle() {
+    let origin = DVec3::new(-40.0, 12.5, 3.0);
+    let h = DVec3::new(0.5, 0.25, 0.4);
+    let lattice = Lattice::new(origin, h, [1000; 3]).unwrap();
+    let cells: Vec<CellId> = [[10, 20, 30], [11, 20, 30], [11, 21, 30], [900, 950, 990]]
+        .into_iter()
+        .chain([[500, 10, 700], [500, 10, 701]])
+        .map(|ijk| lattice.cell_id(ijk))
+        .collect();
+    let mut body = Body::from_cells(lattice, cells).unwrap();
+    body.update_displacements(|_, x, u| {
+        let r = (x - origin) / h;
+        *u = DVec3::new(0.2 * (0.01 * r.y).sin(), 0.1 * (0.02 * r.z).cos(), 0.05) * h;
+    })
+    .unwrap();
+    let faces = uniform_faces(&body);
+    let centres = vec![
+        body.point_at(CellId(cells_of(&body)[0]), DVec3::ZERO)
+            .unwrap()
+            - origin,
+    ];
+    let mut rng = Rng(0x5a5);
+    let probes = probes(&faces, &centres, &mut rng);
+    for settings in [Settings::default(), Settings::f32()] {
+        let locator = LatticeLocator::new(&body, settings).unwrap();
+        let range = range(body.displacements());
+        let m = sweep(
+            "sparse", &locator, settings, h, range, origin, &faces, &probes,
+        );
+        assert!(m.answered > 100, "{} answered", m.answered);
+        assert_eq!(m.sign, 0, "gaps whose sign is not the locator's");
+        assert_eq!(m.inward, 0, "normals into the body");
+    }
+}
+
+fn cells_of(body: &Body) -> Vec<u32> {
+    body.active_cells().map(|c| c.0).collect()
+}
