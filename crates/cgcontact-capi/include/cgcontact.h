@@ -143,7 +143,8 @@ typedef struct {
   double newton_tol;
   // Newton iteration limit per candidate cell; ≥ 1.
   uint32_t max_iter;
-  // A point is inside a cell when every |ξ_k| ≤ 1 + inside_tol (plus a rounding allowance); ≥ 0.
+  // A point is inside a cell when every |ξ_k| ≤ 1 + inside_tol (plus a rounding allowance); in
+  // [0, 0.1].
   double inside_tol;
   // Threads for a query: 0 for every core (one pool shared by the process), else a pool of its
   // own of this many threads, at most 1024.

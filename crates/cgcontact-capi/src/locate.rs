@@ -46,7 +46,8 @@ pub struct CgcSettings {
     pub newton_tol: f64,
     /// Newton iteration limit per candidate cell; ≥ 1.
     pub max_iter: u32,
-    /// A point is inside a cell when every |ξ_k| ≤ 1 + inside_tol (plus a rounding allowance); ≥ 0.
+    /// A point is inside a cell when every |ξ_k| ≤ 1 + inside_tol (plus a rounding allowance); in
+    /// [0, 0.1].
     pub inside_tol: f64,
     /// Threads for a query: 0 for every core (one pool shared by the process), else a pool of its
     /// own of this many threads, at most 1024.

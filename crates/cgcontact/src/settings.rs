@@ -180,6 +180,11 @@ impl Settings {
     pub const NEWTON_TOL_F32: f64 = 1e-5;
     /// Default inside tolerance of [`Settings::f32`].
     pub const INSIDE_TOL_F32: f64 = 1e-6;
+    /// The largest inside tolerance, ξ units: a point up to 5 % of a cell beyond a face. The
+    /// searches' filters widen by 2τ of a cell's extent for an inversion accepting |ξ_k| ≤ 1 + τ,
+    /// which leaves the cell's hull by up to ((1 + τ)³ − 1)/2 of it: covered only while τ stays
+    /// below about 0.3 (docs/numerics.md).
+    pub const MAX_INSIDE_TOL: f64 = 0.1;
 
     /// Defaults for f32: a Newton tolerance and inside tolerance suited to single precision.
     #[must_use]
@@ -201,7 +206,8 @@ impl Settings {
     /// See [`Settings::F32_MIN_SPACING`].
     pub const F32_MAX_SPACING: f64 = 1e11;
 
-    /// Check ranges: tolerances finite and non-negative, at least one iteration.
+    /// Check ranges: the Newton tolerance finite and positive, the inside tolerance in
+    /// [0, [`Settings::MAX_INSIDE_TOL`]], at least one iteration.
     pub fn validate(&self) -> Result<(), Error> {
         if !(self.newton_tol.is_finite() && self.newton_tol > 0.0) {
             return Err(Error::InvalidSettings(format!(
@@ -209,10 +215,11 @@ impl Settings {
                 self.newton_tol
             )));
         }
-        if !(self.inside_tol.is_finite() && self.inside_tol >= 0.0) {
+        if !(self.inside_tol >= 0.0 && self.inside_tol <= Self::MAX_INSIDE_TOL) {
             return Err(Error::InvalidSettings(format!(
-                "inside tolerance {} must be finite and ≥ 0",
-                self.inside_tol
+                "inside tolerance {} must lie in [0, {}]",
+                self.inside_tol,
+                Self::MAX_INSIDE_TOL
             )));
         }
         if self.max_iter == 0 {

@@ -8,6 +8,8 @@ use crate::common::{Kind, Spec};
 use cgcontact::glam::DVec3;
 use cgcontact::{LatticeLocator, Locator, PointError, Settings};
 use cgcontact_baseline::{BruteForce, RTree};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
 
 /// Checks every point; returns how many were located (so callers can check the scene is not trivial).
 ///
@@ -364,4 +366,56 @@ fn bad_settings_are_errors() {
     };
     assert!(BruteForce::new(&body, bad).is_err());
     assert!(RTree::new(&body, bad).is_err());
+}
+
+/// The largest inside tolerance `Settings::validate` accepts: points up to 1.5 times that far
+/// beyond faces, edges and corners of a distorted body with holes, and anywhere in its box. The
+/// lattice's owner lists are brute force's (the search's filters widen enough for it), and
+/// `locate` answers one of them.
+#[test]
+fn the_largest_inside_tolerance_keeps_every_owner() {
+    let spec = Spec {
+        amplitude: 1.5,
+        jitter: 0.15,
+        holes: 0.2,
+        cells: [7, 6, 5],
+        seed: 41,
+        ..MILD
+    };
+    let body = common::body(&spec);
+    let settings = Settings {
+        inside_tol: Settings::MAX_INSIDE_TOL,
+        ..Settings::default()
+    };
+    let lattice = LatticeLocator::new(&body, settings).unwrap();
+    let brute = BruteForce::new(&body, settings).unwrap();
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    let reach = 1.0 + 1.5 * Settings::MAX_INSIDE_TOL;
+    let mut points: Vec<DVec3> = Vec::new();
+    for cell in body.active_cells() {
+        for _ in 0..12 {
+            let xi = DVec3::new(
+                rng.random_range(-reach..=reach),
+                rng.random_range(-reach..=reach),
+                rng.random_range(-reach..=reach),
+            );
+            points.push(common::point_at(&body, cell, xi));
+        }
+    }
+    points.extend(common::points(&body, 200, 9).into_iter().map(|(x, _)| x));
+    let mut held = 0;
+    for (p, &x) in points.iter().enumerate() {
+        let cells = |o: cgcontact::Owners| o.iter().map(|h| h.cell).collect::<Vec<_>>();
+        let owners = cells(brute.locate_owners(x).unwrap());
+        assert_eq!(
+            cells(lattice.locate_owners(x).unwrap()),
+            owners,
+            "point {p} at {x}"
+        );
+        let one = lattice.locate(x).unwrap().map(|h| h.cell);
+        assert_eq!(one.is_some(), !owners.is_empty(), "point {p} at {x}");
+        assert!(one.is_none_or(|c| owners.contains(&c)), "point {p} at {x}");
+        held += usize::from(owners.len() > 1);
+    }
+    assert!(held > 500, "only {held} points with several owners");
 }

@@ -76,8 +76,8 @@ fn hostile_settings(rng: &mut ChaCha8Rng) -> (Settings, bool) {
     }
     let valid = s.newton_tol.is_finite()
         && s.newton_tol > 0.0
-        && s.inside_tol.is_finite()
         && s.inside_tol >= 0.0
+        && s.inside_tol <= Settings::MAX_INSIDE_TOL
         && s.max_iter > 0;
     (s, valid)
 }
