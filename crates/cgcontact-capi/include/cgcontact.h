@@ -43,7 +43,9 @@
  * and new displacements. cgc_last_error is per thread. Not allowed (undefined behaviour, as for any C
  * handle): using a handle after freeing it, or freeing it while another thread uses it. A locator
  * shares its body: freeing the body handle first is fine, the body lives on until its last
- * locator is freed.
+ * locator is freed. The worker threads (rayon's) outlive every handle and stay with the process:
+ * unloading the library (dlclose, FreeLibrary) once it has run a query is undefined behaviour, so
+ * a plugin host must keep it loaded (the Octave MEX file locks itself with mexLock).
  */
 
 #ifndef CGCONTACT_H
