@@ -620,7 +620,10 @@ mod tests {
                 let mut broken = cube;
                 broken[corner].y = bad;
                 let det = min_corner_det(&broken);
-                assert!(det.is_nan() || det <= 0.0, "corner {corner} at {bad}: {det}");
+                assert!(
+                    det.is_nan() || det <= 0.0,
+                    "corner {corner} at {bad}: {det}"
+                );
             }
         }
     }
