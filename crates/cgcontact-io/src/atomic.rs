@@ -12,6 +12,8 @@ use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::sync::{Mutex, MutexGuard};
 
+use crate::{ErrorKind, IoError};
+
 /// The temporary files being written now, by every thread. Held while a temporary file is renamed
 /// over its target, so that [`abandon_writes`] sees each write either whole or not begun.
 static IN_PROGRESS: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
@@ -55,8 +57,6 @@ impl Drop for Registered {
         }
     }
 }
-
-use crate::{ErrorKind, IoError};
 
 /// Write the file at `path` through `write`, atomically (see the module docs).
 ///
