@@ -75,18 +75,9 @@ fn clusters_moved_far_apart_on_a_sparse_body_agree_with_brute_force() {
     let mut batched = Vec::new();
     locator.locate_all_into(&xs, &mut batched);
     for (p, &(x, made)) in points.iter().enumerate() {
-        let owners: Vec<CellId> = locator
-            .locate_owners(x)
-            .unwrap()
-            .iter()
-            .map(|h| h.cell)
-            .collect();
-        let expected: Vec<CellId> = brute
-            .locate_owners(x)
-            .unwrap()
-            .iter()
-            .map(|h| h.cell)
-            .collect();
+        let cells = |owners: cgcontact::Owners| owners.iter().map(|h| h.cell).collect::<Vec<_>>();
+        let owners = cells(locator.locate_owners(x).unwrap());
+        let expected = cells(brute.locate_owners(x).unwrap());
         assert_eq!(owners, expected, "point {p} at {x}");
         let one = locator.locate(x).unwrap();
         assert_eq!(Ok(one), batched[p], "point {p}");

@@ -52,32 +52,30 @@ impl LatticeLocator<'_> {
             reach::cell_reaches(x - lattice.node_position(ijk), h, u, tau)
         };
         let box_cells: u64 = (0..3).map(|a| u64::from(high[a] - low[a] + 1)).product();
-        if let Some(pyramid) = self.pyramid.as_ref().filter(|_| box_cells > RING_CELLS) {
-            // A large box (a far-moved node, large strains): the pyramid finds the few cells whose
-            // blocks reach x, and they are visited in the ring walk's order.
-            let mut candidates = Candidates::new();
-            pyramid.candidates(self.body, x, t_x, low, high, center, tau, &mut candidates);
-            candidates.retain(|(_, ijk)| *ijk != first);
-            candidates.sort_unstable_by_key(|(key, _)| *key);
-            for (_, ijk) in candidates {
-                let u = self.body.corner_displacements(ijk);
-                let map = Some(self.u_map::<K>(&u));
-                let hit = self.visit(x, ijk, map, t_guess, options, collect, inversions);
-                if hit.is_some() {
-                    return hit;
-                }
-            }
-            return None;
-        }
-        if box_cells > RING_CELLS && box_cells > ACTIVE_WALK * self.body.active_count() as u64 {
-            // A box holding far more lattice cells than the body has (a sparse body, which keeps
-            // no pyramid, moved far): its active cells in the box, in the ring walk's order.
-            let mut candidates = Candidates::new();
-            self.body.for_each_active_in(low, high, |ijk| {
-                if ijk != first && reaches(ijk, &self.body.corner_displacements(ijk)) {
-                    candidates.push((reach::ring_key(ijk, center), ijk));
-                }
-            });
+        // A large box: its candidates gathered, then visited in the ring walk's order.
+        let mut candidates = Candidates::new();
+        let gathered =
+            if let Some(pyramid) = self.pyramid.as_ref().filter(|_| box_cells > RING_CELLS) {
+                // A far-moved node, large strains: the pyramid finds the few cells whose
+                // blocks reach x.
+                pyramid.candidates(self.body, x, t_x, low, high, center, tau, &mut candidates);
+                candidates.retain(|(_, ijk)| *ijk != first);
+                true
+            } else if box_cells > RING_CELLS
+                && box_cells > ACTIVE_WALK * self.body.active_count() as u64
+            {
+                // Far more lattice cells than the body has (a sparse body, which keeps no pyramid,
+                // moved far): its active cells in the box that reach x.
+                self.body.for_each_active_in(low, high, |ijk| {
+                    if ijk != first && reaches(ijk, &self.body.corner_displacements(ijk)) {
+                        candidates.push((reach::ring_key(ijk, center), ijk));
+                    }
+                });
+                true
+            } else {
+                false
+            };
+        if gathered {
             candidates.sort_unstable_by_key(|(key, _)| *key);
             for (_, ijk) in candidates {
                 let u = self.body.corner_displacements(ijk);
