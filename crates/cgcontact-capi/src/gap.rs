@@ -152,12 +152,7 @@ pub unsafe extern "C" fn cgc_gap(
     face: *mut i32,
 ) -> CgcError {
     guard(|| {
-        let n3 = n_points.checked_mul(3).ok_or_else(|| {
-            Failure::new(
-                CgcError::LengthMismatch,
-                format!("points: {n_points} points do not fit in memory"),
-            )
-        })?;
+        let n3 = raw::triples(n_points, "points")?;
         let given = |ptr: bool, len: usize| if ptr { 0 } else { len };
         raw::disjoint(&[
             raw::region(points, n3, "points")?,

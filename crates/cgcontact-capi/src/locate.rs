@@ -302,12 +302,7 @@ unsafe fn locate(
     status: *mut u8,
     warm: bool,
 ) -> Result<(), Failure> {
-    let n3 = n_points.checked_mul(3).ok_or_else(|| {
-        Failure::new(
-            CgcError::LengthMismatch,
-            format!("points: {n_points} points do not fit in memory"),
-        )
-    })?;
+    let n3 = raw::triples(n_points, "points")?;
     raw::disjoint(&[
         raw::region(points, n3, "points")?,
         raw::region(cells, n_points, "cells")?,
@@ -442,12 +437,7 @@ pub unsafe extern "C" fn cgc_locator_query_seconds(
     seconds: *mut f64,
 ) -> CgcError {
     guard(|| {
-        let n3 = n_points.checked_mul(3).ok_or_else(|| {
-            Failure::new(
-                CgcError::LengthMismatch,
-                format!("points: {n_points} points do not fit in memory"),
-            )
-        })?;
+        let n3 = raw::triples(n_points, "points")?;
         raw::disjoint(&[
             raw::region(points, n3, "points")?,
             raw::region(seconds.cast_const(), 1, "seconds")?,

@@ -129,6 +129,17 @@ pub(crate) unsafe fn slice_mut<'a, T>(
     Ok(unsafe { std::slice::from_raw_parts_mut(ptr, len) })
 }
 
+/// 3 n, the values of `n` points (x y z each) of the array `what`, or the error that they do not
+/// fit in memory.
+pub(crate) fn triples(n: usize, what: &str) -> Result<usize, Failure> {
+    n.checked_mul(3).ok_or_else(|| {
+        Failure::new(
+            CgcError::LengthMismatch,
+            format!("{what}: {n} points do not fit in memory"),
+        )
+    })
+}
+
 /// `n` points given as 3 n doubles, x y z per point, read in place as `DVec3` (no copy).
 ///
 /// # Safety
@@ -138,12 +149,7 @@ pub(crate) unsafe fn points<'a>(
     n: usize,
     what: &str,
 ) -> Result<&'a [DVec3], Failure> {
-    let Some(len) = n.checked_mul(3) else {
-        return Err(Failure::new(
-            CgcError::LengthMismatch,
-            format!("{what}: {n} points do not fit in memory"),
-        ));
-    };
+    let len = triples(n, what)?;
     // SAFETY: forwarded from the caller.
     let flat = unsafe { slice(ptr, len, what) }?;
     // SAFETY: `flat` holds 3 n f64 at an address aligned for f64; DVec3 is #[repr(C)] of three f64

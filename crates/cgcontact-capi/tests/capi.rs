@@ -21,6 +21,40 @@ fn bits(v: &[f64]) -> Vec<u64> {
     v.iter().map(|x| x.to_bits()).collect()
 }
 
+/// `cgc_settings_init`'s defaults for `precision`.
+fn settings(precision: u32) -> CgcSettings {
+    // SAFETY: zeroed is a valid CgcSettings (numbers only); init writes every field.
+    unsafe {
+        let mut settings = std::mem::zeroed::<CgcSettings>();
+        assert_eq!(cgc_settings_init(precision, &mut settings), CgcError::Ok);
+        settings
+    }
+}
+
+/// `cgc_locator_new(body, settings, ..)` fails with `code`, a message holding each of `names`,
+/// and no handle written.
+///
+/// # Safety
+/// `body` a live handle; `settings` readable (or misaligned: what is tested) or NULL.
+unsafe fn locator_refused(
+    body: *const CgcBody,
+    settings: *const CgcSettings,
+    code: CgcError,
+    names: &[&str],
+) {
+    let mut locator = ptr::null_mut();
+    // SAFETY: forwarded from the caller.
+    assert_eq!(
+        unsafe { cgc_locator_new(body, settings, &mut locator) },
+        code
+    );
+    let message = last_error();
+    for name in names {
+        assert!(message.contains(name), "{name} not in: {message}");
+    }
+    assert!(locator.is_null());
+}
+
 /// A 6 × 5 × 4 block with a smooth displacement of up to about 0.4 h.
 fn block() -> Body {
     let lattice = Lattice::new(
@@ -904,28 +938,19 @@ fn misaligned_handle_outputs_and_settings_are_refused() {
         );
         assert!(words.iter().all(|&w| w == 0), "a handle was written");
 
-        let mut settings = std::mem::zeroed::<CgcSettings>();
-        assert_eq!(
-            cgc_settings_init(CGC_PRECISION_F64, &mut settings),
-            CgcError::Ok
-        );
+        let settings = settings(CGC_PRECISION_F64);
         let odd_settings = base.add(4);
         ptr::copy_nonoverlapping(
             (&raw const settings).cast::<u8>(),
             odd_settings,
             size_of::<CgcSettings>(),
         );
-        let mut locator = ptr::null_mut();
-        assert_eq!(
-            cgc_locator_new(handles.body, odd_settings.cast(), &mut locator),
-            CgcError::InvalidArgument
+        locator_refused(
+            handles.body,
+            odd_settings.cast(),
+            CgcError::InvalidArgument,
+            &["settings is not aligned"],
         );
-        assert!(
-            last_error().contains("settings is not aligned"),
-            "{}",
-            last_error()
-        );
-        assert!(locator.is_null());
     }
 }
 
@@ -937,26 +962,15 @@ fn too_many_threads_are_refused_not_capped() {
     let handles = lattice_handles(&body);
     // SAFETY: valid pointers; the settings are initialised by cgc_settings_init.
     unsafe {
-        let mut settings = std::mem::zeroed::<CgcSettings>();
-        assert_eq!(
-            cgc_settings_init(CGC_PRECISION_F64, &mut settings),
-            CgcError::Ok
-        );
+        let mut settings = settings(CGC_PRECISION_F64);
         for threads in [1025, u32::MAX] {
             settings.threads = threads;
-            let mut locator = ptr::null_mut();
-            assert_eq!(
-                cgc_locator_new(handles.body, &settings, &mut locator),
+            locator_refused(
+                handles.body,
+                &settings,
                 CgcError::InvalidArgument,
-                "{threads} threads"
+                &[&format!("threads is {threads}"), "at most 1024"],
             );
-            assert!(
-                last_error().contains(&format!("threads is {threads}"))
-                    && last_error().contains("at most 1024"),
-                "{}",
-                last_error()
-            );
-            assert!(locator.is_null());
         }
         settings.threads = 2;
         let mut locator = ptr::null_mut();
@@ -1239,18 +1253,9 @@ fn f32_settings_on_cells_too_small_for_f32_are_refused_by_the_locator() {
             ),
             CgcError::Ok
         );
-        let mut settings = std::mem::zeroed::<CgcSettings>();
-        assert_eq!(
-            cgc_settings_init(CGC_PRECISION_F32, &mut settings),
-            CgcError::Ok
-        );
+        let settings = settings(CGC_PRECISION_F32);
+        locator_refused(body, &settings, CgcError::InvalidArgument, &["f32"]);
         let mut locator = ptr::null_mut();
-        assert_eq!(
-            cgc_locator_new(body, &settings, &mut locator),
-            CgcError::InvalidArgument
-        );
-        assert!(last_error().contains("f32"), "{}", last_error());
-        assert!(locator.is_null());
         assert_eq!(
             cgc_locator_new(body, ptr::null(), &mut locator),
             CgcError::Ok
