@@ -405,15 +405,7 @@ fn hanging_nodes_off_their_constraint_are_refused_or_filled() {
         last_error()
     );
     let after = handles.locate(&points);
-    assert_eq!(after.0, before.0);
-    let off = after
-        .1
-        .iter()
-        .zip(&before.1)
-        .filter(|(a, _)| !a.is_nan())
-        .map(|(a, b)| (*a - *b).abs().max_element())
-        .fold(0.0, f64::max);
-    assert!(off < 1e-12, "ξ off by {off:e}");
+    same_answers(&after, &before);
 
     // A NaN is refused even where it would be filled; a bad layout too.
     u[3 * bad] = f64::NAN;
@@ -457,16 +449,7 @@ fn filled_hanging_nodes_may_hold_any_finite_value() {
         "{}",
         last_error()
     );
-    let after = handles.locate(&points);
-    assert_eq!(after.0, before.0);
-    let off = after
-        .1
-        .iter()
-        .zip(&before.1)
-        .filter(|(a, _)| !a.is_nan())
-        .map(|(a, b)| (*a - *b).abs().max_element())
-        .fold(0.0, f64::max);
-    assert!(off < 1e-12, "ξ off by {off:e}");
+    same_answers(&handles.locate(&points), &before);
     // Without the flag the same values are checked, and refused.
     assert_eq!(
         handles.set(&u, CGC_LAYOUT_NODE_MAJOR),
@@ -610,4 +593,17 @@ fn adaptive_mesh_gaps_are_the_gap_finders() {
         inside > 300 && near > 300 && far > 300,
         "{inside} {near} {far}"
     );
+}
+
+/// `after` answers as `before`: the same cells, ξ within 1e-12 wherever found.
+fn same_answers(after: &(Vec<i64>, Vec<DVec3>), before: &(Vec<i64>, Vec<DVec3>)) {
+    assert_eq!(after.0, before.0);
+    let off = after
+        .1
+        .iter()
+        .zip(&before.1)
+        .filter(|(a, _)| !a.is_nan())
+        .map(|(a, b)| (*a - *b).abs().max_element())
+        .fold(0.0, f64::max);
+    assert!(off < 1e-12, "ξ off by {off:e}");
 }
