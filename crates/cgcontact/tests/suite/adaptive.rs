@@ -385,14 +385,19 @@ fn hanging_nodes_edges_and_faces_are_held_by_every_leaf_meeting_them() {
     }
 }
 
+/// Two unit base cells along x, the second split once: 5 hanging nodes on their shared face.
+fn split_beside_coarse() -> AdaptiveBody {
+    let lattice = Lattice::new(DVec3::ZERO, DVec3::ONE, [2, 1, 1]).unwrap();
+    let mut leaves = vec![Leaf::new(0, [0, 0, 0])];
+    leaves.extend(Leaf::new(0, [1, 0, 0]).children());
+    AdaptiveBody::from_leaves(lattice, leaves).unwrap()
+}
+
 #[test]
 fn one_refined_cell_beside_a_coarse_one_has_five_hanging_nodes() {
     // Two base cells along x; the second split once: its face against the first has 4 edge
     // midpoints and 1 face centre that are not corners of the coarse cell.
-    let lattice = Lattice::new(DVec3::ZERO, DVec3::ONE, [2, 1, 1]).unwrap();
-    let mut leaves = vec![Leaf::new(0, [0, 0, 0])];
-    leaves.extend(Leaf::new(0, [1, 0, 0]).children());
-    let mut body = AdaptiveBody::from_leaves(lattice, leaves).unwrap();
+    let mut body = split_beside_coarse();
     assert_eq!(body.node_count(), 8 + 27 - 4);
     // A leaf squashed flat is reported; the body is otherwise valid.
     assert!(body.validate().is_ok());
@@ -484,10 +489,7 @@ fn constraints_checked_per_axis_on_an_anisotropic_lattice() {
 /// node's offset is checked against its constraint's weights from the public API.
 #[test]
 fn a_nan_constraint_tolerance_holds_no_hanging_node() {
-    let lattice = Lattice::new(DVec3::ZERO, DVec3::ONE, [2, 1, 1]).unwrap();
-    let mut leaves = vec![Leaf::new(0, [0, 0, 0])];
-    leaves.extend(Leaf::new(0, [1, 0, 0]).children());
-    let mut body = AdaptiveBody::from_leaves(lattice, leaves).unwrap();
+    let mut body = split_beside_coarse();
     deform(&mut body, 0.02, 0.01, 11);
     let mut u = body.displacements().to_vec();
     let hanging: Vec<usize> = body.hanging_nodes().collect();
