@@ -286,6 +286,14 @@ impl Body {
         }
     }
 
+    /// Whether a search box of `box_cells` lattice cells is better served by the body's active
+    /// cells ([`Body::for_each_active_in`]) than by testing each of its cells: past 8 box cells
+    /// per active cell (a sparse body, a long search distance).
+    #[inline]
+    pub(crate) fn box_outnumbers_cells(&self, box_cells: u64) -> bool {
+        box_cells > 8 * self.active_count as u64
+    }
+
     /// Calls `f` with each active cell of the lattice box [`low`, `high`] (cell indices, inclusive),
     /// ascending by id, reading only the active cells whose ids lie between the box's lowest and
     /// highest: for searches whose box holds far more lattice cells than the body has.

@@ -99,10 +99,6 @@ pub(crate) mod sealed {
         Some((lo.min(n - 1), (high as u32).min(n - 1)))
     }
 
-    /// Past this many lattice cells of a box per active cell, `cells_in_box` visits the body's
-    /// active cells in the box instead of testing each lattice cell.
-    const ACTIVE_WALK: u64 = 8;
-
     impl Faces for LatticeLocator<'_> {
         #[inline]
         fn cell_near(&self, t: DVec3) -> Option<Cell> {
@@ -166,7 +162,7 @@ pub(crate) mod sealed {
                 }
             }
             let box_cells: u64 = r.iter().map(|&(lo, hi)| u64::from(hi - lo + 1)).product();
-            if !full && box_cells > ACTIVE_WALK * self.body().active_count() as u64 {
+            if !full && self.body().box_outnumbers_cells(box_cells) {
                 // Far more lattice cells than the body has (a sparse body, a long distance): its
                 // active cells in the box, in the same order (ascending id).
                 let (low, high) = ([r[0].0, r[1].0, r[2].0], [r[0].1, r[1].1, r[2].1]);

@@ -10,10 +10,6 @@ use crate::hex8::{Kernel, NewtonOptions};
 use crate::reach::{self, Candidates, RING_CELLS};
 use crate::settings::CandidateOrder;
 
-/// The ring walk tests each lattice cell of its box; past this many box cells per active cell, the
-/// body's active cells in the box are gathered and sorted instead.
-const ACTIVE_WALK: u64 = 8;
-
 impl LatticeLocator<'_> {
     /// The search after a miss in the predicted cell `first`: every other active cell that can
     /// hold x, nearest first. Kept out of line: the common path stays small.
@@ -61,9 +57,7 @@ impl LatticeLocator<'_> {
                 pyramid.candidates(self.body, x, t_x, low, high, center, tau, &mut candidates);
                 candidates.retain(|(_, ijk)| *ijk != first);
                 true
-            } else if box_cells > RING_CELLS
-                && box_cells > ACTIVE_WALK * self.body.active_count() as u64
-            {
+            } else if box_cells > RING_CELLS && self.body.box_outnumbers_cells(box_cells) {
                 // Far more lattice cells than the body has (a sparse body, which keeps no pyramid,
                 // moved far): its active cells in the box that reach x.
                 self.body.for_each_active_in(low, high, |ijk| {
