@@ -5,7 +5,8 @@
 //! schedule and sorted by cell inside (`Schedule::Blocked { log2_cells: 0 }`, what
 //! `Schedule::Auto` does above its threshold to points out of order), in f64 and f32, on 1 and 2
 //! threads; on one thread also under `Schedule::Auto` (random and lattice order) and lattice order
-//! sorted again; for f64 on one thread also sorted by blocks of 8³ and 16³ cells. Printed once per
+//! sorted again; random points under `Schedule::Auto` by `locate_all_unordered_into` (answers in
+//! the order found, and the permutation), on 1 and 2 threads; for f64 on one thread also sorted by blocks of 8³ and 16³ cells. Printed once per
 //! size: the bytes of nodal data (what `Schedule::Auto` decides by), and the sort's buffers per
 //! point.
 //!
@@ -57,8 +58,15 @@ fn scale(c: &mut Criterion) {
                 scene.body.node_count() as f64 * if name == "f64" { 24.0 } else { 16.0 } / 1e6,
                 (blocked.heap_bytes() - input.heap_bytes()) as f64 / POINTS as f64,
             );
-            let mut runs: Vec<(String, &LatticeLocator<'_>, &[DVec3], &rayon::ThreadPool)> =
-                Vec::new();
+            let auto = locator(Schedule::Auto);
+            // (label, locator, points, pool, whether the answers come unordered)
+            let mut runs: Vec<(
+                String,
+                &LatticeLocator<'_>,
+                &[DVec3],
+                &rayon::ThreadPool,
+                bool,
+            )> = Vec::new();
             for pool in &pools {
                 let t = pool.current_num_threads();
                 runs.push((
@@ -66,31 +74,47 @@ fn scale(c: &mut Criterion) {
                     &input,
                     &random,
                     pool,
+                    false,
                 ));
                 runs.push((
                     format!("random, sorted by cell, {t} thr"),
                     &blocked,
                     &random,
                     pool,
+                    false,
                 ));
                 runs.push((
                     format!("lattice order, input order, {t} thr"),
                     &input,
                     &ordered,
                     pool,
+                    false,
+                ));
+                runs.push((
+                    format!("random, auto, unordered, {t} thr"),
+                    &auto,
+                    &random,
+                    pool,
+                    true,
                 ));
             }
             // What the default schedule makes of each order: it sorts points in random order and
             // keeps points already in lattice order as they come.
-            let auto = locator(Schedule::Auto);
             for (label, points) in [("random", &random), ("lattice order", &ordered)] {
-                runs.push((format!("{label}, auto, 1 thr"), &auto, points, &pools[0]));
+                runs.push((
+                    format!("{label}, auto, 1 thr"),
+                    &auto,
+                    points,
+                    &pools[0],
+                    false,
+                ));
             }
             runs.push((
                 "lattice order, sorted by cell, 1 thr".to_owned(),
                 &blocked,
                 &ordered,
                 &pools[0],
+                false,
             ));
             let others: Vec<(u8, LatticeLocator<'_>)> = if name == "f64" {
                 [3, 4]
@@ -105,8 +129,10 @@ fn scale(c: &mut Criterion) {
                     l,
                     &random,
                     &pools[0],
+                    false,
                 ));
             }
+            let mut order = Vec::with_capacity(POINTS);
             let mut group = c.benchmark_group(format!("scale/{count}-{name}"));
             group
                 .throughput(Throughput::Elements(POINTS as u64))
@@ -114,11 +140,18 @@ fn scale(c: &mut Criterion) {
                 .sampling_mode(SamplingMode::Flat)
                 .warm_up_time(Duration::from_millis(500))
                 .measurement_time(Duration::from_secs(2));
-            for (label, l, points, pool) in runs {
+            for (label, l, points, pool, unordered) in runs {
                 group.bench_function(label, |b| {
                     b.iter(|| {
-                        pool.install(|| l.locate_all_into(black_box(points), &mut out));
-                        black_box(&out);
+                        if unordered {
+                            pool.install(|| {
+                                l.locate_all_unordered_into(black_box(points), &mut order, &mut out)
+                            });
+                            black_box(&order);
+                        } else {
+                            pool.install(|| l.locate_all_into(black_box(points), &mut out));
+                            black_box(&out);
+                        }
                     })
                 });
             }

@@ -1,13 +1,13 @@
 //! A fixed amount of single-threaded locating, for profilers (perf, callgrind).
 //!
-//! Run: `cargo run --release -p cgcontact-benches --example profile_locate [repeats] [f32] [each] [big|huge|sphere] [sorted [mix=F] [window=N]|slabs] [input] [stats]`
+//! Run: `cargo run --release -p cgcontact-benches --example profile_locate [repeats] [f32] [each] [big|huge|sphere] [sorted [mix=F] [window=N]|slabs] [input|blocked] [unordered] [stats]`
 //! (`each`: one `locate` call per point instead of the batched `locate_all_into`; `sorted`: the
 //! points in lattice order instead of random order, to tell waiting on memory from computing;
 //! `mix=F`: then a share F of them swapped with points anywhere (what `Schedule::Auto`'s
 //! coherence sample decides on);
 //! `window=N`: then shuffled within consecutive windows of N points, so that the lanes of a batch
 //! hold different cells while memory stays local; `slabs`: random order within slabs of 5 cell
-//! layers; `input`: `Schedule::Input`, no sort inside the batched path; `stats`: how many points needed more than one inversion, and Newton iterations per hit).
+//! layers; `input`: `Schedule::Input`, no sort inside the batched path; `blocked`: `Schedule::Blocked` with single cells, sorted whatever the order and size; `unordered`: `locate_all_unordered_into`, the answers in the order they were found, with the permutation; `stats`: how many points needed more than one inversion, and Newton iterations per hit).
 //! `CGCONTACT_SIMD=avx2` (or `portable`) caps the instruction set the batched path uses.
 
 use std::time::Instant;
@@ -116,6 +116,10 @@ fn main() -> Result<(), cgcontact::Error> {
     if has("input") {
         settings.schedule = Schedule::Input;
     }
+    if has("blocked") {
+        settings.schedule = Schedule::Blocked { log2_cells: 0 };
+    }
+    let unordered = has("unordered");
     let each = std::env::args().any(|a| a == "each");
     let locator = LatticeLocator::new(&body, settings)?;
     let one = rayon::ThreadPoolBuilder::new()
@@ -123,6 +127,7 @@ fn main() -> Result<(), cgcontact::Error> {
         .build()
         .expect("a one-thread pool");
     let mut out = Vec::with_capacity(points.len());
+    let mut order = Vec::with_capacity(points.len());
     let start = Instant::now();
     let mut located = 0usize;
     for _ in 0..repeats {
@@ -133,6 +138,15 @@ fn main() -> Result<(), cgcontact::Error> {
                     Ok(Some(_))
                 ));
             }
+        } else if unordered {
+            one.install(|| {
+                locator.locate_all_unordered_into(
+                    std::hint::black_box(&points),
+                    &mut order,
+                    &mut out,
+                )
+            });
+            located += out.iter().filter(|a| matches!(a, Ok(Some(_)))).count();
         } else {
             one.install(|| locator.locate_all_into(std::hint::black_box(&points), &mut out));
             located += out.iter().filter(|a| matches!(a, Ok(Some(_)))).count();
@@ -151,7 +165,13 @@ fn main() -> Result<(), cgcontact::Error> {
             iters as f64 / hits.len() as f64
         );
     }
-    let how = if each { "locate" } else { "locate_all" };
+    let how = if each {
+        "locate"
+    } else if unordered {
+        "locate_all_unordered"
+    } else {
+        "locate_all"
+    };
     println!(
         "{precision:?} {how}: {located} located in {seconds:.3} s: {:.3} M points/s on one thread",
         (repeats * points.len()) as f64 / seconds / 1e6

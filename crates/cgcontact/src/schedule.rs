@@ -5,7 +5,8 @@
 //! at every corner load, and the batched queries lose two thirds of their speed. So, above a
 //! measured size, they first sort the points by the lattice cell (or block) they fall in (a radix
 //! sort, most significant digit first: O(n), one piece per thread), answer them in that order, and
-//! put the answers back in input order. Each point's answer depends on that point alone, so the
+//! put the answers back in input order (or, for `locate_all_unordered_into`, leave them in that
+//! order beside the permutation). Each point's answer depends on that point alone, so the
 //! answers are bitwise the same whatever the schedule; only the order of the work changes.
 //!
 //! The sort's buffers (40 bytes per point, up to 56 when the points crowd into few blocks, and
@@ -18,9 +19,10 @@ use rayon::prelude::*;
 
 use crate::Lattice;
 
-/// How the batched queries (`locate_all_into`, `relocate_all`, `gap_all_into`, `regap_all`)
-/// order their work. The answers are returned in input order and are bitwise the same under
-/// every schedule.
+/// How the batched queries (`locate_all_into`, `locate_all_unordered_into`, `relocate_all`,
+/// `gap_all_into`, `regap_all`) order their work. The answers are bitwise the same under every
+/// schedule, and returned in input order (by `locate_all_unordered_into`, in the order of the
+/// work, with the permutation).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum Schedule {
     /// [`Schedule::Blocked`] with [`Schedule::AUTO_LOG2_CELLS`] when the body's nodal data
@@ -249,37 +251,149 @@ impl Scheduler {
         chunk: impl Fn(&[DVec3], &mut [T]) + Sync,
     ) {
         debug_assert_eq!(points.len(), out.len());
-        let sorted = self
-            .schedule
-            .resolve(layout.bytes, points.len())
-            .filter(|_| points.len() > 1)
-            .map(|log2| Blocks::new(layout.lattice, layout.level, log2))
-            .filter(|blocks| self.schedule != Schedule::Auto || !blocks.coherent(points));
-        let Some(blocks) = sorted else {
+        let Some(blocks) = self.blocks(layout, points) else {
             out.par_chunks_mut(CHUNK)
                 .zip(points.par_chunks(CHUNK))
                 .for_each(|(out, points)| chunk(points, out));
             return;
         };
-        // The pool, or fresh buffers when another call on this locator holds it.
+        let piece = piece_len(points.len());
+        let pieces = out.par_chunks_mut(piece).map(|out| Scatter {
+            answers: [out[0]; CHUNK],
+            out,
+            warm,
+        });
+        self.with_workspace(|ws| blocked(&blocks, points, piece, pieces, ws, &chunk));
+    }
+
+    /// [`Self::run`] without putting the answers back in input order: `out[k]` is the answer to
+    /// `points[order[k]]`, in the order the points were answered (input order, or sorted by
+    /// block), each index once. Saves the scatter, a store to a random place per point. Never
+    /// warm.
+    pub(crate) fn run_unordered<T: Copy + Send + Sync>(
+        &self,
+        layout: Layout<'_>,
+        points: &[DVec3],
+        order: &mut [usize],
+        out: &mut [T],
+        chunk: impl Fn(&[DVec3], &mut [T]) + Sync,
+    ) {
+        debug_assert_eq!(points.len(), out.len());
+        debug_assert_eq!(points.len(), order.len());
+        let Some(blocks) = self.blocks(layout, points) else {
+            order.par_iter_mut().enumerate().for_each(|(i, o)| *o = i);
+            out.par_chunks_mut(CHUNK)
+                .zip(points.par_chunks(CHUNK))
+                .for_each(|(out, points)| chunk(points, out));
+            return;
+        };
+        let piece = piece_len(points.len());
+        let pieces = out
+            .par_chunks_mut(piece)
+            .zip(order.par_chunks_mut(piece))
+            .enumerate()
+            .map(|(p, (out, order))| Append {
+                out,
+                order,
+                next: 0,
+                start: p * piece,
+            });
+        self.with_workspace(|ws| blocked(&blocks, points, piece, pieces, ws, &chunk));
+    }
+
+    /// The blocks to sort `points` by, or `None` to answer them in input order.
+    fn blocks(&self, layout: Layout<'_>, points: &[DVec3]) -> Option<Blocks> {
+        self.schedule
+            .resolve(layout.bytes, points.len())
+            .filter(|_| points.len() > 1)
+            .map(|log2| Blocks::new(layout.lattice, layout.level, log2))
+            .filter(|blocks| self.schedule != Schedule::Auto || !blocks.coherent(points))
+    }
+
+    /// `f` on the pooled buffers, or on fresh ones when another call on this locator holds them.
+    fn with_workspace(&self, f: impl FnOnce(&mut Workspace)) {
         let mut fresh = None;
         let mut guard = match self.pool.try_lock() {
             Ok(ws) => Some(ws),
             Err(TryLockError::Poisoned(p)) => Some(p.into_inner()),
             Err(TryLockError::WouldBlock) => None,
         };
-        let ws = match guard.as_deref_mut() {
+        f(match guard.as_deref_mut() {
             Some(ws) => ws,
             None => fresh.insert(Workspace::default()),
-        };
-        blocked(&blocks, points, out, ws, warm, &chunk);
+        });
     }
 }
 
-/// The blocked schedule: the points cut into one piece per thread; each piece sorted by block,
-/// answered in that order 256 at a time (gathered into a buffer on the stack), and their answers
-/// scattered back to their places. A piece owns its points' answers, so no answer is moved twice
-/// and no buffer grows with the answers.
+/// The points of each piece of the blocked schedule: one piece per thread, at least
+/// [`MIN_PIECE`] points each.
+fn piece_len(n: usize) -> usize {
+    let pieces = rayon::current_num_threads().clamp(1, n.div_ceil(MIN_PIECE));
+    let piece = n.div_ceil(pieces);
+    assert!(
+        u32::try_from(piece).is_ok(),
+        "at most 2^32 - 1 points per thread"
+    );
+    piece
+}
+
+/// How a piece of the blocked schedule answers its points, in runs of at most [`CHUNK`], and
+/// where the answers go.
+trait Answers<T>: Send {
+    /// Answers `points` by `chunk`; `places` are their input places in the piece.
+    fn answer(&mut self, points: &[DVec3], places: &[u32], chunk: &impl Fn(&[DVec3], &mut [T]));
+}
+
+/// Answers back in input order: each answered into a buffer (with its previous value when the run
+/// is warm: the warm start's hint), then stored at its point's place in the piece's `out`.
+struct Scatter<'a, T> {
+    answers: [T; CHUNK],
+    out: &'a mut [T],
+    warm: bool,
+}
+
+impl<T: Copy + Send> Answers<T> for Scatter<'_, T> {
+    #[inline(always)]
+    fn answer(&mut self, points: &[DVec3], places: &[u32], chunk: &impl Fn(&[DVec3], &mut [T])) {
+        let answers = &mut self.answers[..points.len()];
+        if self.warm {
+            for (a, &place) in answers.iter_mut().zip(places) {
+                *a = self.out[place as usize];
+            }
+        }
+        chunk(points, answers);
+        for (a, &place) in answers.iter().zip(places) {
+            self.out[place as usize] = *a;
+        }
+    }
+}
+
+/// Answers in the order they come: into the piece's `out` from `next` on, their points' indices
+/// into `order` (`start` is the piece's first index).
+struct Append<'a, T> {
+    out: &'a mut [T],
+    order: &'a mut [usize],
+    next: usize,
+    start: usize,
+}
+
+impl<T: Copy + Send> Answers<T> for Append<'_, T> {
+    #[inline(always)]
+    fn answer(&mut self, points: &[DVec3], places: &[u32], chunk: &impl Fn(&[DVec3], &mut [T])) {
+        let run = self.next..self.next + points.len();
+        chunk(points, &mut self.out[run.clone()]);
+        for (o, &place) in self.order[run].iter_mut().zip(places) {
+            *o = self.start + place as usize;
+        }
+        self.next += points.len();
+    }
+}
+
+/// The blocked schedule: the points cut into pieces of `piece` points, one per thread; each piece
+/// sorted by block and answered in that order 256 at a time (gathered into a buffer on the stack)
+/// by its [`Answers`] in `pieces`: scattered back to their places, or appended in that order with
+/// their indices. A piece owns its points' answers, so no answer is moved twice and no buffer
+/// grows with the answers.
 ///
 /// The sort is most significant digit first: a first pass reads the points in input order,
 /// computes their blocks and counts the buckets (the high [`BUCKET_BITS`] of the block index); a
@@ -289,27 +403,22 @@ impl Scheduler {
 /// at random from the input, a cache miss per point: on the 4.2 M-cell block of
 /// docs/benchmarks.md, 10 to 15 % faster than an LSD sort of (block, index) pairs whose points were
 /// gathered by index.
-fn blocked<T: Copy + Send + Sync>(
+fn blocked<T>(
     blocks: &Blocks,
     points: &[DVec3],
-    out: &mut [T],
+    piece: usize,
+    pieces: impl IndexedParallelIterator<Item = impl Answers<T>>,
     ws: &mut Workspace,
-    warm: bool,
     chunk: &(impl Fn(&[DVec3], &mut [T]) + Sync),
 ) {
     let n = points.len();
     let key_bits = u64::BITS - (blocks.len() as u64 - 1).leading_zeros();
     let low_bits = key_bits.saturating_sub(BUCKET_BITS);
     let buckets = (1usize << (key_bits - low_bits)) + 1;
-    let pieces = rayon::current_num_threads().clamp(1, n.div_ceil(MIN_PIECE));
-    let piece = n.div_ceil(pieces);
-    assert!(
-        u32::try_from(piece).is_ok(),
-        "at most 2^32 - 1 points per thread"
-    );
+    let pieces_count = n.div_ceil(piece);
     ws.pairs.resize(n, 0);
     ws.records.resize(n, Record::default());
-    ws.buckets.resize(pieces * buckets, 0);
+    ws.buckets.resize(pieces_count * buckets, 0);
     // The keys, and each piece's buckets: counted, then turned into starts.
     ws.pairs
         .par_chunks_mut(piece)
@@ -341,8 +450,8 @@ fn blocked<T: Copy + Send + Sync>(
         let passes = low_bits.div_ceil(LOCAL_BITS);
         (2 * largest.max(1), 1 << low_bits.div_ceil(passes))
     };
-    ws.local.resize(pieces * local, 0);
-    ws.counts.resize(pieces * digits, 0);
+    ws.local.resize(pieces_count * local, 0);
+    ws.counts.resize(pieces_count * digits, 0);
     ws.pairs
         .par_chunks(piece)
         .zip(ws.records.par_chunks_mut(piece))
@@ -352,9 +461,9 @@ fn blocked<T: Copy + Send + Sync>(
                 .par_chunks_mut(local)
                 .zip(ws.counts.par_chunks_mut(digits)),
         )
-        .zip(points.par_chunks(piece).zip(out.par_chunks_mut(piece)))
+        .zip(points.par_chunks(piece).zip(pieces))
         .for_each(
-            |((((pairs, records), starts), (local, counts)), (points, out))| {
+            |((((pairs, records), starts), (local, counts)), (points, mut answers))| {
                 // Partition: each point carried whole into its bucket. `starts` ends up holding
                 // each bucket's end, the next bucket's start.
                 for (&pair, &x) in pairs.iter().zip(points) {
@@ -363,7 +472,6 @@ fn blocked<T: Copy + Send + Sync>(
                     *slot += 1;
                 }
                 let mut gathered = [DVec3::ZERO; CHUNK];
-                let mut answers = [out[0]; CHUNK];
                 let mut places = [0u32; CHUNK];
                 let mut filled = 0;
                 let mut begin = 0;
@@ -398,40 +506,16 @@ fn blocked<T: Copy + Send + Sync>(
                         let place = record.pair as u32;
                         gathered[filled] = record.x;
                         places[filled] = place;
-                        if warm {
-                            answers[filled] = out[place as usize];
-                        }
                         filled += 1;
                         if filled == CHUNK {
-                            answer(&gathered, &mut answers, &places, out, chunk);
+                            answers.answer(&gathered, &places, chunk);
                             filled = 0;
                         }
                     }
                 }
-                answer(
-                    &gathered[..filled],
-                    &mut answers[..filled],
-                    &places[..filled],
-                    out,
-                    chunk,
-                );
+                answers.answer(&gathered[..filled], &places[..filled], chunk);
             },
         );
-}
-
-/// Answers `points` into `answers` by `chunk`, then scatters them to their `places` in `out`.
-#[inline(always)]
-fn answer<T: Copy>(
-    points: &[DVec3],
-    answers: &mut [T],
-    places: &[u32],
-    out: &mut [T],
-    chunk: &impl Fn(&[DVec3], &mut [T]),
-) {
-    chunk(points, answers);
-    for (a, &place) in answers.iter().zip(places) {
-        out[place as usize] = *a;
-    }
 }
 
 /// One pass of the LSD radix sort: `from` counted and scattered into `to` by the digit of
@@ -584,6 +668,59 @@ mod tests {
                     "{:?} blocks, spread {spread}",
                     lattice.cells()
                 );
+            }
+        }
+    }
+
+    /// Unordered runs give each point's answer with its index, in the order the points were
+    /// visited: sorted by block on any number of threads (each piece in order), input order
+    /// under `Schedule::Input`.
+    #[test]
+    fn unordered_answers_come_in_the_visit_order() {
+        let lattice = Lattice::new(DVec3::ZERO, DVec3::ONE, [128, 256, 128]).unwrap();
+        let blocks = Blocks::new(&lattice, 0, 0);
+        let extent = DVec3::from(lattice.cells().map(f64::from));
+        let points: Vec<DVec3> = points(50_000)
+            .iter()
+            .map(|p| (*p - DVec3::new(-2.0, 1.0, 0.5)) / DVec3::new(12.0, 4.0, 5.0) * extent)
+            .collect();
+        // The answer of a point: its bits, so that a wrong index shows.
+        let chunk = |p: &[DVec3], o: &mut [[u64; 3]]| {
+            for (o, x) in o.iter_mut().zip(p) {
+                *o = x.to_array().map(f64::to_bits);
+            }
+        };
+        for threads in [1, 3] {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            for schedule in [Schedule::Input, Schedule::Blocked { log2_cells: 0 }] {
+                let scheduler = Scheduler::new(schedule);
+                let (mut order, mut out) = (vec![0; points.len()], vec![[0; 3]; points.len()]);
+                pool.install(|| {
+                    let layout = layout(&lattice, 0, 0);
+                    scheduler.run_unordered(layout, &points, &mut order, &mut out, chunk)
+                });
+                let mut seen = vec![false; points.len()];
+                for (&i, a) in order.iter().zip(&out) {
+                    assert!(!std::mem::replace(&mut seen[i], true), "index {i} twice");
+                    assert_eq!(*a, points[i].to_array().map(f64::to_bits), "point {i}");
+                }
+                // Each thread's piece of the input, answered in the schedule's order.
+                let piece = points
+                    .len()
+                    .div_ceil(threads.min(points.len().div_ceil(MIN_PIECE)));
+                for (p, got) in order.chunks(piece).enumerate() {
+                    let mut expected: Vec<usize> = (p * piece..(p * piece + got.len())).collect();
+                    if schedule != Schedule::Input {
+                        expected.sort_by_key(|&i| blocks.key(points[i]));
+                    }
+                    assert!(
+                        got == expected,
+                        "{schedule:?}, {threads} threads, piece {p}"
+                    );
+                }
             }
         }
     }

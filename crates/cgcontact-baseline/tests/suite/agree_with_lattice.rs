@@ -353,6 +353,11 @@ fn non_finite_points_are_errors() {
     }
     let answers = brute.locate_all(&[DVec3::NAN, DVec3::splat(-50.0)]);
     assert_eq!(answers, vec![Err(PointError::NonFinite), Ok(None)]);
+    // The trait's unordered batch: input order.
+    let (mut order, mut out) = (vec![7; 5], Vec::new());
+    brute.locate_all_unordered_into(&[DVec3::splat(-50.0), DVec3::NAN], &mut order, &mut out);
+    assert_eq!(order, [0, 1]);
+    assert_eq!(out, [Ok(None), Err(PointError::NonFinite)]);
     assert!(rtree.build_time().as_secs_f64() >= 0.0);
     assert_eq!(rtree.len(), body.active_count());
 }

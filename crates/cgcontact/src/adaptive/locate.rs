@@ -900,6 +900,25 @@ impl Locator for AdaptiveLocator<'_> {
                 self.locate_chunk(points, out)
             });
     }
+
+    /// Batched and scheduled as [`Locator::locate_all_into`], without the scatter back to input
+    /// order.
+    fn locate_all_unordered_into(
+        &self,
+        points: &[DVec3],
+        order: &mut Vec<usize>,
+        out: &mut Vec<Answer>,
+    ) {
+        if out.len() != points.len() {
+            out.clear();
+            out.resize(points.len(), Ok(None));
+        }
+        order.resize(points.len(), 0);
+        self.scheduler
+            .run_unordered(self.layout(), points, order, out, |points, out| {
+                self.locate_chunk(points, out)
+            });
+    }
 }
 
 #[cfg(test)]

@@ -119,6 +119,26 @@ pub trait Locator: Sync {
             .collect_into_vec(out);
     }
 
+    /// [`Locator::locate_all_into`]'s answers without putting them back in input order:
+    /// `out[k]` is the answer to `points[order[k]]`, `order` a permutation of the indices (both
+    /// resized). The lattice and adaptive locators answer in their schedule's order (sorted by
+    /// lattice cell on large bodies, [`crate::Schedule`]); the default, in input order.
+    ///
+    /// For callers that can use the answers in any order (a contact solver assembling each
+    /// point's contribution): on bodies whose nodal data leaves the caches, putting each answer
+    /// back at its input place is a store to a random place per point, about a fifth of
+    /// `locate_all_into`'s time on a 4.2 M-cell block (docs/benchmarks.md, section `scale`).
+    fn locate_all_unordered_into(
+        &self,
+        points: &[DVec3],
+        order: &mut Vec<usize>,
+        out: &mut Vec<Answer>,
+    ) {
+        order.clear();
+        order.extend(0..points.len());
+        self.locate_all_into(points, out);
+    }
+
     /// [`Locator::locate`] for every point, in parallel, answers in input order.
     fn locate_all(&self, points: &[DVec3]) -> Vec<Answer> {
         let mut out = Vec::with_capacity(points.len());
@@ -384,6 +404,25 @@ impl Locator for LatticeLocator<'_> {
         }
         self.scheduler
             .run(self.layout(), points, out, false, |points, out| {
+                self.locate_chunk(points, out)
+            });
+    }
+
+    /// Batched and scheduled as [`Locator::locate_all_into`], without the scatter back to input
+    /// order.
+    fn locate_all_unordered_into(
+        &self,
+        points: &[DVec3],
+        order: &mut Vec<usize>,
+        out: &mut Vec<Answer>,
+    ) {
+        if out.len() != points.len() {
+            out.clear();
+            out.resize(points.len(), Ok(None));
+        }
+        order.resize(points.len(), 0);
+        self.scheduler
+            .run_unordered(self.layout(), points, order, out, |points, out| {
                 self.locate_chunk(points, out)
             });
     }

@@ -1,6 +1,6 @@
 //! The batched queries' schedules (`Settings::schedule`): sorting the points by lattice block
 //! changes the order of the work, never an answer. Every batched query (`locate_all_into`,
-//! `relocate_all`, `gap_all_into`, `regap_all`) of the lattice and adaptive locators, in f64 and
+//! `locate_all_unordered_into`, `relocate_all`, `gap_all_into`, `regap_all`) of the lattice and adaptive locators, in f64 and
 //! f32, on one and three threads, answers bit for bit as the input order and as the one-point
 //! query, with points inside, on faces, outside, refused, and repeated.
 
@@ -50,6 +50,21 @@ fn assert_bitwise(got: &[Answer], expected: &[Answer], what: &str) {
     }
 }
 
+/// `order` holds each index of `expected` once, and `got[k]` is bit for bit the answer of
+/// index `order[k]`.
+fn assert_unordered(order: &[usize], got: &[Answer], expected: &[Answer], what: &str) {
+    assert_eq!(order.len(), expected.len(), "{what}");
+    assert_eq!(got.len(), expected.len(), "{what}");
+    let mut seen = vec![false; expected.len()];
+    for (&i, answer) in order.iter().zip(got) {
+        assert!(
+            !std::mem::replace(&mut seen[i], true),
+            "{what}: index {i} twice"
+        );
+        assert_eq!(bits(answer), bits(&expected[i]), "{what}: point {i}");
+    }
+}
+
 /// Cold and warm batches of `make(settings)` under every schedule against the one-point queries.
 fn check_locator<L: Locator>(make: impl Fn(Settings) -> L, points: &[DVec3], hints: &[Answer]) {
     for base in [Settings::default(), Settings::f32()] {
@@ -84,6 +99,15 @@ fn check_locator<L: Locator>(make: impl Fn(Settings) -> L, points: &[DVec3], hin
                 let mut answers = hints.to_vec();
                 pool.install(|| locator.relocate_all(points, &mut answers));
                 assert_bitwise(&answers, &warm, &format!("relocate_all, {what}"));
+                // Unordered: each index once, with its point's answer; twice into one buffer,
+                // then a shorter batch.
+                let (mut order, mut out) = (Vec::new(), Vec::new());
+                for n in [points.len(), points.len(), short] {
+                    pool.install(|| {
+                        locator.locate_all_unordered_into(&points[..n], &mut order, &mut out)
+                    });
+                    assert_unordered(&order, &out, &cold[..n], &format!("unordered, {what}"));
+                }
             }
         }
     }
