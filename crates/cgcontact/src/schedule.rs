@@ -5,8 +5,8 @@
 //! at every corner load, and the batched queries lose two thirds of their speed. So, above a
 //! measured size, they first sort the points by the lattice cell (or block) they fall in (a radix
 //! sort, most significant digit first: O(n), one piece per thread), answer them in that order, and
-//! put the answers back in input order (or, for `locate_all_unordered_into`, leave them in that
-//! order beside the permutation). Each point's answer depends on that point alone, so the
+//! put the answers back in input order (or, for `locate_all_unordered_into` and
+//! `gap_all_unordered_into`, leave them in that order beside the permutation). Each point's answer depends on that point alone, so the
 //! answers are bitwise the same whatever the schedule; only the order of the work changes.
 //!
 //! The sort's buffers (40 bytes per point, up to 56 when the points crowd into few blocks, and
@@ -20,9 +20,9 @@ use rayon::prelude::*;
 use crate::Lattice;
 
 /// How the batched queries (`locate_all_into`, `locate_all_unordered_into`, `relocate_all`,
-/// `gap_all_into`, `regap_all`) order their work. The answers are bitwise the same under every
-/// schedule, and returned in input order (by `locate_all_unordered_into`, in the order of the
-/// work, with the permutation).
+/// `gap_all_into`, `gap_all_unordered_into`, `regap_all`) order their work. The answers are
+/// bitwise the same under every schedule, and returned in input order (by the two `unordered`
+/// ones, in the order of the work, with the permutation).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum Schedule {
     /// [`Schedule::Blocked`] with [`Schedule::AUTO_LOG2_CELLS`] when the body's nodal data

@@ -210,6 +210,31 @@ impl<'l, L: Surface> GapFinder<'l, L> {
         self.batch(points, out, false);
     }
 
+    /// [`GapFinder::gap_all_into`]'s answers without putting them back in input order: `out[k]`
+    /// is the answer to `points[order[k]]`, `order` a permutation of the indices (both resized),
+    /// in the order the schedule answered them (sorted by lattice cell on large bodies). For
+    /// callers that can use the answers in any order: it saves a store to a random place per
+    /// point (see [`crate::Locator::locate_all_unordered_into`]).
+    pub fn gap_all_unordered_into(
+        &self,
+        points: &[DVec3],
+        order: &mut Vec<usize>,
+        out: &mut Vec<GapAnswer>,
+    ) {
+        if out.len() != points.len() {
+            out.clear();
+            out.resize(points.len(), Ok(None));
+        }
+        order.resize(points.len(), 0);
+        let (_, layout) = self.surface.schedule();
+        self.scheduler
+            .run_unordered(layout, points, order, out, |points, out| {
+                for (o, &x) in out.iter_mut().zip(points) {
+                    *o = self.search(x, None);
+                }
+            });
+    }
+
     /// [`GapFinder::regap`] for every point, in parallel: `answers` holds the previous answers
     /// (no hints where its length differs from `points`) and is overwritten with the new ones.
     pub fn regap_all(&self, points: &[DVec3], answers: &mut Vec<GapAnswer>) {

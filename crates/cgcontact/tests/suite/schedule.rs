@@ -1,8 +1,9 @@
 //! The batched queries' schedules (`Settings::schedule`): sorting the points by lattice block
 //! changes the order of the work, never an answer. Every batched query (`locate_all_into`,
-//! `locate_all_unordered_into`, `relocate_all`, `gap_all_into`, `regap_all`) of the lattice and adaptive locators, in f64 and
-//! f32, on one and three threads, answers bit for bit as the input order and as the one-point
-//! query, with points inside, on faces, outside, refused, and repeated.
+//! `locate_all_unordered_into`, `relocate_all`, `gap_all_into`, `gap_all_unordered_into`,
+//! `regap_all`) of the lattice and adaptive locators, in f64 and f32, on one and three threads,
+//! answers bit for bit as the input order and as the one-point query, with points inside, on
+//! faces, outside, refused, and repeated.
 
 use cgcontact::{
     AdaptiveLocator, Answer, GapAnswer, GapFinder, LatticeLocator, Locator, Schedule, Settings,
@@ -184,6 +185,20 @@ fn check_gaps<L: Surface>(make: impl Fn(Settings) -> L, points: &[DVec3], distan
             let mut out = Vec::new();
             pool.install(|| finder.gap_all_into(points, &mut out));
             assert!(out == cold, "gap_all_into, {what}");
+            let mut order = Vec::new();
+            pool.install(|| finder.gap_all_unordered_into(points, &mut order, &mut out));
+            let mut seen = vec![false; points.len()];
+            for (&i, answer) in order.iter().zip(&out) {
+                assert!(
+                    !std::mem::replace(&mut seen[i], true),
+                    "{what}: index {i} twice"
+                );
+                assert!(
+                    *answer == cold[i],
+                    "gap_all_unordered_into, {what}: point {i}"
+                );
+            }
+            assert_eq!(order.len(), points.len(), "{what}");
             let mut answers = hints.clone();
             pool.install(|| finder.regap_all(points, &mut answers));
             assert!(answers == warm, "regap_all, {what}");
