@@ -73,14 +73,23 @@ pub(super) fn best_time(
     out: &mut Vec<Answer>,
     budget: Duration,
 ) -> f64 {
-    pool.install(|| locator.locate_all_into(points, out));
+    best_time_of(pool, budget, || locator.locate_all_into(points, out))
+}
+
+/// [`best_time`] of any batch `run`.
+pub(super) fn best_time_of(
+    pool: &rayon::ThreadPool,
+    budget: Duration,
+    mut run: impl FnMut() + Send,
+) -> f64 {
+    pool.install(&mut run);
     let start = Instant::now();
     let mut best = f64::INFINITY;
-    for run in 0..5 {
+    for k in 0..5 {
         let t = Instant::now();
-        pool.install(|| locator.locate_all_into(points, out));
+        pool.install(&mut run);
         best = best.min(t.elapsed().as_secs_f64());
-        if run >= 2 && start.elapsed() * 2 > budget {
+        if k >= 2 && start.elapsed() * 2 > budget {
             break;
         }
     }

@@ -2,8 +2,10 @@
 //! 16,000 to 4.2 M cells, one million known points, one thread, in random order answered as given
 //! (`Schedule::Input`) and as the default schedule answers them (`Schedule::Auto`, which sorts by
 //! lattice cell on large bodies), and sorted by cell beforehand (under `Schedule::Auto`, which
-//! finds them in order and keeps it); f64 and f32. Every answer is checked against its known
-//! cell. Writes `scale.svg`: points/s against cells.
+//! finds them in order and keeps it); f64 and f32; and, f64, random order, under the default
+//! schedule by `locate_all_unordered_into` (the answers in the order found, with the
+//! permutation). Every answer is checked against its known cell. Writes `scale.svg`: points/s
+//! against cells.
 
 use std::fmt::Write as _;
 use std::path::Path;
@@ -15,7 +17,7 @@ use cgcontact::{Answer, LatticeLocator, Locator, Schedule, Settings};
 use cgcontact_scenes::indented_block;
 use plotters::prelude::*;
 
-use super::measure::best_time;
+use super::measure::{best_time, best_time_of};
 
 /// One measured size.
 pub(super) struct ScaleRow {
@@ -23,19 +25,20 @@ pub(super) struct ScaleRow {
     /// Bytes of f64 displacements.
     bytes: usize,
     /// Points/s, one thread: f64 random as given, random under Auto, lattice order under Auto;
-    /// then f32 random as given and under Auto.
-    pps: [f64; 5],
+    /// then f32 random as given and under Auto; then f64 random under Auto, unordered.
+    pps: [f64; 6],
     /// Answers whose cell is not the known one, over every run.
     wrong: usize,
     points: usize,
 }
 
-const LABELS: [&str; 5] = [
+const LABELS: [&str; 6] = [
     "f64, random order, as given",
     "f64, random order, default schedule",
     "f64, lattice order, default schedule",
     "f32, random order, as given",
     "f32, random order, default schedule",
+    "f64, random order, default schedule, unordered",
 ];
 
 /// gslib's `findpts` on the same blocks and points, one thread, read from a log of
@@ -130,14 +133,16 @@ pub(super) fn measure_scale(
         by_cell.sort_by_key(|k| k.cell);
         let ordered: Vec<DVec3> = by_cell.iter().map(|k| k.x).collect();
         let mut out: Vec<Answer> = Vec::new();
+        let mut order: Vec<usize> = Vec::new();
         let mut wrong = 0;
-        let mut pps = [0.0; 5];
+        let mut pps = [0.0; 6];
         let runs = [
             (Settings::default(), Schedule::Input, false),
             (Settings::default(), Schedule::Auto, false),
             (Settings::default(), Schedule::Auto, true),
             (Settings::f32(), Schedule::Input, false),
             (Settings::f32(), Schedule::Auto, false),
+            (Settings::default(), Schedule::Auto, false),
         ];
         for (k, (base, schedule, sorted)) in runs.into_iter().enumerate() {
             let locator = LatticeLocator::new(&scene.body, Settings { schedule, ..base })?;
@@ -146,14 +151,23 @@ pub(super) fn measure_scale(
             } else {
                 (&random, &scene.known)
             };
-            let seconds = best_time(&locator, points, pool, &mut out, budget);
+            let unordered = k == LABELS.len() - 1;
+            let seconds = if unordered {
+                best_time_of(pool, budget, || {
+                    locator.locate_all_unordered_into(points, &mut order, &mut out)
+                })
+            } else {
+                order.clear();
+                order.extend(0..points.len());
+                best_time(&locator, points, pool, &mut out, budget)
+            };
             pps[k] = points.len() as f64 / seconds;
             // Another cell than the known one is right only when it holds the point too (ξ is
             // drawn in the closed cube, and a face is shared): the locator's own owners decide,
             // for the few such points.
             wrong += out
                 .iter()
-                .zip(known)
+                .zip(order.iter().map(|&i| &known[i]))
                 .filter(|(a, k)| match a {
                     Ok(Some(hit)) if hit.cell == k.cell => false,
                     Ok(Some(hit)) => !locator.locate_owners(k.x).is_ok_and(|owners| {
@@ -189,8 +203,10 @@ pub(super) fn scale_section(rows: &[ScaleRow], gslib: Option<&Gslib>) -> String 
          their order (`Schedule::Input`); *default schedule*: `Schedule::Auto`, which sorts them by \
          lattice cell above {} MB of nodal data unless a sample of consecutive points shows them \
          already in order; *lattice order*: the same points sorted by cell beforehand, under the \
-         default schedule, which keeps their order. *vs smallest*: the default schedule's points/s against the smallest block's \
-         (target ≥ 0.7 at 4.2 M cells). Every answer is checked against its known cell; *wrong cells* \
+         default schedule, which keeps their order; *unordered*: `locate_all_unordered_into`, which \
+         leaves the answers in the order it found them, beside the permutation, instead of putting \
+         them back in input order. *vs smallest*: the default schedule's points/s against the \
+         smallest block's (target ≥ 0.7 at 4.2 M cells), by `locate_all_into` and unordered. Every answer is checked against its known cell; *wrong cells* \
          counts answers in another cell that does not hold the point too (over all runs).\n",
         first.points,
         Schedule::AUTO_BYTES >> 20,
@@ -213,9 +229,10 @@ pub(super) fn scale_section(rows: &[ScaleRow], gslib: Option<&Gslib>) -> String 
     }
     let _ = writeln!(
         s,
-        " vs smallest (f64, default) | f32 / f64 (default) | wrong cells |"
+        " vs smallest (f64, default) | vs smallest (f64, unordered) | f32 / f64 (default) | \
+         wrong cells |"
     );
-    let columns = 5 + LABELS.len() + usize::from(gslib.is_some());
+    let columns = 6 + LABELS.len() + usize::from(gslib.is_some());
     let _ = writeln!(s, "|{}", "---|".repeat(columns));
     for r in rows {
         let _ = write!(s, "| {} | {:.1} |", r.cells, r.bytes as f64 / 1e6);
@@ -234,8 +251,9 @@ pub(super) fn scale_section(rows: &[ScaleRow], gslib: Option<&Gslib>) -> String 
         }
         let _ = writeln!(
             s,
-            " {:.2} | {:.2} | {} |",
+            " {:.2} | {:.2} | {:.2} | {} |",
             r.pps[1] / first.pps[1],
+            r.pps[5] / first.pps[1],
             r.pps[4] / r.pps[1],
             r.wrong
         );
@@ -292,6 +310,7 @@ pub(super) fn scale_plot(path: &Path, rows: &[ScaleRow], gslib: Option<&Gslib>) 
             RGBColor(127, 127, 127),
             RGBColor(255, 127, 14),
             RGBColor(44, 160, 44),
+            RGBColor(23, 190, 207),
         ];
         for (k, (label, colour)) in LABELS.iter().zip(colours).enumerate() {
             let line: Vec<(f64, f64)> = rows.iter().map(|r| (r.cells as f64, r.pps[k])).collect();

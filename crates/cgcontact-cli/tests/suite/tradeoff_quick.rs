@@ -102,16 +102,16 @@ fn quick_tradeoff_writes_a_row_per_configuration_and_lattice_f64_is_exact() {
         assert!(max_xi < 1e-12, "{scene}: max ξ error {max_xi}");
     }
 
-    // The scale section: a row per block size (two with --quick), every answer in its known cell,
-    // and its plot.
+    // The scale section: a row per block size (two with --quick), every answer in its known cell
+    // (the unordered run's through its permutation), and its plot.
     let scale: Vec<Vec<&str>> = section(&md, "## Scale")
         .filter(|l| l.starts_with("| ") && !l.starts_with("| cells"))
         .map(|l| l.trim_matches('|').split(" | ").map(str::trim).collect())
         .collect();
     assert_eq!(scale.len(), 2, "scale rows: {scale:?}");
     for row in &scale {
-        assert_eq!(row.len(), 10, "scale row {row:?}");
-        assert_eq!(row[9], "0", "wrong cells in scale row {row:?}");
+        assert_eq!(row.len(), 12, "scale row {row:?}");
+        assert_eq!(row[11], "0", "wrong cells in scale row {row:?}");
     }
     let svg = std::fs::read_to_string(dir.path().join("scale.svg")).expect("scale.svg");
     assert!(
@@ -157,7 +157,7 @@ fn quick_tradeoff_adds_gslib_from_its_log() {
         .filter(|l| l.starts_with("| ") && !l.starts_with("| cells"))
         .map(|l| l.trim_matches('|').split(" | ").map(str::trim).collect())
         .collect();
-    let gslib: Vec<(&str, &str)> = scale.iter().map(|row| (row[0], row[7])).collect();
+    let gslib: Vec<(&str, &str)> = scale.iter().map(|row| (row[0], row[8])).collect();
     assert_eq!(gslib, [("250", "1.23 M"), ("2000", "0.77 M")], "{scale:?}");
     let svg = std::fs::read_to_string(out.join("scale.svg")).expect("scale.svg");
     assert!(svg.contains("gslib findpts"), "no gslib line in the plot");
