@@ -1268,3 +1268,85 @@ fn f32_settings_on_cells_too_small_for_f32_are_refused_by_the_locator() {
         cgc_body_free(body);
     }
 }
+
+/// On a body whose displacements leave the caches, the library sorts a large batch by cell; the C
+/// API then answers it whole (in pieces it would be answered in the caller's order) and writes
+/// the answers piece by piece: each point's answer at its own place, bitwise the library's, cold
+/// and warm, with the first non-finite point reported.
+#[test]
+fn large_batches_on_large_bodies_are_answered_whole_and_in_place() {
+    let lattice =
+        Lattice::new(DVec3::new(-1.0, 2.0, 0.0), DVec3::splat(0.1), [90, 90, 90]).unwrap();
+    let mut body = Body::full(lattice);
+    body.update_displacements(|_, x, u| {
+        *u = DVec3::new(
+            0.02 * (x.y * 2.0).sin(),
+            0.01 * x.x * x.z,
+            -0.03 * x.x.cos(),
+        )
+    })
+    .unwrap();
+    // Random cells and ξ, more points than `Schedule::AUTO_MIN_POINTS`, some non-finite.
+    let n = 3 * cgcontact::Schedule::AUTO_MIN_POINTS / 2;
+    let mut state = 7u64;
+    let mut next = || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let cells = lattice.cell_count() as f64;
+    let mut points: Vec<DVec3> = (0..n)
+        .map(|_| {
+            let cell = CellId((next() * cells) as u32);
+            let xi = DVec3::new(next(), next(), next()) * 2.0 - 1.0;
+            body.point_at(cell, xi).unwrap()
+        })
+        .collect();
+    points[5000].x = f64::NAN;
+    points[n - 3] = DVec3::splat(1e3);
+    let library = LatticeLocator::new(&body, Settings::default()).unwrap();
+    assert!(library.sorts_batches(n), "the library sorts this batch");
+    let expected = library.locate_all(&points);
+    let handles = lattice_handles(&body);
+    let check = |what: &str, cells: &[i64], xi: &[f64], status: &[u8]| {
+        for (i, answer) in expected.iter().enumerate() {
+            let (cell, local, code) = match answer {
+                Ok(Some(hit)) => (i64::from(hit.cell.0), hit.xi, CGC_POINT_INSIDE),
+                Ok(None) => (-1, DVec3::NAN, CGC_POINT_OUTSIDE),
+                Err(_) => (-1, DVec3::NAN, CGC_POINT_NON_FINITE),
+            };
+            assert_eq!((cells[i], status[i]), (cell, code), "{what}: point {i}");
+            assert_eq!(
+                bits(&xi[3 * i..3 * i + 3]),
+                bits(&local.to_array()),
+                "{what}: point {i}"
+            );
+        }
+    };
+    let (code, mut cells, mut xi, status) = locate(handles.locator, &flat(&points));
+    assert_eq!(code, CgcError::NonFinitePoint);
+    assert!(last_error().starts_with("point 5000 "), "{}", last_error());
+    check("cgc_locate", &cells, &xi, &status);
+    // Warm, from the answers just written: the same cells and status, ξ within the Newton
+    // tolerance (each hinted cell is inverted again from its own ξ).
+    let (code, status) = relocate(handles.locator, &flat(&points), &mut cells, &mut xi);
+    assert_eq!(code, CgcError::NonFinitePoint);
+    for (i, answer) in expected.iter().enumerate() {
+        let (cell, local, code) = match answer {
+            Ok(Some(hit)) => (i64::from(hit.cell.0), hit.xi, CGC_POINT_INSIDE),
+            Ok(None) => (-1, DVec3::NAN, CGC_POINT_OUTSIDE),
+            Err(_) => (-1, DVec3::NAN, CGC_POINT_NON_FINITE),
+        };
+        assert_eq!(
+            (cells[i], status[i]),
+            (cell, code),
+            "cgc_relocate: point {i}"
+        );
+        let got = DVec3::from_slice(&xi[3 * i..]);
+        assert!(
+            (got - local).abs().max_element() < 1e-12 || (got.is_nan() && local.is_nan()),
+            "cgc_relocate: point {i}: {got} against {local}"
+        );
+    }
+}

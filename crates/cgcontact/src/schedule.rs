@@ -301,6 +301,13 @@ impl Scheduler {
         self.with_workspace(|ws| blocked(&blocks, points, piece, pieces, ws, &chunk));
     }
 
+    /// Whether a batch of `n` points on a body of `layout` may be sorted: always under
+    /// `Blocked`, never under `Input`, and under `Auto` when the body and the batch are large
+    /// enough (the points' own order is sampled later, on the batch itself).
+    pub(crate) fn may_sort(&self, layout: Layout<'_>, n: usize) -> bool {
+        n > 1 && self.schedule.resolve(layout.bytes, n).is_some()
+    }
+
     /// The blocks to sort `points` by, or `None` to answer them in input order.
     fn blocks(&self, layout: Layout<'_>, points: &[DVec3]) -> Option<Blocks> {
         self.schedule

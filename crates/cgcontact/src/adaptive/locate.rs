@@ -849,6 +849,10 @@ impl Locator for AdaptiveLocator<'_> {
         self.search(x, Collect::First, &mut 0)
     }
 
+    fn sorts_batches(&self, n_points: usize) -> bool {
+        self.scheduler.may_sort(self.layout(), n_points)
+    }
+
     /// Every inversion counted, failed ones included.
     fn locate_counted(&self, x: DVec3) -> (Answer, u32) {
         let mut tried = 0;

@@ -6,8 +6,8 @@
 //! faces, outside, refused, and repeated.
 
 use cgcontact::{
-    AdaptiveLocator, Answer, GapAnswer, GapFinder, LatticeLocator, Locator, Schedule, Settings,
-    Surface,
+    AdaptiveLocator, Answer, Body, GapAnswer, GapFinder, Lattice, LatticeLocator, Locator,
+    Schedule, Settings, Surface,
 };
 use glam::DVec3;
 
@@ -237,4 +237,51 @@ fn gap_batches_answer_alike_under_every_schedule() {
         &shuffled(&base, 3, 4),
         0.5,
     );
+}
+
+/// `sorts_batches` says whether a batch may be sorted, as the schedule decides: always under
+/// `Blocked`, never under `Input`, and under `Auto` for batches of `Schedule::AUTO_MIN_POINTS`
+/// or more on a body of more than `Schedule::AUTO_BYTES` of nodal data.
+#[test]
+fn sorts_batches_follows_the_schedule() {
+    let small = uniform_body(8);
+    let n = cells_for_bytes(Schedule::AUTO_BYTES);
+    let large = Body::full(Lattice::new(DVec3::ZERO, DVec3::ONE, [n, n, n]).unwrap());
+    let adaptive = adaptive_body(3);
+    let min = Schedule::AUTO_MIN_POINTS;
+    for (schedule, small_sorts, large_sorts) in [
+        (Schedule::Input, false, false),
+        (Schedule::Blocked { log2_cells: 0 }, true, true),
+        (Schedule::Auto, false, true),
+    ] {
+        for precision in [Settings::default(), Settings::f32()] {
+            let settings = Settings {
+                schedule,
+                ..precision
+            };
+            let what = format!("{schedule:?}, {:?}", precision.precision);
+            let small = LatticeLocator::new(&small, settings).unwrap();
+            let large = LatticeLocator::new(&large, settings).unwrap();
+            let adaptive = AdaptiveLocator::new(&adaptive, settings).unwrap();
+            assert_eq!(small.sorts_batches(min), small_sorts, "small, {what}");
+            assert_eq!(adaptive.sorts_batches(min), small_sorts, "adaptive, {what}");
+            assert_eq!(large.sorts_batches(min), large_sorts, "large, {what}");
+            // One point is never sorted; under Auto, fewer than the minimum neither.
+            assert!(!large.sorts_batches(1), "{what}");
+            let below = schedule == Schedule::Auto;
+            assert_eq!(
+                large.sorts_batches(min - 1),
+                large_sorts && !below,
+                "{what}"
+            );
+        }
+    }
+}
+
+/// Cells per axis of a cube whose nodes' displacements take more than `bytes` in f64 (24 bytes
+/// a node) and in the f32 locator's copy (16).
+fn cells_for_bytes(bytes: usize) -> u32 {
+    (1..)
+        .find(|&n: &u32| (n as usize + 1).pow(3) * 16 > bytes)
+        .unwrap()
 }
