@@ -1015,3 +1015,32 @@ def test_out_arrays_in_use_by_another_call_are_named_so():
     finally:
         busy.join()
     np.testing.assert_array_equal(out[0], cgcontact.Locator(body).locate(points)[0])
+
+
+def test_large_batches_on_large_bodies_answer_each_point_in_place():
+    """On a body whose displacements leave the caches, the library sorts a large batch by cell:
+    the batch is then answered whole and written piece by piece, each answer at its own row,
+    as the same points answered in batches too small to sort; and known cells and xi."""
+    n_cells = (90, 90, 90)
+    body = cgcontact.Body((-1.0, 2.0, 0.0), (0.1, 0.1, 0.1), n_cells)
+    rng = np.random.default_rng(5)
+    n = 30_000
+    ijk = np.column_stack([rng.integers(0, c, n) for c in n_cells])
+    xi = rng.uniform(-0.9, 0.9, (n, 3))
+    points = (-1.0, 2.0, 0.0) + (ijk + (xi + 1) / 2) * 0.1
+    cells = ijk[:, 0] + 90 * (ijk[:, 1] + 90 * ijk[:, 2])
+    points[123] = 1e3
+    locator = cgcontact.Locator(body, threads=2)
+    cell, got = locator.locate(points)
+    small = [locator.locate(points[k:k + 1000]) for k in range(0, n, 1000)]
+    np.testing.assert_array_equal(cell, np.concatenate([c for c, _ in small]))
+    np.testing.assert_array_equal(got, np.concatenate([x for _, x in small]))
+    known = np.arange(n) != 123
+    np.testing.assert_array_equal(cell[known], cells[known])
+    np.testing.assert_allclose(got[known], xi[known], atol=1e-12)
+    assert cell[123] == -1 and np.isnan(got[123]).all()
+    # Warm, from those answers: the same cells, xi within the Newton tolerance.
+    out = (cell.copy(), got.copy())
+    warm_cell, warm_xi = locator.relocate(points, out=out)
+    np.testing.assert_array_equal(warm_cell, cell)
+    np.testing.assert_allclose(warm_xi[known], got[known], atol=1e-12)
