@@ -6,9 +6,9 @@
 //! `Schedule::Auto` does above its threshold to points out of order), in f64 and f32, on 1 and 2
 //! threads; on one thread also under `Schedule::Auto` (random and lattice order) and lattice order
 //! sorted again; random points under `Schedule::Auto` by `locate_all_unordered_into` (answers in
-//! the order found, and the permutation), on 1 and 2 threads; for f64 on one thread also sorted by blocks of 8³ and 16³ cells. Printed once per
-//! size: the bytes of nodal data (what `Schedule::Auto` decides by), and the sort's buffers per
-//! point.
+//! the order found, and the permutation), on 1 and 2 threads; for f64 on one thread also sorted
+//! by blocks of 8³ and 16³ cells. Printed once per size: the bytes of nodal data (what
+//! `Schedule::Auto` decides by), and the sort's buffers per point.
 //!
 //! Run: `cargo bench -p cgcontact-benches --bench scale` (about 6 minutes; one size:
 //! `-- scale/1024000`).

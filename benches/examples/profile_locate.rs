@@ -7,7 +7,10 @@
 //! coherence sample decides on);
 //! `window=N`: then shuffled within consecutive windows of N points, so that the lanes of a batch
 //! hold different cells while memory stays local; `slabs`: random order within slabs of 5 cell
-//! layers; `input`: `Schedule::Input`, no sort inside the batched path; `blocked`: `Schedule::Blocked` with single cells, sorted whatever the order and size; `unordered`: `locate_all_unordered_into`, the answers in the order they were found, with the permutation; `stats`: how many points needed more than one inversion, and Newton iterations per hit).
+//! layers; `input`: `Schedule::Input`, no sort inside the batched path; `blocked`:
+//! `Schedule::Blocked` with single cells, sorted whatever the order and size; `unordered`:
+//! `locate_all_unordered_into`, the answers in the order they were found, with the permutation;
+//! `stats`: how many points needed more than one inversion, and Newton iterations per hit).
 //! `CGCONTACT_SIMD=avx2` (or `portable`) caps the instruction set the batched path uses.
 
 use std::time::Instant;

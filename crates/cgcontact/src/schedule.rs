@@ -6,8 +6,9 @@
 //! measured size, they first sort the points by the lattice cell (or block) they fall in (a radix
 //! sort, most significant digit first: O(n), one piece per thread), answer them in that order, and
 //! put the answers back in input order (or, for `locate_all_unordered_into` and
-//! `gap_all_unordered_into`, leave them in that order beside the permutation). Each point's answer depends on that point alone, so the
-//! answers are bitwise the same whatever the schedule; only the order of the work changes.
+//! `gap_all_unordered_into`, leave them in that order beside the permutation). Each point's
+//! answer depends on that point alone, so the answers are bitwise the same whatever the schedule;
+//! only the order of the work changes.
 //!
 //! The sort's buffers (40 bytes per point, up to 56 when the points crowd into few blocks, and
 //! two histograms per thread) live in a pool inside the locator and are reused by later calls.

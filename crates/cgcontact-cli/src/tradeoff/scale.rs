@@ -206,8 +206,9 @@ pub(super) fn scale_section(rows: &[ScaleRow], gslib: Option<&Gslib>) -> String 
          default schedule, which keeps their order; *unordered*: `locate_all_unordered_into`, which \
          leaves the answers in the order it found them, beside the permutation, instead of putting \
          them back in input order. *vs smallest*: the default schedule's points/s against the \
-         smallest block's (target ≥ 0.7 at 4.2 M cells), by `locate_all_into` and unordered. Every answer is checked against its known cell; *wrong cells* \
-         counts answers in another cell that does not hold the point too (over all runs).\n",
+         smallest block's (target ≥ 0.7 at 4.2 M cells), by `locate_all_into` and unordered. \
+         Every answer is checked against its known cell; *wrong cells* counts answers in another \
+         cell that does not hold the point too (over all runs).\n",
         first.points,
         Schedule::AUTO_BYTES >> 20,
     );
