@@ -269,18 +269,22 @@ impl Scheduler {
 
     /// [`Self::run`] without putting the answers back in input order: `out[k]` is the answer to
     /// `points[order[k]]`, in the order the points were answered (input order, or sorted by
-    /// block), each index once. Saves the scatter, a store to a random place per point. Never
-    /// warm.
+    /// block), each index once. `order` and `out` are resized (`out` with `empty` when its length
+    /// changes). Saves the scatter, a store to a random place per point. Never warm.
     pub(crate) fn run_unordered<T: Copy + Send + Sync>(
         &self,
         layout: Layout<'_>,
         points: &[DVec3],
-        order: &mut [usize],
-        out: &mut [T],
+        order: &mut Vec<usize>,
+        out: &mut Vec<T>,
+        empty: T,
         chunk: impl Fn(&[DVec3], &mut [T]) + Sync,
     ) {
-        debug_assert_eq!(points.len(), out.len());
-        debug_assert_eq!(points.len(), order.len());
+        if out.len() != points.len() {
+            out.clear();
+            out.resize(points.len(), empty);
+        }
+        order.resize(points.len(), 0);
         let Some(blocks) = self.blocks(layout, points) else {
             order.par_iter_mut().enumerate().for_each(|(i, o)| *o = i);
             out.par_chunks_mut(CHUNK)
@@ -705,10 +709,10 @@ mod tests {
                 .unwrap();
             for schedule in [Schedule::Input, Schedule::Blocked { log2_cells: 0 }] {
                 let scheduler = Scheduler::new(schedule);
-                let (mut order, mut out) = (vec![0; points.len()], vec![[0; 3]; points.len()]);
+                let (mut order, mut out) = (Vec::new(), Vec::new());
                 pool.install(|| {
                     let layout = layout(&lattice, 0, 0);
-                    scheduler.run_unordered(layout, &points, &mut order, &mut out, chunk)
+                    scheduler.run_unordered(layout, &points, &mut order, &mut out, [0; 3], chunk)
                 });
                 let mut seen = vec![false; points.len()];
                 for (&i, a) in order.iter().zip(&out) {

@@ -913,15 +913,14 @@ impl Locator for AdaptiveLocator<'_> {
         order: &mut Vec<usize>,
         out: &mut Vec<Answer>,
     ) {
-        if out.len() != points.len() {
-            out.clear();
-            out.resize(points.len(), Ok(None));
-        }
-        order.resize(points.len(), 0);
-        self.scheduler
-            .run_unordered(self.layout(), points, order, out, |points, out| {
-                self.locate_chunk(points, out)
-            });
+        self.scheduler.run_unordered(
+            self.layout(),
+            points,
+            order,
+            out,
+            Ok(None),
+            |points, out| self.locate_chunk(points, out),
+        );
     }
 }
 

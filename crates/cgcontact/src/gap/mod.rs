@@ -221,14 +221,9 @@ impl<'l, L: Surface> GapFinder<'l, L> {
         order: &mut Vec<usize>,
         out: &mut Vec<GapAnswer>,
     ) {
-        if out.len() != points.len() {
-            out.clear();
-            out.resize(points.len(), Ok(None));
-        }
-        order.resize(points.len(), 0);
         let (_, layout) = self.surface.schedule();
         self.scheduler
-            .run_unordered(layout, points, order, out, |points, out| {
+            .run_unordered(layout, points, order, out, Ok(None), |points, out| {
                 for (o, &x) in out.iter_mut().zip(points) {
                     *o = self.search(x, None);
                 }
