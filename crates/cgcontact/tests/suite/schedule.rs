@@ -285,3 +285,51 @@ fn cells_for_bytes(bytes: usize) -> u32 {
         .find(|&n: &u32| (n as usize + 1).pow(3) * 16 > bytes)
         .unwrap()
 }
+
+/// Batches on one locator from several threads at once: one call holds the locator's sort
+/// buffers, the others sort in fresh ones (`try_lock`). Every call, ordered or not, on two
+/// threads, with lengths no multiple of the pieces, answers each point once, as `locate`.
+#[test]
+fn concurrent_batches_on_one_locator_answer_each_point_once() {
+    let body = uniform_body(21);
+    let lattice = *body.lattice();
+    let base = points(
+        &mut Rng(8),
+        lattice.cell_count(),
+        |cell, xi| body.point_at(cell, xi),
+        lattice.origin() - 0.5,
+        lattice.upper() + 0.5,
+    );
+    let points = shuffled(&base, 14, 3);
+    let settings = Settings {
+        schedule: Schedule::Blocked { log2_cells: 0 },
+        ..Settings::default()
+    };
+    let locator = LatticeLocator::new(&body, settings).unwrap();
+    let cold: Vec<Answer> = points.iter().map(|&x| locator.locate(x)).collect();
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(2)
+        .build()
+        .unwrap();
+    std::thread::scope(|scope| {
+        for caller in 0..4 {
+            let (locator, points, cold, pool) = (&locator, &points, &cold, &pool);
+            scope.spawn(move || {
+                let (mut order, mut out) = (Vec::new(), Vec::new());
+                for round in 0..3 {
+                    let from = 1 + caller * 37 + round;
+                    let what = format!("caller {caller}, round {round}");
+                    if (caller + round) % 2 == 0 {
+                        pool.install(|| {
+                            locator.locate_all_unordered_into(&points[from..], &mut order, &mut out)
+                        });
+                        assert_unordered(&order, &out, &cold[from..], &what);
+                    } else {
+                        pool.install(|| locator.locate_all_into(&points[from..], &mut out));
+                        assert_bitwise(&out, &cold[from..], &what);
+                    }
+                }
+            });
+        }
+    });
+}
