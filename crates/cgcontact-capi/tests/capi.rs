@@ -1350,3 +1350,114 @@ fn large_batches_on_large_bodies_are_answered_whole_and_in_place() {
         );
     }
 }
+
+/// The whole-batch path of a sortable batch, on the caller's own threads (1 to 3), with a last
+/// piece shorter than the others, a NULL `status`, a body with inactive cells and bad hints
+/// (−1, NaN and infinite ξ, another point's cell): the answers of batches too small to sort, cold
+/// bitwise and warm within the Newton tolerance; a hint to an inactive cell refused unwritten.
+#[test]
+fn whole_batches_answer_as_small_ones_from_any_hint() {
+    let lattice =
+        Lattice::new(DVec3::new(-1.0, 2.0, 0.0), DVec3::splat(0.1), [90, 90, 90]).unwrap();
+    let inactive = |c: usize| c % 11 == 3;
+    let active: Vec<u8> = (0..lattice.cell_count())
+        .map(|c| u8::from(!inactive(c)))
+        .collect();
+    // The C API's pieces are 2,048 points: the last is 777.
+    let n = 2 * cgcontact::Schedule::AUTO_MIN_POINTS + 2048 + 777;
+    let mut state = 3u64;
+    let mut next = || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let mut points: Vec<DVec3> = (0..n)
+        .map(|_| lattice.origin() + DVec3::new(next(), next(), next()) * 9.2 - 0.1)
+        .collect();
+    points[n - 1].y = f64::INFINITY;
+    let points = flat(&points);
+    let mut handles = Handles {
+        body: ptr::null_mut(),
+        locator: ptr::null_mut(),
+    };
+    // SAFETY: every array holds the length passed; the handles are freed by `Handles`.
+    unsafe {
+        let (origin, h) = (lattice.origin().to_array(), lattice.h().to_array());
+        let counts = lattice.cells();
+        assert_eq!(
+            cgc_body_from_lattice(
+                origin.as_ptr(),
+                h.as_ptr(),
+                counts.as_ptr(),
+                active.as_ptr(),
+                active.len(),
+                &mut handles.body,
+            ),
+            CgcError::Ok
+        );
+    }
+    for threads in [1, 2, 3] {
+        let settings = CgcSettings {
+            threads,
+            ..settings(CGC_PRECISION_F64)
+        };
+        // SAFETY: live body, readable settings; the locator is freed below.
+        unsafe {
+            cgc_locator_free(handles.locator);
+            handles.locator = ptr::null_mut();
+            assert_eq!(
+                cgc_locator_new(handles.body, &settings, &mut handles.locator),
+                CgcError::Ok
+            );
+        }
+        // Batches of 1,000 points: too small to sort, answered piece by piece.
+        let mut expected = (Vec::new(), Vec::new(), Vec::new());
+        for piece in points.chunks(3000) {
+            let (_, cells, xi, status) = locate(handles.locator, piece);
+            expected.0.extend(cells);
+            expected.1.extend(xi);
+            expected.2.extend(status);
+        }
+        assert!(expected.0.iter().filter(|&&c| c >= 0).count() > n / 2);
+        let (code, mut cells, mut xi, status) = locate(handles.locator, &points);
+        let what = format!("{threads} threads");
+        assert_eq!(code, CgcError::NonFinitePoint, "{what}");
+        assert_eq!(cells, expected.0, "cgc_locate, {what}");
+        assert_eq!(bits(&xi), bits(&expected.1), "cgc_locate, {what}");
+        assert_eq!(status, expected.2, "cgc_locate, {what}");
+        for i in 0..n {
+            match i % 4 {
+                0 => cells[i] = -1,
+                1 => xi[3 * i] = f64::NAN,
+                2 => xi[3 * i + 1] = f64::INFINITY,
+                _ => cells[i] = cells[(i * 7919) % n],
+            }
+        }
+        // SAFETY: the arrays hold n, 3 n values and do not overlap; no status.
+        let code = unsafe {
+            cgc_relocate(
+                handles.locator,
+                points.as_ptr(),
+                n,
+                cells.as_mut_ptr(),
+                xi.as_mut_ptr(),
+                ptr::null_mut(),
+            )
+        };
+        assert_eq!(code, CgcError::NonFinitePoint, "{what}");
+        assert_eq!(cells, expected.0, "cgc_relocate, {what}");
+        for (i, (got, known)) in xi.chunks(3).zip(expected.1.chunks(3)).enumerate() {
+            let (got, known) = (DVec3::from_slice(got), DVec3::from_slice(known));
+            assert!(
+                (got - known).abs().max_element() < 1e-12 || (got.is_nan() && known.is_nan()),
+                "cgc_relocate, {what}: point {i}: {got} against {known}"
+            );
+        }
+        cells[n / 2] = 3;
+        let before = (cells.clone(), bits(&xi));
+        let (code, _) = relocate(handles.locator, &points, &mut cells, &mut xi);
+        assert_eq!(code, CgcError::InvalidArgument, "{what}");
+        assert_eq!((cells, bits(&xi)), before, "{what}: nothing is written");
+    }
+}
