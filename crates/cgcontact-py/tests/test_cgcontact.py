@@ -1044,3 +1044,29 @@ def test_large_batches_on_large_bodies_answer_each_point_in_place():
     warm_cell, warm_xi = locator.relocate(points, out=out)
     np.testing.assert_array_equal(warm_cell, cell)
     np.testing.assert_allclose(warm_xi[known], got[known], atol=1e-12)
+
+
+def test_whole_batches_relocate_from_any_hint_as_small_ones():
+    """A sortable batch answered whole on 3 threads, on a body with inactive cells, warm from bad
+    hints (-1, NaN and infinite xi, another point's cell, an inactive lattice cell, which Python
+    takes as a hint): the cells of batches too small to sort, xi within the Newton tolerance."""
+    n_cells = (90, 90, 90)
+    active = np.arange(90**3) % 11 != 3
+    body = cgcontact.Body((-1.0, 2.0, 0.0), (0.1, 0.1, 0.1), n_cells, active=active)
+    rng = np.random.default_rng(8)
+    n = 20_000
+    points = (-1.0, 2.0, 0.0) + rng.uniform(-0.1, 9.1, (n, 3))
+    locator = cgcontact.Locator(body, threads=3)
+    small = [locator.locate(points[k:k + 1000]) for k in range(0, n, 1000)]
+    cell = np.concatenate([c for c, _ in small])
+    xi = np.concatenate([x for _, x in small])
+    assert (cell >= 0).sum() > n // 2
+    hint_cell, hint_xi = cell.copy(), xi.copy()
+    hint_cell[0::5] = -1
+    hint_xi[1::5, 0] = np.nan
+    hint_xi[2::5, 1] = np.inf
+    hint_cell[3::5] = rng.permutation(cell)[3::5]
+    hint_cell[4::5] = 3
+    warm_cell, warm_xi = locator.relocate(points, out=(hint_cell, hint_xi))
+    np.testing.assert_array_equal(warm_cell, cell)
+    np.testing.assert_allclose(warm_xi, xi, atol=1e-12)
