@@ -79,20 +79,29 @@ unsafe fn optional<'a, T>(
 }
 
 /// Answers every point with `finder` into the pieces `out`; returns the first point refused (or
-/// `usize::MAX`).
+/// `usize::MAX`). A batch the library may sort by cell (a large body) is answered whole first: in
+/// pieces it would be answered in the caller's order, slower at scale.
 fn answer_all<L: Surface + Sync>(
     finder: &GapFinder<'_, L>,
     points: &[DVec3],
     out: Vec<Out<'_>>,
     state: &BodyState,
 ) -> usize {
+    let whole = finder.sorts_batches(points.len()).then(|| {
+        let mut answers = Vec::new();
+        finder.gap_all_into(points, &mut answers);
+        answers
+    });
     let first_bad = AtomicUsize::new(usize::MAX);
     out.into_par_iter()
         .zip(points.par_chunks(PIECE))
         .enumerate()
         .for_each(|(k, (mut out, points))| {
             for (i, &x) in points.iter().enumerate() {
-                let answer = finder.gap(x);
+                let answer = match &whole {
+                    Some(all) => all[k * PIECE + i],
+                    None => finder.gap(x),
+                };
                 if answer.is_err() {
                     first_bad.fetch_min(k * PIECE + i, Ordering::Relaxed);
                 }

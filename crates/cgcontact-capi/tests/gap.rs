@@ -513,3 +513,49 @@ fn non_finite_points_are_answered_and_reported() {
     // Every other point answered, on both sides of the 2,048-point pieces.
     assert!(got.gap[0] < 0.0 && got.gap[2999] < 0.0 && got.gap[2499] == got.gap[0]);
 }
+
+/// On a body whose displacements leave the caches, a batch the library may sort is answered
+/// whole, then written piece by piece: each point's gap at its own place, bitwise the gap finder's
+/// one-point answers, with the first non-finite point reported.
+#[test]
+fn large_batches_on_large_bodies_are_answered_whole_and_in_place() {
+    let lattice =
+        Lattice::new(DVec3::new(-1.0, 2.0, 0.0), DVec3::splat(0.1), [90, 90, 90]).unwrap();
+    let u = |x: DVec3| {
+        DVec3::new(
+            0.02 * (x.y * 2.0).sin(),
+            0.01 * x.x * x.z,
+            -0.03 * x.x.cos(),
+        )
+    };
+    let mut body = Body::full(lattice);
+    body.update_displacements(|_, x, d| *d = u(x)).unwrap();
+    let locator = LatticeLocator::new(&body, Settings::default()).unwrap();
+    let finder = GapFinder::new(&locator, 0.25).unwrap();
+    // Points near the faces of the box, inside and out, in a scrambled order, one of them NaN.
+    let n = 3 * cgcontact::Schedule::AUTO_MIN_POINTS / 2;
+    assert!(finder.sorts_batches(n), "the library sorts this batch");
+    let (low, high) = (lattice.origin(), lattice.upper());
+    let mut points: Vec<DVec3> = (0..n as u32)
+        .map(|k| {
+            let f = |m: f64| (f64::from(k) * m).fract();
+            let mut x = low + (high - low) * DVec3::new(f(0.618_034), f(0.754_878), f(0.569_840));
+            // Pull one coordinate within 0.2 of a face, either side.
+            let axis = k as usize % 3;
+            x[axis] = if k % 2 == 0 { low[axis] } else { high[axis] } + (f(0.3) - 0.5) * 0.4;
+            x
+        })
+        .collect();
+    points[7000].z = f64::NAN;
+    let handles = Handles::lattice(&lattice, u);
+    let (code, got) = gaps(handles.locator, &points, 0.25);
+    assert_eq!(code, CgcError::NonFinitePoint);
+    assert!(last_error().starts_with("point 7000 "), "{}", last_error());
+    let answers: Vec<GapAnswer> = points.iter().map(|&x| finder.gap(x)).collect();
+    assert_eq!(
+        got.bits(),
+        Gaps::expected(&answers, |c| i64::from(c.0)).bits()
+    );
+    let found = got.gap.iter().filter(|g| !g.is_nan()).count();
+    assert!(found > n / 2, "{found} gaps of {n}");
+}

@@ -210,6 +210,14 @@ impl<'l, L: Surface> GapFinder<'l, L> {
         self.batch(points, out, false);
     }
 
+    /// Whether the batched queries may sort a batch of `n_points` points by lattice cell, as
+    /// [`crate::Locator::sorts_batches`] says for the locators: a caller should then pass such a
+    /// batch whole rather than in small pieces.
+    pub fn sorts_batches(&self, n_points: usize) -> bool {
+        let (_, layout) = self.surface.schedule();
+        self.scheduler.may_sort(layout, n_points)
+    }
+
     /// [`GapFinder::gap_all_into`]'s answers without putting them back in input order: `out[k]`
     /// is the answer to `points[order[k]]`, `order` a permutation of the indices (both resized),
     /// in the order the schedule answered them (sorted by lattice cell on large bodies). For

@@ -239,9 +239,10 @@ fn gap_batches_answer_alike_under_every_schedule() {
     );
 }
 
-/// `sorts_batches` says whether a batch may be sorted, as the schedule decides: always under
-/// `Blocked`, never under `Input`, and under `Auto` for batches of `Schedule::AUTO_MIN_POINTS`
-/// or more on a body of more than `Schedule::AUTO_BYTES` of nodal data.
+/// `sorts_batches` (of the locators and of the gap finder) says whether a batch may be sorted, as
+/// the schedule decides: always under `Blocked`, never under `Input`, and under `Auto` for
+/// batches of `Schedule::AUTO_MIN_POINTS` or more on a body of more than `Schedule::AUTO_BYTES`
+/// of nodal data.
 #[test]
 fn sorts_batches_follows_the_schedule() {
     let small = uniform_body(8);
@@ -266,6 +267,10 @@ fn sorts_batches_follows_the_schedule() {
             assert_eq!(small.sorts_batches(min), small_sorts, "small, {what}");
             assert_eq!(adaptive.sorts_batches(min), small_sorts, "adaptive, {what}");
             assert_eq!(large.sorts_batches(min), large_sorts, "large, {what}");
+            // The gap finder decides by its surface's locator.
+            let gaps = |l| GapFinder::new(l, 1.0).unwrap().sorts_batches(min);
+            assert_eq!(gaps(&small), small_sorts, "small gaps, {what}");
+            assert_eq!(gaps(&large), large_sorts, "large gaps, {what}");
             // One point is never sorted; under Auto, fewer than the minimum neither.
             assert!(!large.sorts_batches(1), "{what}");
             let below = schedule == Schedule::Auto;
