@@ -103,7 +103,10 @@ class Locator:
         or lattice cells). A NaN or infinite point raises ValueError naming its row. With
         `out=(cell, xi)` (C-contiguous, aligned, writeable int64[n] and float64[n, 3] arrays
         sharing no memory with `points` or each other, nor in use by a call in another thread)
-        the answers are written there and `out` is returned."""
+        the answers are written there and `out` is returned. On a large body (more than 8 MB
+        of nodal data: about 350,000 nodes in f64, 520,000 in f32), a batch of 16,384 points
+        or more is answered whole, so that the library can sort it by cell: the call then
+        holds about 100 bytes per point of temporary buffers."""
     def relocate(
         self,
         points: npt.ArrayLike,

@@ -136,7 +136,8 @@ fn answer_all<L: Surface + Sync>(
 /// are NaN and its `face_cell` and `face` −1; likewise for a point with a NaN or infinite
 /// coordinate, and then the call returns `CGC_ERROR_NON_FINITE_POINT` after writing every answer
 /// (the message names the first such point). The cost grows with `distance`: give the largest
-/// gap the solver needs, not more.
+/// gap the solver needs, not more. A large batch on a large body is answered whole, as by
+/// `cgc_locate`, with temporary buffers of about 130 bytes per point.
 ///
 /// Each output may be NULL, to skip it; those given hold `n_points` values (`3 n_points` for
 /// `closest` and `normal`). `distance` must be finite, ≥ 0 and ≤ 1e150 (else

@@ -279,7 +279,10 @@ impl PyLocator {
     /// the VTK file, or lattice cells. A C-contiguous, aligned float64 array is read in place.
     /// With `out=(cell, xi)`, C-contiguous, aligned int64[n] and float64[n, 3] arrays sharing no
     /// memory with the points or each other, the answers are written there and `out` is returned
-    /// (a solver loop then allocates nothing per query).
+    /// (a solver loop then allocates no output arrays per query). On a large body (more than 8 MB
+    /// of nodal data: about 350,000 nodes in f64, 520,000 in f32), a batch of 16,384 points or
+    /// more is answered whole, so that the library can sort it by cell: the call then holds about
+    /// 100 bytes per point of temporary buffers.
     #[pyo3(signature = (points, out = None))]
     fn locate<'py>(
         &self,
