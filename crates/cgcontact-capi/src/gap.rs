@@ -87,7 +87,7 @@ fn answer_all<L: Surface + Sync>(
     out: Vec<Out<'_>>,
     state: &BodyState,
 ) -> usize {
-    let whole = finder.sorts_batches(points.len()).then(|| {
+    let whole = finder.sorts_batch(points).then(|| {
         let mut answers = Vec::new();
         finder.gap_all_into(points, &mut answers);
         answers

@@ -233,7 +233,8 @@ pub unsafe extern "C" fn cgc_locator_new(
 
 /// Points per piece of a query: each piece's answers are converted into the caller's arrays while
 /// they are still in cache (2,048 answers take 115 kB). A batch the library may sort by cell
-/// (`Locator::sorts_batches`: a large body) is answered whole first, then converted by pieces.
+/// (`Locator::sorts_batch`: a large body, points out of order) is answered whole first, then
+/// converted by pieces.
 pub(crate) const PIECE: usize = 2048;
 
 /// Locates `n_points` points. `points` holds `3 n_points` doubles, x y z per point (an n × 3
@@ -386,7 +387,7 @@ unsafe fn locate(
         // A batch the library may sort by cell (a large body) is answered whole, then written
         // piece by piece: split into pieces, it would be answered in the caller's order, up to
         // 2.5x slower at scale. Else each piece is answered and written while in cache.
-        let whole = search.sorts_batches(n_points).then(|| {
+        let whole = search.sorts_batch(points).then(|| {
             let mut answers = Vec::new();
             answer(points, cells, xi, &mut answers);
             answers

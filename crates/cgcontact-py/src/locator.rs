@@ -431,7 +431,7 @@ impl PyLocator {
 /// (NaN where none), piece by piece, each piece's answers in a buffer its worker reuses: no
 /// answer array for all the points, whose fresh pages cost a third of the query (measured: 0.36
 /// of the library's points/s with one, 0.61 without). But a batch the library may sort by cell
-/// (`Locator::sorts_batches`: a large body) is answered whole, then written piece by piece: in
+/// (`Locator::sorts_batch`: a large body, points out of order) is answered whole, then written piece by piece: in
 /// pieces it would be answered in the caller's order, up to 2.5x slower at scale. `Err` holds
 /// the first point refused.
 fn locate_into(
@@ -453,7 +453,7 @@ fn locate_into(
             locator.locate_all_into(points, answers);
         }
     };
-    let whole = locator.sorts_batches(points.len()).then(|| {
+    let whole = locator.sorts_batch(points).then(|| {
         let mut answers = Vec::new();
         answer(points, cells, xi, &mut answers);
         answers

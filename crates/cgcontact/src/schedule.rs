@@ -306,11 +306,11 @@ impl Scheduler {
         self.with_workspace(|ws| blocked(&blocks, points, piece, pieces, ws, &chunk));
     }
 
-    /// Whether a batch of `n` points on a body of `layout` may be sorted: always under
-    /// `Blocked`, never under `Input`, and under `Auto` when the body and the batch are large
-    /// enough (the points' own order is sampled later, on the batch itself).
-    pub(crate) fn may_sort(&self, layout: Layout<'_>, n: usize) -> bool {
-        n > 1 && self.schedule.resolve(layout.bytes, n).is_some()
+    /// Whether [`Self::run`] would sort `points` on a body of `layout`: always under `Blocked`
+    /// (two points or more), never under `Input`, and under `Auto` when the body and the batch
+    /// are large enough and a sample of the points shows them out of order.
+    pub(crate) fn would_sort(&self, layout: Layout<'_>, points: &[DVec3]) -> bool {
+        self.blocks(layout, points).is_some()
     }
 
     /// The blocks to sort `points` by, or `None` to answer them in input order.

@@ -849,8 +849,8 @@ impl Locator for AdaptiveLocator<'_> {
         self.search(x, Collect::First, &mut 0)
     }
 
-    fn sorts_batches(&self, n_points: usize) -> bool {
-        self.scheduler.may_sort(self.layout(), n_points)
+    fn sorts_batch(&self, points: &[DVec3]) -> bool {
+        self.scheduler.would_sort(self.layout(), points)
     }
 
     /// Every inversion counted, failed ones included.

@@ -210,12 +210,12 @@ impl<'l, L: Surface> GapFinder<'l, L> {
         self.batch(points, out, false);
     }
 
-    /// Whether the batched queries may sort a batch of `n_points` points by lattice cell, as
-    /// [`crate::Locator::sorts_batches`] says for the locators: a caller should then pass such a
+    /// Whether the batched queries would sort `points` by lattice cell, as
+    /// [`crate::Locator::sorts_batch`] says for the locators: a caller should then pass such a
     /// batch whole rather than in small pieces.
-    pub fn sorts_batches(&self, n_points: usize) -> bool {
+    pub fn sorts_batch(&self, points: &[DVec3]) -> bool {
         let (_, layout) = self.surface.schedule();
-        self.scheduler.may_sort(layout, n_points)
+        self.scheduler.would_sort(layout, points)
     }
 
     /// [`GapFinder::gap_all_into`]'s answers without putting them back in input order: `out[k]`

@@ -119,13 +119,14 @@ pub trait Locator: Sync {
             .collect_into_vec(out);
     }
 
-    /// Whether the batched queries may sort a batch of `n_points` points by lattice cell before
-    /// answering it ([`crate::Schedule`]: on a large body, the order decides the speed). A
-    /// caller that splits such a batch into small pieces (to convert each piece's answers while
-    /// they are in cache, say) loses the sort, and random points then run up to 2.5× slower on a
+    /// Whether the batched queries would sort `points` by lattice cell before answering them
+    /// ([`crate::Schedule`]: on a large body, the order decides the speed; under the default
+    /// schedule, a sample of 2,048 points tells whether they already come in order). A caller
+    /// that splits such a batch into small pieces (to convert each piece's answers while they
+    /// are in cache, say) loses the sort, and random points then run up to 2.5× slower on a
     /// 4.2 M-cell block: it should pass the batch whole. The default (the baselines): false.
-    fn sorts_batches(&self, n_points: usize) -> bool {
-        let _ = n_points;
+    fn sorts_batch(&self, points: &[DVec3]) -> bool {
+        let _ = points;
         false
     }
 
@@ -389,8 +390,8 @@ impl Locator for LatticeLocator<'_> {
         self.search(x, Collect::First, &mut 0)
     }
 
-    fn sorts_batches(&self, n_points: usize) -> bool {
-        self.scheduler.may_sort(self.layout(), n_points)
+    fn sorts_batch(&self, points: &[DVec3]) -> bool {
+        self.scheduler.would_sort(self.layout(), points)
     }
 
     /// Every inversion counted, failed ones included (0 for a point refused before any).

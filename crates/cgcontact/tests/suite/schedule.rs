@@ -239,17 +239,30 @@ fn gap_batches_answer_alike_under_every_schedule() {
     );
 }
 
-/// `sorts_batches` (of the locators and of the gap finder) says whether a batch may be sorted, as
-/// the schedule decides: always under `Blocked`, never under `Input`, and under `Auto` for
-/// batches of `Schedule::AUTO_MIN_POINTS` or more on a body of more than `Schedule::AUTO_BYTES`
-/// of nodal data.
+/// `sorts_batch` (of the locators and of the gap finder) says whether a batch would be sorted,
+/// as the schedule decides: always under `Blocked`, never under `Input`, and under `Auto` for
+/// batches of `Schedule::AUTO_MIN_POINTS` or more, out of order, on a body of more than
+/// `Schedule::AUTO_BYTES` of nodal data.
 #[test]
-fn sorts_batches_follows_the_schedule() {
+fn sorts_batch_follows_the_schedule() {
     let small = uniform_body(8);
     let n = cells_for_bytes(Schedule::AUTO_BYTES);
     let large = Body::full(Lattice::new(DVec3::ZERO, DVec3::ONE, [n, n, n]).unwrap());
     let adaptive = adaptive_body(3);
     let min = Schedule::AUTO_MIN_POINTS;
+    // Points in random order over the large body, and the same sorted by lattice cell.
+    let mut rng = Rng(11);
+    let random: Vec<DVec3> = (0..min)
+        .map(|_| {
+            let mut at = || rng.uniform(0.0, f64::from(n));
+            DVec3::new(at(), at(), at())
+        })
+        .collect();
+    let mut ordered = random.clone();
+    ordered.sort_by_key(|x| {
+        let c = x.floor().as_uvec3();
+        (c.z, c.y, c.x)
+    });
     for (schedule, small_sorts, large_sorts) in [
         (Schedule::Input, false, false),
         (Schedule::Blocked { log2_cells: 0 }, true, true),
@@ -264,21 +277,25 @@ fn sorts_batches_follows_the_schedule() {
             let small = LatticeLocator::new(&small, settings).unwrap();
             let large = LatticeLocator::new(&large, settings).unwrap();
             let adaptive = AdaptiveLocator::new(&adaptive, settings).unwrap();
-            assert_eq!(small.sorts_batches(min), small_sorts, "small, {what}");
-            assert_eq!(adaptive.sorts_batches(min), small_sorts, "adaptive, {what}");
-            assert_eq!(large.sorts_batches(min), large_sorts, "large, {what}");
+            assert_eq!(small.sorts_batch(&random), small_sorts, "small, {what}");
+            assert_eq!(
+                adaptive.sorts_batch(&random),
+                small_sorts,
+                "adaptive, {what}"
+            );
+            assert_eq!(large.sorts_batch(&random), large_sorts, "large, {what}");
             // The gap finder decides by its surface's locator.
-            let gaps = |l| GapFinder::new(l, 1.0).unwrap().sorts_batches(min);
+            let gaps = |l| GapFinder::new(l, 1.0).unwrap().sorts_batch(&random);
             assert_eq!(gaps(&small), small_sorts, "small gaps, {what}");
             assert_eq!(gaps(&large), large_sorts, "large gaps, {what}");
-            // One point is never sorted; under Auto, fewer than the minimum neither.
-            assert!(!large.sorts_batches(1), "{what}");
-            let below = schedule == Schedule::Auto;
-            assert_eq!(
-                large.sorts_batches(min - 1),
-                large_sorts && !below,
-                "{what}"
-            );
+            // One point is never sorted; under Auto, fewer than the minimum neither, nor points
+            // already in lattice order.
+            assert!(!large.sorts_batch(&random[..1]), "{what}");
+            let auto = schedule == Schedule::Auto;
+            let fewer = large.sorts_batch(&random[..min - 1]);
+            assert_eq!(fewer, large_sorts && !auto, "fewer, {what}");
+            let sorted = large.sorts_batch(&ordered);
+            assert_eq!(sorted, large_sorts && !auto, "in order, {what}");
         }
     }
 }
