@@ -105,8 +105,8 @@ class Locator:
         sharing no memory with `points` or each other, nor in use by a call in another thread)
         the answers are written there and `out` is returned. On a large body (more than 8 MB
         of nodal data: about 350,000 nodes in f64, 520,000 in f32), a batch of 16,384 points
-        or more is answered whole, so that the library can sort it by cell: the call then
-        holds about 100 bytes per point of temporary buffers."""
+        or more not already in order is answered whole, so that the library can sort it by
+        cell: the call then holds about 100 bytes per point of temporary buffers."""
     def relocate(
         self,
         points: npt.ArrayLike,

@@ -370,9 +370,9 @@ cgc_error cgc_locator_new(const cgc_body *body, const cgc_settings *settings, cg
 // (NaN when none), and, when `status` is not NULL, `CGC_POINT_INSIDE`, `CGC_POINT_OUTSIDE` or
 // `CGC_POINT_NON_FINITE` to `status[i]`. Answers use the body's displacements at the time of the
 // call. On a large body (more than 8 MB of nodal data: about 350,000 nodes in f64, 520,000 in
-// f32), a batch of 16,384 points or more is answered whole, so that the library can sort it by
-// cell: the call then holds about 100 bytes per point of temporary buffers (fewer points are
-// answered 2,048 at a time).
+// f32), a batch of 16,384 points or more not already in order is answered whole, so that the
+// library can sort it by cell: the call then holds about 100 bytes per point of temporary
+// buffers (other batches are answered 2,048 points at a time).
 //
 // Returns `CGC_ERROR_NON_FINITE_POINT` when some point has a NaN or infinite coordinate, after
 // writing every answer (the message names the first such point).

@@ -281,8 +281,8 @@ impl PyLocator {
     /// memory with the points or each other, the answers are written there and `out` is returned
     /// (a solver loop then allocates no output arrays per query). On a large body (more than 8 MB
     /// of nodal data: about 350,000 nodes in f64, 520,000 in f32), a batch of 16,384 points or
-    /// more is answered whole, so that the library can sort it by cell: the call then holds about
-    /// 100 bytes per point of temporary buffers.
+    /// more not already in order is answered whole, so that the library can sort it by cell: the
+    /// call then holds about 100 bytes per point of temporary buffers.
     #[pyo3(signature = (points, out = None))]
     fn locate<'py>(
         &self,
