@@ -116,7 +116,8 @@ class Locator:
         answer (cell -1 for none) and is overwritten with the new one, then returned. A point
         whose previous cell still holds it costs one Newton inversion from its previous xi. The
         answers are `locate`'s whatever the hints; a cell that is neither -1 nor a cell of the
-        body raises ValueError before anything is written."""
+        body (an inactive lattice cell included) raises ValueError before anything is
+        written."""
     @overload
     def locate_owners(self, x: Sequence[float]) -> List[Tuple[int, _Xi]]: ...
     @overload

@@ -178,16 +178,22 @@ impl PyLocator {
             let xi_slice = xi_out.as_slice_mut().map_err(value_error)?;
             py.detach(|| {
                 self.with(|locator, state| {
-                    if warm
-                        && let Some(row) = cells_slice
-                            .iter()
-                            .position(|&c| state.cells.cell(c).is_err())
+                    if warm && let Some(row) = cells_slice.iter().position(|&c| !is_hint(state, c))
                     {
+                        let why = if state.cells.cell(cells_slice[row]).is_ok() {
+                            format!(
+                                "lattice cell {} is not active in this body",
+                                cells_slice[row]
+                            )
+                        } else {
+                            format!(
+                                "cells are numbered 0 to {} (-1 for none)",
+                                state.cells.len() as i64 - 1
+                            )
+                        };
                         return Err(PyValueError::new_err(format!(
-                            "out cell row {row} (0-based) is {}, not a previous answer: cells are \
-                             numbered 0 to {} (-1 for none)",
-                            cells_slice[row],
-                            state.cells.len() as i64 - 1
+                            "out cell row {row} (0-based) is {}, not a previous answer: {why}",
+                            cells_slice[row]
                         )));
                     }
                     locate_into(locator, state, points, cells_slice, xi_slice, warm)
@@ -300,7 +306,7 @@ impl PyLocator {
     /// searched as `locate` does. The answers are `locate`'s (the same cells, xi within the
     /// Newton tolerance; on a face shared by two cells either may answer) whatever the hints; a
     /// NaN xi starts from the cell's centre. A previous cell that is neither -1 nor a cell of the
-    /// body raises `ValueError` before anything is written.
+    /// body (an inactive lattice cell included) raises `ValueError` before anything is written.
     fn relocate<'py>(
         &self,
         py: Python<'py>,
@@ -424,6 +430,17 @@ impl PyLocator {
             self.strategy.name(),
             self.settings.precision
         )
+    }
+}
+
+/// Whether `number` may be a previous answer of the body in `state`: -1, or one of its cells (on a
+/// lattice body with inactive cells, a lattice cell number of an active cell), as `cgc_relocate`
+/// decides.
+fn is_hint(state: &BodyState, number: i64) -> bool {
+    match (state.cells.cell(number), &state.body) {
+        (Err(()), _) => false,
+        (Ok(Some(cell)), AnyBody::Uniform(body)) => body.is_active(cell),
+        (Ok(_), _) => true,
     }
 }
 

@@ -1048,8 +1048,9 @@ def test_large_batches_on_large_bodies_answer_each_point_in_place():
 
 def test_whole_batches_relocate_from_any_hint_as_small_ones():
     """A sortable batch answered whole on 3 threads, on a body with inactive cells, warm from bad
-    hints (-1, NaN and infinite xi, another point's cell, an inactive lattice cell, which Python
-    takes as a hint): the cells of batches too small to sort, xi within the Newton tolerance."""
+    hints (-1, NaN and infinite xi, another point's cell, an active cell far away): the cells of
+    batches too small to sort, xi within the Newton tolerance. An inactive lattice cell is no
+    previous answer: refused, naming its row, as cgc_relocate refuses it."""
     n_cells = (90, 90, 90)
     active = np.arange(90**3) % 11 != 3
     body = cgcontact.Body((-1.0, 2.0, 0.0), (0.1, 0.1, 0.1), n_cells, active=active)
@@ -1066,7 +1067,12 @@ def test_whole_batches_relocate_from_any_hint_as_small_ones():
     hint_xi[1::5, 0] = np.nan
     hint_xi[2::5, 1] = np.inf
     hint_cell[3::5] = rng.permutation(cell)[3::5]
-    hint_cell[4::5] = 3
+    hint_cell[4::5] = 0
+    inactive = (hint_cell.copy(), hint_xi.copy())
+    inactive[0][9] = 3
+    with pytest.raises(ValueError, match="row 9 .* lattice cell 3 is not active"):
+        locator.relocate(points, out=inactive)
+    np.testing.assert_array_equal(inactive[0][10:], hint_cell[10:])
     warm_cell, warm_xi = locator.relocate(points, out=(hint_cell, hint_xi))
     np.testing.assert_array_equal(warm_cell, cell)
     np.testing.assert_allclose(warm_xi, xi, atol=1e-12)
