@@ -132,6 +132,16 @@ fn deform(body: &mut AdaptiveBody, strain: f64, jitter: f64, seed: u64) {
 }
 
 /// Every leaf holding `x` by inverting each one (the oracle), ascending.
+/// The cells `locator.locate_owners(x)` answers, ascending.
+fn owner_cells(locator: &impl Locator, x: DVec3) -> Vec<u32> {
+    locator
+        .locate_owners(x)
+        .unwrap()
+        .iter()
+        .map(|h| h.cell.0)
+        .collect()
+}
+
 fn brute_owners(body: &AdaptiveBody, settings: &Settings, x: DVec3) -> Vec<u32> {
     let h = body.spacing(body.finest_level());
     let frame = Frame::of_displacements(settings.precision, body.displacements(), h);
@@ -279,12 +289,7 @@ fn random_points_agree_with_brute_force() {
                 rng.uniform(low.z, high.z),
             );
             let oracle = brute_owners(&body, &settings, x);
-            let owners: Vec<u32> = locator
-                .locate_owners(x)
-                .unwrap()
-                .iter()
-                .map(|h| h.cell.0)
-                .collect();
+            let owners = owner_cells(&locator, x);
             assert_eq!(owners, oracle, "seed {seed} at {x}");
             match locator.locate(x).unwrap() {
                 Some(hit) => {
@@ -336,12 +341,7 @@ fn hanging_nodes_edges_and_faces_are_held_by_every_leaf_meeting_them() {
             let p = ((x0 - o) / h).round().to_array().map(|v| v as u32);
             let x = x0 + body.displacements()[node];
             let meeting = leaves_meeting(&body, p);
-            let owners: Vec<u32> = locator
-                .locate_owners(x)
-                .unwrap()
-                .iter()
-                .map(|h| h.cell.0)
-                .collect();
+            let owners = owner_cells(&locator, x);
             for leaf in &meeting {
                 assert!(
                     owners.contains(leaf),
@@ -366,12 +366,7 @@ fn hanging_nodes_edges_and_faces_are_held_by_every_leaf_meeting_them() {
                 xi[rng.below(3)] = 1.0;
             }
             let x = body.point_at(cell, xi).unwrap();
-            let owners: Vec<u32> = locator
-                .locate_owners(x)
-                .unwrap()
-                .iter()
-                .map(|h| h.cell.0)
-                .collect();
+            let owners = owner_cells(&locator, x);
             assert!(
                 owners.contains(&cell.0),
                 "seed {seed}: {x} on the boundary of {cell}: {owners:?}"
@@ -811,12 +806,7 @@ fn leaves_of_every_level_to_the_deepest_are_found() {
             moved < bound,
             "point {p}: ξ moved by {moved:e}, beyond {bound:e}"
         );
-        let owners: Vec<u32> = locator
-            .locate_owners(x)
-            .unwrap()
-            .iter()
-            .map(|h| h.cell.0)
-            .collect();
+        let owners = owner_cells(&locator, x);
         assert_eq!(owners, brute_owners(&body, &settings, x), "point {p}");
         assert!(
             owners.contains(&c),
