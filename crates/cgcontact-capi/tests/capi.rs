@@ -5,7 +5,7 @@ use std::ffi::CStr;
 use std::ptr;
 
 use cgcontact::glam::DVec3;
-use cgcontact::{Body, CellId, Lattice, LatticeLocator, Locator, Settings};
+use cgcontact::{Answer, Body, CellId, Lattice, LatticeLocator, Locator, Settings};
 use cgcontact_capi::*;
 use cgcontact_io::HexMesh;
 
@@ -125,6 +125,72 @@ fn locate(locator: *const CgcLocator, points: &[f64]) -> (CgcError, Vec<i64>, Ve
         )
     };
     (code, cells, xi, status)
+}
+
+/// A lattice body with the given active flags (one per cell), without a locator yet.
+fn masked_body(lattice: &Lattice, active: &[u8]) -> Handles {
+    let (origin, h, counts) = (
+        lattice.origin().to_array(),
+        lattice.h().to_array(),
+        lattice.cells(),
+    );
+    let mut handles = Handles {
+        body: ptr::null_mut(),
+        locator: ptr::null_mut(),
+    };
+    // SAFETY: every array holds the length passed; the handles are freed by `Handles`.
+    unsafe {
+        assert_eq!(
+            cgc_body_from_lattice(
+                origin.as_ptr(),
+                h.as_ptr(),
+                counts.as_ptr(),
+                active.as_ptr(),
+                active.len(),
+                &mut handles.body,
+            ),
+            CgcError::Ok
+        );
+    }
+    handles
+}
+
+/// A fixed linear congruential sequence in [0, 1) from `seed`.
+fn uniform(seed: u64) -> impl FnMut() -> f64 {
+    let mut state = seed;
+    move || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
+/// What `cgc_locate` writes for the library's `answers` on a lattice body: cells, ξ, status.
+fn written(answers: &[Answer]) -> (Vec<i64>, Vec<f64>, Vec<u8>) {
+    let mut out = (Vec::new(), Vec::new(), Vec::new());
+    for answer in answers {
+        let (cell, xi, code) = match answer {
+            Ok(Some(hit)) => (i64::from(hit.cell.0), hit.xi, CGC_POINT_INSIDE),
+            Ok(None) => (-1, DVec3::NAN, CGC_POINT_OUTSIDE),
+            Err(_) => (-1, DVec3::NAN, CGC_POINT_NON_FINITE),
+        };
+        out.0.push(cell);
+        out.1.extend(xi.to_array());
+        out.2.push(code);
+    }
+    out
+}
+
+/// Each point's ξ in `got` within the Newton tolerance of `expected`'s, or both NaN.
+fn assert_xi_close(got: &[f64], expected: &[f64], what: &str) {
+    for (i, (got, known)) in got.chunks(3).zip(expected.chunks(3)).enumerate() {
+        let (got, known) = (DVec3::from_slice(got), DVec3::from_slice(known));
+        assert!(
+            (got - known).abs().max_element() < 1e-12 || (got.is_nan() && known.is_nan()),
+            "{what}: point {i}: {got} against {known}"
+        );
+    }
 }
 
 fn lattice_handles(body: &Body) -> Handles {
@@ -1186,26 +1252,12 @@ fn relocate_tries_the_hinted_cell_in_the_callers_numbering() {
 /// anything is written); it was taken as a hint, so a hint array from another body went unseen.
 #[test]
 fn relocate_refuses_an_inactive_lattice_cell_as_a_hint() {
-    let (origin, h, counts) = ([0.0; 3], [1.0; 3], [3u32, 2, 2]);
+    let lattice = Lattice::new(DVec3::ZERO, DVec3::ONE, [3, 2, 2]).unwrap();
     // Every third cell inactive: cells 0, 3, 6 and 9.
     let active: Vec<u8> = (0..12).map(|c| u8::from(c % 3 != 0)).collect();
-    let mut handles = Handles {
-        body: ptr::null_mut(),
-        locator: ptr::null_mut(),
-    };
-    // SAFETY: every array holds the length passed.
+    let mut handles = masked_body(&lattice, &active);
+    // SAFETY: a live body; the locator is freed by `Handles`.
     unsafe {
-        assert_eq!(
-            cgc_body_from_lattice(
-                origin.as_ptr(),
-                h.as_ptr(),
-                counts.as_ptr(),
-                active.as_ptr(),
-                active.len(),
-                &mut handles.body,
-            ),
-            CgcError::Ok
-        );
         assert_eq!(
             cgc_locator_new(handles.body, ptr::null(), &mut handles.locator),
             CgcError::Ok
@@ -1288,13 +1340,7 @@ fn large_batches_on_large_bodies_are_answered_whole_and_in_place() {
     .unwrap();
     // Random cells and ξ, more points than `Schedule::AUTO_MIN_POINTS`, some non-finite.
     let n = 3 * cgcontact::Schedule::AUTO_MIN_POINTS / 2;
-    let mut state = 7u64;
-    let mut next = || {
-        state = state
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (state >> 11) as f64 / (1u64 << 53) as f64
-    };
+    let mut next = uniform(7);
     let cells = lattice.cell_count() as f64;
     let mut points: Vec<DVec3> = (0..n)
         .map(|_| {
@@ -1307,48 +1353,23 @@ fn large_batches_on_large_bodies_are_answered_whole_and_in_place() {
     points[n - 3] = DVec3::splat(1e3);
     let library = LatticeLocator::new(&body, Settings::default()).unwrap();
     assert!(library.sorts_batch(&points), "the library sorts this batch");
-    let expected = library.locate_all(&points);
+    let expected = written(&library.locate_all(&points));
     let handles = lattice_handles(&body);
-    let check = |what: &str, cells: &[i64], xi: &[f64], status: &[u8]| {
-        for (i, answer) in expected.iter().enumerate() {
-            let (cell, local, code) = match answer {
-                Ok(Some(hit)) => (i64::from(hit.cell.0), hit.xi, CGC_POINT_INSIDE),
-                Ok(None) => (-1, DVec3::NAN, CGC_POINT_OUTSIDE),
-                Err(_) => (-1, DVec3::NAN, CGC_POINT_NON_FINITE),
-            };
-            assert_eq!((cells[i], status[i]), (cell, code), "{what}: point {i}");
-            assert_eq!(
-                bits(&xi[3 * i..3 * i + 3]),
-                bits(&local.to_array()),
-                "{what}: point {i}"
-            );
-        }
-    };
     let (code, mut cells, mut xi, status) = locate(handles.locator, &flat(&points));
     assert_eq!(code, CgcError::NonFinitePoint);
     assert!(last_error().starts_with("point 5000 "), "{}", last_error());
-    check("cgc_locate", &cells, &xi, &status);
+    assert_eq!((&cells, &status), (&expected.0, &expected.2), "cgc_locate");
+    assert_eq!(bits(&xi), bits(&expected.1), "cgc_locate");
     // Warm, from the answers just written: the same cells and status, ξ within the Newton
     // tolerance (each hinted cell is inverted again from its own ξ).
     let (code, status) = relocate(handles.locator, &flat(&points), &mut cells, &mut xi);
     assert_eq!(code, CgcError::NonFinitePoint);
-    for (i, answer) in expected.iter().enumerate() {
-        let (cell, local, code) = match answer {
-            Ok(Some(hit)) => (i64::from(hit.cell.0), hit.xi, CGC_POINT_INSIDE),
-            Ok(None) => (-1, DVec3::NAN, CGC_POINT_OUTSIDE),
-            Err(_) => (-1, DVec3::NAN, CGC_POINT_NON_FINITE),
-        };
-        assert_eq!(
-            (cells[i], status[i]),
-            (cell, code),
-            "cgc_relocate: point {i}"
-        );
-        let got = DVec3::from_slice(&xi[3 * i..]);
-        assert!(
-            (got - local).abs().max_element() < 1e-12 || (got.is_nan() && local.is_nan()),
-            "cgc_relocate: point {i}: {got} against {local}"
-        );
-    }
+    assert_eq!(
+        (&cells, &status),
+        (&expected.0, &expected.2),
+        "cgc_relocate"
+    );
+    assert_xi_close(&xi, &expected.1, "cgc_relocate");
 }
 
 /// The whole-batch path of a sortable batch, on the caller's own threads (1 to 3), with a last
@@ -1365,38 +1386,13 @@ fn whole_batches_answer_as_small_ones_from_any_hint() {
         .collect();
     // The C API's pieces are 2,048 points: the last is 777.
     let n = 2 * cgcontact::Schedule::AUTO_MIN_POINTS + 2048 + 777;
-    let mut state = 3u64;
-    let mut next = || {
-        state = state
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (state >> 11) as f64 / (1u64 << 53) as f64
-    };
+    let mut next = uniform(3);
     let mut points: Vec<DVec3> = (0..n)
         .map(|_| lattice.origin() + DVec3::new(next(), next(), next()) * 9.2 - 0.1)
         .collect();
     points[n - 1].y = f64::INFINITY;
     let points = flat(&points);
-    let mut handles = Handles {
-        body: ptr::null_mut(),
-        locator: ptr::null_mut(),
-    };
-    // SAFETY: every array holds the length passed; the handles are freed by `Handles`.
-    unsafe {
-        let (origin, h) = (lattice.origin().to_array(), lattice.h().to_array());
-        let counts = lattice.cells();
-        assert_eq!(
-            cgc_body_from_lattice(
-                origin.as_ptr(),
-                h.as_ptr(),
-                counts.as_ptr(),
-                active.as_ptr(),
-                active.len(),
-                &mut handles.body,
-            ),
-            CgcError::Ok
-        );
-    }
+    let mut handles = masked_body(&lattice, &active);
     for threads in [1, 2, 3] {
         let settings = CgcSettings {
             threads,
@@ -1447,13 +1443,7 @@ fn whole_batches_answer_as_small_ones_from_any_hint() {
         };
         assert_eq!(code, CgcError::NonFinitePoint, "{what}");
         assert_eq!(cells, expected.0, "cgc_relocate, {what}");
-        for (i, (got, known)) in xi.chunks(3).zip(expected.1.chunks(3)).enumerate() {
-            let (got, known) = (DVec3::from_slice(got), DVec3::from_slice(known));
-            assert!(
-                (got - known).abs().max_element() < 1e-12 || (got.is_nan() && known.is_nan()),
-                "cgc_relocate, {what}: point {i}: {got} against {known}"
-            );
-        }
+        assert_xi_close(&xi, &expected.1, &format!("cgc_relocate, {what}"));
         cells[n / 2] = 3;
         let before = (cells.clone(), bits(&xi));
         let (code, _) = relocate(handles.locator, &points, &mut cells, &mut xi);
