@@ -67,14 +67,15 @@ pub use gap::cgc_gap;
 pub use locate::{
     CGC_POINT_INSIDE, CGC_POINT_NON_FINITE, CGC_POINT_OUTSIDE, CGC_PRECISION_F32,
     CGC_PRECISION_F64, CGC_STRATEGY_BRUTE, CGC_STRATEGY_LATTICE, CgcLocator, CgcSettings,
-    cgc_locate, cgc_locator_free, cgc_locator_new, cgc_locator_query_seconds, cgc_relocate,
-    cgc_settings_init,
+    cgc_locate, cgc_locate_unordered, cgc_locator_free, cgc_locator_new, cgc_locator_query_seconds,
+    cgc_relocate, cgc_settings_init,
 };
 
 /// The version of the C ABI: it changes whenever a signature, a struct or a constant of
 /// `cgcontact.h` changes incompatibly. Compare with `cgc_abi_version()` at run time. New
-/// functions are compatible and leave it unchanged: `cgc_gap` and `cgc_relocate` were added within
-/// ABI 1, so a program that may load an older library of ABI 1 looks them up with `dlsym`.
+/// functions are compatible and leave it unchanged: `cgc_gap`, `cgc_relocate` and
+/// `cgc_locate_unordered` were added within ABI 1, so a program that may load an older library of
+/// ABI 1 looks them up with `dlsym`.
 pub const CGC_ABI_VERSION: u32 = 1;
 
 /// The ABI version of the library loaded: `CGC_ABI_VERSION` of its build.

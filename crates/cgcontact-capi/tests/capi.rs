@@ -1325,8 +1325,10 @@ fn f32_settings_on_cells_too_small_for_f32_are_refused_by_the_locator() {
 /// API then answers it whole (in pieces it would be answered in the caller's order) and writes
 /// the answers piece by piece: each point's answer at its own place, bitwise the library's, cold
 /// and warm, with the first non-finite point reported.
-#[test]
-fn large_batches_on_large_bodies_are_answered_whole_and_in_place() {
+/// A body whose displacements leave the caches (90³ cells), and more random points in it than
+/// `Schedule::AUTO_MIN_POINTS` (from random cells and ξ), point 5000 non-finite and one far
+/// outside: a batch the library sorts by cell.
+fn large_scene() -> (Body, Vec<DVec3>) {
     let lattice =
         Lattice::new(DVec3::new(-1.0, 2.0, 0.0), DVec3::splat(0.1), [90, 90, 90]).unwrap();
     let mut body = Body::full(lattice);
@@ -1338,7 +1340,6 @@ fn large_batches_on_large_bodies_are_answered_whole_and_in_place() {
         )
     })
     .unwrap();
-    // Random cells and ξ, more points than `Schedule::AUTO_MIN_POINTS`, some non-finite.
     let n = 3 * cgcontact::Schedule::AUTO_MIN_POINTS / 2;
     let mut next = uniform(7);
     let cells = lattice.cell_count() as f64;
@@ -1351,6 +1352,12 @@ fn large_batches_on_large_bodies_are_answered_whole_and_in_place() {
         .collect();
     points[5000].x = f64::NAN;
     points[n - 3] = DVec3::splat(1e3);
+    (body, points)
+}
+
+#[test]
+fn large_batches_on_large_bodies_are_answered_whole_and_in_place() {
+    let (body, points) = large_scene();
     let library = LatticeLocator::new(&body, Settings::default()).unwrap();
     assert!(library.sorts_batch(&points), "the library sorts this batch");
     let expected = written(&library.locate_all(&points));
@@ -1370,6 +1377,95 @@ fn large_batches_on_large_bodies_are_answered_whole_and_in_place() {
         "cgc_relocate"
     );
     assert_xi_close(&xi, &expected.1, "cgc_relocate");
+}
+
+/// `cgc_locate_unordered`, with its `order` array: the answers of `points` row by row, each point
+/// once, and the first non-finite point in the points' order reported.
+fn locate_unordered(
+    locator: *const CgcLocator,
+    points: &[DVec3],
+    with_status: bool,
+) -> (CgcError, Vec<i64>, Vec<i64>, Vec<f64>, Vec<u8>) {
+    let points = flat(points);
+    let n = points.len() / 3;
+    let (mut order, mut cells, mut xi) = (vec![-7i64; n], vec![7i64; n], vec![7.0; 3 * n]);
+    let mut status = vec![9u8; if with_status { n } else { 0 }];
+    // SAFETY: the arrays hold n, n, 3 n and n (or no) values and do not overlap.
+    let code = unsafe {
+        cgc_locate_unordered(
+            locator,
+            points.as_ptr(),
+            n,
+            order.as_mut_ptr(),
+            cells.as_mut_ptr(),
+            xi.as_mut_ptr(),
+            if with_status {
+                status.as_mut_ptr()
+            } else {
+                ptr::null_mut()
+            },
+        )
+    };
+    (code, order, cells, xi, status)
+}
+
+/// Unordered rows: row k answers point `order[k]` bitwise as `cgc_locate` answers it, each point
+/// once. A batch the library sorts comes cell by cell (not in the points' order); a small one
+/// in the points' order. Overlapping arrays are refused before anything is written.
+#[test]
+fn unordered_rows_answer_their_points_bitwise() {
+    let (body, points) = large_scene();
+    let handles = lattice_handles(&body);
+    let expected = written(
+        &LatticeLocator::new(&body, Settings::default())
+            .unwrap()
+            .locate_all(&points),
+    );
+    // The whole batch (sorted), and 1,000 points around point 5000 (too few to sort).
+    for (batch, sorted) in [(0..points.len(), true), (4500..5500, false)] {
+        for with_status in [true, false] {
+            let (code, order, cells, xi, status) =
+                locate_unordered(handles.locator, &points[batch.clone()], with_status);
+            assert_eq!(code, CgcError::NonFinitePoint);
+            let first = format!("point {} ", 5000 - batch.start);
+            assert!(last_error().starts_with(&first), "{}", last_error());
+            let mut seen = vec![false; batch.len()];
+            for (k, &i) in order.iter().enumerate() {
+                let i = usize::try_from(i).expect("an index");
+                assert!(!std::mem::replace(&mut seen[i], true), "point {i} twice");
+                let p = batch.start + i;
+                assert_eq!(cells[k], expected.0[p], "row {k}, point {i}");
+                assert_eq!(
+                    bits(&xi[3 * k..3 * k + 3]),
+                    bits(&expected.1[3 * p..3 * p + 3])
+                );
+                if with_status {
+                    assert_eq!(status[k], expected.2[p], "row {k}, point {i}");
+                }
+            }
+            let in_order = order.iter().enumerate().all(|(k, &i)| i == k as i64);
+            assert_eq!(in_order, !sorted, "points {batch:?}");
+        }
+    }
+    // `order` overlapping `cells`: refused, nothing written.
+    let flat_points = flat(&points[..10]);
+    let mut shared = vec![-5i64; 10];
+    let mut xi = vec![-5.0; 30];
+    // SAFETY: every array holds what is passed; two of them overlap on purpose.
+    let code = unsafe {
+        cgc_locate_unordered(
+            handles.locator,
+            flat_points.as_ptr(),
+            10,
+            shared.as_mut_ptr(),
+            shared.as_mut_ptr(),
+            xi.as_mut_ptr(),
+            ptr::null_mut(),
+        )
+    };
+    assert_eq!(code, CgcError::InvalidArgument);
+    assert!(last_error().contains("order"), "{}", last_error());
+    assert!(shared.iter().all(|&c| c == -5) && xi.iter().all(|&x| x == -5.0));
 }
 
 /// The whole-batch path of a sortable batch, on the caller's own threads (1 to 3), with a last
