@@ -107,6 +107,20 @@ class Locator:
         of nodal data: about 350,000 nodes in f64, 520,000 in f32), a batch of 16,384 points
         or more not already in order is answered whole, so that the library can sort it by
         cell: the call then holds about 100 bytes per point of temporary buffers."""
+    def locate_unordered(
+        self,
+        points: npt.ArrayLike,
+        out: Optional[
+            Tuple[npt.NDArray[np.int64], npt.NDArray[np.int64], npt.NDArray[np.float64]]
+        ] = None,
+    ) -> Tuple[npt.NDArray[np.int64], npt.NDArray[np.int64], npt.NDArray[np.float64]]:
+        """(order int64[n], cell int64[n], xi float64[n, 3]): `locate`'s answers without putting
+        them back in the points' order; row k of cell and xi answers point order[k], each point
+        once. A batch the library sorts by cell comes cell by cell, saving a store to a random
+        place per point; otherwise order[k] is k. A NaN or infinite point raises ValueError
+        naming its row in `points`. With `out=(order, cell, xi)` (C-contiguous, aligned,
+        writeable, sharing no memory) the answers are written there and `out` is returned. A
+        sorted batch holds about 110 bytes per point of temporary buffers."""
     def relocate(
         self,
         points: npt.ArrayLike,

@@ -23,6 +23,12 @@ use crate::body::{AnyBody, BodyState, PyBody, value_error};
 
 /// What `locate` returns: the cells, and xi.
 type Located<'py> = (Bound<'py, PyArray1<i64>>, Bound<'py, PyArray2<f64>>);
+/// `locate_unordered`'s answers: `order`, then `Located`.
+type Unordered<'py> = (
+    Bound<'py, PyArray1<i64>>,
+    Bound<'py, PyArray1<i64>>,
+    Bound<'py, PyArray2<f64>>,
+);
 
 /// Points per piece of a query: a worker's answer buffer (about 60 kB) stays in its cache.
 const PIECE: usize = 1024;
@@ -299,6 +305,61 @@ impl PyLocator {
         self.query(py, points, out, false)
     }
 
+    /// `locate` without putting the answers back in the points' order: returns `(order, cell,
+    /// xi)`, row k of `cell` and `xi` answering point `order[k]` (int64[n]), each point once, in
+    /// the order the library answered them. A batch the library sorts by cell (see `locate`)
+    /// then comes cell by cell, and the call saves putting each answer back at its point's row,
+    /// a store to a random place per point; otherwise `order[k]` is k. For a solver that
+    /// assembles each point's contribution wherever its answer comes. The answers are bitwise
+    /// `locate`'s; a NaN or infinite point raises `ValueError` naming its row in `points`. With
+    /// `out=(order, cell, xi)`, C-contiguous, aligned int64[n], int64[n] and float64[n, 3] arrays
+    /// sharing no memory with the points or each other, the answers are written there and `out`
+    /// is returned. A sorted batch holds about 110 bytes per point of temporary buffers.
+    #[pyo3(signature = (points, out = None))]
+    fn locate_unordered<'py>(
+        &self,
+        py: Python<'py>,
+        points: &Bound<'py, PyAny>,
+        out: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Unordered<'py>> {
+        let (rows, _) = arrays::rows(points, "points", false)?;
+        let vectors = rows.vectors()?;
+        let points: &[DVec3] = &vectors;
+        let n = points.len();
+        let (order, cells, xi) = match out {
+            Some(out) => unordered_arrays(out, n)?,
+            None => (
+                PyArray1::<i64>::zeros(py, n, false),
+                PyArray1::<i64>::zeros(py, n, false),
+                PyArray2::<f64>::zeros(py, [n, 3], false),
+            ),
+        };
+        {
+            let mut order_out = order.try_readwrite().map_err(|e| out_borrow(e, "order"))?;
+            let mut cells_out = cells.try_readwrite().map_err(|e| out_borrow(e, "cell"))?;
+            let mut xi_out = xi.try_readwrite().map_err(|e| out_borrow(e, "xi"))?;
+            // `unordered_arrays` checked all three C-contiguous, aligned and of the points'
+            // length.
+            let order_slice = order_out.as_slice_mut().map_err(value_error)?;
+            let cells_slice = cells_out.as_slice_mut().map_err(value_error)?;
+            let xi_slice = xi_out.as_slice_mut().map_err(value_error)?;
+            py.detach(|| {
+                self.with(|locator, state| {
+                    locate_unordered_into(
+                        locator,
+                        state,
+                        points,
+                        order_slice,
+                        cells_slice,
+                        xi_slice,
+                    )
+                    .map_err(|row| refused("points", points, row))
+                })
+            })??;
+        }
+        Ok((order, cells, xi))
+    }
+
     /// `locate` warm started, for the next iteration of a solver loop: `out=(cell, xi)` holds
     /// each point's previous answer (as `locate` or `relocate` wrote it; cell -1 for none) and
     /// receives the new one, in place; `out` is returned. A point whose previous cell still holds
@@ -508,6 +569,74 @@ fn locate_into(
     match first_refused.into_inner() {
         usize::MAX => Ok(()),
         row => Err(row),
+    }
+}
+
+/// `locate_unordered`'s work: `order[k]` the point whose answer is row k of `cells` and `xi`, in
+/// the order the library answered them (the points' order when it does not sort the batch).
+/// `Err` holds the first point refused, in the points' order.
+fn locate_unordered_into(
+    locator: &dyn Locator,
+    state: &BodyState,
+    points: &[DVec3],
+    order: &mut [i64],
+    cells: &mut [i64],
+    xi: &mut [f64],
+) -> Result<(), usize> {
+    if !locator.sorts_batch(points) {
+        order
+            .par_iter_mut()
+            .enumerate()
+            .for_each(|(k, o)| *o = k as i64);
+        return locate_into(locator, state, points, cells, xi, false);
+    }
+    let (mut found, mut answers) = (Vec::new(), Vec::new());
+    locator.locate_all_unordered_into(points, &mut found, &mut answers);
+    let first_refused = AtomicUsize::new(usize::MAX);
+    order
+        .par_chunks_mut(PIECE)
+        .zip(cells.par_chunks_mut(PIECE))
+        .zip(xi.par_chunks_mut(3 * PIECE))
+        .zip(found.par_chunks(PIECE).zip(answers.par_chunks(PIECE)))
+        .for_each(|(((order, cells), xi), (found, answers))| {
+            for (k, (&i, answer)) in found.iter().zip(answers).enumerate() {
+                let (c, x) = match answer {
+                    Ok(Some(hit)) => (state.cells.number(hit.cell), hit.xi),
+                    Ok(None) => (-1, DVec3::NAN),
+                    Err(_) => {
+                        first_refused.fetch_min(i, Ordering::Relaxed);
+                        (-1, DVec3::NAN)
+                    }
+                };
+                order[k] = i as i64;
+                cells[k] = c;
+                x.write_to_slice(&mut xi[3 * k..3 * k + 3]);
+            }
+        });
+    match first_refused.into_inner() {
+        usize::MAX => Ok(()),
+        row => Err(row),
+    }
+}
+
+/// The caller's `out=(order, cell, xi)` of `locate_unordered` for `n` points: int64 arrays of
+/// shape (n,), then a float64 array of shape (n, 3), all C-contiguous and aligned.
+fn unordered_arrays<'py>(out: &Bound<'py, PyAny>, n: usize) -> PyResult<Unordered<'py>> {
+    let fits = |(order, cells, xi): &Unordered<'py>| {
+        [order, cells]
+            .iter()
+            .all(|a| a.len() == n && a.is_c_contiguous() && a.data().is_aligned())
+            && xi.shape() == [n, 3]
+            && xi.is_c_contiguous()
+            && xi.data().is_aligned()
+    };
+    match out.extract::<Unordered<'py>>() {
+        Ok(arrays) if fits(&arrays) => Ok(arrays),
+        _ => Err(PyValueError::new_err(format!(
+            "out must be a tuple (order, cell, xi) of C-contiguous, aligned arrays: int64 of \
+             shape ({n},), int64 of shape ({n},) and float64 of shape ({n}, 3); got {}",
+            describe_out(out)
+        ))),
     }
 }
 

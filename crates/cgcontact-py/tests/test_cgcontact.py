@@ -1076,3 +1076,35 @@ def test_whole_batches_relocate_from_any_hint_as_small_ones():
     warm_cell, warm_xi = locator.relocate(points, out=(hint_cell, hint_xi))
     np.testing.assert_array_equal(warm_cell, cell)
     np.testing.assert_allclose(warm_xi, xi, atol=1e-12)
+
+
+def test_unordered_rows_answer_their_points_as_locate():
+    """locate_unordered: row k answers point order[k] bitwise as locate answers it, each point
+    once; a batch the library sorts by cell comes cell by cell, one too small to sort in the
+    points' order. out= arrays are filled and returned; a NaN point raises, naming its row in
+    the points; out arrays sharing memory are refused."""
+    body = cgcontact.Body((-1.0, 2.0, 0.0), (0.1, 0.1, 0.1), (90, 90, 90))
+    rng = np.random.default_rng(11)
+    n = 30_000
+    points = (-1.0, 2.0, 0.0) + rng.uniform(-0.1, 9.1, (n, 3))
+    locator = cgcontact.Locator(body, threads=2)
+    cell, xi = locator.locate(points)
+    assert (cell >= 0).sum() > n // 2 and (cell < 0).any()
+    for count, sorted_by_cell in ((n, True), (1000, False)):
+        order, got_cell, got_xi = locator.locate_unordered(points[:count])
+        np.testing.assert_array_equal(np.sort(order), np.arange(count))
+        np.testing.assert_array_equal(got_cell, cell[order])
+        np.testing.assert_array_equal(got_xi.view(np.int64), xi[order].view(np.int64))
+        assert (order == np.arange(count)).all() != sorted_by_cell
+    out = (np.full(n, -5, np.int64), np.full(n, -5, np.int64), np.full((n, 3), -5.0))
+    got = locator.locate_unordered(points, out=out)
+    assert all(a is b for a, b in zip(got, out))
+    np.testing.assert_array_equal(out[1], cell[out[0]])
+    bad = points.copy()
+    bad[7000, 1] = np.nan
+    with pytest.raises(ValueError, match="points row 7000 "):
+        locator.locate_unordered(bad)
+    with pytest.raises(ValueError, match="order array shares memory|cell array shares memory"):
+        locator.locate_unordered(points, out=(out[0], out[0], out[2]))
+    with pytest.raises(ValueError, match=r"out must be a tuple \(order, cell, xi\)"):
+        locator.locate_unordered(points, out=(out[0], out[2]))
