@@ -106,7 +106,8 @@ class Locator:
         the answers are written there and `out` is returned. On a large body (more than 8 MB
         of nodal data: about 350,000 nodes in f64, 520,000 in f32), a batch of 16,384 points
         or more not already in order is answered whole, so that the library can sort it by
-        cell: the call then holds about 100 bytes per point of temporary buffers."""
+        cell: the call then holds about 100 bytes per point of buffers, of which the
+        answers' 56 stay with the locator for its next call (a solver loop's next batch)."""
     def locate_unordered(
         self,
         points: npt.ArrayLike,
@@ -120,7 +121,8 @@ class Locator:
         place per point; otherwise order[k] is k. A NaN or infinite point raises ValueError
         naming its row in `points`. With `out=(order, cell, xi)` (C-contiguous, aligned,
         writeable, sharing no memory) the answers are written there and `out` is returned. A
-        sorted batch holds about 110 bytes per point of temporary buffers."""
+        sorted batch holds about 110 bytes per point of buffers, of which 64 stay with the
+        locator for its next call."""
     def relocate(
         self,
         points: npt.ArrayLike,

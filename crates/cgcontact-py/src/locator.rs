@@ -2,7 +2,7 @@
 //! released.
 
 use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::{Arc, RwLock};
+use std::sync::{Arc, Mutex, RwLock, TryLockError};
 
 use cgcontact::glam::DVec3;
 use cgcontact::{AdaptiveLocator, Answer, GapAnswer, GapFinder, LatticeLocator, Locator, Settings};
@@ -135,9 +135,35 @@ pub struct PyLocator {
     strategy: Strategy,
     settings: Settings,
     pool: Option<rayon::ThreadPool>,
+    kept: Mutex<Kept>,
+}
+
+/// The buffers of a locator's last batch answered whole (one the library sorts by cell), kept for
+/// its next call: a solver loop asks the same batch again, and a fresh answer buffer of that size
+/// costs its page faults at every call (`bench_unordered.py`: README).
+#[derive(Default)]
+struct Kept {
+    answers: Vec<Answer>,
+    order: Vec<usize>,
 }
 
 impl PyLocator {
+    /// Runs `f` with this locator's kept buffers, or with fresh ones while another call (from
+    /// another Python thread) holds them.
+    fn with_kept<R>(&self, f: impl FnOnce(&mut Kept) -> R) -> R {
+        let mut fresh = None;
+        let mut guard = match self.kept.try_lock() {
+            Ok(kept) => Some(kept),
+            // A panic left them as they were: every use overwrites them.
+            Err(TryLockError::Poisoned(p)) => Some(p.into_inner()),
+            Err(TryLockError::WouldBlock) => None,
+        };
+        f(match guard.as_deref_mut() {
+            Some(kept) => kept,
+            None => fresh.insert(Kept::default()),
+        })
+    }
+
     /// Runs `f` with the strategy over the body's current state, on this locator's threads (the
     /// body stays read-locked meanwhile, so that an update waits for it).
     ///
@@ -183,27 +209,31 @@ impl PyLocator {
             let cells_slice = cells_out.as_slice_mut().map_err(value_error)?;
             let xi_slice = xi_out.as_slice_mut().map_err(value_error)?;
             py.detach(|| {
-                self.with(|locator, state| {
-                    if warm && let Some(row) = cells_slice.iter().position(|&c| !is_hint(state, c))
-                    {
-                        let why = if state.cells.cell(cells_slice[row]).is_ok() {
-                            format!(
-                                "lattice cell {} is not active in this body",
+                self.with_kept(|kept| {
+                    self.with(|locator, state| {
+                        if warm
+                            && let Some(row) = cells_slice.iter().position(|&c| !is_hint(state, c))
+                        {
+                            let why = if state.cells.cell(cells_slice[row]).is_ok() {
+                                format!(
+                                    "lattice cell {} is not active in this body",
+                                    cells_slice[row]
+                                )
+                            } else {
+                                format!(
+                                    "cells are numbered 0 to {} (-1 for none)",
+                                    state.cells.len() as i64 - 1
+                                )
+                            };
+                            return Err(PyValueError::new_err(format!(
+                                "out cell row {row} (0-based) is {}, not a previous answer: {why}",
                                 cells_slice[row]
-                            )
-                        } else {
-                            format!(
-                                "cells are numbered 0 to {} (-1 for none)",
-                                state.cells.len() as i64 - 1
-                            )
-                        };
-                        return Err(PyValueError::new_err(format!(
-                            "out cell row {row} (0-based) is {}, not a previous answer: {why}",
-                            cells_slice[row]
-                        )));
-                    }
-                    locate_into(locator, state, points, cells_slice, xi_slice, warm)
-                        .map_err(|row| refused("points", points, row))
+                            )));
+                        }
+                        let whole = &mut kept.answers;
+                        locate_into(locator, state, points, cells_slice, xi_slice, warm, whole)
+                            .map_err(|row| refused("points", points, row))
+                    })
                 })
             })??;
         }
@@ -276,6 +306,7 @@ impl PyLocator {
             strategy,
             settings,
             pool,
+            kept: Mutex::new(Kept::default()),
         })
     }
 
@@ -294,7 +325,8 @@ impl PyLocator {
     /// (a solver loop then allocates no output arrays per query). On a large body (more than 8 MB
     /// of nodal data: about 350,000 nodes in f64, 520,000 in f32), a batch of 16,384 points or
     /// more not already in order is answered whole, so that the library can sort it by cell: the
-    /// call then holds about 100 bytes per point of temporary buffers.
+    /// call then holds about 100 bytes per point of buffers, of which the answers' 56 stay with
+    /// the locator for its next call (a solver loop's next batch).
     #[pyo3(signature = (points, out = None))]
     fn locate<'py>(
         &self,
@@ -314,7 +346,8 @@ impl PyLocator {
     /// `locate`'s; a NaN or infinite point raises `ValueError` naming its row in `points`. With
     /// `out=(order, cell, xi)`, C-contiguous, aligned int64[n], int64[n] and float64[n, 3] arrays
     /// sharing no memory with the points or each other, the answers are written there and `out`
-    /// is returned. A sorted batch holds about 110 bytes per point of temporary buffers.
+    /// is returned. A sorted batch holds about 110 bytes per point of buffers, of which 64
+    /// stay with the locator for its next call.
     #[pyo3(signature = (points, out = None))]
     fn locate_unordered<'py>(
         &self,
@@ -344,16 +377,12 @@ impl PyLocator {
             let cells_slice = cells_out.as_slice_mut().map_err(value_error)?;
             let xi_slice = xi_out.as_slice_mut().map_err(value_error)?;
             py.detach(|| {
-                self.with(|locator, state| {
-                    locate_unordered_into(
-                        locator,
-                        state,
-                        points,
-                        order_slice,
-                        cells_slice,
-                        xi_slice,
-                    )
-                    .map_err(|row| refused("points", points, row))
+                self.with_kept(|kept| {
+                    self.with(|locator, state| {
+                        let out = (order_slice, cells_slice, xi_slice);
+                        locate_unordered_into(locator, state, points, out, kept)
+                            .map_err(|row| refused("points", points, row))
+                    })
                 })
             })??;
         }
@@ -509,9 +538,9 @@ fn is_hint(state: &BodyState, number: i64) -> bool {
 /// (NaN where none), piece by piece, each piece's answers in a buffer its worker reuses: no
 /// answer array for all the points, whose fresh pages cost a third of the query (measured: 0.36
 /// of the library's points/s with one, 0.61 without). But a batch the library may sort by cell
-/// (`Locator::sorts_batch`: a large body, points out of order) is answered whole, then written piece by piece: in
-/// pieces it would be answered in the caller's order, up to 2.5x slower at scale. `Err` holds
-/// the first point refused.
+/// (`Locator::sorts_batch`: a large body, points out of order) is answered whole, into `whole`
+/// (the locator's kept buffer), then written piece by piece: in pieces it would be answered in
+/// the caller's order, up to 2.5x slower at scale. `Err` holds the first point refused.
 fn locate_into(
     locator: &dyn Locator,
     state: &BodyState,
@@ -519,6 +548,7 @@ fn locate_into(
     cells: &mut [i64],
     xi: &mut [f64],
     warm: bool,
+    whole: &mut Vec<Answer>,
 ) -> Result<(), usize> {
     let first_refused = AtomicUsize::new(usize::MAX);
     // The answers of `points`, cold or warm (the hints read from `cells` and `xi`).
@@ -532,9 +562,8 @@ fn locate_into(
         }
     };
     let whole = locator.sorts_batch(points).then(|| {
-        let mut answers = Vec::new();
-        answer(points, cells, xi, &mut answers);
-        answers
+        answer(points, cells, xi, whole);
+        &whole[..]
     });
     cells
         .par_chunks_mut(PIECE)
@@ -544,7 +573,7 @@ fn locate_into(
         .for_each_init(
             || Vec::with_capacity(if whole.is_some() { 0 } else { PIECE }),
             |answers: &mut Vec<Answer>, (k, ((cells, xi), points))| {
-                let answers = match &whole {
+                let answers = match whole {
                     Some(all) => &all[k * PIECE..k * PIECE + points.len()],
                     None => {
                         answer(points, cells, xi, answers);
@@ -573,25 +602,28 @@ fn locate_into(
 }
 
 /// `locate_unordered`'s work: `order[k]` the point whose answer is row k of `cells` and `xi`, in
-/// the order the library answered them (the points' order when it does not sort the batch).
-/// `Err` holds the first point refused, in the points' order.
+/// the order the library answered them (the points' order when it does not sort the batch),
+/// through the locator's `kept` buffers. `Err` holds the first point refused, in the points'
+/// order.
 fn locate_unordered_into(
     locator: &dyn Locator,
     state: &BodyState,
     points: &[DVec3],
-    order: &mut [i64],
-    cells: &mut [i64],
-    xi: &mut [f64],
+    (order, cells, xi): (&mut [i64], &mut [i64], &mut [f64]),
+    kept: &mut Kept,
 ) -> Result<(), usize> {
     if !locator.sorts_batch(points) {
         order
             .par_iter_mut()
             .enumerate()
             .for_each(|(k, o)| *o = k as i64);
-        return locate_into(locator, state, points, cells, xi, false);
+        return locate_into(locator, state, points, cells, xi, false, &mut kept.answers);
     }
-    let (mut found, mut answers) = (Vec::new(), Vec::new());
-    locator.locate_all_unordered_into(points, &mut found, &mut answers);
+    let Kept {
+        answers,
+        order: found,
+    } = kept;
+    locator.locate_all_unordered_into(points, found, answers);
     let first_refused = AtomicUsize::new(usize::MAX);
     order
         .par_chunks_mut(PIECE)

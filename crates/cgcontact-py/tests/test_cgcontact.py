@@ -1108,3 +1108,23 @@ def test_unordered_rows_answer_their_points_as_locate():
         locator.locate_unordered(points, out=(out[0], out[0], out[2]))
     with pytest.raises(ValueError, match=r"out must be a tuple \(order, cell, xi\)"):
         locator.locate_unordered(points, out=(out[0], out[2]))
+
+
+def test_kept_buffers_never_leak_a_previous_batch():
+    """A locator keeps the answers of its last sorted batch for its next call. Batches that grow
+    and shrink, cold, unordered and warm, answer as a new locator answers each: nothing of an
+    earlier batch comes back."""
+    body = cgcontact.Body((0.0, 0.0, 0.0), (0.1, 0.1, 0.1), (90, 90, 90))
+    rng = np.random.default_rng(13)
+    kept = cgcontact.Locator(body, threads=2)
+    for n in (40_000, 17_000, 60_000, 16_500):
+        points = rng.uniform(-0.5, 9.5, (n, 3))
+        cell, xi = cgcontact.Locator(body, threads=2).locate(points)
+        got_cell, got_xi = kept.locate(points)
+        np.testing.assert_array_equal(got_cell, cell)
+        np.testing.assert_array_equal(got_xi.view(np.int64), xi.view(np.int64))
+        order, got_cell, got_xi = kept.locate_unordered(points[::-1])
+        np.testing.assert_array_equal(got_cell, cell[::-1][order])
+        warm_cell, warm_xi = kept.relocate(points, out=(cell.copy(), xi.copy()))
+        np.testing.assert_array_equal(warm_cell, cell)
+        np.testing.assert_allclose(warm_xi, xi, atol=1e-12)
