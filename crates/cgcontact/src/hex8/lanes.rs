@@ -101,23 +101,21 @@ impl<V: Lanes> Maps<V> {
 
     /// `Hex8Map::magnitude`.
     #[inline(always)]
-    fn magnitude(&self, x: V3<V>) -> V {
+    fn magnitude(&self, x: V3<V>) -> V3<V> {
         let a = &self.a;
-        x.abs().max_element()
-            + a[0].abs().max_element()
-            + (a[1].abs() + a[2].abs() + a[4].abs()).max_element()
+        x.abs() + a[0].abs() + (a[1].abs() + a[2].abs() + a[4].abs())
     }
 
     /// `Hex8Map::step_noise`.
     #[inline(always)]
-    fn step_noise(&self, magnitude: V, k: [V3<V>; 3], inv_det: V) -> V {
+    fn step_noise(&self, m: V3<V>, k: [V3<V>; 3], inv_det: V) -> V {
         let zero = V::splat(V::S::of(0.0));
         let inverse_norm = zero
-            .max(k[0].abs().element_sum())
-            .max(k[1].abs().element_sum())
-            .max(k[2].abs().element_sum())
+            .max(weighted(k[0], m))
+            .max(weighted(k[1], m))
+            .max(weighted(k[2], m))
             * inv_det.abs();
-        V::splat(V::S::of(16.0)) * V::splat(V::EPSILON) * magnitude * inverse_norm
+        V::splat(V::S::of(16.0)) * V::splat(V::EPSILON) * inverse_norm
     }
 
     /// `Hex8Map::det_at_center`.
@@ -222,4 +220,12 @@ impl<V: Lanes> Maps<V> {
         }
         (xi, rr, iterations, V::bits(found))
     }
+}
+
+/// Σ_j |row_j| m_j, in the order `Hex8Map::step_noise` adds it: a plain function, always
+/// inlined (as a closure it was called out of line in the adaptive lanes, 28 % more instructions).
+#[inline(always)]
+fn weighted<V: Lanes>(row: V3<V>, m: V3<V>) -> V {
+    let t = row.abs();
+    t.x * m.x + t.y * m.y + t.z * m.z
 }

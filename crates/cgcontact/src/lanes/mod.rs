@@ -308,11 +308,6 @@ impl<V: Lanes> V3<V> {
             z: self.z.max(o.z),
         }
     }
-    /// glam's `element_sum`: (x + y) + z.
-    #[inline(always)]
-    pub fn element_sum(self) -> V {
-        self.x + self.y + self.z
-    }
     /// glam's `clamp(lo, hi)`: max(lo) then min(hi), per component.
     #[inline(always)]
     pub fn clamp(self, lo: V::S, hi: V::S) -> Self {
