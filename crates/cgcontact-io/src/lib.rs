@@ -56,6 +56,7 @@ mod mesh;
 mod raw_appended;
 mod vtk_read;
 mod vtk_write;
+mod xml_normal;
 
 pub use adaptive_mesh::{AdaptiveMesh, MeshBody};
 pub use atomic::{abandon_writes, write_file};

@@ -205,14 +205,16 @@ pub(crate) fn attribute(tag: &[u8], name: &[u8]) -> Option<Vec<u8>> {
         if i == 0 || !tag[i - 1].is_ascii_whitespace() {
             continue;
         }
-        let rest = &tag[at..];
-        let rest = &rest[rest.iter().position(|b| !b.is_ascii_whitespace())?..];
-        let rest = rest.strip_prefix(b"=")?;
-        let rest = &rest[rest.iter().position(|b| !b.is_ascii_whitespace())?..];
-        let quote = *rest.first()?;
-        if quote != b'"' && quote != b'\'' {
+        // The name may also occur inside another attribute's value (`Name="an offset"`): only
+        // `name = "value"` is the attribute.
+        let rest = tag[at..].trim_ascii_start();
+        let Some(rest) = rest.strip_prefix(b"=") else {
             continue;
-        }
+        };
+        let rest = rest.trim_ascii_start();
+        let Some(&quote) = rest.first().filter(|&&q| q == b'"' || q == b'\'') else {
+            continue;
+        };
         let end = rest[1..].iter().position(|&b| b == quote)?;
         return Some(rest[1..1 + end].to_vec());
     }

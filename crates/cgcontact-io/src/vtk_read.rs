@@ -8,6 +8,7 @@ use vtkio::model::{Attribute, CellType, DataSet, UnstructuredGridPiece, VertexNu
 
 use crate::{
     ErrorKind, HexMesh, IoError, LatticeMesh, MeshBody, block_headers, lzma_arrays, raw_appended,
+    xml_normal,
 };
 
 /// The point-data array used when the caller names none.
@@ -80,6 +81,13 @@ fn parse_hex_mesh_impl(
     source: Option<&Path>,
     displacement: &DisplacementArray,
 ) -> Result<HexMesh, ErrorKind> {
+    // Every pass over an XML file reads it in the one spelling `xml_normal` gives it.
+    let normal = if is_xml(bytes) {
+        xml_normal::normalize(bytes)?
+    } else {
+        None
+    };
+    let bytes = normal.as_deref().unwrap_or(bytes);
     let vtk = parse_vtk(bytes)?;
     let declared = is_xml(bytes).then(|| declared_point_arrays(bytes));
     hex_mesh_from_vtk(vtk, source, displacement, declared.as_deref())
@@ -115,7 +123,11 @@ fn declared_point_arrays(xml: &[u8]) -> Vec<Vec<String>> {
             while let Some(tag) = find(&piece[..data_end], b"<DataArray", tag_at) {
                 let close = find(piece, b">", tag).unwrap_or(piece.len());
                 if let Some(name) = attribute(&piece[tag..close], b"Name") {
-                    names.push(String::from_utf8_lossy(&name).into_owned());
+                    // Names as vtkio reads them: `xml_normal` leaves `&amp;` and its kind.
+                    let name = String::from_utf8_lossy(&name).into_owned();
+                    names.push(
+                        quick_xml::escape::unescape(&name).map_or(name.clone(), |n| n.into_owned()),
+                    );
                 }
                 tag_at = close;
             }

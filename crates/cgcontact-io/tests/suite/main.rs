@@ -12,6 +12,7 @@ mod messages;
 mod parser_property;
 mod regression_corrupt_block_header_aborted;
 mod regression_corrupt_displacement_dropped;
+mod regression_xml_spellings_bypassed_the_guard;
 mod several_pieces;
 mod vtk_round_trip;
 mod written_by_vtk;
