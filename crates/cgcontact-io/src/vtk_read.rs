@@ -181,6 +181,9 @@ fn parse_vtk(bytes: &[u8]) -> Result<Vtk, ErrorKind> {
     } else if start.first() == Some(&b'<') {
         // vtkio is built without LZMA (its `xz2` feature is liblzma, in C): decompress LZMA arrays
         // first and hand it the file uncompressed (see `lzma_arrays`).
+        // First what vtkio would skip or misread (an appended array without an offset among
+        // them), on the tags as the file has them.
+        check_xml_arrays(bytes)?;
         let decompressed = lzma_arrays::decompress(bytes)?;
         let bytes = decompressed.as_deref().unwrap_or(bytes);
         // vtkio cannot read raw (unencoded) appended data, ParaView's default; re-encode it as base64
@@ -189,7 +192,6 @@ fn parse_vtk(bytes: &[u8]) -> Result<Vtk, ErrorKind> {
         let xml = converted.as_deref().unwrap_or(bytes);
         // A corrupt compressed-block header would make vtkio's allocation abort the process.
         block_headers::check(xml)?;
-        check_xml_arrays(xml)?;
         guarded("XML VTK", || {
             Vtk::parse_xml(xml).map_err(|e| {
                 let message = format!("XML VTK: {e}");
@@ -250,6 +252,11 @@ fn check_xml_arrays(xml: &[u8]) -> Result<(), ErrorKind> {
                 line(at)
             ))))
         };
+        if name == b"DataArray" {
+            check_appended_offset(&tag).map_err(|what| {
+                ErrorKind::Vtk(crate::one_line(&format!("line {}: {what}", line(at))))
+            })?;
+        }
         let parent = open.last().map(Vec::as_slice);
         // Pieces of other data sets (poly data's `Polys`, ...) are refused later, by data set.
         let grid_piece = open.len() >= 2 && open[open.len() - 2] == b"UnstructuredGrid";
@@ -312,6 +319,36 @@ fn check_xml_arrays(xml: &[u8]) -> Result<(), ErrorKind> {
         if !empty {
             open.push(name);
         }
+    }
+}
+
+/// An appended data array must say where its data are: vtkio reads an array without `offset`
+/// (or with a misspelt `offzet`) from offset 0, the first array's block, and the mesh was solved
+/// with the points as displacements.
+fn check_appended_offset(tag: &quick_xml::events::BytesStart) -> Result<(), String> {
+    let value = |name: &str| {
+        tag.try_get_attribute(name)
+            .ok()
+            .flatten()
+            .map(|a| a.value.into_owned())
+    };
+    if value("format").as_deref() != Some(b"appended") {
+        return Ok(());
+    }
+    let array = value("Name").map_or_else(
+        || "an unnamed appended data array".to_owned(),
+        |n| format!("the appended data array {}", crate::excerpt(&n, 60)),
+    );
+    let offset = value("offset").ok_or_else(|| format!("{array} has no offset attribute"))?;
+    let parsed = std::str::from_utf8(&offset)
+        .ok()
+        .and_then(|o| o.trim().parse::<u64>().ok());
+    match parsed {
+        Some(_) => Ok(()),
+        None => Err(format!(
+            "{array}: offset {} is not a byte count",
+            crate::excerpt(&offset, 40)
+        )),
     }
 }
 

@@ -10,6 +10,7 @@ mod legacy_dataset_field;
 mod lzma_hostile;
 mod messages;
 mod parser_property;
+mod regression_appended_array_without_offset;
 mod regression_corrupt_block_header_aborted;
 mod regression_corrupt_displacement_dropped;
 mod regression_xml_spellings_bypassed_the_guard;
