@@ -372,8 +372,9 @@ cgc_error cgc_locator_new(const cgc_body *body, const cgc_settings *settings, cg
 // `CGC_POINT_NON_FINITE` to `status[i]`. Answers use the body's displacements at the time of the
 // call. On a large body (more than 8 MB of nodal data: about 350,000 nodes in f64, 520,000 in
 // f32), a batch of 16,384 points or more not already in order is answered whole, so that the
-// library can sort it by cell: the call then holds about 100 bytes per point of temporary
-// buffers (other batches are answered 2,048 points at a time).
+// library can sort it by cell: the call then holds about 100 bytes per point of buffers, of
+// which the answers' 56 stay with the locator for its next call (a solver loop's next batch;
+// `cgc_locator_free` releases them). Other batches are answered 2,048 points at a time.
 //
 // Returns `CGC_ERROR_NON_FINITE_POINT` when some point has a NaN or infinite coordinate, after
 // writing every answer (the message names the first such point).
@@ -418,8 +419,8 @@ cgc_error cgc_relocate(const cgc_locator *locator,
 // `locate_all_into` on 1 M random points in a 4.2 M-cell block (docs/benchmarks.md). Otherwise
 // the rows come in the points' order (`order[k]` = k). A solver that assembles each point's
 // contribution wherever its answer comes does not need them in order. The answers are bitwise
-// `cgc_locate`'s. The whole batch is answered at once: about 110 bytes per point of temporary
-// buffers when it is sorted.
+// `cgc_locate`'s. The whole batch is answered at once: about 110 bytes per point of buffers when
+// it is sorted, of which 64 stay with the locator for its next call.
 //
 // Returns `CGC_ERROR_NON_FINITE_POINT` as `cgc_locate` does, naming the first such point in the
 // points' order (0-based), after writing every row.

@@ -1,7 +1,7 @@
 //! Locators: settings, and locating a batch of points into caller-owned arrays.
 
 use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::{Arc, RwLock};
+use std::sync::{Arc, Mutex, RwLock, TryLockError};
 use std::time::Instant;
 
 use cgcontact::glam::DVec3;
@@ -96,9 +96,36 @@ pub struct CgcLocator {
     strategy: u32,
     pub(crate) settings: Settings,
     pool: Option<rayon::ThreadPool>,
+    kept: Mutex<Kept>,
+}
+
+/// The buffers of a locator's last batch answered whole (one the library sorts by cell), kept for
+/// its next call: a solver loop asks the same batch again, and a fresh answer buffer of that size
+/// costs its page faults at every call (Python's `bench_unordered.py`: 17 to 25 % of the query
+/// on 1 M points in a 4.2 M-cell block).
+#[derive(Default)]
+struct Kept {
+    answers: Vec<Answer>,
+    order: Vec<usize>,
 }
 
 impl CgcLocator {
+    /// Runs `f` with this locator's kept buffers, or with fresh ones while another call (from
+    /// another thread) holds them.
+    fn with_kept<R>(&self, f: impl FnOnce(&mut Kept) -> R) -> R {
+        let mut fresh = None;
+        let mut guard = match self.kept.try_lock() {
+            Ok(kept) => Some(kept),
+            // A panic left them as they were: every use overwrites them.
+            Err(TryLockError::Poisoned(p)) => Some(p.into_inner()),
+            Err(TryLockError::WouldBlock) => None,
+        };
+        f(match guard.as_deref_mut() {
+            Some(kept) => kept,
+            None => fresh.insert(Kept::default()),
+        })
+    }
+
     /// Runs `f` on the body's current state, on this locator's threads (the body stays read-locked
     /// meanwhile, so that an update waits for it).
     pub(crate) fn on_body<R: Send>(
@@ -225,6 +252,7 @@ pub unsafe extern "C" fn cgc_locator_new(
             strategy: given.strategy,
             settings,
             pool,
+            kept: Mutex::new(Kept::default()),
         };
         // SAFETY: the caller guarantees `out` is writable.
         unsafe { raw::give(out, locator, "out") }
@@ -244,8 +272,9 @@ pub(crate) const PIECE: usize = 2048;
 /// `CGC_POINT_NON_FINITE` to `status[i]`. Answers use the body's displacements at the time of the
 /// call. On a large body (more than 8 MB of nodal data: about 350,000 nodes in f64, 520,000 in
 /// f32), a batch of 16,384 points or more not already in order is answered whole, so that the
-/// library can sort it by cell: the call then holds about 100 bytes per point of temporary
-/// buffers (other batches are answered 2,048 points at a time).
+/// library can sort it by cell: the call then holds about 100 bytes per point of buffers, of
+/// which the answers' 56 stay with the locator for its next call (a solver loop's next batch;
+/// `cgc_locator_free` releases them). Other batches are answered 2,048 points at a time.
 ///
 /// Returns `CGC_ERROR_NON_FINITE_POINT` when some point has a NaN or infinite coordinate, after
 /// writing every answer (the message names the first such point).
@@ -335,90 +364,92 @@ unsafe fn locate(
         Some(unsafe { raw::slice_mut(status, n_points, "status") }?)
     };
     let first_bad = AtomicUsize::new(usize::MAX);
-    locator.with(|search, state| {
-        if warm && let Some(i) = cells.iter().position(|&c| !is_hint(state, c)) {
-            let why = if state.cells.cell(cells[i]).is_ok() {
-                format!("lattice cell {} is not active in this body", cells[i])
-            } else {
-                format!(
-                    "the cells are numbered 0 to {}",
-                    state.cells.len() as i64 - 1
-                )
+    locator.with_kept(|kept| {
+        locator.with(|search, state| {
+            if warm && let Some(i) = cells.iter().position(|&c| !is_hint(state, c)) {
+                let why = if state.cells.cell(cells[i]).is_ok() {
+                    format!("lattice cell {} is not active in this body", cells[i])
+                } else {
+                    format!(
+                        "the cells are numbered 0 to {}",
+                        state.cells.len() as i64 - 1
+                    )
+                };
+                return Err(Failure::new(
+                    CgcError::InvalidArgument,
+                    format!(
+                        "cells[{i}] = {} is not a previous answer: {why} (-1 for none)",
+                        cells[i]
+                    ),
+                ));
+            }
+            // A point's answer, cold or warm (`answers` holds the hints, read from `cells` and `xi`).
+            let answer =
+                |points: &[DVec3], cells: &[i64], xi: &[f64], answers: &mut Vec<Answer>| {
+                    if warm {
+                        state.cells.previous_answers(cells, xi, answers);
+                        search.relocate_all(points, answers);
+                    } else {
+                        search.locate_all_into(points, answers);
+                    }
+                };
+            // The answers of points `start..` into the caller's arrays.
+            let write = |start: usize,
+                         answers: &[Answer],
+                         cells: &mut [i64],
+                         xi: &mut [f64],
+                         mut status: Option<&mut [u8]>| {
+                for (i, answer) in answers.iter().enumerate() {
+                    let (cell, local, code) = converted(state, answer);
+                    if code == CGC_POINT_NON_FINITE {
+                        first_bad.fetch_min(start + i, Ordering::Relaxed);
+                    }
+                    cells[i] = cell;
+                    local.write_to_slice(&mut xi[3 * i..3 * i + 3]);
+                    if let Some(status) = status.as_deref_mut() {
+                        status[i] = code;
+                    }
+                }
             };
-            return Err(Failure::new(
-                CgcError::InvalidArgument,
-                format!(
-                    "cells[{i}] = {} is not a previous answer: {why} (-1 for none)",
-                    cells[i]
-                ),
-            ));
-        }
-        // A point's answer, cold or warm (`answers` holds the hints, read from `cells` and `xi`).
-        let answer = |points: &[DVec3], cells: &[i64], xi: &[f64], answers: &mut Vec<Answer>| {
-            if warm {
-                state.cells.previous_answers(cells, xi, answers);
-                search.relocate_all(points, answers);
-            } else {
-                search.locate_all_into(points, answers);
-            }
-        };
-        // The answers of points `start..` into the caller's arrays.
-        let write = |start: usize,
-                     answers: &[Answer],
-                     cells: &mut [i64],
-                     xi: &mut [f64],
-                     mut status: Option<&mut [u8]>| {
-            for (i, answer) in answers.iter().enumerate() {
-                let (cell, local, code) = converted(state, answer);
-                if code == CGC_POINT_NON_FINITE {
-                    first_bad.fetch_min(start + i, Ordering::Relaxed);
+            // A batch the library may sort by cell (a large body) is answered whole, then written
+            // piece by piece: split into pieces, it would be answered in the caller's order, up to
+            // 2.5x slower at scale. Else each piece is answered and written while in cache.
+            let whole = search.sorts_batch(points).then(|| {
+                answer(points, cells, xi, &mut kept.answers);
+                &kept.answers[..]
+            });
+            let pieces = points
+                .par_chunks(PIECE)
+                .zip(cells.par_chunks_mut(PIECE))
+                .zip(xi.par_chunks_mut(3 * PIECE))
+                .enumerate();
+            let piece = |answers: &mut Vec<Answer>,
+                         k: usize,
+                         points: &[DVec3],
+                         cells: &mut [i64],
+                         xi: &mut [f64],
+                         status: Option<&mut [u8]>| {
+                let start = k * PIECE;
+                match whole {
+                    Some(all) => write(start, &all[start..start + points.len()], cells, xi, status),
+                    None => {
+                        answer(points, cells, xi, answers);
+                        write(start, answers, cells, xi, status);
+                    }
                 }
-                cells[i] = cell;
-                local.write_to_slice(&mut xi[3 * i..3 * i + 3]);
-                if let Some(status) = status.as_deref_mut() {
-                    status[i] = code;
-                }
-            }
-        };
-        // A batch the library may sort by cell (a large body) is answered whole, then written
-        // piece by piece: split into pieces, it would be answered in the caller's order, up to
-        // 2.5x slower at scale. Else each piece is answered and written while in cache.
-        let whole = search.sorts_batch(points).then(|| {
-            let mut answers = Vec::new();
-            answer(points, cells, xi, &mut answers);
-            answers
-        });
-        let pieces = points
-            .par_chunks(PIECE)
-            .zip(cells.par_chunks_mut(PIECE))
-            .zip(xi.par_chunks_mut(3 * PIECE))
-            .enumerate();
-        let piece = |answers: &mut Vec<Answer>,
-                     k: usize,
-                     points: &[DVec3],
-                     cells: &mut [i64],
-                     xi: &mut [f64],
-                     status: Option<&mut [u8]>| {
-            let start = k * PIECE;
-            match &whole {
-                Some(all) => write(start, &all[start..start + points.len()], cells, xi, status),
-                None => {
-                    answer(points, cells, xi, answers);
-                    write(start, answers, cells, xi, status);
-                }
-            }
-        };
-        match status {
-            Some(status) => pieces
-                .zip(status.par_chunks_mut(PIECE))
-                .for_each_init(Vec::new, |answers, ((k, ((p, c), x)), s)| {
-                    piece(answers, k, p, c, x, Some(s))
+            };
+            match status {
+                Some(status) => pieces
+                    .zip(status.par_chunks_mut(PIECE))
+                    .for_each_init(Vec::new, |answers, ((k, ((p, c), x)), s)| {
+                        piece(answers, k, p, c, x, Some(s))
+                    }),
+                None => pieces.for_each_init(Vec::new, |answers, (k, ((p, c), x))| {
+                    piece(answers, k, p, c, x, None)
                 }),
-            None => pieces.for_each_init(Vec::new, |answers, (k, ((p, c), x))| {
-                piece(answers, k, p, c, x, None)
-            }),
-        }
-        Ok(())
+            }
+            Ok(())
+        })
     })??;
     first_non_finite(points, first_bad.into_inner())
 }
@@ -441,8 +472,8 @@ fn converted(state: &BodyState, answer: &Answer) -> (i64, DVec3, u8) {
 /// `locate_all_into` on 1 M random points in a 4.2 M-cell block (docs/benchmarks.md). Otherwise
 /// the rows come in the points' order (`order[k]` = k). A solver that assembles each point's
 /// contribution wherever its answer comes does not need them in order. The answers are bitwise
-/// `cgc_locate`'s. The whole batch is answered at once: about 110 bytes per point of temporary
-/// buffers when it is sorted.
+/// `cgc_locate`'s. The whole batch is answered at once: about 110 bytes per point of buffers when
+/// it is sorted, of which 64 stay with the locator for its next call.
 ///
 /// Returns `CGC_ERROR_NON_FINITE_POINT` as `cgc_locate` does, naming the first such point in the
 /// points' order (0-based), after writing every row.
@@ -514,45 +545,54 @@ unsafe fn locate_unordered(
             raw::slice_mut(xi, n3, "xi")?,
         )
     };
-    let mut status = if status.is_null() {
+    let status = if status.is_null() {
         None
     } else {
         // SAFETY: as above.
         Some(unsafe { raw::slice_mut(status, n_points, "status") }?)
     };
     let first_bad = AtomicUsize::new(usize::MAX);
-    handle.with(|search, state| {
-        let (mut found, mut answers) = (Vec::new(), Vec::new());
-        search.locate_all_unordered_into(points_in, &mut found, &mut answers);
-        let rows = order_out
-            .par_chunks_mut(PIECE)
-            .zip(cells.par_chunks_mut(PIECE))
-            .zip(xi.par_chunks_mut(3 * PIECE))
-            .zip(found.par_chunks(PIECE).zip(answers.par_chunks(PIECE)));
-        let write = |(((order, cells), xi), (found, answers)): (
-            ((&mut [i64], &mut [i64]), &mut [f64]),
-            (&[usize], &[Answer]),
-        ),
-                     mut status: Option<&mut [u8]>| {
-            for (k, (&i, answer)) in found.iter().zip(answers).enumerate() {
-                let (cell, local, code) = converted(state, answer);
-                if code == CGC_POINT_NON_FINITE {
-                    first_bad.fetch_min(i, Ordering::Relaxed);
+    handle.with_kept(|kept| {
+        handle.with(|search, state| {
+            let Kept {
+                answers,
+                order: found,
+            } = kept;
+            search.locate_all_unordered_into(points_in, found, answers);
+            let rows = order_out
+                .par_chunks_mut(PIECE)
+                .zip(cells.par_chunks_mut(PIECE))
+                .zip(xi.par_chunks_mut(3 * PIECE))
+                .zip(found.par_chunks(PIECE).zip(answers.par_chunks(PIECE)));
+            let write = |order: &mut [i64],
+                         cells: &mut [i64],
+                         xi: &mut [f64],
+                         (found, answers): (&[usize], &[Answer]),
+                         mut status: Option<&mut [u8]>| {
+                for (k, (&i, answer)) in found.iter().zip(answers).enumerate() {
+                    let (cell, local, code) = converted(state, answer);
+                    if code == CGC_POINT_NON_FINITE {
+                        first_bad.fetch_min(i, Ordering::Relaxed);
+                    }
+                    order[k] = i as i64;
+                    cells[k] = cell;
+                    local.write_to_slice(&mut xi[3 * k..3 * k + 3]);
+                    if let Some(status) = status.as_deref_mut() {
+                        status[k] = code;
+                    }
                 }
-                order[k] = i as i64;
-                cells[k] = cell;
-                local.write_to_slice(&mut xi[3 * k..3 * k + 3]);
-                if let Some(status) = status.as_deref_mut() {
-                    status[k] = code;
-                }
+            };
+            match status {
+                Some(status) => rows.zip(status.par_chunks_mut(PIECE)).for_each(
+                    |((((order, cells), xi), answered), status)| {
+                        write(order, cells, xi, answered, Some(status))
+                    },
+                ),
+                None => rows.for_each(|(((order, cells), xi), answered)| {
+                    write(order, cells, xi, answered, None)
+                }),
             }
-        };
-        match status.as_deref_mut() {
-            Some(status) => rows
-                .zip(status.par_chunks_mut(PIECE))
-                .for_each(|(row, status)| write(row, Some(status))),
-            None => rows.for_each(|row| write(row, None)),
-        }
+        })
     })?;
     first_non_finite(points_in, first_bad.into_inner())
 }

@@ -1468,6 +1468,30 @@ fn unordered_rows_answer_their_points_bitwise() {
     assert!(shared.iter().all(|&c| c == -5) && xi.iter().all(|&x| x == -5.0));
 }
 
+/// A locator keeps the answers of its last sorted batch for its next call. Batches that grow and
+/// shrink, cold, unordered and warm, answer as a new locator answers each: nothing of an earlier
+/// batch comes back.
+#[test]
+fn kept_buffers_never_leak_a_previous_batch() {
+    let (body, points) = large_scene();
+    let kept = lattice_handles(&body);
+    for (start, len) in [(0, 20_000), (1_000, 17_000), (0, 24_576), (3_000, 16_500)] {
+        let batch = &points[start..start + len];
+        let fresh = lattice_handles(&body);
+        let (code, cells, xi, status) = locate(fresh.locator, &flat(batch));
+        let (got_code, mut got_cells, mut got_xi, got_status) = locate(kept.locator, &flat(batch));
+        assert_eq!((got_code, &got_cells, &got_status), (code, &cells, &status));
+        assert_eq!(bits(&got_xi), bits(&xi), "points {start}.. ({len})");
+        let (_, order, rows, _, _) = locate_unordered(kept.locator, batch, false);
+        for (k, &i) in order.iter().enumerate() {
+            assert_eq!(rows[k], cells[i as usize], "unordered row {k}");
+        }
+        let (_, warm_status) = relocate(kept.locator, &flat(batch), &mut got_cells, &mut got_xi);
+        assert_eq!((&got_cells, &warm_status), (&cells, &status), "warm");
+        assert_xi_close(&got_xi, &xi, "warm");
+    }
+}
+
 /// The whole-batch path of a sortable batch, on the caller's own threads (1 to 3), with a last
 /// piece shorter than the others, a NULL `status`, a body with inactive cells and bad hints
 /// (−1, NaN and infinite ξ, another point's cell): the answers of batches too small to sort, cold
