@@ -43,14 +43,27 @@ pub(crate) fn check(xml: &[u8]) -> Result<(), ErrorKind> {
         } else {
             4
         };
+    // The base64 appended data: from after the `_` to the next `<` (`</AppendedData>`).
     let appended = find(xml, b"<AppendedData", 0).and_then(|tag| {
         let end = find(xml, b">", tag)?;
         let encoding = attribute(&xml[tag..end], b"encoding");
         (encoding.as_deref() == Some(b"base64".as_slice()))
             .then(|| find(xml, b"_", end).map(|u| u + 1))
             .flatten()
+            .map(|start| start..find(xml, b"<", start).unwrap_or(xml.len()))
     });
+    let refuse = |tag: &[u8], message: String| {
+        let name = attribute(tag, b"Name").map(|n| String::from_utf8_lossy(&n).into_owned());
+        ErrorKind::Vtk(format!(
+            "compressed array {}: {message}",
+            name.map_or_else(|| "(unnamed)".to_owned(), |n| format!("`{n}`"))
+        ))
+    };
 
+    // Appended arrays are checked once the walk has seen every offset: an array's text is then
+    // its own block, up to the next array's offset, not the whole rest of the data (scanning
+    // that for each of many arrays was quadratic).
+    let mut appended_arrays: Vec<(usize, std::ops::Range<usize>)> = Vec::new();
     let mut at = 0;
     while let Some(tag_start) = find(xml, b"<DataArray", at) {
         let Some(tag_end) = find(xml, b">", tag_start) else {
@@ -58,31 +71,46 @@ pub(crate) fn check(xml: &[u8]) -> Result<(), ErrorKind> {
         };
         at = tag_end;
         let tag = &xml[tag_start..tag_end];
-        let text = match attribute(tag, b"format").as_deref() {
-            Some(b"binary") => &xml[tag_end + 1..],
+        match attribute(tag, b"format").as_deref() {
+            Some(b"binary") => {
+                let text = xml[tag_end + 1..].trim_ascii_start();
+                let length = text.iter().position(|&b| b == b'<').unwrap_or(text.len());
+                at = tag_end + length;
+                check_header(&text[..length], header_bytes, little)
+                    .map_err(|message| refuse(tag, message))?;
+            }
             Some(b"appended") => {
-                let (Some(data), Some(offset)) = (appended, attribute(tag, b"offset")) else {
+                let (Some(_), Some(offset)) = (&appended, attribute(tag, b"offset")) else {
                     continue;
                 };
                 let offset = std::str::from_utf8(&offset)
                     .ok()
                     .and_then(|o| o.trim().parse::<usize>().ok());
-                match offset.and_then(|o| xml.get(data + o..)) {
-                    Some(text) => text,
-                    None => continue,
+                if let Some(offset) = offset {
+                    appended_arrays.push((offset, tag_start..tag_end));
                 }
             }
-            _ => continue,
-        };
-        let text = text.trim_ascii_start();
-        let length = text.iter().position(|&b| b == b'<').unwrap_or(text.len());
-        check_header(&text[..length], header_bytes, little).map_err(|message| {
-            let name = attribute(tag, b"Name").map(|n| String::from_utf8_lossy(&n).into_owned());
-            ErrorKind::Vtk(format!(
-                "compressed array {}: {message}",
-                name.map_or_else(|| "(unnamed)".to_owned(), |n| format!("`{n}`"))
-            ))
-        })?;
+            _ => {}
+        }
+    }
+    let Some(data) = appended else {
+        return Ok(());
+    };
+    let mut offsets: Vec<usize> = appended_arrays.iter().map(|(o, _)| *o).collect();
+    offsets.sort_unstable();
+    offsets.dedup();
+    let mut checked = vec![false; offsets.len()];
+    for (offset, tag) in appended_arrays {
+        let k = offsets.partition_point(|&o| o < offset);
+        if std::mem::replace(&mut checked[k], true) {
+            continue;
+        }
+        let start = data.start.saturating_add(offset).min(data.end);
+        let end = offsets.get(k + 1).map_or(data.end, |&next| {
+            data.start.saturating_add(next).min(data.end)
+        });
+        let text = xml[start..end].trim_ascii();
+        check_header(text, header_bytes, little).map_err(|message| refuse(&xml[tag], message))?;
     }
     Ok(())
 }

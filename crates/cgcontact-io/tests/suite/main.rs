@@ -13,6 +13,7 @@ mod parser_property;
 mod regression_appended_array_without_offset;
 mod regression_corrupt_block_header_aborted;
 mod regression_corrupt_displacement_dropped;
+mod regression_many_appended_arrays_quadratic;
 mod regression_xml_spellings_bypassed_the_guard;
 mod several_pieces;
 mod vtk_round_trip;
