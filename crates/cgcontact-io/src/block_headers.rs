@@ -36,6 +36,8 @@ pub(crate) fn check(xml: &[u8]) -> Result<(), ErrorKind> {
     if attribute(vtkfile, b"compressor").is_none_or(|c| c.is_empty()) {
         return Ok(());
     }
+    let zlib =
+        attribute(vtkfile, b"compressor").as_deref() == Some(b"vtkZLibDataCompressor".as_slice());
     let little = attribute(vtkfile, b"byte_order").as_deref() == Some(b"LittleEndian".as_slice());
     let header_bytes =
         if attribute(vtkfile, b"header_type").as_deref() == Some(b"UInt64".as_slice()) {
@@ -76,7 +78,7 @@ pub(crate) fn check(xml: &[u8]) -> Result<(), ErrorKind> {
                 let text = xml[tag_end + 1..].trim_ascii_start();
                 let length = text.iter().position(|&b| b == b'<').unwrap_or(text.len());
                 at = tag_end + length;
-                check_header(&text[..length], header_bytes, little)
+                check_header(&text[..length], header_bytes, little, zlib)
                     .map_err(|message| refuse(tag, message))?;
             }
             Some(b"appended") => {
@@ -110,13 +112,14 @@ pub(crate) fn check(xml: &[u8]) -> Result<(), ErrorKind> {
             data.start.saturating_add(next).min(data.end)
         });
         let text = xml[start..end].trim_ascii();
-        check_header(text, header_bytes, little).map_err(|message| refuse(&xml[tag], message))?;
+        check_header(text, header_bytes, little, zlib)
+            .map_err(|message| refuse(&xml[tag], message))?;
     }
     Ok(())
 }
 
 /// Check the first three header values of one compressed array held in base64 `text`.
-fn check_header(text: &[u8], header_bytes: usize, little: bool) -> Result<(), String> {
+fn check_header(text: &[u8], header_bytes: usize, little: bool, zlib: bool) -> Result<(), String> {
     // The header is base64-encoded on its own, from the start of the text: the first three values
     // (3 × 4 or 3 × 8 bytes, a multiple of 3) decode from exactly the first 16 or 32 characters.
     let chars = header_bytes * 4;
@@ -152,6 +155,86 @@ fn check_header(text: &[u8], header_bytes: usize, little: bool) -> Result<(), St
             text.len()
         ));
     }
+    if zlib {
+        check_zlib_blocks(text, header_bytes, little, blocks, block_size, last)?;
+    }
+    Ok(())
+}
+
+/// Whether each zlib block decompresses to exactly the size the header gives it: vtkio reads a
+/// block into a buffer of that size and ignores what the stream holds beyond it, so a block
+/// larger than its header said was read in part, without a word. Each block is decompressed
+/// into nothing, at most one byte past its size, so a block that expands without end costs no
+/// more than its header's claim, which `plausible_size` has bounded. What cannot be decoded is
+/// left to vtkio, which drops the array (an error naming it, later).
+fn check_zlib_blocks(
+    text: &[u8],
+    header_bytes: usize,
+    little: bool,
+    blocks: u128,
+    block_size: u128,
+    last: u128,
+) -> Result<(), String> {
+    use std::io::Read as _;
+    let engine = &base64::engine::general_purpose::STANDARD;
+    let chars = |bytes: usize| bytes.div_ceil(3).saturating_mul(4);
+    // `blocks` is at most the text's length (checked above).
+    let blocks = blocks as usize;
+    let header_length = header_bytes * (3 + blocks);
+    let Some(Ok(header)) = text.get(..chars(header_length)).map(|h| engine.decode(h)) else {
+        return Ok(());
+    };
+    let Some(sizes) = header.get(3 * header_bytes..header_length) else {
+        return Ok(());
+    };
+    let sizes: Vec<u64> = sizes
+        .chunks_exact(header_bytes)
+        .map(|w| header_word(w, little))
+        .collect();
+    let total = sizes.iter().fold(0u64, |t, &s| t.saturating_add(s));
+    let Ok(total) = usize::try_from(total) else {
+        return Ok(());
+    };
+    let start = chars(header_length);
+    let Some(Ok(data)) = text
+        .get(start..start.saturating_add(chars(total)))
+        .map(|d| engine.decode(d))
+    else {
+        return Ok(());
+    };
+    let mut at = 0usize;
+    for (k, &size) in sizes.iter().enumerate() {
+        let Some(block) = usize::try_from(size)
+            .ok()
+            .and_then(|size| data.get(at..at.checked_add(size)?))
+        else {
+            return Ok(());
+        };
+        at += block.len();
+        // The last block holds `last` bytes when that is not 0.
+        let expected = if k + 1 == blocks && last != 0 {
+            last
+        } else {
+            block_size
+        };
+        let limit = u64::try_from(expected)
+            .unwrap_or(u64::MAX)
+            .saturating_add(1);
+        let mut decoder = flate2::read::ZlibDecoder::new(block).take(limit);
+        let Ok(produced) = std::io::copy(&mut decoder, &mut std::io::sink()) else {
+            return Ok(());
+        };
+        if u128::from(produced) != expected {
+            let relation = if u128::from(produced) > expected {
+                "more than"
+            } else {
+                "fewer than"
+            };
+            return Err(format!(
+                "zlib block {k} decompresses to {relation} the {expected} bytes its header gives"
+            ));
+        }
+    }
     Ok(())
 }
 
@@ -170,10 +253,10 @@ mod tests {
     fn plausible_headers_pass_absurd_ones_are_refused() {
         let mut text = header([1, 96, 96, 40]);
         text.extend_from_slice(&[b'A'; 60]);
-        assert!(check_header(&text, 8, true).is_ok());
+        assert!(check_header(&text, 8, true, false).is_ok());
         let mut huge = header([1 << 20, 1 << 30, 5, 40]);
         huge.extend_from_slice(&[b'A'; 60]);
-        let message = check_header(&huge, 8, true).unwrap_err();
+        let message = check_header(&huge, 8, true, false).unwrap_err();
         assert!(message.contains("1048576 block(s)"), "{message}");
     }
 }

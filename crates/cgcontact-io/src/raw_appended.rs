@@ -80,7 +80,10 @@ pub(crate) fn to_base64(xml: &[u8]) -> Result<Option<Vec<u8>>, ErrorKind> {
     distinct.dedup();
     let mut encoded = Vec::new();
     let mut new_offset = std::collections::HashMap::new();
-    for &at in &distinct {
+    for (k, &at) in distinct.iter().enumerate() {
+        // Blocks follow one another: one running into the next array's block is the wrong size
+        // (vtkio reads uncompressed base64 blocks by the array's length and ignores the header).
+        let next = distinct.get(k + 1).copied().unwrap_or(data.len());
         new_offset.insert(at, encoded.len());
         if compressed {
             let blocks = read(at)?;
@@ -123,11 +126,20 @@ pub(crate) fn to_base64(xml: &[u8]) -> Result<Option<Vec<u8>>, ErrorKind> {
             encoded.extend(encode(body));
         } else {
             let size = read(at)?;
-            let block = data.get(at..at + header_bytes + size).ok_or_else(|| {
+            let end = (at + header_bytes).saturating_add(size);
+            let block = data.get(at..end).ok_or_else(|| {
                 bad(format!(
                     "block at byte {at} of {size} bytes runs past the data"
                 ))
             })?;
+            if end > next {
+                return Err(bad(format!(
+                    "array {}: the block at byte {at} says it holds {size} bytes, {} more than there are \
+                     before the next array's block at byte {next}",
+                    array_name(head, &offsets, at),
+                    end - next
+                )));
+            }
             encoded.extend(encode(block));
         }
     }
@@ -145,6 +157,18 @@ pub(crate) fn to_base64(xml: &[u8]) -> Result<Option<Vec<u8>>, ErrorKind> {
     out.extend_from_slice(b"\n");
     out.extend_from_slice(tail);
     Ok(Some(out))
+}
+
+/// The name of the first array whose block is at byte `at`, quoted, for messages.
+fn array_name(head: &[u8], offsets: &[Offset], at: usize) -> String {
+    offsets
+        .iter()
+        .find(|o| o.value == at)
+        .and_then(|o| {
+            let tag = rfind(&head[..o.start], b"<DataArray")?;
+            attribute(&head[tag..o.start], b"Name")
+        })
+        .map_or_else(|| "(unnamed)".to_owned(), |n| crate::excerpt(&n, 60))
 }
 
 /// An `offset="N"` attribute: the digits' byte range in the head and their value.
