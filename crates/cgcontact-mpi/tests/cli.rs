@@ -947,3 +947,58 @@ fn a_refused_flag_is_reported_by_rank_0_alone_under_any_launcher() {
         assert_eq!(run(&[(name, "3")]), "", "{name}=3");
     }
 }
+
+/// SIGTERM to mpirun (which forwards it to every rank) in the middle of a run: rank 0 says it was
+/// interrupted, in one line, the run fails, the output is as it was and no temporary file is left
+/// beside it, as `cgcontact locate` ends on Ctrl-C or SIGTERM. (mpirun itself answers SIGINT by
+/// terminating the ranks, which then take the same path.) The run repeats its query ten million
+/// times: it is still running when the signal comes.
+#[cfg(target_os = "linux")]
+#[test]
+fn a_terminated_run_says_so_and_leaves_its_output_as_it_was() {
+    let dir = tempfile::tempdir().unwrap();
+    let (mesh, points) = two_cells(dir.path(), 0.0, "x,y,z\n0.5,0.5,0.5\n1.2,0.3,0.7\n");
+    let out = dir.path().join("results.csv");
+    std::fs::write(&out, "old\n").unwrap();
+    let mut command = Command::new("mpirun");
+    command.arg("--oversubscribe");
+    if is_root() {
+        command.arg("--allow-run-as-root");
+    }
+    let s = |p: &Path| p.to_str().unwrap().to_owned();
+    let run = command
+        .args(["-np", "2"])
+        .arg(env!("CARGO_BIN_EXE_cgcontact-mpi"))
+        .args(["locate", "--mesh", &s(&mesh), "--points", &s(&points)])
+        .args(["--out", &s(&out), "--repeat", "10000000"])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("mpirun runs: is Open MPI installed?");
+    // Time for MPI to start and the ranks to set their handler; then they query.
+    std::thread::sleep(std::time::Duration::from_secs(4));
+    let sent = Command::new("kill")
+        .args(["-TERM", &run.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(sent.success());
+    let output = run.wait_with_output().unwrap();
+    let message = String::from_utf8_lossy(&output.stderr).into_owned();
+    assert!(!output.status.success(), "{message}");
+    let said: Vec<&str> = message
+        .lines()
+        .filter(|l| l.contains("interrupted"))
+        .collect();
+    assert_eq!(
+        said,
+        ["cgcontact-mpi: interrupted; outputs not yet complete were left as they were"],
+        "{message}"
+    );
+    assert_eq!(std::fs::read_to_string(&out).unwrap(), "old\n");
+    let mut names: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert_eq!(names, ["mesh.vtu", "points.csv", "results.csv"]);
+}
