@@ -667,7 +667,8 @@ fn hex_mesh_from_vtk(
             &mut mesh.cells,
         )?;
         if let Some(u) = &mut u {
-            match piece_displacement(&piece, displacement, points.len(), &mut available)? {
+            let legacy = declared.is_none();
+            match piece_displacement(&piece, displacement, points.len(), legacy, &mut available)? {
                 Some(values) => {
                     found_any = true;
                     with.get_or_insert(index);
@@ -907,8 +908,18 @@ fn piece_displacement(
     piece: &UnstructuredGridPiece,
     which: &DisplacementArray,
     point_count: usize,
+    legacy: bool,
     available: &mut Vec<String>,
 ) -> Result<Option<Vec<DVec3>>, ErrorKind> {
+    // VTK's legacy writer stores a name with `%XX` for spaces and other bytes; its reader decodes
+    // them, and so do we, so that `my displacement` is found as VTK finds it.
+    let decoded = |name: &str| {
+        if legacy {
+            decode_legacy_name(name)
+        } else {
+            name.to_owned()
+        }
+    };
     let name = match which {
         DisplacementArray::Default => DEFAULT_DISPLACEMENT,
         DisplacementArray::Named(n) => n.as_str(),
@@ -919,15 +930,19 @@ fn piece_displacement(
     for attribute in &piece.data.point {
         match attribute {
             Attribute::DataArray(array) => {
-                available.push(array.name.clone());
-                if array.name == name {
+                let array_name = decoded(&array.name);
+                let matches = array_name == name;
+                available.push(array_name);
+                if matches {
                     found.push((array.elem.num_comp() as usize, &array.data));
                 }
             }
             Attribute::Field { data_array, .. } => {
                 for array in data_array {
-                    available.push(array.name.clone());
-                    if array.name == name {
+                    let array_name = decoded(&array.name);
+                    let matches = array_name == name;
+                    available.push(array_name);
+                    if matches {
                         found.push((array.elem as usize, &array.data));
                     }
                 }
@@ -969,4 +984,42 @@ fn piece_displacement(
         .map(|c| DVec3::new(c[0], c[1], c[2]))
         .collect();
     Ok(Some(u))
+}
+
+/// A legacy VTK array name with its `%XX` escapes decoded, as `vtkDataReader::DecodeString` does:
+/// `%` and two hexadecimal digits stand for that byte; any other `%` is kept.
+fn decode_legacy_name(name: &str) -> String {
+    let bytes = name.as_bytes();
+    let mut out = Vec::with_capacity(bytes.len());
+    let mut k = 0;
+    while k < bytes.len() {
+        let hex = bytes
+            .get(k + 1..k + 3)
+            .and_then(|h| std::str::from_utf8(h).ok())
+            .filter(|h| h.bytes().all(|b| b.is_ascii_hexdigit()))
+            .and_then(|h| u8::from_str_radix(h, 16).ok());
+        match hex {
+            Some(byte) if bytes[k] == b'%' => {
+                out.push(byte);
+                k += 3;
+            }
+            _ => {
+                out.push(bytes[k]);
+                k += 1;
+            }
+        }
+    }
+    String::from_utf8_lossy(&out).into_owned()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::decode_legacy_name;
+
+    #[test]
+    fn legacy_names_are_percent_decoded_as_vtk_does() {
+        assert_eq!(decode_legacy_name("my%20displacement"), "my displacement");
+        assert_eq!(decode_legacy_name("a%25b%2"), "a%b%2");
+        assert_eq!(decode_legacy_name("%zz%4A"), "%zzJ");
+    }
 }
