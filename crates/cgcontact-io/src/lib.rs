@@ -51,6 +51,7 @@ mod block_headers;
 mod csv_io;
 mod error;
 mod input;
+mod legacy_sections;
 mod lzma_arrays;
 mod mesh;
 mod raw_appended;

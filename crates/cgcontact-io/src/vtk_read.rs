@@ -7,8 +7,8 @@ use glam::DVec3;
 use vtkio::model::{Attribute, CellType, DataSet, UnstructuredGridPiece, VertexNumbers, Vtk};
 
 use crate::{
-    ErrorKind, HexMesh, IoError, LatticeMesh, MeshBody, block_headers, lzma_arrays, raw_appended,
-    xml_normal,
+    ErrorKind, HexMesh, IoError, LatticeMesh, MeshBody, block_headers, legacy_sections,
+    lzma_arrays, raw_appended, xml_normal,
 };
 
 /// The point-data array used when the caller names none.
@@ -191,7 +191,10 @@ fn parse_vtk(bytes: &[u8]) -> Result<Vtk, ErrorKind> {
         let converted = raw_appended::to_base64(bytes)?;
         let xml = converted.as_deref().unwrap_or(bytes);
         // A corrupt compressed-block header would make vtkio's allocation abort the process.
-        block_headers::check(xml)?;
+        let headers = block_headers::check(xml)?;
+        // A whole last block, as vtkio would not size it (see `whole_last_blocks`).
+        let patched = headers.whole_last_blocks(xml);
+        let xml = patched.as_deref().unwrap_or(xml);
         guarded("XML VTK", || {
             Vtk::parse_xml(xml).map_err(|e| {
                 let message = format!("XML VTK: {e}");
@@ -441,23 +444,24 @@ fn parse_legacy_whole(bytes: &[u8]) -> Result<Vtk, ErrorKind> {
             }
         },
         // The parser backtracks to the start of the section (or of the file) it could not
-        // finish: a count of each ASCII section's values says which one is short.
-        Err(_) if short_section(bytes).is_some() => Err(ErrorKind::Vtk(format!(
-            "legacy VTK: {}",
-            short_section(bytes).unwrap_or_default()
-        ))),
-        Err(nom::Err::Incomplete(_)) => Err(ErrorKind::Vtk(
-            "legacy VTK: the file ends before its data does (truncated?)".to_owned(),
-        )),
-        Err(nom::Err::Error(e) | nom::Err::Failure(e)) => {
-            // The parser's own code (`MapOpt`, `Digit`) names its combinator, not the file's
-            // mistake: the line and the text are what a reader can act on.
-            let (line, excerpt) = at_line(e.input);
-            Err(ErrorKind::Vtk(format!(
-                "legacy VTK: line {line}: cannot parse {excerpt} there (an unknown keyword, \
-                 cell type or number, or a truncated or malformed section)"
-            )))
-        }
+        // finish: a walk of the sections against their headers says which one is at fault.
+        Err(error) => Err(match legacy_sections::fault(bytes) {
+            Some(fault) => ErrorKind::Vtk(format!("legacy VTK: {fault}")),
+            None => match error {
+                nom::Err::Incomplete(_) => ErrorKind::Vtk(
+                    "legacy VTK: the file ends before its data does (truncated?)".to_owned(),
+                ),
+                nom::Err::Error(e) | nom::Err::Failure(e) => {
+                    // The parser's own code (`MapOpt`, `Digit`) names its combinator, not the
+                    // file's mistake: the line and the text are what a reader can act on.
+                    let (line, excerpt) = at_line(e.input);
+                    ErrorKind::Vtk(format!(
+                        "legacy VTK: line {line}: cannot parse {excerpt} there (an unknown \
+                         keyword, cell type or number, or a truncated or malformed section)"
+                    ))
+                }
+            },
+        }),
     }
 }
 
@@ -546,73 +550,6 @@ fn dangling_data_header(bytes: &[u8]) -> Option<(usize, String)> {
         let number = 1 + bytes[..start].iter().filter(|&&b| b == b'\n').count();
         (number, line.trim().to_owned())
     })
-}
-
-/// In an ASCII legacy file, the first section holding fewer values than its header declares:
-/// `line N: the `POINTS 48 double` section holds 100 of its 144 values (...)`.
-fn short_section(bytes: &[u8]) -> Option<String> {
-    let text = std::str::from_utf8(bytes).ok()?;
-    let mut lines = text.lines();
-    // Version 5.x lists cells as OFFSETS and CONNECTIVITY under a CELLS line.
-    let v5 = lines.next()?.contains("Version 5");
-    // Line 3 says ASCII or BINARY; binary sections cannot be counted in tokens.
-    if !lines.nth(1)?.trim().eq_ignore_ascii_case("ascii") {
-        return None;
-    }
-    let mut cells = (0u64, 0u64);
-    let number = |t: &str| t.parse::<f64>().is_ok() || t.eq_ignore_ascii_case("nan");
-    // (header line, header, values expected, values found)
-    let mut current: Option<(usize, &str, u64, u64)> = None;
-    let mut points = 0u64;
-    let short = |(line, header, expected, found): (usize, &str, u64, u64)| {
-        (found < expected).then(|| {
-            format!(
-                "line {}: the `{}` section holds {found} of its {expected} values (the file is cut, or values are missing)",
-                line + 1,
-                header.trim()
-            )
-        })
-    };
-    for (index, line) in text.lines().enumerate().skip(4) {
-        let mut words = line.split_whitespace();
-        let Some(first) = words.next() else { continue };
-        if number(first) {
-            if let Some(section) = &mut current {
-                section.3 += line.split_whitespace().filter(|t| number(t)).count() as u64;
-            }
-            continue;
-        }
-        if let Some(section) = current.take()
-            && let Some(message) = short(section)
-        {
-            return Some(message);
-        }
-        let count = |w: Option<&str>| w.and_then(|n| n.parse::<u64>().ok());
-        let expected = match first.to_ascii_uppercase().as_str() {
-            "POINTS" => count(words.next()).map(|n| {
-                points = n;
-                3 * n
-            }),
-            "CELLS" => {
-                cells = (
-                    count(words.next()).unwrap_or(0),
-                    count(words.next()).unwrap_or(0),
-                );
-                (!v5).then_some(cells.1)
-            }
-            "OFFSETS" if v5 => Some(cells.0),
-            "CONNECTIVITY" if v5 => Some(cells.1),
-            "CELL_TYPES" => count(words.next()),
-            "VECTORS" | "NORMALS" => Some(3 * points),
-            // A FIELD array: `name components tuples type`.
-            _ => match (count(words.next()), count(words.next()), words.next()) {
-                (Some(c), Some(n), Some(_)) => Some(c * n),
-                _ => None,
-            },
-        };
-        current = expected.map(|n| (index, line, n, 0));
-    }
-    current.and_then(short)
 }
 
 /// Extract points, hexahedra and the displacement array from a parsed file.
