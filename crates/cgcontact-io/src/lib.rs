@@ -57,6 +57,7 @@ mod mesh;
 mod raw_appended;
 mod vtk_read;
 mod vtk_write;
+mod xml_cells;
 mod xml_normal;
 
 pub use adaptive_mesh::{AdaptiveMesh, MeshBody};

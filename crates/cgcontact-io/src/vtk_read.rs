@@ -8,7 +8,7 @@ use vtkio::model::{Attribute, CellType, DataSet, UnstructuredGridPiece, VertexNu
 
 use crate::{
     ErrorKind, HexMesh, IoError, LatticeMesh, MeshBody, block_headers, legacy_sections,
-    lzma_arrays, raw_appended, xml_normal,
+    lzma_arrays, raw_appended, xml_cells, xml_normal,
 };
 
 /// The point-data array used when the caller names none.
@@ -197,6 +197,22 @@ fn parse_vtk(bytes: &[u8]) -> Result<Vtk, ErrorKind> {
         let xml = patched.as_deref().unwrap_or(xml);
         guarded("XML VTK", || {
             Vtk::parse_xml(xml).map_err(|e| {
+                use vtkio::xml::{Error as XmlError, ValidationError as Invalid};
+                // Errors that name no array, or not the attribute at fault: said in words, with the line.
+                let said = match &e {
+                    vtkio::Error::XML(XmlError::Validation(Invalid::InvalidDataFormat)) => {
+                        xml_cells::cell_array_fault(xml)
+                    }
+                    vtkio::Error::XML(XmlError::Validation(Invalid::DataArraySizeMismatch {
+                        name,
+                        expected,
+                        actual,
+                    })) => xml_cells::points_size_fault(xml, name, *expected, *actual),
+                    _ => None,
+                };
+                if let Some(said) = said {
+                    return ErrorKind::Vtk(crate::one_line(&format!("XML VTK: {said}")));
+                }
                 let message = format!("XML VTK: {e}");
                 let place = xml_place(xml, &message);
                 ErrorKind::Vtk(format!("{message}{place}"))
@@ -260,6 +276,9 @@ fn check_xml_arrays(xml: &[u8]) -> Result<(), ErrorKind> {
                 ErrorKind::Vtk(crate::one_line(&format!("line {}: {what}", line(at))))
             })?;
         }
+        xml_cells::check_counts(&tag).map_err(|what| {
+            ErrorKind::Vtk(crate::one_line(&format!("line {}: {what}", line(at))))
+        })?;
         let parent = open.last().map(Vec::as_slice);
         // Pieces of other data sets (poly data's `Polys`, ...) are refused later, by data set.
         let grid_piece = open.len() >= 2 && open[open.len() - 2] == b"UnstructuredGrid";
