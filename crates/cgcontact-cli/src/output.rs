@@ -82,6 +82,9 @@ fn same_file(a: &Path, b: &Path) -> bool {
     false
 }
 
+/// The longest file name the usual file systems take, in bytes (Linux's `NAME_MAX`).
+const MAX_NAME_BYTES: usize = 255;
+
 /// Check, before any work, that every output file can be written where asked and replaces no
 /// input: `outputs` are (flag, path) pairs, `inputs` likewise.
 pub fn check_outputs(inputs: &[(&str, &Path)], outputs: &[(&str, PathBuf)]) -> Result<()> {
@@ -115,6 +118,17 @@ pub fn check_outputs(inputs: &[(&str, &Path)], outputs: &[(&str, PathBuf)]) -> R
         }
         if output.is_dir() {
             bail!("{}: {flag} names a folder, not a file", output.display());
+        }
+        // The write would fail after the work with "File name too long".
+        if let Some(name) = output.file_name()
+            && name.len() > MAX_NAME_BYTES
+        {
+            bail!(
+                "{}: {flag}: the file name is {} bytes long, more than the {MAX_NAME_BYTES} a \
+                 file system takes",
+                output.display(),
+                name.len()
+            );
         }
         let folder = match output.parent() {
             Some(p) if !p.as_os_str().is_empty() => p,

@@ -88,13 +88,12 @@ pub fn write_file(
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
         _ => PathBuf::from("."),
     };
-    let name = target
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    let prefix = format!(".{name}.");
+    let prefix = temporary_prefix(target.file_name().unwrap_or_default());
     let mut builder = tempfile::Builder::new();
-    builder.prefix(&prefix).suffix(".partial");
+    builder
+        .prefix(&prefix)
+        .rand_bytes(TEMPORARY_RANDOM)
+        .suffix(TEMPORARY_SUFFIX);
     // As `File::create` makes it (0666 less the umask), not the temporary file's usual 0600.
     #[cfg(unix)]
     builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666));
@@ -124,6 +123,36 @@ pub fn write_file(
     drop(list);
     persisted.map_err(|e| io(e.error))?;
     Ok(())
+}
+
+/// The longest file name the usual file systems take, in bytes (Linux's `NAME_MAX`; 255 UTF-16
+/// units on Windows, never fewer than bytes).
+const MAX_NAME_BYTES: usize = 255;
+/// The random characters of a temporary name, and its end.
+const TEMPORARY_RANDOM: usize = 6;
+const TEMPORARY_SUFFIX: &str = ".partial";
+
+/// The start of a target's temporary name, `.NAME.`: with the random characters and `.partial`
+/// it is the target's name 16 bytes longer, so the name of a target within 16 bytes of the
+/// limit is cut to fit (a temporary name still hidden, and unique by its random characters).
+fn temporary_prefix(name: &std::ffi::OsStr) -> std::ffi::OsString {
+    let room = MAX_NAME_BYTES - 2 - TEMPORARY_RANDOM - TEMPORARY_SUFFIX.len();
+    #[cfg(unix)]
+    {
+        use std::os::unix::ffi::{OsStrExt, OsStringExt};
+        let bytes = name.as_bytes();
+        let kept = &bytes[..bytes.len().min(room)];
+        std::ffi::OsString::from_vec([b".", kept, b"."].concat())
+    }
+    #[cfg(not(unix))]
+    {
+        let name = name.to_string_lossy();
+        let mut end = name.len().min(room);
+        while !name.is_char_boundary(end) {
+            end -= 1;
+        }
+        std::ffi::OsString::from(format!(".{}.", &name[..end]))
+    }
 }
 
 /// The file a path names: a symbolic link's target (as far as it resolves), else the path.
@@ -239,6 +268,26 @@ mod tests {
                 .is_symlink()
         );
         assert_eq!(std::fs::read_to_string(&real).unwrap(), "new\n");
+    }
+
+    /// A name of 240 to 255 bytes is a valid file name, but `.NAME.XXXXXX.partial` was 16 bytes
+    /// longer: the write failed after the work with "File name too long (os error 36)".
+    #[test]
+    fn names_near_the_length_limit_are_written() {
+        let dir = tempfile::tempdir().unwrap();
+        for length in [239, 240, 250, 255] {
+            let name = format!("{}.csv", "r".repeat(length - 4));
+            let path = dir.path().join(&name);
+            write_file(&path, |out| Ok(out.write_all(b"x\n")?))
+                .unwrap_or_else(|e| panic!("{length} bytes: {e}"));
+            assert_eq!(std::fs::read_to_string(&path).unwrap(), "x\n");
+        }
+        let left: Vec<_> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .filter(|n| n.to_string_lossy().ends_with(".partial"))
+            .collect();
+        assert!(left.is_empty(), "{left:?}");
     }
 
     /// A full device is reported as such, even through a writer that renders I/O errors its own way.

@@ -261,6 +261,33 @@ fn results_replace_the_old_file_whole() {
     assert!(leftovers.is_empty());
 }
 
+/// `--out` with a name of 240 to 255 bytes passed the checks, then failed after the whole run:
+/// its temporary name `.NAME.XXXXXX.partial` was 16 bytes past the limit ("File name too long").
+/// Such names are written; a name past the limit is refused before the mesh is read.
+#[test]
+fn out_names_near_the_length_limit_are_written_and_past_it_refused_first() {
+    let (dir, mesh, points) = scene();
+    for length in [245, 255] {
+        let results = dir.path().join(format!("{}.csv", "r".repeat(length - 4)));
+        let run = locate(&mesh, &points, &["--out", s(&results), "-q"]);
+        assert!(run.status.success(), "{length}: {}", stderr(&run));
+        assert_eq!(
+            cgcontact_io::read_results(&results).unwrap().len(),
+            cgcontact_io::read_points(&points).unwrap().len()
+        );
+    }
+    let leftovers: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().ends_with(".partial"))
+        .collect();
+    assert!(leftovers.is_empty());
+    let too_long = dir.path().join(format!("{}.csv", "r".repeat(252)));
+    let no_mesh = Path::new("/no/such/mesh.vtu");
+    let run = locate(no_mesh, &points, &["--out", s(&too_long)]);
+    refused(&run, &["256 bytes", "--out"], &[]);
+}
+
 /// A legacy file cut just before `POINT_DATA` is a valid undeformed mesh: the summary says it has no
 /// displacement (text and `--json`), where it used to look like any other run.
 #[test]
