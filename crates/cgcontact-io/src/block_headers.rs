@@ -24,17 +24,76 @@ pub(crate) fn plausible_size(claimed: u128, held: u128) -> bool {
     claimed <= MAX_EXPANSION.saturating_mul(held).saturating_add(1 << 16)
 }
 
-/// Refuse a compressed array whose header asks for more memory than its text could ever decompress to.
-pub(crate) fn check(xml: &[u8]) -> Result<(), ErrorKind> {
+/// The compressed arrays of a file, as [`check`] found them: where each one's base64 text starts
+/// (its header first), and how their header words are written.
+#[derive(Debug, Default)]
+pub(crate) struct Headers {
+    starts: Vec<usize>,
+    header_bytes: usize,
+    little: bool,
+}
+
+impl Headers {
+    /// `xml` with each header that gives its last block 0 bytes, and so says that block is a whole
+    /// one (VTK's rule: `[blocks, block size, last block size, ...]`, the last size 0 when the data
+    /// fills its blocks exactly), rewritten to give it the block size; `None` when there is none.
+    /// vtkio 0.7.0-rc2 sizes the array `block size × (blocks − 1) + last block size` and so
+    /// dropped a whole block of every array whose bytes are a multiple of the block size: VTK's
+    /// zlib writer (blocks of 32 KiB) made such a file of any mesh of 4,096 × k cells
+    /// (`offsets` of k blocks), which was refused. The first three words are the first 16 or 32
+    /// base64 characters on their own, so the rewrite keeps every length.
+    pub(crate) fn whole_last_blocks(&self, xml: &[u8]) -> Option<Vec<u8>> {
+        let engine = &base64::engine::general_purpose::STANDARD;
+        let chars = 4 * self.header_bytes;
+        let mut patched: Option<Vec<u8>> = None;
+        for &start in &self.starts {
+            let Some(head) = xml.get(start..start + chars) else {
+                continue;
+            };
+            let Ok(mut bytes) = engine.decode(head) else {
+                continue;
+            };
+            if bytes.len() != 3 * self.header_bytes {
+                continue;
+            }
+            let word = |bytes: &[u8], k: usize| {
+                header_word(
+                    &bytes[k * self.header_bytes..(k + 1) * self.header_bytes],
+                    self.little,
+                )
+            };
+            let (blocks, block_size, last) = (word(&bytes, 0), word(&bytes, 1), word(&bytes, 2));
+            if blocks == 0 || last != 0 || block_size == 0 {
+                continue;
+            }
+            let size = &mut bytes[2 * self.header_bytes..];
+            match (self.header_bytes, self.little) {
+                (8, true) => size.copy_from_slice(&block_size.to_le_bytes()),
+                (8, false) => size.copy_from_slice(&block_size.to_be_bytes()),
+                // A 4-byte header's block size fits 4 bytes (it was read from 4).
+                (_, true) => size.copy_from_slice(&(block_size as u32).to_le_bytes()),
+                (_, false) => size.copy_from_slice(&(block_size as u32).to_be_bytes()),
+            }
+            let text = patched.get_or_insert_with(|| xml.to_vec());
+            text[start..start + chars].copy_from_slice(engine.encode(&bytes).as_bytes());
+        }
+        patched
+    }
+}
+
+/// Refuse a compressed array whose header asks for more memory than its text could ever decompress
+/// to. Returns where the compressed arrays' headers are (none when the file names no compressor).
+pub(crate) fn check(xml: &[u8]) -> Result<Headers, ErrorKind> {
+    let none = Headers::default;
     let Some(vtkfile_start) = find(xml, b"<VTKFile", 0) else {
-        return Ok(());
+        return Ok(none());
     };
     let Some(vtkfile_end) = find(xml, b">", vtkfile_start) else {
-        return Ok(());
+        return Ok(none());
     };
     let vtkfile = &xml[vtkfile_start..vtkfile_end];
     if attribute(vtkfile, b"compressor").is_none_or(|c| c.is_empty()) {
-        return Ok(());
+        return Ok(none());
     }
     let zlib =
         attribute(vtkfile, b"compressor").as_deref() == Some(b"vtkZLibDataCompressor".as_slice());
@@ -45,6 +104,11 @@ pub(crate) fn check(xml: &[u8]) -> Result<(), ErrorKind> {
         } else {
             4
         };
+    let mut headers = Headers {
+        starts: Vec::new(),
+        header_bytes,
+        little,
+    };
     // The base64 appended data: from after the `_` to the next `<` (`</AppendedData>`).
     let appended = find(xml, b"<AppendedData", 0).and_then(|tag| {
         let end = find(xml, b">", tag)?;
@@ -69,13 +133,14 @@ pub(crate) fn check(xml: &[u8]) -> Result<(), ErrorKind> {
     let mut at = 0;
     while let Some(tag_start) = find(xml, b"<DataArray", at) {
         let Some(tag_end) = find(xml, b">", tag_start) else {
-            return Ok(());
+            return Ok(headers);
         };
         at = tag_end;
         let tag = &xml[tag_start..tag_end];
         match attribute(tag, b"format").as_deref() {
             Some(b"binary") => {
                 let text = xml[tag_end + 1..].trim_ascii_start();
+                headers.starts.push(xml.len() - text.len());
                 let length = text.iter().position(|&b| b == b'<').unwrap_or(text.len());
                 at = tag_end + length;
                 check_header(&text[..length], header_bytes, little, zlib)
@@ -96,7 +161,7 @@ pub(crate) fn check(xml: &[u8]) -> Result<(), ErrorKind> {
         }
     }
     let Some(data) = appended else {
-        return Ok(());
+        return Ok(headers);
     };
     let mut offsets: Vec<usize> = appended_arrays.iter().map(|(o, _)| *o).collect();
     offsets.sort_unstable();
@@ -112,10 +177,13 @@ pub(crate) fn check(xml: &[u8]) -> Result<(), ErrorKind> {
             data.start.saturating_add(next).min(data.end)
         });
         let text = xml[start..end].trim_ascii();
+        headers
+            .starts
+            .push(end - xml[start..end].trim_ascii_start().len());
         check_header(text, header_bytes, little, zlib)
             .map_err(|message| refuse(&xml[tag], message))?;
     }
-    Ok(())
+    Ok(headers)
 }
 
 /// Check the first three header values of one compressed array held in base64 `text`.
