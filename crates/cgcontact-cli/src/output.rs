@@ -130,11 +130,27 @@ pub fn check_outputs(inputs: &[(&str, &Path)], outputs: &[(&str, PathBuf)]) -> R
                 name.len()
             );
         }
-        let folder = match output.parent() {
+        // A symbolic link is written through, its target made if it does not exist yet: in the
+        // target's folder.
+        let Some(target) = cgcontact_io::write_target(output) else {
+            bail!(
+                "{}: {flag}: symbolic links that lead back to themselves",
+                output.display()
+            );
+        };
+        let folder = match target.parent() {
             Some(p) if !p.as_os_str().is_empty() => p,
             _ => Path::new("."),
         };
         if !folder.is_dir() {
+            if target != *output {
+                bail!(
+                    "{}: {flag} is a symbolic link to {}, whose folder {} does not exist",
+                    output.display(),
+                    target.display(),
+                    folder.display()
+                );
+            }
             bail!(
                 "{}: {flag}: the folder {} does not exist",
                 output.display(),

@@ -60,7 +60,8 @@ impl Drop for Registered {
 
 /// Write the file at `path` through `write`, atomically (see the module docs).
 ///
-/// A symbolic link is written through (its target is replaced, not the link). A target that
+/// A symbolic link is written through (its target is replaced, not the link; a link whose target
+/// does not exist yet makes it, in the target's folder: see [`write_target`]). A target that
 /// exists and is not a regular file (`/dev/null`, a named pipe) is written in place, since there
 /// is nothing there to keep. A folder is refused.
 pub fn write_file(
@@ -70,7 +71,11 @@ pub fn write_file(
     let path = path.as_ref();
     let in_file = |kind: ErrorKind| kind.in_file(path);
     let io = |e: std::io::Error| ErrorKind::Io(e).in_file(path);
-    let target = resolve(path);
+    let target = write_target(path).ok_or_else(|| {
+        in_file(ErrorKind::Mismatch(
+            "symbolic links that lead back to themselves".to_owned(),
+        ))
+    })?;
     let existing = std::fs::metadata(&target).ok();
     if let Some(meta) = &existing {
         if meta.is_dir() {
@@ -155,14 +160,32 @@ fn temporary_prefix(name: &std::ffi::OsStr) -> std::ffi::OsString {
     }
 }
 
-/// The file a path names: a symbolic link's target (as far as it resolves), else the path.
-fn resolve(path: &Path) -> PathBuf {
-    match std::fs::symlink_metadata(path) {
-        Ok(meta) if meta.file_type().is_symlink() => {
-            std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf())
+/// The file a write to `path` makes or replaces: a symbolic link's target, followed through
+/// every link even where the last one dangles (a link to a file not made yet: the file is made
+/// there, and the link then leads to it), else `path` itself. `None` for links that lead back to
+/// themselves.
+#[must_use]
+pub fn write_target(path: &Path) -> Option<PathBuf> {
+    // As the system allows (Linux's MAXSYMLINKS).
+    const MAX_LINKS: usize = 40;
+    let mut current = path.to_path_buf();
+    for _ in 0..=MAX_LINKS {
+        match std::fs::symlink_metadata(&current) {
+            Ok(meta) if meta.file_type().is_symlink() => {
+                if let Ok(canonical) = std::fs::canonicalize(&current) {
+                    return Some(canonical);
+                }
+                // Dangling: follow it by hand, a relative link from its own folder.
+                let link = std::fs::read_link(&current).ok()?;
+                current = match current.parent() {
+                    Some(folder) if link.is_relative() => folder.join(link),
+                    _ => link,
+                };
+            }
+            _ => return Some(current),
         }
-        _ => path.to_path_buf(),
     }
+    None
 }
 
 /// The writer's result, flushed; where the writer failed because the file did (a full disk),
@@ -288,6 +311,43 @@ mod tests {
             .filter(|n| n.to_string_lossy().ends_with(".partial"))
             .collect();
         assert!(left.is_empty(), "{left:?}");
+    }
+
+    /// A symbolic link to a file not made yet was replaced by a regular file, its target never
+    /// made: the link is written through, the file made at its target, in the target's folder.
+    #[cfg(unix)]
+    #[test]
+    fn dangling_symlink_is_written_through_to_its_target() {
+        let dir = tempfile::tempdir().unwrap();
+        let elsewhere = dir.path().join("elsewhere");
+        std::fs::create_dir(&elsewhere).unwrap();
+        let link = dir.path().join("link.csv");
+        // Relative to the link's folder, through a second dangling link.
+        std::os::unix::fs::symlink("second.csv", &link).unwrap();
+        std::os::unix::fs::symlink("elsewhere/made.csv", dir.path().join("second.csv")).unwrap();
+        write_file(&link, |out| Ok(out.write_all(b"new\n")?)).unwrap();
+        assert!(
+            std::fs::symlink_metadata(&link)
+                .unwrap()
+                .file_type()
+                .is_symlink()
+        );
+        assert_eq!(
+            std::fs::read_to_string(elsewhere.join("made.csv")).unwrap(),
+            "new\n"
+        );
+        // Links in a loop are an error, not a file made in their place.
+        let a = dir.path().join("a.csv");
+        std::os::unix::fs::symlink("b.csv", &a).unwrap();
+        std::os::unix::fs::symlink("a.csv", dir.path().join("b.csv")).unwrap();
+        let error = write_file(&a, |out| Ok(out.write_all(b"x\n")?)).unwrap_err();
+        assert!(error.to_string().contains("symbolic links"), "{error}");
+        assert!(
+            std::fs::symlink_metadata(&a)
+                .unwrap()
+                .file_type()
+                .is_symlink()
+        );
     }
 
     /// A full device is reported as such, even through a writer that renders I/O errors its own way.

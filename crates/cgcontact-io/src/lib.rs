@@ -61,7 +61,7 @@ mod xml_cells;
 mod xml_normal;
 
 pub use adaptive_mesh::{AdaptiveMesh, MeshBody};
-pub use atomic::{abandon_writes, write_file};
+pub use atomic::{abandon_writes, write_file, write_target};
 pub use csv_io::{
     GAP_HEADER, RESULTS_HEADER, ResultRow, parse_points, parse_results, read_points, read_results,
     write_owner_rows, write_points, write_results, write_results_counted, write_results_to,

@@ -288,6 +288,46 @@ fn out_names_near_the_length_limit_are_written_and_past_it_refused_first() {
     refused(&run, &["256 bytes", "--out"], &[]);
 }
 
+/// `--out` naming a symbolic link to a file not made yet replaced the link with a regular file
+/// and never made its target, though links are written through. Now the target is made (the
+/// link kept), and a link whose target's folder does not exist is refused before any work.
+#[cfg(unix)]
+#[test]
+fn out_through_a_dangling_symlink_makes_its_target() {
+    let (dir, mesh, points) = scene();
+    let link = dir.path().join("results.csv");
+    let target = dir.path().join("made.csv");
+    std::os::unix::fs::symlink(&target, &link).unwrap();
+    let run = locate(&mesh, &points, &["--out", s(&link), "-q"]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    assert!(
+        std::fs::symlink_metadata(&link)
+            .unwrap()
+            .file_type()
+            .is_symlink()
+    );
+    assert_eq!(
+        cgcontact_io::read_results(&target).unwrap().len(),
+        cgcontact_io::read_points(&points).unwrap().len()
+    );
+
+    let nowhere = dir.path().join("nowhere.csv");
+    std::os::unix::fs::symlink(dir.path().join("no-such-folder/x.csv"), &nowhere).unwrap();
+    let no_mesh = Path::new("/no/such/mesh.vtu");
+    let run = locate(no_mesh, &points, &["--out", s(&nowhere)]);
+    refused(
+        &run,
+        &["symbolic link", "no-such-folder", "does not exist"],
+        &[],
+    );
+    assert!(
+        std::fs::symlink_metadata(&nowhere)
+            .unwrap()
+            .file_type()
+            .is_symlink()
+    );
+}
+
 /// A legacy file cut just before `POINT_DATA` is a valid undeformed mesh: the summary says it has no
 /// displacement (text and `--json`), where it used to look like any other run.
 #[test]
