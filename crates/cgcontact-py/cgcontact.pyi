@@ -147,7 +147,8 @@ class Locator:
         """Signed gaps to the deformed boundary surface within `dist`: "gap" float64[n]
         (negative inside), "closest" float64[n, 3], "normal" float64[n, 3] (point = closest +
         gap * normal), "face_cell" int64[n], "face" int32[n] (VTK local face 0-5); NaN and -1
-        where the surface is farther than `dist`. `dist`: at least 0 and at most 1e150."""
+        where the surface is farther than `dist`. `dist`: at least 0 and at most 1e150. The
+        sign follows `locate` in this locator's precision: negative where it finds a cell."""
 
 def read_mesh(
     path: Union[str, os.PathLike],

@@ -80,8 +80,13 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         // A leaf's id is its index in the mesh written.
         let cells = CellMap::identity(scene.body.cell_count());
         let distance = scene.body.lattice().h().min_element();
-        let (gaps, gap) =
-            measure_gaps((&scene.body).into(), &scene.contact_points, distance, &pool);
+        let (gaps, gap) = measure_gaps(
+            (&scene.body).into(),
+            &scene.contact_points,
+            distance,
+            args.search.settings()?,
+            &pool,
+        );
         let mut summary = summary;
         summary.gap = Some(gap);
         write_rows(&results, &answers, &tried, &cells, &gaps)?;
@@ -103,8 +108,13 @@ pub fn run(args: &DemoArgs) -> Result<()> {
         )?;
         let cells = CellMap::ascending(&scene.body);
         let distance = scene.body.lattice().h().min_element();
-        let (gaps, gap) =
-            measure_gaps((&scene.body).into(), &scene.contact_points, distance, &pool);
+        let (gaps, gap) = measure_gaps(
+            (&scene.body).into(),
+            &scene.contact_points,
+            distance,
+            args.search.settings()?,
+            &pool,
+        );
         let mut summary = summary;
         summary.gap = Some(gap);
         write_rows(&results, &answers, &tried, &cells, &gaps)?;

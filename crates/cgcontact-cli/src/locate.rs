@@ -171,8 +171,9 @@ pub fn run(args: &LocateArgs) -> Result<()> {
             .input_cell(cgcontact::CellId(*cell as u32))
             .unwrap_or(*cell);
     }
+    let settings = args.search.settings()?;
     let gaps = args.gap.map(|d| {
-        let (gaps, gap) = measure_gaps(body, &points, d, &pool);
+        let (gaps, gap) = measure_gaps(body, &points, d, settings, &pool);
         summary.gap = Some(gap);
         gaps
     });
@@ -212,26 +213,29 @@ pub fn run(args: &LocateArgs) -> Result<()> {
 }
 
 /// The contact quantities of `points` towards `body`'s boundary surface within `distance` (finite,
-/// at least 0: checked by the caller), measured in f64 with the exact `GapFinder` on `pool`, and
-/// their summary.
+/// at least 0: checked by the caller), measured with the exact `GapFinder` on `pool`, and their
+/// summary. The gap's sign is the lattice locator's with the query's `settings` (precision,
+/// tolerances): a row's `cell` and `gap` agree whatever the precision (with f64 signs beside f32
+/// cells, a point up to about 1.5e-6 of a cell outside was held by the f32 locator and given a
+/// positive gap). The closest point and normal are computed in f64 either way.
 pub fn measure_gaps(
     body: BodyRef<'_>,
     points: &[cgcontact::glam::DVec3],
     distance: f64,
+    settings: Settings,
     pool: &rayon::ThreadPool,
 ) -> (Vec<GapAnswer>, GapSummary) {
     let start = Instant::now();
-    let settings = Settings::default();
     let mut gaps = Vec::new();
     pool.install(|| match body {
         BodyRef::Uniform(body) => {
-            let locator = LatticeLocator::new(body, settings).expect("default settings");
+            let locator = LatticeLocator::new(body, settings).expect("settings validated");
             GapFinder::new(&locator, distance)
                 .expect("a checked distance")
                 .gap_all_into(points, &mut gaps);
         }
         BodyRef::Adaptive(body) => {
-            let locator = AdaptiveLocator::new(body, settings).expect("default settings");
+            let locator = AdaptiveLocator::new(body, settings).expect("settings validated");
             GapFinder::new(&locator, distance)
                 .expect("a checked distance")
                 .gap_all_into(points, &mut gaps);

@@ -198,3 +198,70 @@ fn bad_distances_are_refused() {
         assert!(err.contains("--gap"), "{err}");
     }
 }
+
+/// A row's `cell` and `gap` agree in both precisions: points a hair outside the step's faces,
+/// edges and corners (1e-9 to 2e-6 of a cell, within f32's inside tolerance for the smaller
+/// ones), and as far inside: wherever the row names a cell, its gap is at most 0, and where it
+/// names none, its gap is positive. The gap was measured in f64 whatever `--precision`, so f32
+/// rows said "cell 4" beside a positive gap.
+#[test]
+fn a_rows_cell_and_gap_sign_agree_in_both_precisions() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = dir.path().join("step.vtk");
+    write_mesh(&mesh);
+    let mut points = String::from("x,y,z\n");
+    for d in [1e-9, 1e-7, 5e-7, 1e-6, 2e-6] {
+        for s in [1.0, -1.0] {
+            let e = s * d;
+            // Past the top face (z = 2), the front face (y = 0), the step's inner face (x = 2
+            // above z = 1), an edge and a corner.
+            for p in [
+                [0.5, 0.5, 2.0 + e],
+                [1.5, -e, 0.5],
+                [2.0 + e, 1.5, 1.5],
+                [3.0 + e, -e, 0.5],
+                [3.0 + e, 2.0 + e, 1.0 + e],
+            ] {
+                points += &format!("{},{},{}\n", p[0] + T[0], p[1] + T[1], p[2] + T[2]);
+            }
+        }
+    }
+    let points_path = dir.path().join("points.csv");
+    std::fs::write(&points_path, points).unwrap();
+    for precision in ["f64", "f32"] {
+        let out = dir.path().join(format!("{precision}.csv"));
+        let run = cgcontact(&[
+            "locate",
+            "--mesh",
+            mesh.to_str().unwrap(),
+            "--points",
+            points_path.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--gap",
+            "0.5",
+            "--precision",
+            precision,
+            "--quiet",
+        ]);
+        assert!(
+            run.status.success(),
+            "{}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+        let text = std::fs::read_to_string(&out).unwrap();
+        let (mut held, mut rows) = (0, 0);
+        for line in text.lines().skip(1) {
+            let f: Vec<&str> = line.split(',').collect();
+            let cell: i64 = f[1].parse().unwrap();
+            let gap: f64 = f[8].parse().unwrap();
+            assert_eq!(cell >= 0, gap <= 0.0, "{precision}: {line}");
+            held += usize::from(cell >= 0);
+            rows += 1;
+        }
+        assert_eq!(rows, 50);
+        // The 25 inside are held; in f32 some a hair outside too (the case at stake).
+        let least = if precision == "f32" { 26 } else { 25 };
+        assert!(held >= least, "{precision}: {held} held");
+    }
+}

@@ -461,8 +461,10 @@ impl PyLocator {
     /// float64[n, 3] (the unit outward normal there: point = closest + gap * normal, to 2 |gap|
     /// within the locator's rounding allowance of the surface), "face_cell" int64[n] (the cell
     /// of the face, numbered as `locate` numbers cells) and "face" int32[n] (its VTK local face
-    /// 0-5); NaN and -1 where the surface is farther than `dist`. Measured in f64 with the
-    /// library's default Newton settings whatever the locator's (as `cgcontact locate --gap`).
+    /// 0-5); NaN and -1 where the surface is farther than `dist`. The sign is the lattice
+    /// locator's with this locator's precision and tolerances, so that `gap` and `locate` agree on
+    /// which points a cell holds; the closest point and normal are computed in f64 (as
+    /// `cgcontact locate --gap`).
     fn gap<'py>(
         &self,
         py: Python<'py>,
@@ -483,7 +485,9 @@ impl PyLocator {
             let state = PyBody::read(&self.body);
             let state: &BodyState = &state;
             self.on_threads(|| -> PyResult<GapArrays> {
-                let settings = Settings::default();
+                // The sign is the lattice locator's with this locator's precision and tolerances,
+                // so that `gap` and `locate` agree on which points a cell holds.
+                let settings = self.settings;
                 let mut gaps = Vec::new();
                 match &state.body {
                     AnyBody::Uniform(body) => {

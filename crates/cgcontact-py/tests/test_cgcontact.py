@@ -1128,3 +1128,20 @@ def test_kept_buffers_never_leak_a_previous_batch():
         warm_cell, warm_xi = kept.relocate(points, out=(cell.copy(), xi.copy()))
         np.testing.assert_array_equal(warm_cell, cell)
         np.testing.assert_allclose(warm_xi, xi, atol=1e-12)
+
+
+def test_gap_sign_follows_locate_in_each_precision():
+    """A point a hair outside a face (1e-9 to 2e-6 of a cell) is held by the f32 locator within
+    its inside tolerance: `gap` then says it is inside too. The gap was measured in f64 whatever
+    the locator's precision, so `locate` gave a cell beside a positive gap."""
+    body = cgcontact.Body(origin=(0, 0, 0), spacing=(0.5, 0.5, 0.5), counts=(2, 2, 2))
+    hairs = np.array([1e-9, 1e-7, 5e-7, 1e-6, 2e-6])
+    points = np.concatenate([
+        np.column_stack([np.full(5, 0.3), np.full(5, 0.4), 1.0 + s * hairs]) for s in (1, -1)
+    ] + [np.column_stack([1.0 + hairs, 1.0 + hairs, np.full(5, 0.3)])])
+    for precision, least in (("f64", 5), ("f32", 6)):
+        locator = cgcontact.Locator(body, precision=precision)
+        cell, _ = locator.locate(points)
+        gap = locator.gap(points, 0.3)["gap"]
+        np.testing.assert_array_equal(cell >= 0, gap <= 0, err_msg=precision)
+        assert (cell >= 0).sum() >= least, precision
