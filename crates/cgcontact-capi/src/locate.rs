@@ -1,5 +1,6 @@
 //! Locators: settings, and locating a batch of points into caller-owned arrays.
 
+use std::ptr;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, RwLock, TryLockError};
 use std::time::Instant;
@@ -336,33 +337,78 @@ unsafe fn locate(
     status: *mut u8,
     warm: bool,
 ) -> Result<(), Failure> {
+    // SAFETY: forwarded from the caller.
+    let (locator, arrays) =
+        unsafe { query_arrays(locator, points, n_points, None, cells, xi, status) }?;
+    locate_checked(locator, arrays, warm)
+}
+
+/// A query's arrays, checked: lengths, alignment, and no output overlapping another or the
+/// points (`order` only for `cgc_locate_unordered`).
+struct Arrays<'a> {
+    points: &'a [DVec3],
+    order: Option<&'a mut [i64]>,
+    cells: &'a mut [i64],
+    xi: &'a mut [f64],
+    status: Option<&'a mut [u8]>,
+}
+
+/// The locator behind `locator` and the query's [`Arrays`], or the error for the first that is
+/// wrong; nothing is written.
+///
+/// # Safety
+/// As `cgc_locate_unordered` (`order` `None` for the other calls).
+unsafe fn query_arrays<'a>(
+    locator: *const CgcLocator,
+    points: *const f64,
+    n_points: usize,
+    order: Option<*mut i64>,
+    cells: *mut i64,
+    xi: *mut f64,
+    status: *mut u8,
+) -> Result<(&'a CgcLocator, Arrays<'a>), Failure> {
     let n3 = raw::triples(n_points, "points")?;
+    let status_len = if status.is_null() { 0 } else { n_points };
+    let order_region = match order {
+        Some(order) => raw::region(order, n_points, "order")?,
+        None => raw::region(ptr::null::<i64>(), 0, "order")?,
+    };
     raw::disjoint(&[
         raw::region(points, n3, "points")?,
+        order_region,
         raw::region(cells, n_points, "cells")?,
         raw::region(xi, n3, "xi")?,
-        raw::region(
-            status,
-            if status.is_null() { 0 } else { n_points },
-            "status",
-        )?,
+        raw::region(status, status_len, "status")?,
     ])?;
-    // SAFETY: the caller guarantees a live handle and arrays of the stated lengths, which were
-    // just checked not to overlap.
-    let (locator, points, cells, xi) = unsafe {
-        (
+    // SAFETY: the caller guarantees a live handle and arrays of the stated lengths (`status`
+    // NULL or as long), which were just checked not to overlap.
+    unsafe {
+        Ok((
             raw::handle(locator, "locator")?,
-            raw::points(points, n_points, "points")?,
-            raw::slice_mut(cells, n_points, "cells")?,
-            raw::slice_mut(xi, n3, "xi")?,
-        )
-    };
-    let status = if status.is_null() {
-        None
-    } else {
-        // SAFETY: as above.
-        Some(unsafe { raw::slice_mut(status, n_points, "status") }?)
-    };
+            Arrays {
+                points: raw::points(points, n_points, "points")?,
+                order: order
+                    .map(|order| raw::slice_mut(order, n_points, "order"))
+                    .transpose()?,
+                cells: raw::slice_mut(cells, n_points, "cells")?,
+                xi: raw::slice_mut(xi, n3, "xi")?,
+                status: (!status.is_null())
+                    .then(|| raw::slice_mut(status, n_points, "status"))
+                    .transpose()?,
+            },
+        ))
+    }
+}
+
+/// `cgc_locate` and `cgc_relocate` on checked arrays (`order` unused).
+fn locate_checked(locator: &CgcLocator, arrays: Arrays<'_>, warm: bool) -> Result<(), Failure> {
+    let Arrays {
+        points,
+        cells,
+        xi,
+        status,
+        ..
+    } = arrays;
     let first_bad = AtomicUsize::new(usize::MAX);
     locator.with_kept(|kept| {
         locator.with(|search, state| {
@@ -507,50 +553,29 @@ unsafe fn locate_unordered(
     xi: *mut f64,
     status: *mut u8,
 ) -> Result<(), Failure> {
-    let n3 = raw::triples(n_points, "points")?;
-    raw::disjoint(&[
-        raw::region(points, n3, "points")?,
-        raw::region(order, n_points, "order")?,
-        raw::region(cells, n_points, "cells")?,
-        raw::region(xi, n3, "xi")?,
-        raw::region(
-            status,
-            if status.is_null() { 0 } else { n_points },
-            "status",
-        )?,
-    ])?;
-    // SAFETY: the caller guarantees a live handle and arrays of the stated lengths, which were
-    // just checked not to overlap.
-    let (handle, points_in, order_out) = unsafe {
-        (
-            raw::handle(locator, "locator")?,
-            raw::points(points, n_points, "points")?,
-            raw::slice_mut(order, n_points, "order")?,
-        )
-    };
+    // SAFETY: forwarded from the caller.
+    let (handle, mut arrays) =
+        unsafe { query_arrays(locator, points, n_points, Some(order), cells, xi, status) }?;
+    let points_in = arrays.points;
     let sorted = handle.with(|search, _| search.sorts_batch(points_in))?;
     if !sorted {
         // The rows in the points' order: `cgc_locate`, piece by piece.
-        order_out
-            .par_iter_mut()
-            .enumerate()
-            .for_each(|(k, o)| *o = k as i64);
-        // SAFETY: forwarded from the caller (`order` was just written, and overlaps none).
-        return unsafe { locate(locator, points, n_points, cells, xi, status, false) };
+        if let Some(order) = arrays.order.as_deref_mut() {
+            order
+                .par_iter_mut()
+                .enumerate()
+                .for_each(|(k, o)| *o = k as i64);
+        }
+        return locate_checked(handle, arrays, false);
     }
-    // SAFETY: as above.
-    let (cells, xi) = unsafe {
-        (
-            raw::slice_mut(cells, n_points, "cells")?,
-            raw::slice_mut(xi, n3, "xi")?,
-        )
-    };
-    let status = if status.is_null() {
-        None
-    } else {
-        // SAFETY: as above.
-        Some(unsafe { raw::slice_mut(status, n_points, "status") }?)
-    };
+    let Arrays {
+        order,
+        cells,
+        xi,
+        status,
+        ..
+    } = arrays;
+    let order_out = order.expect("`query_arrays` was given one");
     let first_bad = AtomicUsize::new(usize::MAX);
     handle.with_kept(|kept| {
         handle.with(|search, state| {

@@ -1466,6 +1466,26 @@ fn unordered_rows_answer_their_points_bitwise() {
     assert_eq!(code, CgcError::InvalidArgument);
     assert!(last_error().contains("order"), "{}", last_error());
     assert!(shared.iter().all(|&c| c == -5) && xi.iter().all(|&x| x == -5.0));
+    // A NULL `order`: refused, nothing written.
+    // SAFETY: every array but `order` holds what is passed.
+    let code = unsafe {
+        cgc_locate_unordered(
+            handles.locator,
+            flat_points.as_ptr(),
+            10,
+            ptr::null_mut(),
+            shared.as_mut_ptr(),
+            xi.as_mut_ptr(),
+            ptr::null_mut(),
+        )
+    };
+    assert_eq!(code, CgcError::NullPointer);
+    assert!(
+        last_error().starts_with("order is NULL"),
+        "{}",
+        last_error()
+    );
+    assert!(shared.iter().all(|&c| c == -5) && xi.iter().all(|&x| x == -5.0));
 }
 
 /// A locator keeps the answers of its last sorted batch for its next call. Batches that grow and
