@@ -112,9 +112,6 @@ fn launcher_rank() -> Option<u64> {
     .find_map(|name| std::env::var(name).ok()?.trim().parse().ok())
 }
 
-/// The exit code of a run ended by Ctrl-C or SIGTERM: 128 + SIGINT's number, as shells report.
-const INTERRUPTED: i32 = 130;
-
 fn main() -> ExitCode {
     let cli = match Cli::try_parse() {
         Ok(cli) => cli,
@@ -138,20 +135,6 @@ fn main() -> ExitCode {
     // A bug of ours on one rank must end the run with one line, not leave the others waiting.
     cgcontact_mpi::abort_on_panic(2);
     let world = universe.world();
-    // Ctrl-C or SIGTERM, which mpirun forwards to every rank: no hidden temporary file is left
-    // beside an output (every output is as it was or complete), rank 0 says so in one line, and
-    // each rank exits with 130 as `cgcontact locate` does. Without the handler (it could not be
-    // set), the signal's default applies.
-    let rank = world.rank();
-    let _ = ctrlc::set_handler(move || {
-        cgcontact_io::abandon_writes();
-        if rank == 0 {
-            eprintln!(
-                "cgcontact-mpi: interrupted; outputs not yet complete were left as they were"
-            );
-        }
-        std::process::exit(INTERRUPTED);
-    });
     let Command::Locate(args) = &cli.command;
     match locate(&world, args) {
         Ok(()) => ExitCode::SUCCESS,
