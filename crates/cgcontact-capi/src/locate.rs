@@ -400,14 +400,15 @@ unsafe fn query_arrays<'a>(
     }
 }
 
-/// `cgc_locate` and `cgc_relocate` on checked arrays (`order` unused).
+/// `cgc_locate`, `cgc_relocate` (`warm`) and `cgc_locate_unordered` (with `order`) on checked
+/// arrays, with one locator built for the query.
 fn locate_checked(locator: &CgcLocator, arrays: Arrays<'_>, warm: bool) -> Result<(), Failure> {
     let Arrays {
         points,
+        order,
         cells,
         xi,
         status,
-        ..
     } = arrays;
     let first_bad = AtomicUsize::new(usize::MAX);
     locator.with_kept(|kept| {
@@ -428,6 +429,24 @@ fn locate_checked(locator: &CgcLocator, arrays: Arrays<'_>, warm: bool) -> Resul
                         cells[i]
                     ),
                 ));
+            }
+            let sorted = search.sorts_batch(points);
+            if let Some(order) = order {
+                if sorted {
+                    let Kept {
+                        answers,
+                        order: found,
+                    } = kept;
+                    search.locate_all_unordered_into(points, found, answers);
+                    let answered = (&found[..], &answers[..]);
+                    write_unordered(state, answered, order, cells, xi, status, &first_bad);
+                    return Ok(());
+                }
+                // Not sorted: the rows in the points' order, answered as `cgc_locate` does.
+                order
+                    .par_iter_mut()
+                    .enumerate()
+                    .for_each(|(k, o)| *o = k as i64);
             }
             // A point's answer, cold or warm (`answers` holds the hints, read from `cells` and `xi`).
             let answer =
@@ -460,7 +479,7 @@ fn locate_checked(locator: &CgcLocator, arrays: Arrays<'_>, warm: bool) -> Resul
             // A batch the library may sort by cell (a large body) is answered whole, then written
             // piece by piece: split into pieces, it would be answered in the caller's order, up to
             // 2.5x slower at scale. Else each piece is answered and written while in cache.
-            let whole = search.sorts_batch(points).then(|| {
+            let whole = sorted.then(|| {
                 answer(points, cells, xi, &mut kept.answers);
                 &kept.answers[..]
             });
@@ -554,72 +573,55 @@ unsafe fn locate_unordered(
     status: *mut u8,
 ) -> Result<(), Failure> {
     // SAFETY: forwarded from the caller.
-    let (handle, mut arrays) =
+    let (handle, arrays) =
         unsafe { query_arrays(locator, points, n_points, Some(order), cells, xi, status) }?;
-    let points_in = arrays.points;
-    let sorted = handle.with(|search, _| search.sorts_batch(points_in))?;
-    if !sorted {
-        // The rows in the points' order: `cgc_locate`, piece by piece.
-        if let Some(order) = arrays.order.as_deref_mut() {
-            order
-                .par_iter_mut()
-                .enumerate()
-                .for_each(|(k, o)| *o = k as i64);
-        }
-        return locate_checked(handle, arrays, false);
-    }
-    let Arrays {
-        order,
-        cells,
-        xi,
-        status,
-        ..
-    } = arrays;
-    let order_out = order.expect("`query_arrays` was given one");
-    let first_bad = AtomicUsize::new(usize::MAX);
-    handle.with_kept(|kept| {
-        handle.with(|search, state| {
-            let Kept {
-                answers,
-                order: found,
-            } = kept;
-            search.locate_all_unordered_into(points_in, found, answers);
-            let rows = order_out
-                .par_chunks_mut(PIECE)
-                .zip(cells.par_chunks_mut(PIECE))
-                .zip(xi.par_chunks_mut(3 * PIECE))
-                .zip(found.par_chunks(PIECE).zip(answers.par_chunks(PIECE)));
-            let write = |order: &mut [i64],
-                         cells: &mut [i64],
-                         xi: &mut [f64],
-                         (found, answers): (&[usize], &[Answer]),
-                         mut status: Option<&mut [u8]>| {
-                for (k, (&i, answer)) in found.iter().zip(answers).enumerate() {
-                    let (cell, local, code) = converted(state, answer);
-                    if code == CGC_POINT_NON_FINITE {
-                        first_bad.fetch_min(i, Ordering::Relaxed);
-                    }
-                    order[k] = i as i64;
-                    cells[k] = cell;
-                    local.write_to_slice(&mut xi[3 * k..3 * k + 3]);
-                    if let Some(status) = status.as_deref_mut() {
-                        status[k] = code;
-                    }
-                }
-            };
-            match status {
-                Some(status) => rows.zip(status.par_chunks_mut(PIECE)).for_each(
-                    |((((order, cells), xi), answered), status)| {
-                        write(order, cells, xi, answered, Some(status))
-                    },
-                ),
-                None => rows.for_each(|(((order, cells), xi), answered)| {
-                    write(order, cells, xi, answered, None)
-                }),
+    locate_checked(handle, arrays, false)
+}
+
+/// `cgc_locate_unordered`'s rows from the library's unordered answers of a sorted batch: row k
+/// answers point `found[k]` (written to `order[k]`); `first_bad` gets the first refused point
+/// in the points' order.
+fn write_unordered(
+    state: &BodyState,
+    (found, answers): (&[usize], &[Answer]),
+    order_out: &mut [i64],
+    cells: &mut [i64],
+    xi: &mut [f64],
+    status: Option<&mut [u8]>,
+    first_bad: &AtomicUsize,
+) {
+    let rows = order_out
+        .par_chunks_mut(PIECE)
+        .zip(cells.par_chunks_mut(PIECE))
+        .zip(xi.par_chunks_mut(3 * PIECE))
+        .zip(found.par_chunks(PIECE).zip(answers.par_chunks(PIECE)));
+    let write = |order: &mut [i64],
+                 cells: &mut [i64],
+                 xi: &mut [f64],
+                 (found, answers): (&[usize], &[Answer]),
+                 mut status: Option<&mut [u8]>| {
+        for (k, (&i, answer)) in found.iter().zip(answers).enumerate() {
+            let (cell, local, code) = converted(state, answer);
+            if code == CGC_POINT_NON_FINITE {
+                first_bad.fetch_min(i, Ordering::Relaxed);
             }
-        })
-    })?;
-    first_non_finite(points_in, first_bad.into_inner())
+            order[k] = i as i64;
+            cells[k] = cell;
+            local.write_to_slice(&mut xi[3 * k..3 * k + 3]);
+            if let Some(status) = status.as_deref_mut() {
+                status[k] = code;
+            }
+        }
+    };
+    match status {
+        Some(status) => rows.zip(status.par_chunks_mut(PIECE)).for_each(
+            |((((order, cells), xi), answered), status)| {
+                write(order, cells, xi, answered, Some(status))
+            },
+        ),
+        None => rows
+            .for_each(|(((order, cells), xi), answered)| write(order, cells, xi, answered, None)),
+    }
 }
 
 /// Whether `number` may be a previous answer of the body in `state`: −1, or one of its cells (on a
