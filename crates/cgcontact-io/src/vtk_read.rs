@@ -200,9 +200,20 @@ fn parse_vtk(bytes: &[u8]) -> Result<Vtk, ErrorKind> {
                 use vtkio::xml::{Error as XmlError, ValidationError as Invalid};
                 // Errors that name no array, or not the attribute at fault: said in words, with the line.
                 let said = match &e {
-                    vtkio::Error::XML(XmlError::Validation(Invalid::InvalidDataFormat)) => {
-                        xml_cells::cell_array_fault(xml)
-                    }
+                    vtkio::Error::XML(XmlError::Validation(Invalid::InvalidDataFormat)) => Some(
+                        xml_cells::cell_array_fault(xml, xml_cells::Sought::Uncastable)
+                            .unwrap_or_else(|| {
+                                "a cell array holds a value no cell array can hold (a \
+                                     negative node number or offset, a cell type above 255)"
+                                    .to_owned()
+                            }),
+                    ),
+                    vtkio::Error::XML(XmlError::Validation(Invalid::InvalidCellType(t))) => Some(
+                        xml_cells::cell_array_fault(xml, xml_cells::Sought::CellType(*t))
+                            .unwrap_or_else(|| {
+                                format!("the cell array `types` holds {t}: not a VTK cell type")
+                            }),
+                    ),
                     vtkio::Error::XML(XmlError::Validation(Invalid::DataArraySizeMismatch {
                         name,
                         expected,
@@ -272,13 +283,15 @@ fn check_xml_arrays(xml: &[u8]) -> Result<(), ErrorKind> {
             ))))
         };
         if name == b"DataArray" {
-            check_appended_offset(&tag).map_err(|what| {
+            check_appended_offset(&tag, end < xml.len()).map_err(|what| {
                 ErrorKind::Vtk(crate::one_line(&format!("line {}: {what}", line(at))))
             })?;
         }
-        xml_cells::check_counts(&tag).map_err(|what| {
-            ErrorKind::Vtk(crate::one_line(&format!("line {}: {what}", line(at))))
-        })?;
+        xml_cells::check_required(&tag)
+            .and_then(|()| xml_cells::check_counts(&tag))
+            .map_err(|what| {
+                ErrorKind::Vtk(crate::one_line(&format!("line {}: {what}", line(at))))
+            })?;
         let parent = open.last().map(Vec::as_slice);
         // Pieces of other data sets (poly data's `Polys`, ...) are refused later, by data set.
         let grid_piece = open.len() >= 2 && open[open.len() - 2] == b"UnstructuredGrid";
@@ -346,8 +359,12 @@ fn check_xml_arrays(xml: &[u8]) -> Result<(), ErrorKind> {
 
 /// An appended data array must say where its data are: vtkio reads an array without `offset`
 /// (or with a misspelt `offzet`) from offset 0, the first array's block, and the mesh was solved
-/// with the points as displacements.
-fn check_appended_offset(tag: &quick_xml::events::BytesStart) -> Result<(), String> {
+/// with the points as displacements. And the file must have appended data (vtkio's
+/// "InvalidDataFormat" named neither the array nor the cause).
+fn check_appended_offset(
+    tag: &quick_xml::events::BytesStart,
+    has_appended_data: bool,
+) -> Result<(), String> {
     let value = |name: &str| {
         tag.try_get_attribute(name)
             .ok()
@@ -361,6 +378,11 @@ fn check_appended_offset(tag: &quick_xml::events::BytesStart) -> Result<(), Stri
         || "an unnamed appended data array".to_owned(),
         |n| format!("the appended data array {}", crate::excerpt(&n, 60)),
     );
+    if !has_appended_data {
+        return Err(format!(
+            "{array}: the file has no <AppendedData> to hold it"
+        ));
+    }
     let offset = value("offset").ok_or_else(|| format!("{array} has no offset attribute"))?;
     let parsed = std::str::from_utf8(&offset)
         .ok()
