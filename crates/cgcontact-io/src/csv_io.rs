@@ -22,7 +22,9 @@ pub const RESULTS_HEADER: [&str; 8] = [
 
 /// Read query points from a CSV file: three columns x, y, z; an optional header line.
 ///
-/// The first row is a header when none of its fields is a number (`x,y,z`, say). Blank lines and
+/// The first row is a header when none of its fields is a number (`x,y,z`, say). A header that
+/// names x, y and z in another order (`z,y,x`) is followed: each column is read as the axis it
+/// names. Blank lines and
 /// lines starting with `#` are skipped; fields may be padded with spaces. NaN and infinite values
 /// (`nan`, `inf`) are read as such, so the library can answer for each point; a field that is not a
 /// number, or a row without exactly 3 fields, is an error naming its 1-based line. A file without
@@ -57,6 +59,8 @@ fn points_from_bytes(bytes: &[u8]) -> Result<Vec<DVec3>, ErrorKind> {
     let mut points = Vec::new();
     let mut record = csv::StringRecord::new();
     let mut first = true;
+    // The axis of each column: positional unless the header names the axes in another order.
+    let mut columns = [0, 1, 2];
     while let Some(line) = next_record(&mut csv, &mut record, &mut lines)? {
         if first {
             first = false;
@@ -68,6 +72,8 @@ fn points_from_bytes(bytes: &[u8]) -> Result<Vec<DVec3>, ErrorKind> {
                         message: wrong_field_count(&record, "header"),
                     });
                 }
+                columns =
+                    header_axes(&record).map_err(|message| ErrorKind::Csv { line, message })?;
                 continue;
             }
         }
@@ -78,12 +84,12 @@ fn points_from_bytes(bytes: &[u8]) -> Result<Vec<DVec3>, ErrorKind> {
             });
         }
         let mut xyz = [0.0; 3];
-        for (axis, text) in record.iter().enumerate() {
-            xyz[axis] = text.parse().map_err(|_| ErrorKind::Csv {
+        for (field, text) in record.iter().enumerate() {
+            xyz[columns[field]] = text.parse().map_err(|_| ErrorKind::Csv {
                 line,
                 message: format!(
                     "field {} ({}) is not a number",
-                    axis + 1,
+                    field + 1,
                     crate::excerpt(text.as_bytes(), 32)
                 ),
             })?;
@@ -94,6 +100,44 @@ fn points_from_bytes(bytes: &[u8]) -> Result<Vec<DVec3>, ErrorKind> {
         return Err(ErrorKind::Empty);
     }
     Ok(points)
+}
+
+/// The axis each column of a points file holds, from its 3-field header: x, y and z in any order
+/// (case and padding aside) are read by name; a header that names no axis out of its column
+/// (`x,y,z`, `a,b,c`, `x,y,depth`) is read by position. A header that names an axis out of its
+/// column without naming all three once (`y,x,depth`, `x,x,z`) is an error: read by position,
+/// it would swap coordinates without a word.
+fn header_axes(header: &csv::StringRecord) -> Result<[usize; 3], String> {
+    let axis = |field: &str| match field.trim().to_ascii_lowercase().as_str() {
+        "x" => Some(0),
+        "y" => Some(1),
+        "z" => Some(2),
+        _ => None,
+    };
+    let named: Vec<Option<usize>> = header.iter().map(axis).collect();
+    let mut seen = [false; 3];
+    let permutation = named
+        .iter()
+        .all(|a| a.is_some_and(|a| !std::mem::replace(&mut seen[a], true)));
+    if permutation {
+        return Ok([0, 1, 2].map(|k| named[k].unwrap_or(k)));
+    }
+    if named
+        .iter()
+        .enumerate()
+        .all(|(k, a)| a.is_none_or(|a| a == k))
+    {
+        return Ok([0, 1, 2]);
+    }
+    let fields: Vec<String> = header
+        .iter()
+        .map(|f| crate::excerpt(f.as_bytes(), 16))
+        .collect();
+    Err(format!(
+        "header {} names the axes out of their columns without naming x, y and z once each: \
+         name all three, in any order, or none",
+        fields.join(",")
+    ))
 }
 
 /// Write points as CSV with header `x,y,z` (shortest round-trip form: read back bitwise).

@@ -31,6 +31,33 @@ fn good_files_with_and_without_header() {
     assert!(odd[0].x.is_nan() && odd[0].y == f64::INFINITY && odd[0].z == f64::NEG_INFINITY);
 }
 
+/// A header naming x, y and z in another order was skipped and its columns read as x, y, z: a
+/// `z,y,x` file had its points mirrored without a word. Each column is now the axis it names;
+/// a header that names an axis out of its column without naming all three is an error.
+#[test]
+fn a_header_naming_the_axes_in_another_order_is_followed() {
+    let expected = vec![DVec3::new(1.0, 2.0, 3.0), DVec3::new(-0.5, 7.0, 4e6)];
+    for (header, rows) in [
+        ("z,y,x", "3,2,1\n4e6,7,-0.5\n"),
+        ("y,z,x", "2,3,1\n7,4e6,-0.5\n"),
+        (" Z , X ,y", "3,1,2\n4e6,-0.5,7\n"),
+        ("\"x\",\"z\",\"y\"", "1,3,2\n-0.5,4e6,7\n"),
+        // Named in place, or not named: by position.
+        ("x,y,depth", "1,2,3\n-0.5,7,4e6\n"),
+        ("a,b,c", "1,2,3\n-0.5,7,4e6\n"),
+    ] {
+        let read = points(&format!("{header}\n{rows}")).unwrap();
+        assert_eq!(read, expected, "{header}");
+    }
+    for header in ["y,x,depth", "x,x,z", "a,x,c", "z,z,z"] {
+        let message = message_of(&format!("{header}\n1,2,3\n"));
+        assert!(
+            message.contains("line 1") && message.contains("out of their columns"),
+            "{header}: {message}"
+        );
+    }
+}
+
 #[test]
 fn bad_rows_name_their_line() {
     assert_eq!(line_of("x,y,z\n1,2,3\n1,2\n"), 3);
