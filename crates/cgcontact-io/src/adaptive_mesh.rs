@@ -17,7 +17,8 @@ use cgcontact::{AdaptiveBody, CORNER_OFFSETS, Lattice, Leaf};
 use glam::DVec3;
 
 use crate::mesh::{
-    F32_ROUNDING_SLACK, LatticeMesh, ROUNDING_SLACK, all_f32, coordinate_slack, merge_displacements,
+    F32_ROUNDING_SLACK, LatticeMesh, ROUNDING_SLACK, all_f32, coordinate_slack, keep_offsets,
+    merge_displacements,
 };
 use crate::{CellMap, ErrorKind, HexMesh, LATTICE_TOLERANCE};
 
@@ -450,9 +451,11 @@ impl HexMesh {
             };
             constraint_tolerance += DVec3::splat(slack * body.max_displacement().max_element());
         }
+        let constraints = body.check_constraints_per_axis(constraint_tolerance);
+        self.add_lattice_offsets(&mut body, used, &q)?;
         let cells = CellMap::identity(self.cells.len());
         Ok(AdaptiveMesh {
-            constraints: body.check_constraints_per_axis(constraint_tolerance),
+            constraints,
             constraint_tolerance_by_axis: constraint_tolerance,
             constraint_tolerance: constraint_tolerance.min_element(),
             body,
@@ -460,5 +463,49 @@ impl HexMesh {
             point_count: self.points.len(),
             has_displacement: self.displacement.is_some(),
         })
+    }
+
+    /// Adds to each node's displacement how far the file has it from its lattice position (the
+    /// first input node at it; `q` every used node's finest-lattice coordinates), when one is
+    /// beyond f64 rounding ([`keep_offsets`]), so that the
+    /// deformed nodes are the file's, as [`HexMesh::to_lattice`] does for uniform meshes: VTK's
+    /// default float points lie up to 6e-8 of a cell off the lattice, and dropping that moved
+    /// the faces off the file's (points on shared nodes and faces lost owners). A hanging node
+    /// keeps its own offset too, as the file has it, so that every leaf is the file's: a point
+    /// made from a leaf's corners as the file holds them is in that leaf. The hanging node then
+    /// lies off the coarse face by its coordinates' rounding (6e-8 of a cell for floats at a
+    /// spacing of 0.1): the file's own mesh is conforming only to that rounding. Interpolating
+    /// its offset instead kept the mesh conforming but moved the fine leaves off the file's, and
+    /// a tenth of the points made on their faces were in no leaf.
+    fn add_lattice_offsets(
+        &self,
+        body: &mut AdaptiveBody,
+        used: &BitVec,
+        q: &[[u32; 3]],
+    ) -> Result<(), ErrorKind> {
+        let mut offsets = vec![DVec3::ZERO; body.node_count()];
+        let mut set: BitVec = BitVec::repeat(false, offsets.len());
+        for n in used.iter_ones() {
+            let node = body
+                .node_at_finest(q[n])
+                .expect("a corner of a cell is a node of the body");
+            if !set.replace(node, true) {
+                let position = body
+                    .node_position(node)
+                    .expect("a node of the body has a position");
+                offsets[node] = self.points[n] - position;
+            }
+        }
+        let lattice = body.lattice();
+        let magnitude = lattice.origin().abs().max(lattice.upper().abs());
+        let Some(offsets) = keep_offsets(offsets, magnitude) else {
+            return Ok(());
+        };
+        let sum: Vec<DVec3> = (body.displacements().iter())
+            .zip(&offsets)
+            .map(|(u, o)| *u + *o)
+            .collect();
+        body.set_displacements(&sum)?;
+        Ok(())
     }
 }

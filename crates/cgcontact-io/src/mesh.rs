@@ -45,6 +45,23 @@ pub(crate) fn coordinate_slack(
     }
 }
 
+/// Below this share of the coordinates' magnitude (per axis), nodes' offsets from their lattice
+/// positions are the rounding of f64 arithmetic (`origin + i * h` with a spacing found to an ulp)
+/// and the nodes are taken at their lattice positions. When any node is farther off (coordinates
+/// stored as floats: 6e-8 of their magnitude; printed with 11 or 6 digits), every node keeps its
+/// offset, as displacement ([`keep_offsets`]).
+pub(crate) const ROUNDING_OFFSET: f64 = 64.0 * f64::EPSILON;
+
+/// `offsets` (of nodes from their lattice positions) when one of them is beyond the rounding of
+/// f64 arithmetic at `magnitude` ([`ROUNDING_OFFSET`]), else `None`.
+pub(crate) fn keep_offsets(offsets: Vec<DVec3>, magnitude: DVec3) -> Option<Vec<DVec3>> {
+    let rounding = ROUNDING_OFFSET * magnitude;
+    offsets
+        .iter()
+        .any(|o| o.abs().cmpgt(rounding).any())
+        .then_some(offsets)
+}
+
 /// A lattice may have at most this many nodes, or 64 per node in use if that is more. Beyond that
 /// the body's per-node slot array (4 bytes per lattice node) would dwarf the mesh: a few cells far
 /// apart, or a spacing detected wrong.
@@ -362,9 +379,18 @@ impl HexMesh {
         let cells = self.lattice_cells(&lattice, &node_ijk)?;
 
         let mut body = Body::from_cells(lattice, cells.lattice_of_input.iter().copied())?;
-        if let Some(u) = &self.displacement {
-            let u = self.slot_displacements(&body, &used, &node_ijk, u)?;
-            body.set_displacements(&u)?;
+        let u = match &self.displacement {
+            Some(u) => Some(self.slot_displacements(&body, &used, &node_ijk, u)?),
+            None => None,
+        };
+        // The nodes where the file has them: the lattice positions are only where they round to.
+        match (u, self.lattice_offsets(&body, &used, &node_ijk)) {
+            (Some(u), Some(offsets)) => {
+                let sum: Vec<DVec3> = u.iter().zip(&offsets).map(|(u, o)| *u + *o).collect();
+                body.set_displacements(&sum)?;
+            }
+            (Some(values), None) | (None, Some(values)) => body.set_displacements(&values)?,
+            (None, None) => {}
         }
         Ok(LatticeMesh {
             body,
@@ -555,6 +581,36 @@ impl HexMesh {
     /// The displacements of `body`'s nodes in its slot order (ascending lattice node), from the
     /// used input nodes, checking that coinciding input nodes agree. Memory grows with the used
     /// nodes, not the lattice.
+    /// How far each body node's input node lies from its lattice position (`None` when every
+    /// one lies within f64 rounding of it: [`keep_offsets`]), in body node order; of copies of a
+    /// node, the first input node's.
+    ///
+    /// A node counts as a lattice node within [`LATTICE_TOLERANCE`] of a spacing plus the
+    /// rounding of its coordinates: VTK's default float points at a spacing of 0.1 lie up to
+    /// 6e-8 of a cell off it. Dropping that offset moved the body's faces off the file's: a
+    /// point on a shared node or face, given where the file has it, lost owners, and one on a
+    /// boundary face was outside the body. The offset is added to the displacement instead, so
+    /// that the deformed nodes are the file's (position plus displacement) to an ulp.
+    fn lattice_offsets(
+        &self,
+        body: &Body,
+        used: &BitVec,
+        node_ijk: &[[u32; 3]],
+    ) -> Option<Vec<DVec3>> {
+        let lattice = body.lattice();
+        let mut by_node: Vec<(usize, usize)> = used
+            .iter_ones()
+            .map(|n| (lattice.node_index(node_ijk[n]), n))
+            .collect();
+        by_node.sort_unstable();
+        by_node.dedup_by_key(|&mut (node, _)| node);
+        let offsets: Vec<DVec3> = by_node
+            .into_iter()
+            .map(|(_, n)| self.points[n] - lattice.node_position(node_ijk[n]))
+            .collect();
+        keep_offsets(offsets, lattice.origin().abs().max(lattice.upper().abs()))
+    }
+
     fn slot_displacements(
         &self,
         body: &Body,

@@ -14,6 +14,7 @@ mod regression_appended_array_without_offset;
 mod regression_block_of_the_wrong_size;
 mod regression_corrupt_block_header_aborted;
 mod regression_corrupt_displacement_dropped;
+mod regression_float_points_off_the_lattice;
 mod regression_legacy_counts_blamed_line_1;
 mod regression_legacy_names_percent_encoded;
 mod regression_many_appended_arrays_quadratic;

@@ -1,0 +1,222 @@
+//! Regression: meshes whose coordinates are 32-bit floats (VTK's `vtkPoints` default) lie off
+//! their lattice by the floats' rounding, 6e-8 of a cell at a spacing of 0.1. The reader took
+//! each node at its lattice position and dropped that offset, so the body's faces were not the
+//! file's: a point on a shared node or face, given where the file has it, lost owners (an
+//! interior node of a 3 × 3 × 3 block: 1 owner of 8), and a point on a boundary face was outside
+//! the body. The offset now goes into the displacement, so that the deformed nodes are the
+//! file's, in uniform and adaptive meshes alike.
+//!
+//! The independent answer: points made from each cell's corners as the file holds them (the
+//! trilinear map at ξ ∈ {−1, 0, 1}³: nodes, edge and face centres, the centre), whose owners
+//! are the cells whose closed box holds the point's lattice position.
+
+use std::collections::BTreeSet;
+
+use cgcontact::{
+    AdaptiveBody, AdaptiveLocator, CORNER_OFFSETS, CellId, Lattice, LatticeLocator, Leaf, Locator,
+    Settings,
+};
+use cgcontact_io::{CellMap, HexMesh, MeshBody};
+use glam::DVec3;
+
+/// The trilinear map of a cell's 8 deformed corners (VTK order) at `xi`.
+fn map(corners: &[DVec3; 8], xi: DVec3) -> DVec3 {
+    let mut x = DVec3::ZERO;
+    for (c, offset) in CORNER_OFFSETS.iter().enumerate() {
+        let s = DVec3::new(offset[0] as f64, offset[1] as f64, offset[2] as f64) * 2.0 - 1.0;
+        let w = (DVec3::ONE + s * xi) * 0.5;
+        x += corners[c] * (w.x * w.y * w.z);
+    }
+    x
+}
+
+/// The mesh as a file of float coordinates holds it: each coordinate rounded to f32.
+fn as_floats(mesh: &HexMesh) -> HexMesh {
+    let round = |p: &DVec3| DVec3::from_array(p.to_array().map(|c| f64::from(c as f32)));
+    HexMesh {
+        points: mesh.points.iter().map(round).collect(),
+        ..mesh.clone()
+    }
+}
+
+/// Each cell's deformed corners as the file holds them.
+fn deformed(mesh: &HexMesh, cell: usize) -> [DVec3; 8] {
+    mesh.cells[cell].map(|n| {
+        let u = mesh
+            .displacement
+            .as_ref()
+            .map_or(DVec3::ZERO, |u| u[n as usize]);
+        mesh.points[n as usize] + u
+    })
+}
+
+/// Every point made from each cell at ξ ∈ {−1, 0, 1}³, with its cell and its position on the
+/// finest lattice in half steps (`2 · low + s · (ξ + 1)` for a cell of `s` finest steps).
+fn probes(mesh: &HexMesh, low: &[[u32; 3]], size: &[u32]) -> Vec<(DVec3, usize, [u32; 3])> {
+    let mut out = Vec::new();
+    for cell in 0..mesh.cells.len() {
+        let corners = deformed(mesh, cell);
+        for k in 0..27u32 {
+            let step = [k % 3, (k / 3) % 3, k / 9];
+            let xi = DVec3::new(step[0] as f64, step[1] as f64, step[2] as f64) - 1.0;
+            let half = std::array::from_fn(|a| 2 * low[cell][a] + size[cell] * step[a]);
+            out.push((map(&corners, xi), cell, half));
+        }
+    }
+    out
+}
+
+/// The cells whose closed box holds the half-step lattice position `half`.
+fn owners_of(low: &[[u32; 3]], size: &[u32], half: [u32; 3]) -> BTreeSet<usize> {
+    (0..low.len())
+        .filter(|&c| {
+            (0..3).all(|a| 2 * low[c][a] <= half[a] && half[a] <= 2 * (low[c][a] + size[c]))
+        })
+        .collect()
+}
+
+fn found(owners: &cgcontact::Owners, cells: &CellMap) -> BTreeSet<usize> {
+    owners
+        .iter()
+        .map(|hit| cells.input_cell(hit.cell).expect("a cell of the mesh"))
+        .collect()
+}
+
+/// A 3 × 3 × 3 block without its centre cell, at an origin and spacings floats cannot hold.
+fn uniform_mesh(displaced: bool) -> (HexMesh, Vec<[u32; 3]>) {
+    let origin = DVec3::new(0.1, -0.2, 0.3);
+    let h = DVec3::new(0.1, 0.3, 0.7);
+    let node = |i: u32, j: u32, k: u32| i + 4 * (j + 4 * k);
+    let mut points = Vec::new();
+    for k in 0..4 {
+        for j in 0..4 {
+            for i in 0..4 {
+                points.push(origin + h * DVec3::new(i as f64, j as f64, k as f64));
+            }
+        }
+    }
+    let mut cells = Vec::new();
+    let mut low = Vec::new();
+    for k in 0..3 {
+        for j in 0..3 {
+            for i in 0..3 {
+                if [i, j, k] == [1, 1, 1] {
+                    continue;
+                }
+                cells.push(CORNER_OFFSETS.map(|[a, b, c]| node(i + a, j + b, k + c)));
+                low.push([i, j, k]);
+            }
+        }
+    }
+    let displacement = displaced.then(|| {
+        points
+            .iter()
+            .map(|p| 0.04 * h * DVec3::new((7.0 * p.y).sin(), (5.0 * p.z).cos(), (3.0 * p.x).sin()))
+            .collect()
+    });
+    let mesh = HexMesh {
+        points,
+        cells,
+        displacement,
+    };
+    (as_floats(&mesh), low)
+}
+
+#[test]
+fn points_where_a_float_file_has_them_keep_every_owner_in_a_uniform_mesh() {
+    for displaced in [false, true] {
+        let (mesh, low) = uniform_mesh(displaced);
+        let size = vec![1; low.len()];
+        let MeshBody::Uniform(read) = mesh.to_body().unwrap() else {
+            panic!("read as adaptive");
+        };
+        let locator = LatticeLocator::new(&read.body, Settings::default()).unwrap();
+        let mut lost = Vec::new();
+        for (x, cell, half) in probes(&mesh, &low, &size) {
+            let expected = owners_of(&low, &size, half);
+            let got = found(&locator.locate_owners(x).unwrap(), &read.cells);
+            if got != expected {
+                lost.push((cell, half, expected, got));
+            }
+        }
+        assert!(
+            lost.is_empty(),
+            "displaced {displaced}: {} of {} probes: {:?}",
+            lost.len(),
+            26 * 27,
+            &lost[..lost.len().min(4)]
+        );
+    }
+}
+
+#[test]
+fn points_where_a_float_file_has_them_are_in_their_leaf_in_an_adaptive_mesh() {
+    // Base cells 3 × 2 × 2 of spacings floats cannot hold; the first refined twice toward its
+    // lowest corner (a jump of two levels), the last once.
+    let origin = DVec3::new(0.1, -0.3, 0.7);
+    let h = DVec3::new(0.3, 0.1, 0.7);
+    let cells = [3, 2, 2];
+    let mut leaves = Vec::new();
+    let n = cells[0] * cells[1] * cells[2];
+    for c in 1..n - 1 {
+        leaves.push(Leaf::new(0, [c % 3, (c / 3) % 2, c / 6]));
+    }
+    let mut corner = Leaf::new(0, [0, 0, 0]);
+    for _ in 0..2 {
+        let children = corner.children();
+        leaves.extend_from_slice(&children[1..]);
+        corner = children[0];
+    }
+    leaves.push(corner);
+    leaves.extend(Leaf::new(0, [2, 1, 1]).children());
+    let lattice = Lattice::new(origin, h, cells).unwrap();
+    let mut body = AdaptiveBody::from_leaves(lattice, leaves).unwrap();
+    body.update_independent(|_, x, u| {
+        let t = (x - origin) / h;
+        *u = 0.03 * h * DVec3::new(t.y.sin(), t.z.cos(), t.x.sin());
+    })
+    .unwrap();
+    let finest = body.finest_level();
+    let exact = HexMesh {
+        points: (0..body.node_count())
+            .map(|n| body.node_position(n).unwrap())
+            .collect(),
+        cells: (0..body.cell_count() as u32)
+            .map(|c| body.cell_nodes(CellId(c)).unwrap().map(|n| n as u32))
+            .collect(),
+        displacement: Some(body.displacements().to_vec()),
+    };
+    let mesh = as_floats(&exact);
+    let low: Vec<[u32; 3]> = body
+        .leaves()
+        .iter()
+        .map(|l| l.ijk.map(|v| v << (finest - l.level)))
+        .collect();
+    let size: Vec<u32> = body
+        .leaves()
+        .iter()
+        .map(|l| 1 << (finest - l.level))
+        .collect();
+
+    let MeshBody::Adaptive(read) = mesh.to_body().unwrap() else {
+        panic!("read as uniform");
+    };
+    assert_eq!(read.constraints.violating, 0, "{:?}", read.constraints);
+    let locator = AdaptiveLocator::new(&read.body, Settings::default()).unwrap();
+    let cells_map = read.cells.clone();
+    let mut lost = Vec::new();
+    let probes = probes(&mesh, &low, &size);
+    for (x, cell, half) in &probes {
+        let got = found(&locator.locate_owners(*x).unwrap(), &cells_map);
+        if !got.contains(cell) {
+            lost.push((*cell, *half, got));
+        }
+    }
+    assert!(
+        lost.is_empty(),
+        "{} of {} probes: {:?}",
+        lost.len(),
+        probes.len(),
+        &lost[..lost.len().min(4)]
+    );
+}
