@@ -23,6 +23,10 @@
 //! exactly as `raw_appended` does), `>` only ends it, and no attribute value or text holds a
 //! quote, so a byte search can no longer be fooled by a value or a comment.
 //!
+//! String arrays (`<Array>` elements inside `PointData`, `CellData` and `FieldData`: VTK's
+//! `vtkStringArray`, names or notes beside the data) are blanked whole, lines kept: vtkio reads
+//! none, and a mesh needs none.
+//!
 //! The pass also refuses what no VTK file holds and what would cost time or memory out of
 //! proportion to the file: an element nested deeper than [`MAX_DEPTH`] (vtkio's parser keeps every
 //! open element: a 30 MB file of unclosed `<a>` took 765 MB), an element with more than
@@ -56,6 +60,7 @@ pub(crate) fn normalize(xml: &[u8]) -> Result<Option<Vec<u8>>, ErrorKind> {
         open: Vec::new(),
         root_closed: false,
         seen_markup: false,
+        skipping: None,
     };
     let start = if xml.starts_with(b"\xEF\xBB\xBF") {
         3
@@ -123,6 +128,8 @@ struct Pass<'a> {
     /// Whether anything but white space, the XML declaration, comments and processing
     /// instructions came before (the XML declaration must come first).
     seen_markup: bool,
+    /// Inside an `<Array>` being blanked: the depth of `open` with it open, and where it starts.
+    skipping: Option<(usize, usize)>,
 }
 
 impl Pass<'_> {
@@ -181,6 +188,7 @@ impl Pass<'_> {
                 Event::Decl(_) => {
                     return Err(self.refuse(at, "an XML declaration after the start".to_owned()));
                 }
+                Event::Comment(_) | Event::PI(_) if self.skipping.is_some() => {}
                 Event::Comment(_) | Event::PI(_) => self.blank(at..end),
                 Event::DocType(_) => {
                     return Err(self.refuse(
@@ -192,6 +200,7 @@ impl Pass<'_> {
                 Event::CData(_) => {
                     return Err(self.refuse(at, "a CDATA section (VTK files have none)".to_owned()));
                 }
+                Event::Text(_) if self.skipping.is_some() => {}
                 Event::Text(text) => {
                     if self.open.is_empty() {
                         if !text.iter().all(u8::is_ascii_whitespace) {
@@ -217,6 +226,31 @@ impl Pass<'_> {
                 Event::Start(ref tag) | Event::Empty(ref tag) => {
                     self.seen_markup = true;
                     let empty = matches!(event, Event::Empty(_));
+                    let string_array = tag.name().as_ref() == b"Array"
+                        && self.open.last().is_some_and(|(parent, _)| {
+                            matches!(parent.as_slice(), b"PointData" | b"CellData" | b"FieldData")
+                        });
+                    if self.skipping.is_some() || string_array {
+                        // An `<Array>` (VTK's element for string and variant arrays: names,
+                        // notes) holds nothing a mesh needs and vtkio reads none: blanked
+                        // whole, from its start tag to its end tag.
+                        if self.open.len() >= MAX_DEPTH {
+                            return Err(
+                                self.refuse(at, format!("elements nested deeper than {MAX_DEPTH}"))
+                            );
+                        }
+                        if empty {
+                            if self.skipping.is_none() {
+                                self.blank(at..end);
+                            }
+                        } else {
+                            self.open.push((tag.name().as_ref().to_vec(), at));
+                            if self.skipping.is_none() {
+                                self.skipping = Some((self.open.len(), at));
+                            }
+                        }
+                        continue;
+                    }
                     self.element(tag, at..end, empty)?;
                     if empty && self.open.is_empty() {
                         self.root_closed = true;
@@ -238,6 +272,12 @@ impl Pass<'_> {
                             at,
                             format!("</{}> closes no element", shown(tag.name().as_ref())),
                         ));
+                    }
+                    if let Some((depth, start)) = self.skipping
+                        && self.open.len() < depth
+                    {
+                        self.skipping = None;
+                        self.blank(start..end);
                     }
                     if self.open.is_empty() {
                         self.root_closed = true;
@@ -423,6 +463,33 @@ mod tests {
     fn normal(xml: &str) -> String {
         let out = normalize(xml.as_bytes()).unwrap();
         String::from_utf8(out.unwrap_or_else(|| xml.as_bytes().to_vec())).unwrap()
+    }
+
+    /// VTK writes string arrays (`vtkStringArray`: names, notes) as `<Array>` elements, which
+    /// vtkio cannot read and `check_xml_arrays` refused as corrupt tags: they are blanked whole,
+    /// lines kept, nested elements and comments within them included.
+    #[test]
+    fn string_arrays_in_data_sections_are_blanked_whole() {
+        let xml = "<VTKFile><U><Piece><PointData>\n<Array type=\"String\" Name=\"n\">\n<!-- c -->a &amp; b\n\
+                   <InformationKey><Value/></InformationKey></Array><DataArray/>\n</PointData>\n\
+                   <FieldData><Array Name=\"e\"/></FieldData></Piece></U></VTKFile>";
+        let out = normal(xml);
+        assert_eq!(out.lines().count(), xml.lines().count());
+        assert!(
+            !out.contains("Array type") && !out.contains("Array Name"),
+            "{out}"
+        );
+        assert!(!out.contains("Value") && !out.contains("&amp;"), "{out}");
+        assert!(
+            out.contains("<PointData>") && out.contains("<DataArray/>"),
+            "{out}"
+        );
+        assert!(
+            out.contains("<FieldData>") && out.contains("</FieldData>"),
+            "{out}"
+        );
+        // Outside the data sections, `<Array>` is no string array: left to the later checks.
+        assert!(normal("<VTKFile><Array/></VTKFile>").contains("<Array/>"));
     }
 
     #[test]

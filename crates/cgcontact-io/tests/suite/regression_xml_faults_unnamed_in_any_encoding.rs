@@ -281,3 +281,30 @@ fn missing_attributes_and_missing_appended_data_are_named_with_their_line() {
         assert!(message.contains(expected), "{expected}\n{message}");
     }
 }
+
+/// VTK writes string arrays (`vtkStringArray`) as `<Array>` elements beside the data arrays; they
+/// were refused as corrupt tags ("<Array> inside <PointData> is not a DataArray"). They are read
+/// past: the mesh is the same as without them.
+#[test]
+fn string_arrays_beside_the_data_are_read_past() {
+    let (file, _, _) = vtu(Encoding::Ascii, &CONNECTIVITY, &[12, 12]);
+    let plain = parse_hex_mesh(&file, &DisplacementArray::Default).unwrap();
+    let file = String::from_utf8(file).unwrap();
+    let with_strings = file
+        .replacen(
+            "<Points>",
+            "<PointData>\n<Array type=\"String\" Name=\"names\" NumberOfTuples=\"12\" \
+             format=\"ascii\">\n110 0 97 0\n</Array>\n</PointData>\n<CellData><Array \
+             type=\"String\" Name=\"tags\" format=\"ascii\">116 0</Array></CellData>\n<Points>",
+            1,
+        )
+        .replacen(
+            "<UnstructuredGrid>",
+            "<UnstructuredGrid>\n<FieldData><Array type=\"String\" Name=\"note\" \
+             NumberOfTuples=\"1\" format=\"ascii\">104 105 0</Array></FieldData>",
+            1,
+        );
+    let read = parse_hex_mesh(with_strings.as_bytes(), &DisplacementArray::Default)
+        .unwrap_or_else(|e| panic!("{e}\n{with_strings}"));
+    assert_eq!(read, plain);
+}
