@@ -13,7 +13,10 @@ use clap::Args;
 use std::time::Instant;
 
 use crate::output::{check_outputs, prepare_folder, write_owner_rows};
-use crate::run::{GapSummary, SearchArgs, Searched, StrategyName, reading, search_listing_owners};
+use crate::run::{
+    ConstraintSummary, GapSummary, SearchArgs, Searched, StrategyName, reading,
+    search_listing_owners,
+};
 
 /// Locate the points of a CSV file in a VTK mesh of hexahedra on a cartesian lattice.
 #[derive(Args, Debug)]
@@ -155,6 +158,22 @@ pub fn run(args: &LocateArgs) -> Result<()> {
         },
         owners,
     ) = search_listing_owners(body, &points, &args.search, &pool, args.all_owners)?;
+    if let MeshBody::Adaptive(adaptive) = &mesh
+        && let (false, Some((node, by))) =
+            (adaptive.constraints.holds(), adaptive.constraints.worst)
+    {
+        summary.hanging_constraints = Some(ConstraintSummary {
+            violating: adaptive.constraints.violating,
+            worst_node: node,
+            worst_position: adaptive
+                .body
+                .node_position(node)
+                .unwrap_or_default()
+                .to_array(),
+            worst_offset: by,
+            tolerance: adaptive.constraint_tolerance_by_axis.to_array(),
+        });
+    }
     summary.displacement = mesh.has_displacement().then(|| {
         args.displacement
             .clone()

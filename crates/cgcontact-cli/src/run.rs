@@ -154,6 +154,20 @@ pub fn capped_threads(n: usize, quiet: bool) -> Result<usize> {
     Ok(cap)
 }
 
+/// Hanging nodes off their constraint, in `--json`.
+#[derive(Serialize, Debug)]
+pub struct ConstraintSummary {
+    /// Hanging nodes whose displacement is farther than `tolerance` from their constraint.
+    pub violating: usize,
+    /// The farthest one: its node index in the body's numbering, its undeformed position, and
+    /// by how much (largest component, length units).
+    pub worst_node: usize,
+    pub worst_position: [f64; 3],
+    pub worst_offset: f64,
+    /// The tolerance per axis (length units).
+    pub tolerance: [f64; 3],
+}
+
 /// The outcome of a search: answers, timings, and what the summary prints.
 #[derive(Serialize, Debug)]
 pub struct Summary {
@@ -209,6 +223,10 @@ pub struct Summary {
     /// The largest such share of a cell (ξ units); absent when no cell is unresolved.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub unresolved_share: Option<f64>,
+    /// An adaptive mesh read from a file whose hanging nodes break their constraint (what the
+    /// warning says, which `--quiet` silences); absent when every one obeys it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub hanging_constraints: Option<ConstraintSummary>,
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub files: Vec<String>,
     /// With `locate --all-owners`: what listing every owner found; absent otherwise.
@@ -547,6 +565,7 @@ pub fn search_listing_owners(
             .map(|(cell, _)| cell.index())
             .collect(),
         unresolved_cells: unresolved.iter().map(|(cell, _)| cell.index()).collect(),
+        hanging_constraints: None,
         unresolved_share: unresolved.iter().map(|&(_, share)| share).reduce(f64::max),
         files: Vec::new(),
         owners: owners

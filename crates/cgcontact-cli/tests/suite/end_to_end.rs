@@ -316,7 +316,8 @@ fn adaptive_scene_located_as_known_by_every_strategy() {
 }
 
 /// A hanging node moved off its constraint: a warning naming the count and the worst node's
-/// offset, or with `--strict` exit code 2.
+/// offset, the same in `--json` (`hanging_constraints`, also under `--quiet`), or with `--strict`
+/// exit code 2.
 #[test]
 fn broken_hanging_node_warns_and_strict_refuses() {
     let dir = tempfile::tempdir().unwrap();
@@ -337,6 +338,34 @@ fn broken_hanging_node_warns_and_strict_refuses() {
     assert_eq!(summary["levels"], 2);
     assert_eq!(summary["hanging_nodes"], 5);
     assert_eq!(summary["located"], 2);
+    // The same in `--json`, which `--quiet` does not silence.
+    let quiet = cgcontact(&[
+        "locate", "--mesh", mesh, "--points", points, "--json", "--quiet",
+    ]);
+    assert!(quiet.status.success() && quiet.stderr.is_empty());
+    let summary: serde_json::Value = serde_json::from_slice(&quiet.stdout).unwrap();
+    let constraints = &summary["hanging_constraints"];
+    assert_eq!(constraints["violating"], 1, "{summary}");
+    assert!((constraints["worst_offset"].as_f64().unwrap() - 0.01).abs() < 1e-12);
+    assert_eq!(constraints["tolerance"].as_array().unwrap().len(), 3);
+    let fine = cgcontact_scenes::hanging_node_moved(0.0).unwrap();
+    cgcontact_io::write_adaptive_mesh(
+        dir.path().join("fine.vtu"),
+        &fine,
+        cgcontact_io::MeshFormat::Xml,
+    )
+    .unwrap();
+    let fine = dir.path().join("fine.vtu");
+    let run = cgcontact(&[
+        "locate",
+        "--mesh",
+        fine.to_str().unwrap(),
+        "--points",
+        points,
+        "--json",
+    ]);
+    let summary: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    assert!(summary.get("hanging_constraints").is_none(), "{summary}");
     let strict = cgcontact(&["locate", "--mesh", mesh, "--points", points, "--strict"]);
     assert_eq!(strict.status.code(), Some(2));
     assert!(!String::from_utf8_lossy(&strict.stderr).contains("warning"));
