@@ -46,6 +46,7 @@
 #![forbid(unsafe_code)]
 
 mod adaptive_mesh;
+mod appended_sizes;
 mod atomic;
 mod block_headers;
 mod csv_io;

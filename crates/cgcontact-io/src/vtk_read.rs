@@ -190,6 +190,9 @@ fn parse_vtk(bytes: &[u8]) -> Result<Vtk, ErrorKind> {
         // first (see `raw_appended`).
         let converted = raw_appended::to_base64(bytes)?;
         let xml = converted.as_deref().unwrap_or(bytes);
+        // An uncompressed appended array holding more or fewer values than its piece asks for:
+        // vtkio reads as many as asked and ignores the rest (see `appended_sizes`).
+        crate::appended_sizes::check(xml)?;
         // A corrupt compressed-block header would make vtkio's allocation abort the process.
         let headers = block_headers::check(xml)?;
         // A whole last block, as vtkio would not size it (see `whole_last_blocks`).
