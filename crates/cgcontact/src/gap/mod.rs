@@ -307,7 +307,15 @@ impl<'l, L: Surface> GapFinder<'l, L> {
         let first = first.map_or(u32::MAX, |cell| cell.id);
         // Then every cell of the lattice bound's box for the best distance so far, each pruned by
         // its own bound with the best distance when its turn comes.
-        let reach = DVec3::splat(best_d2.sqrt()) + lattice.h() * 1e-9;
+        // The slack: 1e-9 of a cell, and the rounding of the box's bounds (of x's coordinates
+        // and the distance), which on a fine spacing far out is larger: an ulp of 3000 is 4.5e-13,
+        // 1e-9 of a spacing of 1e-4 only 1e-13, and a face at D to within that rounding was left
+        // out of the box, though the warm search, measuring it directly, found it within D.
+        let reach = best_d2.sqrt();
+        let rounding = 8.0
+            * f64::EPSILON
+            * ((x - lattice.origin()).abs() + range.low.abs().max(range.high.abs()) + reach);
+        let reach = DVec3::splat(reach) + lattice.h() * 1e-9 + rounding;
         let low = (x - lattice.origin() - range.high - reach) * inv_h;
         let high = (x - lattice.origin() - range.low + reach) * inv_h;
         self.surface.cells_in_box(low, high, |cell| {

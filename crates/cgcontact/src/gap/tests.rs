@@ -775,3 +775,50 @@ fn normals_at_edges_and_corners_point_out_where_the_locator_holds_the_point() {
         assert!((c.normal - n).length() < 1e-9, "{name}: {}", c.normal);
     }
 }
+
+/// Regression: points whose distance to the nearest face is D to within the rounding of their
+/// coordinates. The cold search's box of cells had an absolute slack of 1e-9 h, below the
+/// rounding of a coordinate of 3000 on a spacing of 1e-4 (an ulp of 3000 is 4.5e-13): it left
+/// out the face's cell, and answered no face, while the warm search measured the hinted face
+/// and found it within D. The documented promise is that warm answers are the cold ones.
+#[test]
+fn warm_and_cold_answers_agree_at_the_search_distance() {
+    let h = DVec3::new(1.0, 1e-4, 1.0);
+    let lattice = Lattice::new(DVec3::ZERO, h, [3000, 2000, 6]).unwrap();
+    let cells: Vec<[u32; 3]> = vec![[1323, 56, 3], [644, 1474, 0], [2960, 1558, 4], [7, 1999, 5]];
+    let ids: Vec<_> = cells.iter().map(|&c| lattice.cell_id(c)).collect();
+    let body = Body::from_cells(lattice, ids).unwrap();
+    let locator = LatticeLocator::new(&body, Settings::default()).unwrap();
+    let d = 3000.0;
+    let finder = GapFinder::new(&locator, d).unwrap();
+    let mut disagree = Vec::new();
+    let mut measured = 0;
+    for c in &cells {
+        let low = lattice.node_position(*c);
+        for (fx, fz) in [(0.0, 0.0), (0.5, 0.25), (1.0, 1.0)] {
+            for side in [0.0, 1.0] {
+                // On the face y = low + side·h, then D away along −y or +y (outward).
+                let face = low + DVec3::new(fx, side * h.y, fz);
+                let out = if side == 0.0 { -1.0 } else { 1.0 };
+                for step in [-2.0, -1.0, 0.0, 1.0, 2.0] {
+                    let x = face + DVec3::new(0.0, out * (d + step * 4.5e-13), 0.0);
+                    // The hint: the answer of a point a little nearer, on the same line.
+                    let near = finder.gap(face + DVec3::new(0.0, out * 0.5 * d, 0.0));
+                    let cold = finder.gap(x);
+                    let warm = finder.regap(x, &near);
+                    measured += usize::from(cold.as_ref().is_ok_and(Option::is_some));
+                    if cold.map(|c| c.map(|c| c.gap)) != warm.map(|c| c.map(|c| c.gap)) {
+                        disagree.push((x, cold, warm));
+                    }
+                }
+            }
+        }
+    }
+    assert!(
+        disagree.is_empty(),
+        "{} of 120: {:?}",
+        disagree.len(),
+        disagree.first()
+    );
+    assert!(measured > 0);
+}
