@@ -69,7 +69,8 @@ pub struct SearchArgs {
     /// Newton tolerance on the step, in ξ units [default: 1e-10 in f64, 1e-5 in f32].
     #[arg(long, value_name = "T", allow_negative_numbers = true)]
     pub tol: Option<f64>,
-    /// Newton iteration limit per candidate cell.
+    /// Newton iteration limit per candidate cell (a run that reaches it runs once more from the
+    /// cell's centre, with 16 times the limit where the cell may hold the point).
     #[arg(long, value_name = "N", default_value_t = Settings::MAX_ITER, allow_negative_numbers = true)]
     pub max_iter: u32,
     /// Worker threads [default: all cores].

@@ -143,7 +143,10 @@ pub struct Settings {
     /// Newton stops when its step is at most this (ξ units). Convergence is quadratic, so the error of
     /// the result is far below this.
     pub newton_tol: f64,
-    /// Newton iteration limit per candidate cell.
+    /// Newton iteration limit per candidate cell, on the common path: a run that reaches it runs
+    /// once more from the cell's centre, with [`crate::hex8::PATIENT_ITERATIONS`] times the limit
+    /// where the cell may hold the point. The limit bounds the work; it never turns a slow
+    /// convergence into "in no cell".
     pub max_iter: u32,
     /// A point is inside when every |ξ_k| ≤ 1 + `inside_tol` + a rounding allowance that grows with the
     /// size of the coordinates relative to the cell's edge along axis k (see docs/numerics.md).

@@ -6,5 +6,6 @@ mod common;
 mod extremes;
 mod gap_extremes;
 mod locate_property;
+mod regression_low_iteration_limit;
 mod schedule;
 mod warm;
