@@ -408,11 +408,24 @@ impl Body {
     ///
     /// On a non-finite result, or one beyond [`Body::displacement_limit`], the error names the
     /// node; every displacement is then reset to zero so that the body never holds a value the
-    /// locator would trip on.
+    /// locator would trip on. So it is when `f` panics part way (the panic goes on): the values
+    /// written before it, a NaN among them, are not kept.
     pub fn update_displacements(
         &mut self,
         mut f: impl FnMut(usize, DVec3, &mut DVec3),
     ) -> Result<(), Error> {
+        /// Zeroes the displacements when dropped armed: on a panic of `f`.
+        struct ZeroOnUnwind<'a> {
+            u: &'a mut [DVec3],
+            armed: bool,
+        }
+        impl Drop for ZeroOnUnwind<'_> {
+            fn drop(&mut self) {
+                if self.armed {
+                    self.u.fill(DVec3::ZERO);
+                }
+            }
+        }
         let lattice = self.lattice;
         let limit = self.displacement_limit();
         let mut bad = None;
@@ -421,20 +434,23 @@ impl Body {
             Slots::Dense => Vec::new(),
             _ => self.nodes().collect(),
         };
-        for s in 0..self.u.len() {
+        let mut guard = ZeroOnUnwind {
+            u: &mut self.u,
+            armed: true,
+        };
+        for s in 0..guard.u.len() {
             let node = if nodes.is_empty() { s } else { nodes[s] };
             let ijk = lattice.node_ijk(node).expect("node in range");
-            let u = &mut self.u[s];
+            let u = &mut guard.u[s];
             f(node, lattice.node_position(ijk), u);
             if bad.is_none() && !displacement_ok(*u, limit) {
                 bad = Some(displacement_error(node, *u, limit));
             }
         }
-        if let Some(error) = bad {
-            self.u.fill(DVec3::ZERO);
-            return Err(error);
-        }
-        Ok(())
+        // On an error, every value goes back to zero as on a panic.
+        guard.armed = bad.is_some();
+        drop(guard);
+        bad.map_or(Ok(()), Err)
     }
 
     /// On a body with a slot table, the box of lattice nodes holding all its nodes (lowest node,
@@ -822,6 +838,39 @@ mod tests {
         sorted.sort_unstable();
         assert_eq!(nodes, sorted);
         assert!(body.displacement(l.node_index([3, 0, 0])).is_none());
+    }
+
+    /// An update whose closure wrote a NaN and then panicked left the NaN in the body: a locator
+    /// built on it then answered every point as in no cell (found by an API audit). The body is
+    /// now undeformed after such a panic, as after an error, on every storage.
+    #[test]
+    fn a_panicking_update_leaves_the_body_undeformed() {
+        let l = lattice();
+        let cells = [CellId(0), CellId(5)];
+        for mut body in [
+            Body::full(l),
+            Body::from_cells(l, cells).unwrap(),
+            Body::undeformed(l, BitVec::repeat(true, l.cell_count())).unwrap(),
+        ] {
+            body.update_displacements(|_, _, u| *u = DVec3::splat(0.01))
+                .unwrap();
+            let count = body.nodes().count();
+            let panicked = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                let mut seen = 0;
+                body.update_displacements(|_, _, u| {
+                    seen += 1;
+                    *u = DVec3::NAN;
+                    assert!(seen < count / 2, "the solver's closure panics");
+                })
+            }));
+            assert!(panicked.is_err());
+            assert!(
+                body.nodes()
+                    .all(|n| body.displacement(n) == Some(DVec3::ZERO)),
+                "a value written before the panic was kept"
+            );
+            body.validate().unwrap();
+        }
     }
 
     #[test]
