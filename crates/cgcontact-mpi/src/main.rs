@@ -112,6 +112,9 @@ fn launcher_rank() -> Option<u64> {
     .find_map(|name| std::env::var(name).ok()?.trim().parse().ok())
 }
 
+/// The exit code of a run ended by Ctrl-C or SIGTERM: 128 + SIGINT's number, as shells report.
+const INTERRUPTED: i32 = 130;
+
 fn main() -> ExitCode {
     let cli = match Cli::try_parse() {
         Ok(cli) => cli,
@@ -135,6 +138,16 @@ fn main() -> ExitCode {
     // A bug of ours on one rank must end the run with one line, not leave the others waiting.
     cgcontact_mpi::abort_on_panic(2);
     let world = universe.world();
+    // Ctrl-C or SIGTERM (mpirun forwards SIGTERM to every rank, and answers SIGINT by terminating
+    // them): the writes in progress are abandoned, so that no hidden temporary file is left beside
+    // an output (every output is as it was or complete), and the rank exits with 130 as
+    // `cgcontact locate` does. Silently: mpirun reports the interruption itself, and when it
+    // terminates the ranks because one refused its input, that rank's message must stay the
+    // run's one line. Without the handler (it could not be set), the signal's default applies.
+    let _ = ctrlc::set_handler(|| {
+        cgcontact_io::abandon_writes();
+        std::process::exit(INTERRUPTED);
+    });
     let Command::Locate(args) = &cli.command;
     match locate(&world, args) {
         Ok(()) => ExitCode::SUCCESS,

@@ -947,3 +947,106 @@ fn a_refused_flag_is_reported_by_rank_0_alone_under_any_launcher() {
         assert_eq!(run(&[(name, "3")]), "", "{name}=3");
     }
 }
+
+/// SIGTERM or Ctrl-C while rank 0 writes the results: the rank exits with 130, silently (mpirun
+/// reports the interruption; when it terminates the ranks because one refused its input, that
+/// rank's message stays the run's one line, as `bad_input_stops_every_rank_with_one_message`
+/// checks), the output is as it was, and no hidden temporary file is left beside it. Before, the
+/// rank had no handler: killed in the middle of its write, it left its `.partial` file (found by
+/// an audit: three of three runs ended by SIGTERM to every rank).
+///
+/// Deterministic: the run (a singleton, so that the test signals the rank itself) is stopped
+/// (SIGSTOP) as soon as its temporary file appears, then sent the signal and continued.
+#[cfg(target_os = "linux")]
+#[test]
+fn a_rank_interrupted_while_writing_leaves_no_temporary_file() {
+    use std::fmt::Write as _;
+    let dir = tempfile::tempdir().unwrap();
+    // 300,000 points in two cells: a results file of about 20 MB, written over tens of ms.
+    let mut csv = String::from("x,y,z\n");
+    for k in 0..300_000u32 {
+        let t = f64::from(k) / 300_000.0;
+        writeln!(
+            csv,
+            "{},{},{}",
+            0.05 + 1.9 * t,
+            0.5 + 0.4 * (t * 7.0).sin(),
+            0.3
+        )
+        .unwrap();
+    }
+    let (mesh, points) = two_cells(dir.path(), 0.0, &csv);
+    let out = dir.path().join("results.csv");
+    let kill = |signal: &str, pid: u32| {
+        let sent = Command::new("kill")
+            .args([signal, &pid.to_string()])
+            .status()
+            .unwrap();
+        assert!(sent.success(), "kill {signal}");
+    };
+    let partials = || -> Vec<String> {
+        std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .filter(|name| name.ends_with(".partial"))
+            .collect()
+    };
+    let mut caught = 0;
+    for signal in ["-TERM", "-INT", "-TERM", "-INT"] {
+        std::fs::write(&out, "old\n").unwrap();
+        let mut command = Command::new(env!("CARGO_BIN_EXE_cgcontact-mpi"));
+        command
+            .args(["locate", "--mesh", mesh.to_str().unwrap()])
+            .args([
+                "--points",
+                points.to_str().unwrap(),
+                "--out",
+                out.to_str().unwrap(),
+            ])
+            .stdin(std::process::Stdio::null())
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::piped());
+        if is_root() {
+            command.env("OMPI_ALLOW_RUN_AS_ROOT", "1");
+            command.env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1");
+        }
+        let run = command.spawn().unwrap();
+        let start = std::time::Instant::now();
+        let mut stopped = false;
+        while start.elapsed() < std::time::Duration::from_secs(60) {
+            if !partials().is_empty() {
+                kill("-STOP", run.id());
+                stopped = true;
+                break;
+            }
+            if std::fs::read_to_string(&out).is_ok_and(|text| text != "old\n") {
+                break;
+            }
+            std::thread::sleep(std::time::Duration::from_micros(200));
+        }
+        if stopped && !partials().is_empty() {
+            // Stopped in the middle of the write: the signal comes then.
+            caught += 1;
+            kill(signal, run.id());
+            kill("-CONT", run.id());
+            let output = run.wait_with_output().unwrap();
+            let stderr = String::from_utf8_lossy(&output.stderr);
+            assert_eq!(output.status.code(), Some(130), "{signal}: {stderr}");
+            assert!(!stderr.contains("cgcontact-mpi"), "{signal}: {stderr}");
+            assert_eq!(std::fs::read_to_string(&out).unwrap(), "old\n", "{signal}");
+            assert_eq!(partials(), Vec::<String>::new(), "{signal}");
+        } else {
+            // The write finished first (or the run was stopped between two steps of it).
+            if stopped {
+                kill("-CONT", run.id());
+            }
+            let output = run.wait_with_output().unwrap();
+            assert!(
+                output.status.success(),
+                "{}",
+                String::from_utf8_lossy(&output.stderr)
+            );
+        }
+    }
+    assert!(caught > 0, "no run was caught in the middle of its write");
+}
