@@ -25,9 +25,13 @@ pub enum Error {
     #[error("the body has no active cell")]
     EmptyBody,
     /// A displacement is NaN or infinite.
-    #[error("displacement of node {node} (lattice node index) is not finite: {value:?}")]
+    #[error(
+        "displacement of node {node} (a lattice node index on a uniform body, the body's node \
+         number on an adaptive one) is not finite: {value:?}"
+    )]
     NonFiniteDisplacement {
-        /// Lattice node index.
+        /// The node: a lattice node index on a uniform body, the body's node number on an adaptive
+        /// one.
         node: usize,
         /// The value found.
         value: [f64; 3],
@@ -35,11 +39,13 @@ pub enum Error {
     /// A displacement component beyond the body's limit in absolute value (see
     /// [`crate::Lattice::displacement_limit`]).
     #[error(
-        "displacement of node {node} (lattice node index) is too large: {value:?} (at most \
-         {limit:e} per axis: displaced farther, coordinates cannot resolve this body's cells)"
+        "displacement of node {node} (a lattice node index on a uniform body, the body's node \
+         number on an adaptive one) is too large: {value:?} (at most {limit:e} per axis: \
+         displaced farther, coordinates cannot resolve this body's cells)"
     )]
     DisplacementTooLarge {
-        /// Lattice node index.
+        /// The node: a lattice node index on a uniform body, the body's node number on an adaptive
+        /// one.
         node: usize,
         /// The value found.
         value: [f64; 3],
