@@ -8,6 +8,8 @@ use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
+use crate::common::mesh_of;
+
 /// Base cells `cells`; the first base cell refined to `depth` levels toward its lowest corner (a
 /// jump of `depth` levels against its neighbours), the last one once.
 fn leaves(cells: [u32; 3], depth: u8) -> Vec<Leaf> {
@@ -53,19 +55,6 @@ fn body(origin: DVec3, h: DVec3, cells: [u32; 3], depth: u8, seed: u64) -> Adapt
     .unwrap();
     body.validate().unwrap();
     body
-}
-
-/// The explicit mesh of `body`: nodes in node order, cells in leaf order.
-fn mesh_of(body: &AdaptiveBody) -> HexMesh {
-    HexMesh {
-        points: (0..body.node_count())
-            .map(|n| body.node_position(n).unwrap())
-            .collect(),
-        cells: (0..body.cell_count() as u32)
-            .map(|c| body.cell_nodes(CellId(c)).unwrap().map(|n| n as u32))
-            .collect(),
-        displacement: Some(body.displacements().to_vec()),
-    }
 }
 
 fn adaptive(mesh: &HexMesh) -> cgcontact_io::AdaptiveMesh {

@@ -13,11 +13,12 @@
 use std::collections::BTreeSet;
 
 use cgcontact::{
-    AdaptiveBody, AdaptiveLocator, CORNER_OFFSETS, CellId, Lattice, LatticeLocator, Leaf, Locator,
-    Settings,
+    AdaptiveBody, AdaptiveLocator, CORNER_OFFSETS, Lattice, LatticeLocator, Leaf, Locator, Settings,
 };
 use cgcontact_io::{CellMap, HexMesh, MeshBody};
 use glam::DVec3;
+
+use crate::common::mesh_of;
 
 /// The trilinear map of a cell's 8 deformed corners (VTK order) at `xi`.
 fn map(corners: &[DVec3; 8], xi: DVec3) -> DVec3 {
@@ -177,16 +178,7 @@ fn points_where_a_float_file_has_them_are_in_their_leaf_in_an_adaptive_mesh() {
     })
     .unwrap();
     let finest = body.finest_level();
-    let exact = HexMesh {
-        points: (0..body.node_count())
-            .map(|n| body.node_position(n).unwrap())
-            .collect(),
-        cells: (0..body.cell_count() as u32)
-            .map(|c| body.cell_nodes(CellId(c)).unwrap().map(|n| n as u32))
-            .collect(),
-        displacement: Some(body.displacements().to_vec()),
-    };
-    let mesh = as_floats(&exact);
+    let mesh = as_floats(&mesh_of(&body));
     let low: Vec<[u32; 3]> = body
         .leaves()
         .iter()

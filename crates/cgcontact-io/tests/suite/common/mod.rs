@@ -4,7 +4,7 @@
 
 use bitvec::vec::BitVec;
 use cgcontact::glam::DVec3;
-use cgcontact::{Body, CellId, Lattice};
+use cgcontact::{AdaptiveBody, Body, CellId, Lattice};
 use cgcontact_io::HexMesh;
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
@@ -354,4 +354,17 @@ fn raw_appended_with(
 pub fn expected_cells(body: &Body, perm: &[usize]) -> Vec<CellId> {
     let active: Vec<CellId> = body.active_cells().collect();
     perm.iter().map(|&old| active[old]).collect()
+}
+
+/// The explicit mesh of an adaptive `body`: nodes in node order, cells in leaf order.
+pub fn mesh_of(body: &AdaptiveBody) -> HexMesh {
+    HexMesh {
+        points: (0..body.node_count())
+            .map(|n| body.node_position(n).unwrap())
+            .collect(),
+        cells: (0..body.cell_count() as u32)
+            .map(|c| body.cell_nodes(CellId(c)).unwrap().map(|n| n as u32))
+            .collect(),
+        displacement: Some(body.displacements().to_vec()),
+    }
 }
