@@ -467,8 +467,8 @@ impl HexMesh {
 
     /// Adds to each node's displacement how far the file has it from its lattice position (the
     /// first input node at it; `q` every used node's finest-lattice coordinates), when one is
-    /// beyond f64 rounding ([`keep_offsets`]), so that the
-    /// deformed nodes are the file's, as [`HexMesh::to_lattice`] does for uniform meshes: VTK's
+    /// beyond f64 rounding ([`keep_offsets`]), so that the deformed nodes are the file's, as
+    /// [`HexMesh::to_lattice`] does for uniform meshes: VTK's
     /// default float points lie up to 6e-8 of a cell off the lattice, and dropping that moved
     /// the faces off the file's (points on shared nodes and faces lost owners). A hanging node
     /// keeps its own offset too, as the file has it, so that every leaf is the file's: a point

@@ -578,9 +578,6 @@ impl HexMesh {
         })
     }
 
-    /// The displacements of `body`'s nodes in its slot order (ascending lattice node), from the
-    /// used input nodes, checking that coinciding input nodes agree. Memory grows with the used
-    /// nodes, not the lattice.
     /// How far each body node's input node lies from its lattice position (`None` when every
     /// one lies within f64 rounding of it: [`keep_offsets`]), in body node order; of copies of a
     /// node, the first input node's.
@@ -598,19 +595,27 @@ impl HexMesh {
         node_ijk: &[[u32; 3]],
     ) -> Option<Vec<DVec3>> {
         let lattice = body.lattice();
+        let offset = |n: usize| self.points[n] - lattice.node_position(node_ijk[n]);
+        // Most files hold their nodes within rounding: one pass tells, before any sort.
+        let rounding = ROUNDING_OFFSET * lattice.origin().abs().max(lattice.upper().abs());
+        if !used
+            .iter_ones()
+            .any(|n| offset(n).abs().cmpgt(rounding).any())
+        {
+            return None;
+        }
         let mut by_node: Vec<(usize, usize)> = used
             .iter_ones()
             .map(|n| (lattice.node_index(node_ijk[n]), n))
             .collect();
         by_node.sort_unstable();
         by_node.dedup_by_key(|&mut (node, _)| node);
-        let offsets: Vec<DVec3> = by_node
-            .into_iter()
-            .map(|(_, n)| self.points[n] - lattice.node_position(node_ijk[n]))
-            .collect();
-        keep_offsets(offsets, lattice.origin().abs().max(lattice.upper().abs()))
+        Some(by_node.into_iter().map(|(_, n)| offset(n)).collect())
     }
 
+    /// The displacements of `body`'s nodes in its slot order (ascending lattice node), from the
+    /// used input nodes, checking that coinciding input nodes agree. Memory grows with the used
+    /// nodes, not the lattice.
     fn slot_displacements(
         &self,
         body: &Body,
