@@ -12,7 +12,7 @@ use base64::Engine as _;
 use quick_xml::events::Event;
 
 use crate::ErrorKind;
-use crate::raw_appended::{find, header_word};
+use crate::raw_appended::{appended_text, find, header_word};
 
 /// Bytes of one value of a VTK number type.
 fn width(kind: &[u8]) -> Option<u64> {
@@ -32,10 +32,7 @@ pub(crate) fn check(xml: &[u8]) -> Result<(), ErrorKind> {
         return Ok(());
     };
     // The base64 text of the appended data, after its `_`.
-    let Some(data) = find(xml, b">", appended_at)
-        .and_then(|close| find(xml, b"_", close))
-        .map(|underscore| &xml[underscore + 1..])
-    else {
+    let Some(data) = appended_text(xml, appended_at) else {
         return Ok(());
     };
     let value = |tag: &quick_xml::events::BytesStart, name: &str| {
@@ -47,16 +44,13 @@ pub(crate) fn check(xml: &[u8]) -> Result<(), ErrorKind> {
     let number = |bytes: Option<Vec<u8>>| {
         bytes.and_then(|b| std::str::from_utf8(&b).ok()?.trim().parse::<u64>().ok())
     };
-    let line = |at: u64| {
-        1 + xml[..(at as usize).min(appended_at)]
-            .iter()
-            .filter(|&&b| b == b'\n')
-            .count()
-    };
+    // Lines are counted only for the message: counting them at each piece was a scan from the
+    // start of the file per piece.
+    let line = |at: u64| crate::raw_appended::line_of(&xml[..appended_at], at as usize);
     let mut reader = quick_xml::Reader::from_reader(&xml[..appended_at]);
     let (mut header64, mut little) = (false, true);
-    // The open piece: its counts and line.
-    let (mut points, mut cells, mut piece_line) = (None, None, 0);
+    // The open piece: its counts and where it starts.
+    let (mut points, mut cells, mut piece_at) = (None, None, 0);
     let mut section: Vec<u8> = Vec::new();
     loop {
         let at = reader.buffer_position();
@@ -84,7 +78,7 @@ pub(crate) fn check(xml: &[u8]) -> Result<(), ErrorKind> {
             b"Piece" => {
                 points = number(value(&tag, "NumberOfPoints"));
                 cells = number(value(&tag, "NumberOfCells"));
-                piece_line = line(at);
+                piece_at = at;
             }
             name @ (b"Points" | b"PointData" | b"CellData" | b"Cells") if !empty => {
                 section = name.to_vec();
@@ -119,11 +113,12 @@ pub(crate) fn check(xml: &[u8]) -> Result<(), ErrorKind> {
                 if held != asked {
                     return Err(ErrorKind::Vtk(crate::one_line(&format!(
                         "line {}: the appended array {} holds {held} bytes ({} values), but \
-                         {what}={count} of its <Piece> (line {piece_line}){} asks for {asked} \
+                         {what}={count} of its <Piece> (line {}){} asks for {asked} \
                          ({} values)",
                         line(at),
                         crate::excerpt(&name, 40),
                         held / width,
+                        line(piece_at),
                         if components == 1 {
                             String::new()
                         } else {

@@ -255,6 +255,22 @@ pub(crate) fn header_word(word: &[u8], little: bool) -> u64 {
     }
 }
 
+/// The appended data of the `<AppendedData` tag at `tag` of `xml`: from after the `_` that
+/// opens it to the end of the file. `None` when the tag is not closed or no `_` follows.
+pub(crate) fn appended_text(xml: &[u8], tag: usize) -> Option<&[u8]> {
+    let close = find(xml, b">", tag)?;
+    let underscore = find(xml, b"_", close)?;
+    Some(&xml[underscore + 1..])
+}
+
+/// The 1-based line of byte `at` of `text` (its end when `at` is beyond it).
+pub(crate) fn line_of(text: &[u8], at: usize) -> usize {
+    1 + text[..at.min(text.len())]
+        .iter()
+        .filter(|&&b| b == b'\n')
+        .count()
+}
+
 pub(crate) fn find(hay: &[u8], needle: &[u8], from: usize) -> Option<usize> {
     hay.get(from..)?
         .windows(needle.len())

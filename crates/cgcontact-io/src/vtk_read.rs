@@ -258,12 +258,7 @@ fn check_xml_arrays(xml: &[u8]) -> Result<(), ErrorKind> {
     // Raw appended bytes could contain anything: the pieces all come before them.
     let end = crate::raw_appended::find(xml, b"<AppendedData", 0).unwrap_or(xml.len());
     let mut reader = quick_xml::Reader::from_reader(&xml[..end]);
-    let line = |at: u64| {
-        1 + xml[..(at as usize).min(end)]
-            .iter()
-            .filter(|&&b| b == b'\n')
-            .count()
-    };
+    let line = |at: u64| crate::raw_appended::line_of(&xml[..end], at as usize);
     let mut open: Vec<Vec<u8>> = Vec::new();
     loop {
         let at = reader.buffer_position();

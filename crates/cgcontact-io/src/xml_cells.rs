@@ -121,17 +121,9 @@ pub(crate) fn cell_array_fault(xml: &[u8], sought: Sought) -> Option<String> {
     let appended_at = crate::raw_appended::find(xml, b"<AppendedData", 0);
     let end = appended_at.unwrap_or(xml.len());
     // The appended data's base64 text: after the `_` that opens it.
-    let appended = appended_at
-        .and_then(|tag| crate::raw_appended::find(xml, b">", tag))
-        .and_then(|close| crate::raw_appended::find(xml, b"_", close))
-        .map(|underscore| &xml[underscore + 1..]);
+    let appended = appended_at.and_then(|tag| crate::raw_appended::appended_text(xml, tag));
     let mut reader = quick_xml::Reader::from_reader(&xml[..end]);
-    let line = |at: u64| {
-        1 + xml[..(at as usize).min(end)]
-            .iter()
-            .filter(|&&b| b == b'\n')
-            .count()
-    };
+    let line = |at: u64| crate::raw_appended::line_of(&xml[..end], at as usize);
     let mut encoding = Encoding::default();
     let mut in_cells = false;
     // The open cell array.
@@ -139,7 +131,7 @@ pub(crate) fn cell_array_fault(xml: &[u8], sought: Sought) -> Option<String> {
     let said = |array: &CellArray, fault: String| {
         format!(
             "line {}: the cell array {} holds {fault}",
-            array.line,
+            line(array.at),
             crate::excerpt(&array.name, 40)
         )
     };
@@ -167,7 +159,7 @@ pub(crate) fn cell_array_fault(xml: &[u8], sought: Sought) -> Option<String> {
                     name: value(&tag, "Name").unwrap_or_default(),
                     kind: value(&tag, "type").unwrap_or_default(),
                     format: value(&tag, "format").unwrap_or_default(),
-                    line: line(at),
+                    at,
                 };
                 if cell_array.format == b"appended" {
                     let offset = value(&tag, "offset")
@@ -204,7 +196,8 @@ struct CellArray {
     name: Vec<u8>,
     kind: Vec<u8>,
     format: Vec<u8>,
-    line: usize,
+    /// Where its tag starts (its line is counted only for a message).
+    at: u64,
 }
 
 /// The first value of one cell array that vtkio refused, in words. `text` is the array's text
@@ -351,12 +344,7 @@ pub(crate) fn points_size_fault(
 ) -> Option<String> {
     let end = crate::raw_appended::find(xml, b"<AppendedData", 0).unwrap_or(xml.len());
     let mut reader = quick_xml::Reader::from_reader(&xml[..end]);
-    let line = |at: u64| {
-        1 + xml[..(at as usize).min(end)]
-            .iter()
-            .filter(|&&b| b == b'\n')
-            .count()
-    };
+    let line = |at: u64| crate::raw_appended::line_of(&xml[..end], at as usize);
     let count = |text: &[u8]| {
         std::str::from_utf8(text)
             .ok()

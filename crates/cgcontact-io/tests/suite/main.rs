@@ -19,6 +19,7 @@ mod regression_float_points_off_the_lattice;
 mod regression_legacy_counts_blamed_line_1;
 mod regression_legacy_names_percent_encoded;
 mod regression_many_appended_arrays_quadratic;
+mod regression_many_pieces_quadratic;
 mod regression_xml_errors_named_no_array;
 mod regression_xml_faults_unnamed_in_any_encoding;
 mod regression_xml_spellings_bypassed_the_guard;
