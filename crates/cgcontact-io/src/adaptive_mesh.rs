@@ -17,7 +17,7 @@ use cgcontact::{AdaptiveBody, CORNER_OFFSETS, Lattice, Leaf};
 use glam::DVec3;
 
 use crate::mesh::{
-    F32_ROUNDING_SLACK, LatticeMesh, ROUNDING_SLACK, all_f32, coordinate_slack, keep_offsets,
+    F32_ROUNDING_SLACK, LatticeMesh, ROUNDING_SLACK, all_f32, beyond_rounding, coordinate_slack,
     merge_displacements,
 };
 use crate::{CellMap, ErrorKind, HexMesh, LATTICE_TOLERANCE};
@@ -467,7 +467,7 @@ impl HexMesh {
 
     /// Adds to each node's displacement how far the file has it from its lattice position (the
     /// first input node at it; `q` every used node's finest-lattice coordinates), when one is
-    /// beyond f64 rounding ([`keep_offsets`]), so that the deformed nodes are the file's, as
+    /// beyond f64 rounding ([`beyond_rounding`]), so that the deformed nodes are the file's, as
     /// [`HexMesh::to_lattice`] does for uniform meshes: VTK's
     /// default float points lie up to 6e-8 of a cell off the lattice, and dropping that moved
     /// the faces off the file's (points on shared nodes and faces lost owners). A hanging node
@@ -498,9 +498,9 @@ impl HexMesh {
         }
         let lattice = body.lattice();
         let magnitude = lattice.origin().abs().max(lattice.upper().abs());
-        let Some(offsets) = keep_offsets(offsets, magnitude) else {
+        if !offsets.iter().any(|&o| beyond_rounding(o, magnitude)) {
             return Ok(());
-        };
+        }
         let sum: Vec<DVec3> = (body.displacements().iter())
             .zip(&offsets)
             .map(|(u, o)| *u + *o)

@@ -49,17 +49,13 @@ pub(crate) fn coordinate_slack(
 /// positions are the rounding of f64 arithmetic (`origin + i * h` with a spacing found to an ulp)
 /// and the nodes are taken at their lattice positions. When any node is farther off (coordinates
 /// stored as floats: 6e-8 of their magnitude; printed with 11 or 6 digits), every node keeps its
-/// offset, as displacement ([`keep_offsets`]).
+/// offset, as displacement ([`beyond_rounding`]).
 pub(crate) const ROUNDING_OFFSET: f64 = 64.0 * f64::EPSILON;
 
-/// `offsets` (of nodes from their lattice positions) when one of them is beyond the rounding of
-/// f64 arithmetic at `magnitude` ([`ROUNDING_OFFSET`]), else `None`.
-pub(crate) fn keep_offsets(offsets: Vec<DVec3>, magnitude: DVec3) -> Option<Vec<DVec3>> {
-    let rounding = ROUNDING_OFFSET * magnitude;
-    offsets
-        .iter()
-        .any(|o| o.abs().cmpgt(rounding).any())
-        .then_some(offsets)
+/// Whether a node's `offset` from its lattice position is beyond the rounding of f64 arithmetic
+/// at the lattice's `magnitude` ([`ROUNDING_OFFSET`]): then every node's offset is kept.
+pub(crate) fn beyond_rounding(offset: DVec3, magnitude: DVec3) -> bool {
+    offset.abs().cmpgt(ROUNDING_OFFSET * magnitude).any()
 }
 
 /// A lattice may have at most this many nodes, or 64 per node in use if that is more. Beyond that
@@ -579,7 +575,7 @@ impl HexMesh {
     }
 
     /// How far each body node's input node lies from its lattice position (`None` when every
-    /// one lies within f64 rounding of it: [`keep_offsets`]), in body node order; of copies of a
+    /// one lies within f64 rounding of it: [`beyond_rounding`]), in body node order; of copies of a
     /// node, the first input node's.
     ///
     /// A node counts as a lattice node within [`LATTICE_TOLERANCE`] of a spacing plus the
@@ -597,10 +593,10 @@ impl HexMesh {
         let lattice = body.lattice();
         let offset = |n: usize| self.points[n] - lattice.node_position(node_ijk[n]);
         // Most files hold their nodes within rounding: one pass tells, before any sort.
-        let rounding = ROUNDING_OFFSET * lattice.origin().abs().max(lattice.upper().abs());
+        let magnitude = lattice.origin().abs().max(lattice.upper().abs());
         if !used
             .iter_ones()
-            .any(|n| offset(n).abs().cmpgt(rounding).any())
+            .any(|n| beyond_rounding(offset(n), magnitude))
         {
             return None;
         }
