@@ -72,6 +72,74 @@ pub struct NewtonOptions {
     pub det_ratio_min: f64,
 }
 
+impl NewtonOptions {
+    /// Checks that every value is one the kernel can use: `tol`, each component of `inside_tol`
+    /// and of `inside_length` finite and ≥ 0, `det_ratio_min` in [0, 1). (`max_iter` may be any
+    /// count; with 0 no iteration runs and the inversion ends [`Status::NotConverged`].)
+    ///
+    /// Out of range, the answers are wrong: no ξ lies within a NaN inside tolerance (a cell's
+    /// centre comes out `Outside`), every converged ξ within an infinite one, and a determinant
+    /// floor of 1 calls a cube `Singular`. [`Hex8Map::invert`] refuses them (it panics). The
+    /// options that [`crate::Settings`] and [`crate::InsideTolerance`] make are always in range.
+    ///
+    /// ```
+    /// use cgcontact::hex8::NewtonOptions;
+    /// assert!(NewtonOptions::default().validate().is_ok());
+    /// let bad = NewtonOptions { tol: f64::NAN, ..NewtonOptions::default() };
+    /// assert!(bad.validate().is_err());
+    /// ```
+    pub fn validate(&self) -> Result<(), crate::Error> {
+        let length = |v: f64| v.is_finite() && v >= 0.0;
+        let fault = if !length(self.tol) {
+            Some(format!(
+                "Newton tolerance {} must be finite and >= 0",
+                self.tol
+            ))
+        } else if !self.inside_tol.to_array().into_iter().all(length) {
+            Some(format!(
+                "inside tolerance {:?} must be finite and >= 0 on every axis",
+                self.inside_tol.to_array()
+            ))
+        } else if !self.inside_length.to_array().into_iter().all(length) {
+            Some(format!(
+                "inside length {:?} must be finite and >= 0 on every axis",
+                self.inside_length.to_array()
+            ))
+        } else if !(self.det_ratio_min >= 0.0 && self.det_ratio_min < 1.0) {
+            Some(format!(
+                "determinant ratio floor {} must lie in [0, 1)",
+                self.det_ratio_min
+            ))
+        } else {
+            None
+        };
+        fault.map_or(Ok(()), |f| Err(crate::Error::InvalidSettings(f)))
+    }
+
+    /// [`Self::validate`]'s test alone, without a branch per value (every inversion asks it).
+    #[inline(always)]
+    fn in_range(&self) -> bool {
+        let length = |v: f64| (0.0..f64::INFINITY).contains(&v);
+        let lengths = |v: DVec3| length(v.x) & length(v.y) & length(v.z);
+        length(self.tol)
+            & lengths(self.inside_tol)
+            & lengths(self.inside_length)
+            & (0.0..1.0).contains(&self.det_ratio_min)
+    }
+}
+
+/// The panic of an inversion asked with options out of range (out of line: the check's branch
+/// is never taken by the locators, whose options are in range by construction).
+#[cold]
+#[inline(never)]
+#[track_caller]
+fn options_out_of_range(options: &NewtonOptions) -> ! {
+    match options.validate() {
+        Err(error) => panic!("Hex8Map::invert: {error} (see NewtonOptions::validate)"),
+        Ok(()) => unreachable!("NewtonOptions::in_range and validate disagree on {options:?}"),
+    }
+}
+
 impl Default for NewtonOptions {
     fn default() -> Self {
         Self {
@@ -347,9 +415,17 @@ macro_rules! stamp_hex8 {
             /// work, and must not turn a slow convergence into "in no cell". With a limit of 1
             /// or 2, the lattice locator said so of 54 of 81 points made inside a smoothly
             /// deformed block; brute force, which retried so, found them all.
+            ///
+            /// # Panics
+            /// When `options` are out of range ([`NewtonOptions::validate`]: a NaN, negative or
+            /// infinite tolerance, a determinant floor outside [0, 1)), with which the answer
+            /// would be wrong.
             #[must_use]
             #[inline]
             pub fn invert(&self, x: $V, xi0: $V, options: &NewtonOptions) -> Inversion {
+                if !options.in_range() {
+                    options_out_of_range(options);
+                }
                 let first = self.invert_from(x, xi0, options);
                 if first.status != Status::NotConverged {
                     return first;

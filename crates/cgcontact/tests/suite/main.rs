@@ -7,5 +7,6 @@ mod extremes;
 mod gap_extremes;
 mod locate_property;
 mod regression_low_iteration_limit;
+mod regression_newton_options_unchecked;
 mod schedule;
 mod warm;
