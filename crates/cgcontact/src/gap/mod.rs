@@ -131,6 +131,46 @@ const ALL_FACES: u8 = 0b11_1111;
 /// Relative slack of the pruning bounds: a face never is dropped by a rounding of its bound.
 const SLACK: f64 = 1e-12;
 
+/// The best squared distance so far, and the bound that prunes a box: that distance grown by the
+/// rounding of the boxes' bounds and of x's offset from a cell (lengths of the coordinates'
+/// magnitude), then by [`SLACK`]. Relative slack alone fails near the surface: a point on an
+/// edge is at 1e-17 of two faces by rounding, and a box within 1e-16 of it, all rounding, was
+/// pruned by a bound of 1e-34, so the cold search kept one face and the warm one, measuring the
+/// other first, the other.
+#[derive(Clone, Copy, Debug)]
+struct Bound {
+    d2: f64,
+    prune2: f64,
+    rounding: f64,
+}
+
+impl Bound {
+    fn new(d2: f64, rounding: f64) -> Self {
+        let mut bound = Self {
+            d2,
+            prune2: 0.0,
+            rounding,
+        };
+        bound.set(d2);
+        bound
+    }
+
+    /// A new best squared distance.
+    #[inline]
+    fn set(&mut self, d2: f64) {
+        self.d2 = d2;
+        let d = d2.sqrt() + self.rounding;
+        self.prune2 = d * d * (1.0 + SLACK);
+    }
+
+    /// Whether a box at squared distance `d2` (as `box_distance2` computes it) holds nothing
+    /// nearer than the best so far.
+    #[inline]
+    fn prunes(&self, d2: f64) -> bool {
+        d2 > self.prune2
+    }
+}
+
 impl<'l, L: Surface> GapFinder<'l, L> {
     /// A finder over the body `surface` searches, for points within `distance` of its boundary
     /// surface. Errors when `distance` is negative, not finite or beyond
@@ -271,17 +311,23 @@ impl<'l, L: Surface> GapFinder<'l, L> {
         }
         let d = self.distance;
         let mut best: Option<Best> = None;
-        let mut best_d2 = d * d;
         let lattice = self.surface.lattice();
         let inv_h = lattice.h().recip();
         let range = self.u_range;
+        // The magnitude of every coordinate a box test rounds: x, a cell's origin and corners,
+        // a displacement.
+        let magnitude = x.abs().max_element()
+            + lattice.origin().abs().max_element()
+            + (lattice.upper() - lattice.origin()).max_element()
+            + range.low.abs().max(range.high.abs()).max_element();
+        let mut bound = Bound::new(d * d, 8.0 * f64::EPSILON * magnitude);
         // Farther than D from the lattice's box shifted by the displacement range: no face near.
         let reach = box_distance2(
             x - lattice.origin(),
             range.low,
             lattice.upper() - lattice.origin() + range.high,
         );
-        if reach > best_d2 * (1.0 + SLACK) {
+        if bound.prunes(reach) {
             return Ok(None);
         }
         // First the hinted face's cell (the previous answer's), or else the cell at x's
@@ -291,15 +337,15 @@ impl<'l, L: Surface> GapFinder<'l, L> {
         let hinted = hint.and_then(|face| Some((self.surface.cell(face.cell.0)?, face.local)));
         let first = match hinted {
             Some((cell, local)) if local < 6 => {
-                self.offer_cell(x, cell, 1 << local, &mut best, &mut best_d2);
-                self.offer_cell(x, cell, ALL_FACES & !(1 << local), &mut best, &mut best_d2);
+                self.offer_cell(x, cell, 1 << local, &mut best, &mut bound);
+                self.offer_cell(x, cell, ALL_FACES & !(1 << local), &mut best, &mut bound);
                 Some(cell)
             }
             _ => {
                 let t = (x - lattice.origin() - 0.5 * (range.low + range.high)) * inv_h;
                 let first = self.surface.cell_near(t);
                 if let Some(cell) = first {
-                    self.offer_cell(x, cell, ALL_FACES, &mut best, &mut best_d2);
+                    self.offer_cell(x, cell, ALL_FACES, &mut best, &mut bound);
                 }
                 first
             }
@@ -311,7 +357,7 @@ impl<'l, L: Surface> GapFinder<'l, L> {
         // and the distance), which on a fine spacing far out is larger: an ulp of 3000 is 4.5e-13,
         // 1e-9 of a spacing of 1e-4 only 1e-13, and a face at D to within that rounding was left
         // out of the box, though the warm search, measuring it directly, found it within D.
-        let reach = best_d2.sqrt();
+        let reach = bound.d2.sqrt();
         let rounding = 8.0
             * f64::EPSILON
             * ((x - lattice.origin()).abs() + range.low.abs().max(range.high.abs()) + reach);
@@ -324,8 +370,8 @@ impl<'l, L: Surface> GapFinder<'l, L> {
             }
             let origin = self.surface.cell_origin(cell);
             let size = self.surface.size(cell);
-            if box_distance2(x - origin, range.low, size + range.high) <= best_d2 * (1.0 + SLACK) {
-                self.offer_cell(x, cell, ALL_FACES, &mut best, &mut best_d2);
+            if !bound.prunes(box_distance2(x - origin, range.low, size + range.high)) {
+                self.offer_cell(x, cell, ALL_FACES, &mut best, &mut bound);
             }
         });
         let Some(b) = best else {
@@ -401,7 +447,7 @@ impl<'l, L: Surface> GapFinder<'l, L> {
         cell: Cell,
         faces: u8,
         best: &mut Option<Best>,
-        best_d2: &mut f64,
+        bound: &mut Bound,
     ) {
         let faces = faces & self.surface.open_faces(cell);
         if faces == 0 {
@@ -424,7 +470,7 @@ impl<'l, L: Surface> GapFinder<'l, L> {
                 lo = lo.min(p);
                 hi = hi.max(p);
             }
-            if box_distance2(xl, lo, hi) > *best_d2 * (1.0 + SLACK) {
+            if bound.prunes(box_distance2(xl, lo, hi)) {
                 return;
             }
         }
@@ -440,7 +486,7 @@ impl<'l, L: Surface> GapFinder<'l, L> {
             } else {
                 lo[axis] = size[axis] + range.low[axis];
             }
-            if box_distance2(xl, lo, hi) > *best_d2 * (1.0 + SLACK) {
+            if bound.prunes(box_distance2(xl, lo, hi)) {
                 continue;
             }
             let u = u.get_or_insert_with(|| self.surface.corner_displacements(cell));
@@ -454,14 +500,14 @@ impl<'l, L: Surface> GapFinder<'l, L> {
                 lo = lo.min(p);
                 hi = hi.max(p);
             }
-            if box_distance2(xl, lo, hi) > *best_d2 * (1.0 + SLACK) {
+            if bound.prunes(box_distance2(xl, lo, hi)) {
                 continue;
             }
             let coverage = self.surface.coverage(cell, f);
             if coverage == Coverage::Covered {
                 continue;
             }
-            self.offer_face(x, cell, u, f, &coverage, best, best_d2);
+            self.offer_face(x, cell, u, f, &coverage, best, bound);
         }
     }
 
@@ -477,14 +523,14 @@ impl<'l, L: Surface> GapFinder<'l, L> {
         f: usize,
         coverage: &Coverage,
         best: &mut Option<Best>,
-        best_d2: &mut f64,
+        bound: &mut Bound,
     ) {
         match coverage {
             Coverage::Covered => {}
-            Coverage::Open => self.offer(x, cell, u, f, None, best, best_d2),
+            Coverage::Open => self.offer(x, cell, u, f, None, best, bound),
             Coverage::Partial(squares) => {
                 for &square in squares.iter() {
-                    self.offer(x, cell, u, f, Some(square), best, best_d2);
+                    self.offer(x, cell, u, f, Some(square), best, bound);
                 }
             }
         }
@@ -503,7 +549,7 @@ impl<'l, L: Surface> GapFinder<'l, L> {
         f: usize,
         square: Option<[f64; 4]>,
         best: &mut Option<Best>,
-        best_d2: &mut f64,
+        bound: &mut Bound,
     ) {
         let origin = self.surface.cell_origin(cell);
         let size = self.surface.size(cell);
@@ -526,19 +572,19 @@ impl<'l, L: Surface> GapFinder<'l, L> {
             lo = lo.min(p);
             hi = hi.max(p);
         }
-        if box_distance2(xl, lo, hi) > *best_d2 * (1.0 + SLACK) {
+        if bound.prunes(box_distance2(xl, lo, hi)) {
             return;
         }
-        let Some(mut p) = quad::closest_below(xl, &part, *best_d2) else {
+        let Some(mut p) = quad::closest_below(xl, &part, bound.d2) else {
             return;
         };
-        if best.is_some() && p.d2 >= *best_d2 {
+        if best.is_some() && p.d2 >= bound.d2 {
             return;
         }
         if square.is_some() {
             p.st = st_lo + (p.st + 1.0) * 0.5 * (st_hi - st_lo);
         }
-        *best_d2 = p.d2;
+        bound.set(p.d2);
         *best = Some(Best {
             d2: p.d2,
             face: Face {
