@@ -56,6 +56,7 @@ fn main() -> ExitCode {
     // was or complete. Without the handler (it could not be set), the signal's default applies.
     let _ = ctrlc::set_handler(|| {
         cgcontact_io::abandon_writes();
+        output::remove_made_folders();
         eprintln!("cgcontact: interrupted; outputs not yet complete were left as they were");
         std::process::exit(INTERRUPTED);
     });

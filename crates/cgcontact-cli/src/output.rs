@@ -3,6 +3,7 @@
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
+use std::sync::{Mutex, PoisonError};
 
 use anyhow::{Result, bail};
 
@@ -51,9 +52,15 @@ macro_rules! say {
 pub(crate) use say;
 
 /// The file a path names, for comparing: its canonical form when it exists, else its folder's
-/// canonical form joined with its name (the folder must exist).
+/// canonical form joined with its name (the folder must exist). A symbolic link names the file
+/// it leads to, dangling or not: a write goes there ([`cgcontact_io::write_target`]), so a
+/// dangling `known.csv -> mesh.vtu` beside a `mesh.vtu` of the same run is that file.
 fn identity(path: &Path) -> Option<PathBuf> {
     if let Ok(canonical) = std::fs::canonicalize(path) {
+        return Some(canonical);
+    }
+    let path = cgcontact_io::write_target(path)?;
+    if let Ok(canonical) = std::fs::canonicalize(&path) {
         return Some(canonical);
     }
     let name = path.file_name()?;
@@ -190,7 +197,8 @@ pub fn prepare_folder(flag: &str, dir: &Path) -> Result<MadeFolders> {
     if dir.exists() && !dir.is_dir() {
         bail!("{}: {flag} names a file, not a folder", dir.display());
     }
-    // The folders that do not exist yet, deepest first.
+    // The folders that do not exist yet, deepest first; known to the interrupt handler before
+    // they are made.
     let made = MadeFolders(
         dir.ancestors()
             .filter(|a| !a.as_os_str().is_empty())
@@ -198,6 +206,7 @@ pub fn prepare_folder(flag: &str, dir: &Path) -> Result<MadeFolders> {
             .map(Path::to_path_buf)
             .collect(),
     );
+    made_folders().extend(made.0.iter().cloned());
     std::fs::create_dir_all(dir)
         .map_err(|e| anyhow::anyhow!("{}: {flag}: cannot create the folder: {e}", dir.display()))?;
     // A folder we cannot write to fails now, not after the work.
@@ -217,11 +226,37 @@ pub struct MadeFolders(Vec<PathBuf>);
 
 impl Drop for MadeFolders {
     fn drop(&mut self) {
+        let mut all = made_folders();
+        for folder in &self.0 {
+            if let Some(at) = all.iter().rposition(|f| f == folder) {
+                all.swap_remove(at);
+            }
+        }
+        drop(all);
         for folder in &self.0 {
             // Fails, and keeps the folder, once anything was written in it.
             if std::fs::remove_dir(folder).is_err() {
                 break;
             }
         }
+    }
+}
+
+/// Every folder a [`MadeFolders`] still holds, for [`remove_made_folders`].
+static MADE: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+fn made_folders() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
+    MADE.lock().unwrap_or_else(PoisonError::into_inner)
+}
+
+/// Removes the folders the run made that are still empty, deepest first: what the guards of
+/// [`prepare_folder`] do when they drop, for a run ended by a signal, whose destructors do not
+/// run. Call it after [`cgcontact_io::abandon_writes`], so that no write starts in them.
+pub fn remove_made_folders() {
+    let mut all = made_folders().clone();
+    all.sort_by_key(|f| std::cmp::Reverse(f.components().count()));
+    for folder in all {
+        // Fails, and keeps the folder, where anything was written in it.
+        let _ = std::fs::remove_dir(folder);
     }
 }
