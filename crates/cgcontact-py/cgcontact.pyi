@@ -100,7 +100,8 @@ class Locator:
     ) -> Tuple[npt.NDArray[np.int64], npt.NDArray[np.float64]]:
         """(cell int64[n], xi float64[n, 3]) for points (n, 3): -1 and NaN where no cell holds
         the point. Cells are numbered as the body's input (rows of `hexes`, cells of the file,
-        or lattice cells). A NaN or infinite point raises ValueError naming its row. With
+        or lattice cells). A NaN or infinite point raises ValueError naming its row, before
+        anything is written. With
         `out=(cell, xi)` (C-contiguous, aligned, writeable int64[n] and float64[n, 3] arrays
         sharing no memory with `points` or each other, nor in use by a call in another thread)
         the answers are written there and `out` is returned. On a large body (more than 8 MB
@@ -132,8 +133,8 @@ class Locator:
         answer (cell -1 for none) and is overwritten with the new one, then returned. A point
         whose previous cell still holds it costs one Newton inversion from its previous xi. The
         answers are `locate`'s whatever the hints; a cell that is neither -1 nor a cell of the
-        body (an inactive lattice cell included) raises ValueError before anything is
-        written."""
+        body (an inactive lattice cell included), or a NaN or infinite point, raises ValueError
+        before anything is written."""
     @overload
     def locate_owners(self, x: Sequence[float]) -> List[Tuple[int, _Xi]]: ...
     @overload

@@ -117,6 +117,16 @@ fn refused(what: &str, points: &[DVec3], row: usize) -> PyErr {
     ))
 }
 
+/// The refusal of the first point that is not finite, if any: asked before a query touches its
+/// `out` arrays, so that a refused `relocate` keeps its hints (a solver loop may retry), and a
+/// refused `locate` its previous answers.
+fn refuse_non_finite(points: &[DVec3]) -> PyResult<()> {
+    match points.iter().position(|p| !p.is_finite()) {
+        Some(row) => Err(refused("points", points, row)),
+        None => Ok(()),
+    }
+}
+
 /// Finds the cell of a body holding each point, and its local coordinates.
 ///
 /// `Locator(body, strategy="lattice", precision="f64", tol=None, max_iter=None, threads=None)`:
@@ -193,6 +203,7 @@ impl PyLocator {
         let (rows, _) = arrays::rows(points, "points", false)?;
         let vectors = rows.vectors()?;
         let points: &[DVec3] = &vectors;
+        refuse_non_finite(points)?;
         let n = points.len();
         let (cells, xi) = match out {
             Some(out) => out_arrays(out, n)?,
@@ -358,6 +369,7 @@ impl PyLocator {
         let (rows, _) = arrays::rows(points, "points", false)?;
         let vectors = rows.vectors()?;
         let points: &[DVec3] = &vectors;
+        refuse_non_finite(points)?;
         let n = points.len();
         let (order, cells, xi) = match out {
             Some(out) => unordered_arrays(out, n)?,
@@ -396,7 +408,8 @@ impl PyLocator {
     /// searched as `locate` does. The answers are `locate`'s (the same cells, xi within the
     /// Newton tolerance; on a face shared by two cells either may answer) whatever the hints; a
     /// NaN xi starts from the cell's centre. A previous cell that is neither -1 nor a cell of the
-    /// body (an inactive lattice cell included) raises `ValueError` before anything is written.
+    /// body (an inactive lattice cell included), or a NaN or infinite point, raises `ValueError`
+    /// before anything is written.
     fn relocate<'py>(
         &self,
         py: Python<'py>,

@@ -709,6 +709,27 @@ def test_relocate_refuses_hints_that_are_no_cell():
                          out=(np.full(2, -1, dtype=np.int64), np.zeros((2, 3))))
 
 
+def test_a_point_not_finite_is_refused_before_anything_is_written():
+    """Regression: a NaN point was refused after every row of `out` was written, so a solver
+    loop that caught the ValueError had lost its hints (relocate) or previous answers."""
+    points, cells, _ = cell_points()
+    n = len(points)
+    locator = cgcontact.Locator(cgcontact.Body(ORIGIN, SPACING, COUNTS))
+    for bad in [np.nan, np.inf, -np.inf]:
+        moved = points.copy()
+        moved[n - 1, 2] = bad
+        for query in ["locate", "relocate", "locate_unordered"]:
+            if query == "locate_unordered":
+                out = (np.arange(n, dtype=np.int64), cells.astype(np.int64), np.full((n, 3), 0.25))
+            else:
+                out = (cells.astype(np.int64), np.full((n, 3), 0.25))
+            before = [a.copy() for a in out]
+            with pytest.raises(ValueError, match=f"row {n - 1} \\(0-based\\) is not finite"):
+                getattr(locator, query)(moved, out=out)
+            for got, was in zip(out, before):
+                np.testing.assert_array_equal(got, was, err_msg=f"{query} {bad}")
+
+
 # Hanging nodes off their constraint: the command line's message, warning or error.
 
 
