@@ -193,6 +193,11 @@ impl Body {
     }
 
     /// A body with every lattice cell active.
+    ///
+    /// It holds 24 bytes per lattice node (the displacements) and a bit per cell, so a lattice
+    /// of 10^9 nodes takes 24 GB; where the allocation fails, the process aborts, as for any
+    /// `Vec`. A body of some cells of a large lattice ([`Body::from_cells`]) takes memory that
+    /// grows with its cells.
     pub fn full(lattice: Lattice) -> Self {
         let active = BitVec::repeat(true, lattice.cell_count());
         Self::undeformed(lattice, active)
