@@ -24,7 +24,7 @@ mod scale;
 mod scenes;
 
 use std::io::IsTerminal;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
@@ -60,7 +60,8 @@ pub struct TradeoffArgs {
     #[arg(long, value_name = "N", allow_negative_numbers = true)]
     threads: Option<usize>,
     /// A log of benches/gslib/run.sh: adds gslib findpts's points/s on the same blocks to the
-    /// scale section and its plot.
+    /// scale section and its plot. Refused when it is not UTF-8 text of at most 16 MiB, when a
+    /// `points_per_s` is not in [1e-9, 1e15], or when it is one of the files written.
     #[arg(long, value_name = "LOG")]
     gslib: Option<PathBuf>,
 }
@@ -84,7 +85,14 @@ pub fn run(args: &TradeoffArgs) -> Result<()> {
     let _made = crate::output::prepare_folder("--out", &args.out)?;
     // Each file's name free for a file, before minutes of measurements.
     let files = ["tradeoff.md", "tradeoff.svg", "scale.svg"].map(|f| ("--out", args.out.join(f)));
-    crate::output::check_outputs(&[], &files)?;
+    // None of them the --gslib log: it was read above, but the report would replace it.
+    let inputs: Vec<(&str, &Path)> = args
+        .gslib
+        .as_deref()
+        .map(|log| ("--gslib", log))
+        .into_iter()
+        .collect();
+    crate::output::check_outputs(&inputs, &files)?;
 
     let started = Instant::now();
     let configs = configs();

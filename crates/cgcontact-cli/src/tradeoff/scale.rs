@@ -8,6 +8,7 @@
 //! against cells.
 
 use std::fmt::Write as _;
+use std::io::Read as _;
 use std::path::Path;
 use std::time::Duration;
 
@@ -49,12 +50,74 @@ pub(super) struct Gslib {
     pps: Vec<(usize, f64)>,
 }
 
+/// The rates a gslib log may give, in points/s: a normal f64 in this range. `findpts` answers
+/// between a few thousand and a few million points/s; the bounds leave orders of magnitude either
+/// side but refuse what no run gives (a subnormal rate hung the log axis of `scale.svg`). The
+/// `--gslib` help names the range.
+const GSLIB_RATE_RANGE: std::ops::RangeInclusive<f64> = 1e-9..=1e15;
+
+/// The longest gslib log read, in bytes: a log of `benches/gslib/run.sh` is a few KB.
+const GSLIB_LOG_MAX_BYTES: u64 = 16 << 20;
+
+/// Bytes read at a time, each chunk checked for a NUL byte before the next is read.
+const CHUNK_BYTES: u64 = 64 << 10;
+
+/// The text of the gslib log at `path`: at most [`GSLIB_LOG_MAX_BYTES`], UTF-8 without NUL bytes,
+/// refused from its first bytes otherwise (`/dev/zero` was read until memory ran out). The
+/// `--gslib` help names the limits: change it with them.
+fn read_log(path: &Path) -> Result<String> {
+    let name = path.display();
+    let file =
+        std::fs::File::open(path).with_context(|| format!("cannot read the gslib log {name}"))?;
+    let meta = file
+        .metadata()
+        .with_context(|| format!("cannot read the gslib log {name}"))?;
+    if meta.is_dir() {
+        bail!("{name}: the gslib log is a folder, not a file");
+    }
+    let too_big = |size: u64| {
+        anyhow!(
+            "{name}: more than {GSLIB_LOG_MAX_BYTES} bytes ({size} read or reported): not a log \
+             of benches/gslib/run.sh (a few KB)"
+        )
+    };
+    if meta.is_file() && meta.len() > GSLIB_LOG_MAX_BYTES {
+        return Err(too_big(meta.len()));
+    }
+    let mut reader = file.take(GSLIB_LOG_MAX_BYTES + 1);
+    let mut bytes = Vec::new();
+    loop {
+        let start = bytes.len();
+        let read = (&mut reader)
+            .take(CHUNK_BYTES)
+            .read_to_end(&mut bytes)
+            .with_context(|| format!("cannot read the gslib log {name}"))?;
+        if let Some(at) = bytes[start..].iter().position(|&b| b == 0) {
+            bail!(
+                "{name}: binary data (a NUL byte at byte {}), not a log of benches/gslib/run.sh",
+                start + at
+            );
+        }
+        if read == 0 {
+            break;
+        }
+    }
+    if bytes.len() as u64 > GSLIB_LOG_MAX_BYTES {
+        return Err(too_big(bytes.len() as u64));
+    }
+    String::from_utf8(bytes).map_err(|e| {
+        anyhow!(
+            "{name}: not UTF-8 text (an invalid byte at byte {}), not a log of benches/gslib/run.sh",
+            e.utf8_error().valid_up_to()
+        )
+    })
+}
+
 impl Gslib {
     /// Reads the `gslib cells=N … points_per_s=P …` lines of the log at `path`.
     pub(super) fn read(path: &Path) -> Result<Self> {
         let name = path.display();
-        let text = std::fs::read_to_string(path)
-            .with_context(|| format!("cannot read the gslib log {name}"))?;
+        let text = read_log(path)?;
         let mut pps: Vec<(usize, f64)> = Vec::new();
         for (n, line) in text.lines().enumerate() {
             if !line.starts_with("gslib cells=") {
@@ -70,11 +133,19 @@ impl Gslib {
                 .ok()
                 .filter(|&c| c > 0)
                 .ok_or_else(|| anyhow!("{name}:{}: `cells` is not a cell count", n + 1))?;
-            let rate: f64 = field("points_per_s")?
+            let value = field("points_per_s")?;
+            let rate: f64 = value
                 .parse()
-                .ok()
-                .filter(|r: &f64| r.is_finite() && *r > 0.0)
-                .ok_or_else(|| anyhow!("{name}:{}: `points_per_s` is not a rate", n + 1))?;
+                .map_err(|_| anyhow!("{name}:{}: `points_per_s` is not a rate", n + 1))?;
+            if !(rate.is_normal() && GSLIB_RATE_RANGE.contains(&rate)) {
+                bail!(
+                    "{name}:{}: `points_per_s={}` is not a rate of points/s in [{:e}, {:e}]",
+                    n + 1,
+                    value.escape_default(),
+                    GSLIB_RATE_RANGE.start(),
+                    GSLIB_RATE_RANGE.end()
+                );
+            }
             if pps.iter().any(|&(c, _)| c == cells) {
                 bail!("{name}:{}: a second gslib run of {cells} cells", n + 1);
             }
@@ -263,6 +334,24 @@ pub(super) fn scale_section(rows: &[ScaleRow], gslib: Option<&Gslib>) -> String 
     s
 }
 
+/// The y range of `scale.svg`, log scale: the normal rates in [`GSLIB_RATE_RANGE`] among `rates`,
+/// widened by a factor of 1.5 each side, so never empty, and at most about 24 decades. plotters'
+/// log axis never ends on a range that reaches 0 or a subnormal (a gslib rate of 5e-324 hung
+/// `tradeoff` in `LogCoord::key_points`) or infinity, so a rate outside is left out of the range
+/// (its mark is cut off).
+fn log_range(rates: impl Iterator<Item = f64>) -> (f64, f64) {
+    let (lo, hi) = rates
+        .filter(|r| r.is_normal() && GSLIB_RATE_RANGE.contains(r))
+        .fold((f64::INFINITY, 0.0_f64), |(lo, hi), r| {
+            (lo.min(r), hi.max(r))
+        });
+    if hi < lo {
+        // No rate to show: an axis around 1 M points/s.
+        return (1e5, 1e7);
+    }
+    (lo / 1.5, hi * 1.5)
+}
+
 /// Write `scale.svg`: points/s (1 thread) against cells, log–log, one line per column, and one for
 /// gslib at the sizes its log has.
 pub(super) fn scale_plot(path: &Path, rows: &[ScaleRow], gslib: Option<&Gslib>) -> Result<()> {
@@ -285,8 +374,7 @@ pub(super) fn scale_plot(path: &Path, rows: &[ScaleRow], gslib: Option<&Gslib>) 
             .iter()
             .flat_map(|r| r.pps)
             .chain(gslib_line.iter().map(|p| p.1));
-        let y_hi = all.clone().fold(0.0, f64::max) * 1.5;
-        let y_lo = all.fold(f64::INFINITY, f64::min) / 1.5;
+        let (y_lo, y_hi) = log_range(all);
         let mut chart = ChartBuilder::on(&root)
             .caption(
                 "lattice locator, 1 thread: points/s against cells",

@@ -6,5 +6,6 @@ mod end_to_end;
 mod lzma;
 mod output_safety;
 mod regression_links_and_interrupted_folders;
+mod tradeoff_gslib_input;
 mod tradeoff_quick;
 mod vtk_written_adaptive;
