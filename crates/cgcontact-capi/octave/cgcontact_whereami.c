@@ -192,7 +192,8 @@ static void settings_from(const mxArray *options, cgc_settings *s, uint32_t *fil
     f = mxGetField(options, 0, "precision");
     if (f) {
         char p[8] = {0};
-        if (!mxIsChar(f) || mxGetString(f, p, sizeof p) != 0 || (strcmp(p, "f64") && strcmp(p, "f32")))
+        if (!mxIsChar(f) || mxGetString(f, p, sizeof p) != 0 ||
+            strlen(p) != mxGetNumberOfElements(f) || (strcmp(p, "f64") && strcmp(p, "f32")))
             FAIL("badInput", "Options.precision must be 'f64' or 'f32'");
         if (!strcmp(p, "f32")) cgc_settings_init(CGC_PRECISION_F32, s);
     }
@@ -470,8 +471,11 @@ void mexFunction(int nlhs, mxArray *plhs[], int nrhs, const mxArray *prhs[]) {
     }
     if (nrhs >= 1 && mxIsChar(prhs[0])) {
         char command[32] = {0};
+        /* A NUL inside the row ('locate' followed by char(0) and more) ends the C string
+           early: the whole row must be the command. */
         if (mxGetNumberOfElements(prhs[0]) >= sizeof command || mxGetM(prhs[0]) > 1 ||
-            mxGetString(prhs[0], command, sizeof command) != 0)
+            mxGetString(prhs[0], command, sizeof command) != 0 ||
+            strlen(command) != mxGetNumberOfElements(prhs[0]))
             FAIL("usage",
                  "unknown command: a row of at most %d characters (new, update, locate, "
                  "relocate, gap, inverted_cells, unresolved_cells, query_seconds, free, handles)",

@@ -476,6 +476,9 @@ expect_error('cgcontact:badInput', @() cgcontact_whereami(XYZ, N0, T, U, struct(
 expect_error('cgcontact:invalidArgument', @() cgcontact_whereami(XYZ, N0, T, U, struct('tol', -1)), 'Options.tol');
 expect_error('cgcontact:usage', @() cgcontact_whereami(XYZ, N0), 'too few arguments');
 expect_error('cgcontact:usage', @() cgcontact_whereami('frobnicate'), 'unknown command');
+% A NUL inside the row ended the C string: 'locate' and more was taken for 'locate'.
+expect_error('cgcontact:usage', @() cgcontact_whereami(['locate' char(0) 'x'], H, XYZ), 'a command with a NUL inside');
+expect_error('cgcontact:badInput', @() cgcontact_whereami(XYZ, N0, T, U, struct('precision', ['f32' char(0)])), 'Options.precision with a NUL');
 expect_error('cgcontact:badHandle', @() cgcontact_whereami('locate', 99, XYZ), 'a handle never made');
 expect_error('cgcontact:badSize', @() cgcontact_whereami('update', H, U'), 'update with U'' (3 x m)');
 expect_error('cgcontact:nonFinitePoint', @() cgcontact_whereami('locate', H, nanX), 'locate NaN');
