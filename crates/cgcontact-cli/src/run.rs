@@ -672,17 +672,26 @@ pub fn reading<T>(path: &std::path::Path, quiet: bool, read: impl FnOnce() -> T)
         return read();
     }
     let size = std::fs::metadata(path).map_or(0, |m| m.len());
+    let what = format!("reading {} ({:.1} MB)", path.display(), size as f64 / 1e6);
+    spinning(&what, quiet, read)
+}
+
+/// `work()` with a spinner on stderr (`what`, then the time so far) once it has lasted a second.
+/// Never shown when stderr is not a terminal or the user asked for quiet.
+pub fn spinning<T>(what: &str, quiet: bool, work: impl FnOnce() -> T) -> T {
+    if quiet || !std::io::stderr().is_terminal() {
+        return work();
+    }
     let spinner = ProgressBar::with_draw_target(None, ProgressDrawTarget::hidden());
     spinner.set_style(
-        ProgressStyle::with_template("{spinner} reading {msg} ({elapsed})")
-            .expect("the template is valid"),
+        ProgressStyle::with_template("{spinner} {msg} ({elapsed})").expect("the template is valid"),
     );
-    spinner.set_message(format!("{} ({:.1} MB)", path.display(), size as f64 / 1e6));
+    spinner.set_message(what.to_owned());
     let (done, finished) = std::sync::mpsc::channel::<()>();
     let value = std::thread::scope(|scope| {
         let shown = spinner.clone();
         scope.spawn(move || {
-            // Shown after a second unless the reading ended first (its sender dropped).
+            // Shown after a second unless the work ended first (its sender dropped).
             if finished.recv_timeout(std::time::Duration::from_secs(1))
                 == Err(std::sync::mpsc::RecvTimeoutError::Timeout)
             {
@@ -690,7 +699,7 @@ pub fn reading<T>(path: &std::path::Path, quiet: bool, read: impl FnOnce() -> T)
                 shown.enable_steady_tick(std::time::Duration::from_millis(120));
             }
         });
-        let value = read();
+        let value = work();
         drop(done);
         value
     });

@@ -2,20 +2,35 @@
 
 use std::path::PathBuf;
 
-use anyhow::{Result, bail};
+use anyhow::{Result, anyhow, bail};
 
-/// The most cells (`block --cells`) and known points (`--known`) a generated scene may have:
-/// 2^26, a few GB built in memory. Beyond, the allocation aborted the process.
-const MAX_SCENE_SIZE: u64 = 1 << 26;
+/// The most cells (of a uniform scene) or leaves (of `sphere-adaptive`) a generated scene may have:
+/// 2^23, checked before anything is built. The scene is built in memory before it is written, at
+/// about 600 bytes a cell: `block --cells 256,256,128` (2^23 cells, 1 M known points) peaked at
+/// 5.1 GB resident, `block --cells 256,256,64` (2^22) at 2.6 GB, `sphere-adaptive --levels 3
+/// --refine-radius 100` (8.19 M leaves) at 4.7 GB. Beyond, `sphere-fine --h 0.01` (250 M cells)
+/// aborted the process on a failed allocation of 6 GB.
+const MAX_SCENE_CELLS: u64 = 1 << 23;
+/// The most known points (`--known`) a generated scene may have: 2^24, about 120 bytes each in
+/// memory (2^26 of them on `sphere-coarse` peaked at 7.9 GB resident), so about 2 GB.
+const MAX_KNOWN_POINTS: u64 = 1 << 24;
+/// The most cells along one axis of a generated scene: the scenes library's own limit (it builds
+/// no lattice of 10^6 cells or more along an axis). Far below [`cgcontact::Lattice::new`]'s limit
+/// (fewer than 2^32 − 1 nodes in all), which [`MAX_SCENE_CELLS`] keeps out of reach.
+const MAX_CELLS_PER_AXIS: u32 = 999_999;
 /// The shortest spacing and the farthest coordinate of a generated scene: the lattice's own
 /// spacing range, whose squares (the sphere's distances) and cubes stay normal numbers.
 const MIN_LENGTH: f64 = cgcontact::Lattice::MIN_SPACING;
 const MAX_LENGTH: f64 = cgcontact::Lattice::MAX_SPACING;
 use cgcontact::glam::DVec3;
+use cgcontact::{Error, Lattice, Leaf};
 use cgcontact_io::{CellMap, MeshFormat, write_adaptive_mesh, write_mesh, write_points};
-use cgcontact_scenes::{KnownPoint, LeafOrder, SphereOnAdaptiveBlock, SphereOnBlock};
+use cgcontact_scenes::{
+    KnownPoint, LeafOrder, SphereOnAdaptiveBlock, SphereOnBlock, leaf_box, refine_lattice,
+};
 
 use crate::output::{check_outputs, prepare_folder, say};
+use crate::run::spinning;
 use clap::{Args, ValueEnum};
 
 /// Scene names.
@@ -64,21 +79,25 @@ pub struct SceneArgs {
     /// Mesh file flavour.
     #[arg(long, value_enum, default_value_t = FormatName::Vtu)]
     format: FormatName,
-    /// Cells per axis of the `block` scene [default: 40,80,40].
+    /// Cells per axis of the `block` scene [default: 40,80,40]; at most 8,388,608 (2^23) in all,
+    /// as for every scene (cells, or `sphere-adaptive`'s leaves), and 999,999 along an axis.
     #[arg(
         long,
         value_name = "NX,NY,NZ",
         value_delimiter = ',',
-        allow_negative_numbers = true
+        allow_hyphen_values = true,
+        value_parser = count
     )]
     cells: Option<Vec<u32>>,
     /// Lattice spacing: one value, or three for anisotropic cells [default: the scene's].
-    // Negative numbers are taken as values, so that the check below names them.
+    // Negative numbers, and lists that start with one ("-1,2,3", which `allow_negative_numbers`
+    // does not take), are taken as values, so that the check below names them.
     #[arg(
         long,
         value_name = "H[,HY,HZ]",
         value_delimiter = ',',
-        allow_negative_numbers = true
+        allow_hyphen_values = true,
+        value_parser = number
     )]
     h: Option<Vec<f64>>,
     /// Largest sink of the indented top face, in units of h (up to several h).
@@ -100,7 +119,8 @@ pub struct SceneArgs {
         long,
         value_name = "X[,Y,Z]",
         value_delimiter = ',',
-        allow_negative_numbers = true
+        allow_hyphen_values = true,
+        value_parser = number
     )]
     offset: Option<Vec<f64>>,
     /// Factor on every length.
@@ -111,7 +131,8 @@ pub struct SceneArgs {
         allow_negative_numbers = true
     )]
     scale: f64,
-    /// Number of points made from known (cell, ξ) [default: 10,000; 1,000,000 for `block`].
+    /// Number of points made from known (cell, ξ) [default: 10,000; 1,000,000 for `block`]; at
+    /// most 16,777,216 (2^24).
     #[arg(long, value_name = "N", allow_negative_numbers = true)]
     known: Option<usize>,
     /// Seed of the jitter and the known points.
@@ -130,6 +151,33 @@ pub struct SceneArgs {
     /// `sphere-adaptive`: write the cells in a random order (from --seed) instead of sorted.
     #[arg(long)]
     shuffle: bool,
+    /// Arguments left over. Hidden: it is there so that a flag taken as the value of a list flag
+    /// before it (`--offset --h 1`: `--h` is --offset's value, as `-1,2,3` must be) is reported as
+    /// that flag's bad value, not as the number after it being unexpected; `run` refuses any.
+    #[arg(hide = true)]
+    stray: Vec<String>,
+}
+
+/// A value of --h or --offset: a number, or an error that says a flag was taken for it.
+fn number(value: &str) -> Result<f64, String> {
+    if value.starts_with("--") {
+        return Err(format!(
+            "{value} is a flag, not a number: give the option its value"
+        ));
+    }
+    value.parse().map_err(|e| format!("{e}"))
+}
+
+/// A value of --cells: a count, or an error that says a flag was taken for it.
+fn count(value: &str) -> Result<u32, String> {
+    if value.starts_with("--") {
+        return Err(format!(
+            "{value} is a flag, not a count: give the option its value"
+        ));
+    }
+    value
+        .parse()
+        .map_err(|_| format!("{value} is not a count of cells (0 to {})", u32::MAX))
 }
 
 fn vector(values: &[f64], flag: &str) -> Result<DVec3> {
@@ -140,7 +188,259 @@ fn vector(values: &[f64], flag: &str) -> Result<DVec3> {
     }
 }
 
+/// `v` as a flag would take it, short: `1e300`, not its 301 digits.
+fn shown(v: f64) -> String {
+    if v != 0.0 && !(1e-4..1e6).contains(&v.abs()) {
+        format!("{v:e}")
+    } else {
+        v.to_string()
+    }
+}
+
+/// `v` as a list flag would take it: one value when its three are equal.
+fn shown3(v: DVec3) -> String {
+    if v.x == v.y && v.y == v.z {
+        shown(v.x)
+    } else {
+        v.to_array().map(shown).join(",")
+    }
+}
+
+/// The cells per axis of the scene `knobs` describe, as the scenes library lays them out
+/// (block / h, rounded), checked against the per-axis and the total limits with the flags that
+/// set them named: `--cells` for `block` (its counts), `--h` for the others (their block is the
+/// seed's).
+fn cell_counts(knobs: &SphereOnBlock) -> Result<[u32; 3]> {
+    let counts = (knobs.block / knobs.h).round();
+    let h = shown3(knobs.h);
+    for (axis, n) in ["x", "y", "z"].into_iter().zip(counts.to_array()) {
+        // Finite: the block and --h are (checked above).
+        if n < 1.0 {
+            bail!(
+                "--h {h} is coarser than the scene's {} mm block: no cell along {axis}; use a \
+                 smaller --h",
+                knobs.block.to_array().map(shown).join(" x ")
+            );
+        }
+        if n > f64::from(MAX_CELLS_PER_AXIS) {
+            bail!(
+                "--h {h} makes {n} cells along {axis}; a generated scene has at most \
+                 {MAX_CELLS_PER_AXIS} per axis: use a larger --h"
+            );
+        }
+    }
+    let counts = counts.to_array().map(|n| n as u32);
+    let count: u64 = counts.iter().map(|&n| u64::from(n)).product();
+    if count > MAX_SCENE_CELLS {
+        // `block`'s counts are its --cells, checked already: only --h gets here.
+        bail!(
+            "--h {h} makes {count} cells ({} x {} x {}); a generated scene holds at most \
+             {MAX_SCENE_CELLS} (it is built in memory, about 600 bytes a cell): use a larger --h",
+            counts[0],
+            counts[1],
+            counts[2]
+        );
+    }
+    Ok(counts)
+}
+
+/// The scene's base lattice, as the scenes library builds it (`counts` cells of spacing h × scale
+/// from the offset), with the resolution its finest cells need (`finest` levels of halving below
+/// it) checked first, naming the flags: far from the origin, f64 coordinates cannot resolve fine
+/// cells ([`Lattice::check_resolution`]), which the library reports as a mesh to move.
+fn base_lattice(
+    args: &SceneArgs,
+    knobs: &SphereOnBlock,
+    counts: [u32; 3],
+    finest: u8,
+) -> Result<Lattice> {
+    let h = knobs.h * args.scale;
+    let cells = DVec3::from_array(counts.map(f64::from));
+    let magnitude = knobs
+        .offset
+        .abs()
+        .max((knobs.offset + h * cells).abs())
+        .max_element();
+    let fine = h.min_element() * 0.5f64.powi(i32::from(finest));
+    let share = 8.0 * f64::EPSILON * magnitude / fine;
+    if share > Lattice::RESOLUTION {
+        let refined = if finest > 0 {
+            format!(", halved {finest} times by --levels")
+        } else {
+            String::new()
+        };
+        bail!(
+            "--offset {} puts the scene {magnitude:.3e} from the origin, too far for its spacing \
+             {fine:e} (from --h and --scale{refined}): coordinates there round by {share:.1e} of \
+             a cell (at most {:e}); use a smaller --offset or a larger --h",
+            shown3(knobs.offset),
+            Lattice::RESOLUTION
+        );
+    }
+    Lattice::new(knobs.offset, h, counts)
+        .map_err(|e| anyhow!("the scene's lattice (from --h, --scale and --offset): {e}"))
+}
+
+/// The leaves `adaptive` refines `base` into and the finest level among them, counted before the
+/// scene is built, refused beyond [`MAX_SCENE_CELLS`]. The refinement without the 2:1 balance is
+/// counted cell by cell, nothing stored, stopping past the cap: that is the count with
+/// `--unbalanced`, and at most the balanced one (balancing only splits more), so that a scene far
+/// too large is refused at once. A balanced one within the cap is then refined as `build` does,
+/// leaves only (a few bytes each, where the scene takes hundreds): at the cap, 5 of the 38 s that
+/// `--levels 3 --refine-radius 100` (8.19 M leaves) takes.
+fn count_leaves(adaptive: &SphereOnAdaptiveBlock, base: &Lattice) -> Result<(u64, u8)> {
+    let cap = MAX_SCENE_CELLS;
+    let levels = adaptive.levels;
+    let too_many = |count: &str| {
+        anyhow!(
+            "--levels {levels} and --refine-radius {} make {count} cells; a generated scene holds \
+             at most {cap} (it is built in memory, about 600 bytes a cell): lower --levels or \
+             --refine-radius, or use a larger --h",
+            shown(adaptive.refine_radius)
+        )
+    };
+    // The core indexes 2^21 - 1 cells per axis on the finest level (`refine_lattice`'s limit).
+    if let Some(n) = base
+        .cells()
+        .iter()
+        .find(|&&n| u64::from(n) << levels >= 1 << 21)
+    {
+        bail!(
+            "--levels {levels} halves the scene's {n} cells along an axis into more than the \
+             2^21 - 1 an adaptive body holds: lower --levels or use a larger --h"
+        );
+    }
+    // `SphereOnAdaptiveBlock::build`'s refinement: every cell closer to the patch's centre than
+    // the radius (scaled) is split, level by level (a cell exists when its parent is split).
+    let patch = adaptive
+        .patch_center()
+        .map_err(|e| anyhow!("the scene's lattice (from --h, --scale and --offset): {e}"))?;
+    let radius = adaptive.refine_radius * adaptive.uniform.scale;
+    let near = |leaf: Leaf| {
+        let (low, high) = leaf_box(base, leaf);
+        (low - patch).max(patch - high).max(DVec3::ZERO).length() < radius
+    };
+    // Each split turns a leaf into eight.
+    let mut count = base.cell_count() as u64;
+    let mut finest = 0;
+    for level in 0..levels {
+        let h = base.h() * 0.5f64.powi(i32::from(level));
+        let n = base
+            .cells()
+            .map(|n| f64::from(n) * 2f64.powi(i32::from(level)));
+        // The cells of the level whose box can be within the radius; NaN and infinite bounds
+        // saturate in the casts.
+        let range = |a: usize| {
+            let from = ((patch[a] - radius - base.origin()[a]) / h[a]).floor() - 1.0;
+            let to = ((patch[a] + radius - base.origin()[a]) / h[a]).ceil() + 1.0;
+            (from.max(0.0) as u32)..(to.min(n[a]) as u32)
+        };
+        let mut split = false;
+        for k in range(2) {
+            for j in range(1) {
+                for i in range(0) {
+                    // Split when it and every ancestor are near (each exists, its parent split).
+                    let ijk = [i, j, k];
+                    if (0..=level)
+                        .rev()
+                        .all(|l| near(Leaf::new(l, ijk.map(|v| v >> (level - l)))))
+                    {
+                        split = true;
+                        count += 7;
+                        if count > cap {
+                            return Err(too_many(&format!("more than {cap}")));
+                        }
+                    }
+                }
+            }
+        }
+        if !split {
+            break;
+        }
+        finest = level + 1;
+    }
+    if !adaptive.balanced {
+        return Ok((count, finest));
+    }
+    // Past the cap no more is split and the count is refused.
+    let mut over = false;
+    let mut count = base.cell_count() as u64;
+    let leaves = refine_lattice(base, levels, true, |leaf, _, _| {
+        let split = !over && near(leaf);
+        if split && count + 7 > cap {
+            over = true;
+            return false;
+        }
+        count += if split { 7 } else { 0 };
+        split
+    })
+    .map_err(|e| {
+        anyhow!(
+            "--levels {levels} on the scene's lattice: {e}: lower --levels or --refine-radius, \
+             or use a larger --h"
+        )
+    })?;
+    let count = leaves.len() as u64;
+    if over {
+        return Err(too_many(&format!("more than {cap}")));
+    }
+    if count > cap {
+        return Err(too_many(&count.to_string()));
+    }
+    let finest = leaves.iter().map(|leaf| leaf.level).max().unwrap_or(0);
+    Ok((count, finest))
+}
+
+/// The library's error on building the scene, with the flags that made it named: the
+/// displacements are the indentation (--sink, in units of h) and the jitter (--jitter).
+fn name_the_flags(error: Error, args: &SceneArgs, knobs: &SphereOnBlock) -> anyhow::Error {
+    let sink = knobs.sink_in_h;
+    let sink_flag = match args.sink {
+        Some(_) => format!("--sink {}", shown(sink)),
+        None => format!("--sink (default {})", shown(sink)),
+    };
+    let jitter = args.jitter;
+    match &error {
+        Error::InvertedCells(_) => {
+            let (by, flags) = if jitter > 0.0 {
+                (
+                    format!("{sink_flag} and --jitter {}", shown(jitter)),
+                    "--sink or --jitter",
+                )
+            } else {
+                (sink_flag, "--sink")
+            };
+            anyhow!(
+                "the displacements of {by} (in units of h) invert cells: {error}; use a smaller \
+                 {flags}, or --allow-inverted to keep inverted cells"
+            )
+        }
+        Error::DisplacementTooLarge { node, value, limit } => {
+            // The indentation moves no node farther than its sink; past the limit without it, the
+            // jitter did.
+            let flag = if jitter > 0.0 && (sink * knobs.h.z * args.scale).abs() <= *limit {
+                format!("--jitter {}", shown(jitter))
+            } else {
+                sink_flag
+            };
+            anyhow!(
+                "{flag} (in units of h) moves node {node} by {value:?}, more than the {limit:e} \
+                 per axis that coordinates resolve on this scene's cells: use a smaller {}",
+                flag.split(' ').next().unwrap_or("value")
+            )
+        }
+        Error::NonFiniteDisplacement { node, .. } => {
+            let flag = if jitter > 0.0 { "--jitter" } else { "--sink" };
+            anyhow!("{flag} (in units of h) moves node {node} beyond f64: use a smaller {flag}")
+        }
+        _ => error.into(),
+    }
+}
+
 pub fn run(args: &SceneArgs) -> Result<()> {
+    if let Some(stray) = args.stray.first() {
+        bail!("unexpected argument '{stray}' found");
+    }
     let adaptive_only =
         args.levels.is_some() || args.refine_radius.is_some() || args.unbalanced || args.shuffle;
     if adaptive_only && args.name != SceneName::SphereAdaptive {
@@ -156,16 +456,23 @@ pub fn run(args: &SceneArgs) -> Result<()> {
             if cells.len() != 3 || cells.contains(&0) {
                 bail!("--cells takes three positive counts, e.g. --cells 40,80,40");
             }
-            let count: u64 = cells.iter().map(|&n| u64::from(n)).product();
-            if count > MAX_SCENE_SIZE {
+            let list = cells
+                .iter()
+                .map(u32::to_string)
+                .collect::<Vec<_>>()
+                .join(",");
+            if let Some(n) = cells.iter().find(|&&n| n > MAX_CELLS_PER_AXIS) {
                 bail!(
-                    "--cells {} asks for {count} cells; a generated scene holds at most \
-                     {MAX_SCENE_SIZE} (the block, its nodes and displacements are built in memory)",
-                    cells
-                        .iter()
-                        .map(u32::to_string)
-                        .collect::<Vec<_>>()
-                        .join(",")
+                    "--cells {list}: {n} cells along one axis; a generated scene has at most \
+                     {MAX_CELLS_PER_AXIS} per axis"
+                );
+            }
+            let count: u64 = cells.iter().map(|&n| u64::from(n)).product();
+            if count > MAX_SCENE_CELLS {
+                bail!(
+                    "--cells {list} asks for {count} cells; a generated scene holds at most \
+                     {MAX_SCENE_CELLS} (it is built in memory, about 600 bytes a cell): lower \
+                     --cells"
                 );
             }
             let h = DVec3::splat(0.125);
@@ -207,10 +514,10 @@ pub fn run(args: &SceneArgs) -> Result<()> {
         }
     }
     if let Some(known) = args.known {
-        if known as u64 > MAX_SCENE_SIZE {
+        if known as u64 > MAX_KNOWN_POINTS {
             bail!(
-                "--known {known}: a generated scene holds at most {MAX_SCENE_SIZE} known points \
-                 (they are built in memory before they are written)"
+                "--known {known}: a generated scene holds at most {MAX_KNOWN_POINTS} known points \
+                 (they are built in memory before they are written): lower --known"
             );
         }
         knobs.known_points = known;
@@ -253,6 +560,29 @@ pub fn run(args: &SceneArgs) -> Result<()> {
             bail!("--levels {levels} is more than 8: the scene would have billions of cells");
         }
     }
+    let adaptive = SphereOnAdaptiveBlock {
+        levels: args.levels.unwrap_or(2),
+        refine_radius: args.refine_radius.unwrap_or(knobs.radius),
+        balanced: !args.unbalanced,
+        order: if args.shuffle {
+            LeafOrder::Shuffled
+        } else {
+            LeafOrder::Sorted
+        },
+        ..SphereOnAdaptiveBlock::refining(knobs.clone())
+    };
+    // The size checked before anything is built: the cells, or the leaves the refinement makes.
+    let counts = cell_counts(&knobs)?;
+    let (cells, finest) = if args.name == SceneName::SphereAdaptive {
+        let base = base_lattice(args, &knobs, counts, 0)?;
+        spinning("counting the leaves of sphere-adaptive", false, || {
+            count_leaves(&adaptive, &base)
+        })?
+    } else {
+        let count: u64 = counts.iter().map(|&n| u64::from(n)).product();
+        (count, 0)
+    };
+    base_lattice(args, &knobs, counts, finest)?;
     let _made = prepare_folder("--out", &args.out)?;
     let format = match args.format {
         FormatName::Vtu => MeshFormat::Xml,
@@ -271,21 +601,19 @@ pub fn run(args: &SceneArgs) -> Result<()> {
             ("--out", known.clone()),
         ],
     )?;
+    let building = format!("building {name} ({cells} cells)");
+    let writing = |path: &std::path::Path| format!("writing {}", path.display());
     let (contact, known_points, summary) = if args.name == SceneName::SphereAdaptive {
-        let adaptive = SphereOnAdaptiveBlock {
-            levels: args.levels.unwrap_or(2),
-            refine_radius: args.refine_radius.unwrap_or(knobs.radius),
-            balanced: !args.unbalanced,
-            order: if args.shuffle {
-                LeafOrder::Shuffled
-            } else {
-                LeafOrder::Sorted
-            },
-            ..SphereOnAdaptiveBlock::refining(knobs)
-        };
-        let scene = adaptive.build(name)?;
-        write_adaptive_mesh(&mesh, &scene.body, format)?;
-        write_points(&points, &scene.all_points())?;
+        let scene = spinning(&building, false, || adaptive.build(name))
+            .map_err(|e| name_the_flags(e, args, &knobs))?;
+        // The count checked is the scene's: the refinement above is the one `build` makes.
+        debug_assert_eq!(scene.body.cell_count() as u64, cells);
+        spinning(&writing(&mesh), false, || {
+            write_adaptive_mesh(&mesh, &scene.body, format)
+        })?;
+        spinning(&writing(&points), false, || {
+            write_points(&points, &scene.all_points())
+        })?;
         let mut per_level = vec![0usize; usize::from(scene.body.finest_level()) + 1];
         for leaf in scene.body.leaves() {
             per_level[usize::from(leaf.level)] += 1;
@@ -307,9 +635,15 @@ pub fn run(args: &SceneArgs) -> Result<()> {
             scene.known.iter().map(|k| (k.cell.index(), *k)).collect();
         (scene.contact_points.len(), known, summary)
     } else {
-        let scene = knobs.build(name)?;
-        write_mesh(&mesh, &scene.body, format)?;
-        write_points(&points, &scene.all_points())?;
+        let scene = spinning(&building, false, || knobs.build(name))
+            .map_err(|e| name_the_flags(e, args, &knobs))?;
+        debug_assert_eq!(scene.body.lattice().cell_count() as u64, cells);
+        spinning(&writing(&mesh), false, || {
+            write_mesh(&mesh, &scene.body, format)
+        })?;
+        spinning(&writing(&points), false, || {
+            write_points(&points, &scene.all_points())
+        })?;
         let cells = CellMap::ascending(&scene.body);
         let known: Vec<(usize, KnownPoint)> = scene
             .known
@@ -331,7 +665,26 @@ pub fn run(args: &SceneArgs) -> Result<()> {
         );
         (scene.contact_points.len(), known, summary)
     };
-    cgcontact_io::write_file(&known, |out| {
+    spinning(&writing(&known), false, || {
+        write_known(&known, contact, &known_points)
+    })?;
+    say!(
+        "{summary}, {contact} contact points, {} known points",
+        known_points.len()
+    )?;
+    for file in [&mesh, &points, &known] {
+        say!("wrote {}", file.display())?;
+    }
+    Ok(())
+}
+
+/// `known.csv`: the known answers, row `contact + i` of points.csv for the i-th.
+fn write_known(
+    known: &std::path::Path,
+    contact: usize,
+    known_points: &[(usize, KnownPoint)],
+) -> Result<(), cgcontact_io::IoError> {
+    cgcontact_io::write_file(known, |out| {
         writeln!(out, "point,cell,xi,eta,zeta")?;
         for (row, (cell, k)) in known_points.iter().enumerate() {
             writeln!(
@@ -345,13 +698,5 @@ pub fn run(args: &SceneArgs) -> Result<()> {
             )?;
         }
         Ok(())
-    })?;
-    say!(
-        "{summary}, {contact} contact points, {} known points",
-        known_points.len()
-    )?;
-    for file in [&mesh, &points, &known] {
-        say!("wrote {}", file.display())?;
-    }
-    Ok(())
+    })
 }

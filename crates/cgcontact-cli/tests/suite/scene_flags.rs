@@ -1,0 +1,199 @@
+//! `cgcontact scene`'s flags: scenes too large to build refused by their size before anything
+//! is built, comma lists that start with a negative number taken as the flag's value, and the
+//! library's refusals of a scene reported with the flags that caused them. Each refusal is one
+//! line on stderr, exit code 2, and writes nothing.
+
+use std::path::Path;
+use std::process::Command;
+
+/// Run `cgcontact scene ARGS --out OUT`; return (exit code, stderr), checked for panics.
+fn scene(args: &[&str], out: &Path) -> (Option<i32>, String) {
+    let output = Command::new(env!("CARGO_BIN_EXE_cgcontact"))
+        .arg("scene")
+        .args(args)
+        .arg("--out")
+        .arg(out)
+        .env_remove("RUST_BACKTRACE")
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr).into_owned();
+    assert!(
+        !stderr.contains("panicked") && !stderr.contains("memory allocation"),
+        "{args:?}: {stderr}"
+    );
+    (output.status.code(), stderr)
+}
+
+/// Each case: exit 2, one line on stderr holding every needle and none of `absent`, no folder.
+fn refused(cases: &[(&[&str], &[&str])], absent: &[&str]) {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("scene");
+    for (args, needles) in cases {
+        let (code, stderr) = scene(args, &out);
+        assert_eq!(code, Some(2), "{args:?}: exit code; stderr: {stderr}");
+        let lines: Vec<&str> = stderr.lines().collect();
+        assert_eq!(
+            lines.len(),
+            1,
+            "{args:?}: one line on stderr, got {stderr:?}"
+        );
+        for needle in *needles {
+            assert!(
+                lines[0].contains(needle),
+                "{args:?}: `{needle}` missing from {:?}",
+                lines[0]
+            );
+        }
+        for word in absent {
+            assert!(
+                !lines[0].contains(word),
+                "{args:?}: `{word}` in {:?}",
+                lines[0]
+            );
+        }
+        assert!(!out.exists(), "{args:?} wrote its folder");
+    }
+}
+
+/// Regression: the size cap applied to `block --cells` only, at 2^26 cells (about 41 GB at the
+/// 610 bytes a cell measured): `sphere-fine --h 0.01` (250 M cells) was accepted and aborted on a
+/// failed allocation of 6 GB (exit 134), and an adaptive scene's leaves were not counted. Every
+/// scene is now refused beyond 2^23 cells or leaves, with the count, the cap and the flags to
+/// change, before anything is built (the adaptive ones at once, however many levels).
+#[test]
+fn scenes_beyond_the_cap_are_refused_before_building() {
+    refused(
+        &[
+            (
+                &["sphere-fine", "--h", "0.01"],
+                &["--h 0.01", "250000000 cells", "8388608", "larger --h"],
+            ),
+            (
+                &["sphere-coarse", "--h", "0.01,0.02,0.05"],
+                &["--h 0.01,0.02,0.05", "25000000 cells", "8388608"],
+            ),
+            (
+                &["block", "--cells", "256,256,256"],
+                &[
+                    "--cells 256,256,256",
+                    "16777216 cells",
+                    "8388608",
+                    "--cells",
+                ],
+            ),
+            (
+                &["sphere-adaptive", "--levels", "4", "--refine-radius", "100"],
+                &["--levels 4", "--refine-radius 100", "8388608"],
+            ),
+            (
+                &["sphere-adaptive", "--levels", "8", "--refine-radius", "1"],
+                &["--levels 8", "--refine-radius 1", "8388608"],
+            ),
+            (
+                &["sphere-adaptive", "--levels", "6", "--unbalanced"],
+                &["--levels 6", "8388608"],
+            ),
+            (
+                &["sphere-adaptive", "--h", "0.01"],
+                &["--h 0.01", "8388608"],
+            ),
+            (
+                &["block", "--known", "20000000"],
+                &["--known 20000000", "16777216"],
+            ),
+        ],
+        &[],
+    );
+}
+
+/// Regression: a comma list starting with a negative number was refused by the parser
+/// ("unexpected argument '-1' found": `allow_negative_numbers` takes single numbers only). It is
+/// the flag's value now: a negative offset is a scene, a negative spacing or count is refused by
+/// the flag's name, and a flag taken for a missing value says so.
+#[test]
+fn comma_lists_starting_with_a_negative_number_are_values() {
+    let dir = tempfile::tempdir().unwrap();
+    for offset in ["-1,2,3", "-1e7,0,0"] {
+        let out = dir.path().join(format!("offset{offset}"));
+        let (code, stderr) = scene(
+            &["sphere-coarse", "--offset", offset, "--known", "10"],
+            &out,
+        );
+        assert_eq!(code, Some(0), "--offset {offset}: {stderr}");
+        assert!(out.join("mesh.vtu").exists());
+    }
+    refused(
+        &[
+            (&["sphere-fine", "--h", "-1,2,3"], &["--h", "-1"]),
+            (&["block", "--cells", "-1,2,3"], &["--cells", "-1"]),
+            (&["block", "--cells", "1,-2,3"], &["--cells", "-2"]),
+            // The next flag is taken as --offset's value, and said to be a flag.
+            (
+                &["sphere-fine", "--offset", "--h", "1"],
+                &["--offset", "--h", "flag"],
+            ),
+            (
+                &["sphere-fine", "--h", "--offset", "1"],
+                &["--h", "--offset", "flag"],
+            ),
+            (&["sphere-fine", "stray"], &["unexpected argument 'stray'"]),
+        ],
+        &["tip", "'-- "],
+    );
+}
+
+/// Regression: refusals of the library that named no flag: inverted cells and displacements too
+/// large from --sink or --jitter, a `block` axis past the per-axis limit ("makes no lattice"),
+/// and an offset too far for the spacing ("move the mesh nearer the origin").
+#[test]
+fn refusals_name_the_flags_at_fault() {
+    refused(
+        &[
+            (
+                &["sphere-coarse", "--sink", "10"],
+                &[
+                    "--sink 10",
+                    "inverted",
+                    "smaller --sink",
+                    "--allow-inverted",
+                ],
+            ),
+            (
+                &["sphere-coarse", "--jitter", "1e300"],
+                &["--jitter 1e300", "smaller --jitter"],
+            ),
+            (
+                &["sphere-adaptive", "--jitter", "1e300"],
+                &["--jitter 1e300", "smaller --jitter"],
+            ),
+            (
+                &["sphere-coarse", "--sink", "1e15", "--allow-inverted"],
+                &["--sink 1e15", "smaller --sink"],
+            ),
+            (
+                &["block", "--cells", "1000000,1,1"],
+                &["--cells 1000000,1,1", "999999 per axis"],
+            ),
+            (
+                &["sphere-fine", "--h", "1e-6,1,1"],
+                &["--h", "999999 per axis"],
+            ),
+            (&["sphere-fine", "--h", "100"], &["--h 100", "no cell"]),
+            (
+                &[
+                    "block", "--cells", "10,10,10", "--h", "1e-12", "--offset", "1e4",
+                ],
+                &["--offset 10000", "smaller --offset", "larger --h"],
+            ),
+            (
+                &["sphere-adaptive", "--offset", "1e13"],
+                &["--offset 1e13", "--levels", "smaller --offset"],
+            ),
+        ],
+        &[
+            "makes no lattice",
+            "nearer the origin",
+            "displacement of node",
+        ],
+    );
+}
