@@ -137,11 +137,13 @@ pub fn refuse_masked(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<()> {
 }
 
 /// An error when `given` (a numpy array) holds values that are not real numbers: complex values
-/// (whose imaginary part numpy's float conversion drops with only a warning), dates and times.
+/// (whose imaginary part numpy's float conversion drops with only a warning), dates and times,
+/// booleans (numpy would read them as 0 and 1), and text (numpy would parse it: an unread file's
+/// columns).
 fn refuse_unreal(given: &Bound<'_, PyAny>, what: &str) -> PyResult<()> {
     let dtype = given.getattr("dtype")?;
     let kind: String = dtype.getattr("kind")?.extract()?;
-    if matches!(kind.as_str(), "c" | "M" | "m" | "V") {
+    if matches!(kind.as_str(), "c" | "M" | "m" | "V" | "b" | "U" | "S") {
         return Err(PyValueError::new_err(format!(
             "{what} must hold real numbers, got dtype {}",
             dtype.str()?

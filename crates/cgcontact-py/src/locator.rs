@@ -117,16 +117,6 @@ fn refused(what: &str, points: &[DVec3], row: usize) -> PyErr {
     ))
 }
 
-/// The refusal of the first point that is not finite, if any: asked before a query touches its
-/// `out` arrays, so that a refused `relocate` keeps its hints (a solver loop may retry), and a
-/// refused `locate` its previous answers.
-fn refuse_non_finite(points: &[DVec3]) -> PyResult<()> {
-    match points.iter().position(|p| !p.is_finite()) {
-        Some(row) => Err(refused("points", points, row)),
-        None => Ok(()),
-    }
-}
-
 /// Finds the cell of a body holding each point, and its local coordinates.
 ///
 /// `Locator(body, strategy="lattice", precision="f64", tol=None, max_iter=None, threads=None)`:
@@ -203,7 +193,9 @@ impl PyLocator {
         let (rows, _) = arrays::rows(points, "points", false)?;
         let vectors = rows.vectors()?;
         let points: &[DVec3] = &vectors;
-        refuse_non_finite(points)?;
+        // Before `out` is touched: a refused `relocate` keeps its hints (a solver loop may
+        // retry), a refused `locate` the caller's previous answers.
+        arrays::finite(points, "points")?;
         let n = points.len();
         let (cells, xi) = match out {
             Some(out) => out_arrays(out, n)?,
@@ -369,7 +361,9 @@ impl PyLocator {
         let (rows, _) = arrays::rows(points, "points", false)?;
         let vectors = rows.vectors()?;
         let points: &[DVec3] = &vectors;
-        refuse_non_finite(points)?;
+        // Before `out` is touched: a refused `relocate` keeps its hints (a solver loop may
+        // retry), a refused `locate` the caller's previous answers.
+        arrays::finite(points, "points")?;
         let n = points.len();
         let (order, cells, xi) = match out {
             Some(out) => unordered_arrays(out, n)?,

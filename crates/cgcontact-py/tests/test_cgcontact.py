@@ -407,6 +407,24 @@ def test_complex_and_date_arrays_are_refused_not_cast():
         cgcontact.Body.from_hexes(lattice_hexes()[0] + 0j, lattice_hexes()[1])
 
 
+def test_boolean_and_text_arrays_are_refused_not_cast():
+    """numpy reads booleans as 0 and 1 and parses text ("0.5"): coordinates of neither kind are
+    meant, and a column of text is a file not yet read as numbers."""
+    points, _, _ = cell_points()
+    body = cgcontact.Body(ORIGIN, SPACING, COUNTS)
+    locator = cgcontact.Locator(body)
+    for given in [points > 0.5, points.astype(str), points.astype(bytes)]:
+        for query in [locator.locate, locator.locate_owners, lambda p: locator.gap(p, 0.1)]:
+            with pytest.raises(ValueError, match=f"must hold real numbers, got dtype {given.dtype}"):
+                query(given)
+    with pytest.raises(ValueError, match="must hold real numbers"):
+        body.set_displacements(np.zeros((body.node_count, 3), dtype=bool))
+    # Numbers of any real kind still are read.
+    for given in [points.astype(np.float32), np.rint(points).astype(np.int32), points.astype(object)]:
+        np.testing.assert_array_equal(locator.locate(given)[0],
+                                      locator.locate(given.astype(float))[0])
+
+
 def test_masked_values_are_refused_not_read_as_data():
     """A masked array's buffer holds values the caller marked as missing."""
     points, cells, _ = cell_points()
