@@ -105,10 +105,19 @@ pub fn check_outputs(inputs: &[(&str, &Path)], outputs: &[(&str, PathBuf)]) -> R
             );
         }
         // Two outputs on one file: the second would silently replace the first.
-        if let Some((other_flag, _)) = outputs[..at]
+        if let Some((other_flag, other)) = outputs[..at]
             .iter()
             .find(|(_, other)| same_file(output, other))
         {
+            // One flag's two files (a command's `--out` folder): name both files.
+            if other_flag == flag {
+                bail!(
+                    "{}: the same file as {} (through a link), and {flag} writes both; \
+                     choose another output",
+                    output.display(),
+                    other.display()
+                );
+            }
             bail!(
                 "{}: {other_flag} and {flag} would both write this file; choose another output",
                 output.display()

@@ -105,7 +105,7 @@ impl SearchArgs {
             // ξ spans 2 across a cell: a step tolerance this large stops Newton before it has found
             // the point, and points near faces land in the wrong cell.
             eprintln!(
-                "cgcontact: warning: --tol {tol} is a Newton step tolerance in ξ units (a cell spans 2); above {LOOSE_TOL:e} answers can be off by about tol² and points near faces can be put in the wrong cell"
+                "cgcontact: warning: --tol {tol:?} is a Newton step tolerance in ξ units (a cell spans 2); above {LOOSE_TOL:e} answers can be off by about tol² and points near faces can be put in the wrong cell"
             );
         }
         self.pool()
