@@ -839,8 +839,8 @@ fn warm_and_cold_answers_agree_on_the_surfaces_edges() {
             .wrapping_add(1442695040888963407);
         (rng >> 11) as f64 / (1u64 << 53) as f64
     };
-    // The audit's body: a block of 3 × 4 × 3 base cells of 0.25 at the origin, those near the
-    // top face's centre refined twice; and this file's adaptive body.
+    // A block like the audit's: 3 × 4 × 3 base cells of 0.25 at the origin, the top layer's
+    // two middle rows (along y) refined twice; and this file's adaptive body.
     let lattice = Lattice::new(DVec3::ZERO, DVec3::splat(0.25), [3, 4, 3]).unwrap();
     let mut leaves = Vec::new();
     for k in 0..3 {
