@@ -24,9 +24,7 @@ use crate::lanes::{Lanes, MAX_W, Real as _, V3};
 use crate::lattice::CellId;
 #[cfg(target_arch = "x86_64")]
 use crate::locate::Isa;
-use crate::locate::{
-    Answer, Collect, Hit, Locator, Owners, relocate_split, warm_start, write_hits,
-};
+use crate::locate::{Answer, Collect, Hit, Locator, Owners, warm_start, write_hits};
 use crate::reach::{self, Range};
 use crate::schedule::{Layout, Scheduler};
 use crate::settings::{CandidateOrder, Frame, InsideTolerance, Precision, Settings};
@@ -840,89 +838,7 @@ impl LaneNodes for Vec3A {
     }
 }
 
-impl Locator for AdaptiveLocator<'_> {
-    fn name(&self) -> &str {
-        "lattice"
-    }
-
-    fn locate(&self, x: DVec3) -> Answer {
-        self.search(x, Collect::First, &mut 0)
-    }
-
-    fn sorts_batch(&self, points: &[DVec3]) -> bool {
-        self.scheduler.would_sort(self.layout(), points)
-    }
-
-    /// Every inversion counted, failed ones included.
-    fn locate_counted(&self, x: DVec3) -> (Answer, u32) {
-        let mut tried = 0;
-        let answer = self.search(x, Collect::First, &mut tried);
-        (answer, tried)
-    }
-
-    fn locate_owners(&self, x: DVec3) -> Result<Owners, PointError> {
-        let mut owners = Owners::new();
-        self.search(x, Collect::All(&mut owners), &mut 0)?;
-        owners.sort_unstable_by_key(|hit| hit.cell);
-        Ok(owners)
-    }
-
-    /// The previous hit's leaf first, from its ξ (see the trait).
-    fn relocate(&self, x: DVec3, previous: &Answer) -> Answer {
-        self.relocate_counted(x, previous, &mut 0)
-    }
-
-    /// In lanes as [`Locator::locate_all_into`] (the hinted leaves of 4 or 8 points inverted at
-    /// once); the answers are bitwise those of [`Locator::relocate`].
-    fn relocate_all(&self, points: &[DVec3], answers: &mut Vec<Answer>) {
-        if answers.len() != points.len() {
-            return self.locate_all_into(points, answers);
-        }
-        self.scheduler
-            .run(self.layout(), points, answers, true, |points, answers| {
-                relocate_split(
-                    points,
-                    answers,
-                    |p, a| self.relocate_chunk(p, a),
-                    |p, o| self.locate_chunk(p, o),
-                );
-            });
-    }
-
-    /// Batched: the common path of 8 points at a time, step by step, so that their memory loads
-    /// overlap, and their inversions in SIMD lanes (AVX2 detected at run time: 4 f64 or 8 f32;
-    /// without it 4 f32 in glam's `Vec4`, f64 in scalar code); the answers are bitwise those of
-    /// [`Locator::locate`].
-    fn locate_all_into(&self, points: &[DVec3], out: &mut Vec<Answer>) {
-        // Every answer is overwritten: a buffer of the right length is reused without a pass.
-        if out.len() != points.len() {
-            out.clear();
-            out.resize(points.len(), Ok(None));
-        }
-        self.scheduler
-            .run(self.layout(), points, out, false, |points, out| {
-                self.locate_chunk(points, out)
-            });
-    }
-
-    /// Batched and scheduled as [`Locator::locate_all_into`], without the scatter back to input
-    /// order.
-    fn locate_all_unordered_into(
-        &self,
-        points: &[DVec3],
-        order: &mut Vec<usize>,
-        out: &mut Vec<Answer>,
-    ) {
-        self.scheduler.run_unordered(
-            self.layout(),
-            points,
-            order,
-            out,
-            Ok(None),
-            |points, out| self.locate_chunk(points, out),
-        );
-    }
-}
+crate::locate::lattice_search_locator!(AdaptiveLocator<'_>);
 
 #[cfg(test)]
 mod tests {

@@ -380,89 +380,104 @@ impl<'a> LatticeLocator<'a> {
     }
 }
 
-impl Locator for LatticeLocator<'_> {
-    fn name(&self) -> &str {
-        "lattice"
-    }
+/// The [`Locator`] implementation of the lattice and the adaptive locator, written once: their
+/// searches, lanes and warm starts differ, what the trait asks of them does not. `$locator`
+/// supplies, as inherent methods: `search(x, Collect, &mut tried)`, `relocate_counted(x,
+/// &previous, &mut tried)`, `locate_chunk(points, out)` and `relocate_chunk(points, answers)`
+/// (batched, each answer bitwise that of the one-point method), `layout()` and a `scheduler`.
+macro_rules! lattice_search_locator {
+    ($locator:ty) => {
+        impl $crate::locate::Locator for $locator {
+            fn name(&self) -> &str {
+                "lattice"
+            }
 
-    #[inline]
-    fn locate(&self, x: DVec3) -> Answer {
-        self.search(x, Collect::First, &mut 0)
-    }
+            #[inline]
+            fn locate(&self, x: DVec3) -> Answer {
+                self.search(x, Collect::First, &mut 0)
+            }
 
-    fn sorts_batch(&self, points: &[DVec3]) -> bool {
-        self.scheduler.would_sort(self.layout(), points)
-    }
+            fn sorts_batch(&self, points: &[DVec3]) -> bool {
+                self.scheduler.would_sort(self.layout(), points)
+            }
 
-    /// Every inversion counted, failed ones included (0 for a point refused before any).
-    fn locate_counted(&self, x: DVec3) -> (Answer, u32) {
-        let mut tried = 0;
-        let answer = self.search(x, Collect::First, &mut tried);
-        (answer, tried)
-    }
+            /// Every inversion counted, failed ones included (0 for a point refused before any).
+            fn locate_counted(&self, x: DVec3) -> (Answer, u32) {
+                let mut tried = 0;
+                let answer = self.search(x, Collect::First, &mut tried);
+                (answer, tried)
+            }
 
-    fn locate_owners(&self, x: DVec3) -> Result<Owners, PointError> {
-        let mut owners = Owners::new();
-        self.search(x, Collect::All(&mut owners), &mut 0)?;
-        owners.sort_unstable_by_key(|hit| hit.cell);
-        Ok(owners)
-    }
+            fn locate_owners(&self, x: DVec3) -> Result<Owners, PointError> {
+                let mut owners = Owners::new();
+                self.search(x, Collect::All(&mut owners), &mut 0)?;
+                owners.sort_unstable_by_key(|hit| hit.cell);
+                Ok(owners)
+            }
 
-    /// Batched: 4 or 8 points at a time share SIMD instructions on the common path (the predicted
-    /// cell, one Newton inversion there), with AVX2 detected at run time for f64; the answers are
-    /// bitwise those of [`Locator::locate`], whichever path computed them.
-    fn locate_all_into(&self, points: &[DVec3], out: &mut Vec<Answer>) {
-        // Every answer is overwritten: a buffer of the right length is reused without a pass over it.
-        if out.len() != points.len() {
-            out.clear();
-            out.resize(points.len(), Ok(None));
-        }
-        self.scheduler
-            .run(self.layout(), points, out, false, |points, out| {
-                self.locate_chunk(points, out)
-            });
-    }
+            /// Batched: 4 or 8 points at a time share SIMD instructions on the common path (the
+            /// predicted cell, one Newton inversion there), the instruction set detected at run
+            /// time, in the schedule's order ([`crate::Schedule`]); the answers are bitwise those
+            /// of [`Locator::locate`], whichever path computed them.
+            fn locate_all_into(&self, points: &[DVec3], out: &mut Vec<Answer>) {
+                // Every answer is overwritten: a buffer of the right length is reused without a
+                // pass over it.
+                if out.len() != points.len() {
+                    out.clear();
+                    out.resize(points.len(), Ok(None));
+                }
+                self.scheduler
+                    .run(self.layout(), points, out, false, |points, out| {
+                        self.locate_chunk(points, out)
+                    });
+            }
 
-    /// Batched and scheduled as [`Locator::locate_all_into`], without the scatter back to input
-    /// order.
-    fn locate_all_unordered_into(
-        &self,
-        points: &[DVec3],
-        order: &mut Vec<usize>,
-        out: &mut Vec<Answer>,
-    ) {
-        self.scheduler.run_unordered(
-            self.layout(),
-            points,
-            order,
-            out,
-            Ok(None),
-            |points, out| self.locate_chunk(points, out),
-        );
-    }
-
-    #[inline]
-    fn relocate(&self, x: DVec3, previous: &Answer) -> Answer {
-        self.relocate_counted(x, previous, &mut 0)
-    }
-
-    /// Batched as [`Locator::locate_all_into`]: the hinted cells of 4 or 8 points inverted at
-    /// once; the answers are bitwise those of [`Locator::relocate`].
-    fn relocate_all(&self, points: &[DVec3], answers: &mut Vec<Answer>) {
-        if answers.len() != points.len() {
-            return self.locate_all_into(points, answers);
-        }
-        self.scheduler
-            .run(self.layout(), points, answers, true, |points, answers| {
-                warm::relocate_split(
+            /// Batched and scheduled as [`Locator::locate_all_into`], without the scatter back to
+            /// input order.
+            fn locate_all_unordered_into(
+                &self,
+                points: &[DVec3],
+                order: &mut Vec<usize>,
+                out: &mut Vec<Answer>,
+            ) {
+                self.scheduler.run_unordered(
+                    self.layout(),
                     points,
-                    answers,
-                    |p, a| self.relocate_chunk(p, a),
-                    |p, o| self.locate_chunk(p, o),
+                    order,
+                    out,
+                    Ok(None),
+                    |points, out| self.locate_chunk(points, out),
                 );
-            });
-    }
+            }
+
+            /// The previous hit's cell first, from its ξ (see the trait).
+            #[inline]
+            fn relocate(&self, x: DVec3, previous: &Answer) -> Answer {
+                self.relocate_counted(x, previous, &mut 0)
+            }
+
+            /// Batched as [`Locator::locate_all_into`]: the hinted cells of 4 or 8 points inverted
+            /// at once; the answers are bitwise those of [`Locator::relocate`].
+            fn relocate_all(&self, points: &[DVec3], answers: &mut Vec<Answer>) {
+                if answers.len() != points.len() {
+                    return self.locate_all_into(points, answers);
+                }
+                self.scheduler
+                    .run(self.layout(), points, answers, true, |points, answers| {
+                        $crate::locate::relocate_split(
+                            points,
+                            answers,
+                            |p, a| self.relocate_chunk(p, a),
+                            |p, o| self.locate_chunk(p, o),
+                        );
+                    });
+            }
+        }
+    };
 }
+pub(crate) use lattice_search_locator;
+
+lattice_search_locator!(LatticeLocator<'_>);
 
 #[cfg(test)]
 mod tests {
