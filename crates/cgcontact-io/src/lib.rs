@@ -10,6 +10,7 @@
 //! | [`write_mesh`] | a body in any of the three flavours ([`MeshFormat`]); [`read_mesh`] reads it back exactly |
 //! | [`read_points`], [`write_results`], [`read_results`] | CSV points `x,y,z` and results `point,cell,xi,eta,zeta,...` |
 //! | [`write_deformed_vtu`], [`write_points_vtu`] | the deformed mesh (cells with `points_held`, `active`) and the located points (`cell`, `xi`) for ParaView |
+//! | [`read_text`] | any other text input (a benchmark's log, say): read whole within its own size limit, refused at its first NUL byte |
 //!
 //! Every file is written whole or not at all ([`write_file`]: a temporary file renamed over the
 //! target), and every error is an [`IoError`] naming the file and the offending line, cell or node; no input
@@ -68,7 +69,9 @@ pub use csv_io::{
     write_owner_rows, write_points, write_results, write_results_counted, write_results_to,
 };
 pub use error::{ErrorKind, IoError};
-pub use input::{DEFAULT_MAX_INPUT_BYTES, MAX_INPUT_BYTES_VAR, max_input_bytes};
+pub use input::{
+    DEFAULT_MAX_INPUT_BYTES, MAX_INPUT_BYTES_VAR, TextInput, max_input_bytes, read_text,
+};
 pub use mesh::{CellMap, CellNumbering, HexMesh, LATTICE_TOLERANCE, LatticeMesh};
 pub use vtk_read::{
     DEFAULT_DISPLACEMENT, DisplacementArray, parse_hex_mesh, read_body, read_hex_mesh, read_mesh,

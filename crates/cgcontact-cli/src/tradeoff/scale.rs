@@ -8,13 +8,13 @@
 //! against cells.
 
 use std::fmt::Write as _;
-use std::io::Read as _;
 use std::path::Path;
 use std::time::Duration;
 
 use anyhow::{Context, Result, anyhow, bail};
 use cgcontact::glam::DVec3;
 use cgcontact::{Answer, LatticeLocator, Locator, Schedule, Settings};
+use cgcontact_io::{TextInput, read_text};
 use cgcontact_scenes::indented_block;
 use plotters::prelude::*;
 
@@ -59,55 +59,21 @@ const GSLIB_RATE_RANGE: std::ops::RangeInclusive<f64> = 1e-9..=1e15;
 /// The longest gslib log read, in bytes: a log of `benches/gslib/run.sh` is a few KB.
 const GSLIB_LOG_MAX_BYTES: u64 = 16 << 20;
 
-/// Bytes read at a time, each chunk checked for a NUL byte before the next is read.
-const CHUNK_BYTES: u64 = 64 << 10;
-
 /// The text of the gslib log at `path`: at most [`GSLIB_LOG_MAX_BYTES`], UTF-8 without NUL bytes,
-/// refused from its first bytes otherwise (`/dev/zero` was read until memory ran out). The
-/// `--gslib` help names the limits: change it with them.
+/// refused from its first bytes otherwise (`/dev/zero` was read until memory ran out), read as
+/// cgcontact-io reads its inputs ([`read_text`]). The `--gslib` help names the limits: change it
+/// with them.
 fn read_log(path: &Path) -> Result<String> {
-    let name = path.display();
-    let file =
-        std::fs::File::open(path).with_context(|| format!("cannot read the gslib log {name}"))?;
-    let meta = file
-        .metadata()
-        .with_context(|| format!("cannot read the gslib log {name}"))?;
-    if meta.is_dir() {
-        bail!("{name}: the gslib log is a folder, not a file");
-    }
-    let too_big = |size: u64| {
-        anyhow!(
-            "{name}: more than {GSLIB_LOG_MAX_BYTES} bytes ({size} read or reported): not a log \
-             of benches/gslib/run.sh (a few KB)"
-        )
+    let log = TextInput {
+        max_bytes: GSLIB_LOG_MAX_BYTES,
+        what: "a log of benches/gslib/run.sh",
+        over_limit: "not a log of benches/gslib/run.sh (a few KB)",
     };
-    if meta.is_file() && meta.len() > GSLIB_LOG_MAX_BYTES {
-        return Err(too_big(meta.len()));
-    }
-    let mut reader = file.take(GSLIB_LOG_MAX_BYTES + 1);
-    let mut bytes = Vec::new();
-    loop {
-        let start = bytes.len();
-        let read = (&mut reader)
-            .take(CHUNK_BYTES)
-            .read_to_end(&mut bytes)
-            .with_context(|| format!("cannot read the gslib log {name}"))?;
-        if let Some(at) = bytes[start..].iter().position(|&b| b == 0) {
-            bail!(
-                "{name}: binary data (a NUL byte at byte {}), not a log of benches/gslib/run.sh",
-                start + at
-            );
-        }
-        if read == 0 {
-            break;
-        }
-    }
-    if bytes.len() as u64 > GSLIB_LOG_MAX_BYTES {
-        return Err(too_big(bytes.len() as u64));
-    }
+    let bytes = read_text(path, &log).context("cannot read the gslib log")?;
     String::from_utf8(bytes).map_err(|e| {
         anyhow!(
-            "{name}: not UTF-8 text (an invalid byte at byte {}), not a log of benches/gslib/run.sh",
+            "{}: not UTF-8 text (an invalid byte at byte {}), not a log of benches/gslib/run.sh",
+            path.display(),
             e.utf8_error().valid_up_to()
         )
     })
