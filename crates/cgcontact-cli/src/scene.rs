@@ -23,11 +23,9 @@ const MAX_CELLS_PER_AXIS: u32 = 999_999;
 const MIN_LENGTH: f64 = cgcontact::Lattice::MIN_SPACING;
 const MAX_LENGTH: f64 = cgcontact::Lattice::MAX_SPACING;
 use cgcontact::glam::DVec3;
-use cgcontact::{Error, Lattice, Leaf};
+use cgcontact::{Error, Lattice};
 use cgcontact_io::{CellMap, MeshFormat, write_adaptive_mesh, write_mesh, write_points};
-use cgcontact_scenes::{
-    KnownPoint, LeafOrder, SphereOnAdaptiveBlock, SphereOnBlock, leaf_box, refine_lattice,
-};
+use cgcontact_scenes::{KnownPoint, LeafCount, LeafOrder, SphereOnAdaptiveBlock, SphereOnBlock};
 
 use crate::output::{check_outputs, prepare_folder, say};
 use crate::run::spinning;
@@ -282,12 +280,9 @@ fn base_lattice(
 }
 
 /// The leaves `adaptive` refines `base` into and the finest level among them, counted before the
-/// scene is built, refused beyond [`MAX_SCENE_CELLS`]. The refinement without the 2:1 balance is
-/// counted cell by cell, nothing stored, stopping past the cap: that is the count with
-/// `--unbalanced`, and at most the balanced one (balancing only splits more), so that a scene far
-/// too large is refused at once. A balanced one within the cap is then refined as `build` does,
-/// leaves only (a few bytes each, where the scene takes hundreds): at the cap, 5 of the 38 s that
-/// `--levels 3 --refine-radius 100` (8.19 M leaves) takes.
+/// scene is built ([`SphereOnAdaptiveBlock::leaf_count`]), refused beyond [`MAX_SCENE_CELLS`]: a
+/// scene far too large at once, a balanced one within the cap after its leaves are made (at the
+/// cap, 5 of the 38 s that `--levels 3 --refine-radius 100`, 8.19 M leaves, takes).
 fn count_leaves(adaptive: &SphereOnAdaptiveBlock, base: &Lattice) -> Result<(u64, u8)> {
     let cap = MAX_SCENE_CELLS;
     let levels = adaptive.levels;
@@ -310,85 +305,17 @@ fn count_leaves(adaptive: &SphereOnAdaptiveBlock, base: &Lattice) -> Result<(u64
              2^21 - 1 an adaptive body holds: lower --levels or use a larger --h"
         );
     }
-    // `SphereOnAdaptiveBlock::build`'s refinement: every cell closer to the patch's centre than
-    // the radius (scaled) is split, level by level (a cell exists when its parent is split).
-    let patch = adaptive
-        .patch_center()
-        .map_err(|e| anyhow!("the scene's lattice (from --h, --scale and --offset): {e}"))?;
-    let radius = adaptive.refine_radius * adaptive.uniform.scale;
-    let near = |leaf: Leaf| {
-        let (low, high) = leaf_box(base, leaf);
-        (low - patch).max(patch - high).max(DVec3::ZERO).length() < radius
-    };
-    // Each split turns a leaf into eight.
-    let mut count = base.cell_count() as u64;
-    let mut finest = 0;
-    for level in 0..levels {
-        let h = base.h() * 0.5f64.powi(i32::from(level));
-        let n = base
-            .cells()
-            .map(|n| f64::from(n) * 2f64.powi(i32::from(level)));
-        // The cells of the level whose box can be within the radius; NaN and infinite bounds
-        // saturate in the casts.
-        let range = |a: usize| {
-            let from = ((patch[a] - radius - base.origin()[a]) / h[a]).floor() - 1.0;
-            let to = ((patch[a] + radius - base.origin()[a]) / h[a]).ceil() + 1.0;
-            (from.max(0.0) as u32)..(to.min(n[a]) as u32)
-        };
-        let mut split = false;
-        for k in range(2) {
-            for j in range(1) {
-                for i in range(0) {
-                    // Split when it and every ancestor are near (each exists, its parent split).
-                    let ijk = [i, j, k];
-                    if (0..=level)
-                        .rev()
-                        .all(|l| near(Leaf::new(l, ijk.map(|v| v >> (level - l)))))
-                    {
-                        split = true;
-                        count += 7;
-                        if count > cap {
-                            return Err(too_many(&format!("more than {cap}")));
-                        }
-                    }
-                }
-            }
-        }
-        if !split {
-            break;
-        }
-        finest = level + 1;
-    }
-    if !adaptive.balanced {
-        return Ok((count, finest));
-    }
-    // Past the cap no more is split and the count is refused.
-    let mut over = false;
-    let mut count = base.cell_count() as u64;
-    let leaves = refine_lattice(base, levels, true, |leaf, _, _| {
-        let split = !over && near(leaf);
-        if split && count + 7 > cap {
-            over = true;
-            return false;
-        }
-        count += if split { 7 } else { 0 };
-        split
-    })
-    .map_err(|e| {
+    let count = adaptive.leaf_count(cap).map_err(|e| {
         anyhow!(
             "--levels {levels} on the scene's lattice: {e}: lower --levels or --refine-radius, \
              or use a larger --h"
         )
     })?;
-    let count = leaves.len() as u64;
-    if over {
-        return Err(too_many(&format!("more than {cap}")));
+    match count {
+        LeafCount::MoreThan(_) => Err(too_many(&format!("more than {cap}"))),
+        LeafCount::Exact { leaves, .. } if leaves > cap => Err(too_many(&leaves.to_string())),
+        LeafCount::Exact { leaves, finest } => Ok((leaves, finest)),
     }
-    if count > cap {
-        return Err(too_many(&count.to_string()));
-    }
-    let finest = leaves.iter().map(|leaf| leaf.level).max().unwrap_or(0);
-    Ok((count, finest))
 }
 
 /// The library's error on building the scene, with the flags that made it named: the

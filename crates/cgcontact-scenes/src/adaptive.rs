@@ -7,8 +7,9 @@ use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
+use crate::field::Indentation;
 use crate::known::{KnownPoint, LeafDraw, adaptive_known_points};
-use crate::refine::refine_lattice;
+use crate::refine::{MAX_REFINED_LEAVES, check_levels, leaf_box, refine_lattice, too_many_leaves};
 use crate::sphere::{JITTER_STREAM, SphereOnBlock, fibonacci_sphere};
 
 /// Mixed into the seed for the shuffle of [`LeafOrder::Shuffled`].
@@ -50,6 +51,40 @@ impl AdaptiveScene {
             .copied()
             .chain(self.known.iter().map(|k| k.x))
             .collect()
+    }
+}
+
+/// How many leaves [`SphereOnAdaptiveBlock::build`] makes, from
+/// [`SphereOnAdaptiveBlock::leaf_count`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum LeafCount {
+    /// `build` makes `leaves` leaves, the finest of them of level `finest`.
+    Exact {
+        /// The leaves.
+        leaves: u64,
+        /// The finest level among them.
+        finest: u8,
+    },
+    /// More than this many (the cap given): the count stopped there.
+    MoreThan(u64),
+}
+
+/// The refinement rule of [`SphereOnAdaptiveBlock`]: a cell is split when its undeformed box
+/// comes within `radius` (strictly) of `patch`.
+#[derive(Clone, Copy, Debug)]
+struct NearPatch {
+    patch: DVec3,
+    radius: f64,
+}
+
+impl NearPatch {
+    /// Whether the cell whose box runs from `low` to `high` is split.
+    fn splits(self, low: DVec3, high: DVec3) -> bool {
+        (low - self.patch)
+            .max(self.patch - high)
+            .max(DVec3::ZERO)
+            .length()
+            < self.radius
     }
 }
 
@@ -112,7 +147,118 @@ impl SphereOnAdaptiveBlock {
     /// the refinement closes in on. Errors when the knobs make no lattice.
     pub fn patch_center(&self) -> Result<DVec3, Error> {
         let (_, field) = self.uniform.lattice_and_field()?;
-        Ok(DVec3::new(field.center.x, field.center.y, field.top))
+        Ok(self.rule(&field).patch)
+    }
+
+    /// The refinement rule on the scene of `field`: the patch centre and the radius, scaled.
+    fn rule(&self, field: &Indentation) -> NearPatch {
+        NearPatch {
+            patch: DVec3::new(field.center.x, field.center.y, field.top),
+            radius: self.refine_radius * self.uniform.scale,
+        }
+    }
+
+    /// The leaves [`build`](Self::build) makes and the finest level among them, counted without
+    /// building the scene (no body, no displacements, no points), stopping once past `cap`:
+    /// [`LeafCount::MoreThan`]`(cap)` then.
+    ///
+    /// The refinement without the 2:1 balance is counted cell by cell, nothing stored: that is
+    /// the count unbalanced, and at most the balanced one (balancing only splits more), so that
+    /// knobs far beyond `cap` are told at once, however many levels. A balanced refinement within
+    /// `cap` is then made as `build` makes it, leaves only (a few bytes each, where a scene takes
+    /// hundreds); its count is exact even where the balance takes it past `cap`.
+    ///
+    /// # Errors
+    ///
+    /// Where `build`'s refinement fails: the knobs make no lattice, `levels` or the finest
+    /// level's lattice are beyond what [`crate::refine_lattice`] takes, or the leaves would be
+    /// more than [`MAX_REFINED_LEAVES`].
+    pub fn leaf_count(&self, cap: u64) -> Result<LeafCount, Error> {
+        let (base, field) = self.uniform.lattice_and_field()?;
+        check_levels(&base, self.levels)?;
+        let rule = self.rule(&field);
+        let limit = cap.min(MAX_REFINED_LEAVES as u64);
+        // Past `limit`: refused by the caller's cap, or by `build`'s own.
+        let past_limit = || {
+            if limit == cap {
+                Ok(LeafCount::MoreThan(cap))
+            } else {
+                Err(too_many_leaves())
+            }
+        };
+        let near = |leaf: Leaf| {
+            let (low, high) = leaf_box(&base, leaf);
+            rule.splits(low, high)
+        };
+        // Each split turns a leaf into eight.
+        let mut count = base.cell_count() as u64;
+        if count > limit {
+            return past_limit();
+        }
+        let mut finest = 0;
+        for level in 0..self.levels {
+            let h = base.h() * 0.5f64.powi(i32::from(level));
+            let n = base
+                .cells()
+                .map(|n| f64::from(n) * 2f64.powi(i32::from(level)));
+            // The cells of the level whose box can be within the radius; NaN and infinite bounds
+            // saturate in the casts.
+            let range = |a: usize| {
+                let from = ((rule.patch[a] - rule.radius - base.origin()[a]) / h[a]).floor() - 1.0;
+                let to = ((rule.patch[a] + rule.radius - base.origin()[a]) / h[a]).ceil() + 1.0;
+                (from.max(0.0) as u32)..(to.min(n[a]) as u32)
+            };
+            let mut split = false;
+            for k in range(2) {
+                for j in range(1) {
+                    for i in range(0) {
+                        // Split when it and every ancestor are near (each exists, its parent
+                        // split).
+                        let ijk = [i, j, k];
+                        if (0..=level)
+                            .rev()
+                            .all(|l| near(Leaf::new(l, ijk.map(|v| v >> (level - l)))))
+                        {
+                            split = true;
+                            count += 7;
+                            if count > limit {
+                                return past_limit();
+                            }
+                        }
+                    }
+                }
+            }
+            if !split {
+                break;
+            }
+            finest = level + 1;
+        }
+        if !self.balanced {
+            return Ok(LeafCount::Exact {
+                leaves: count,
+                finest,
+            });
+        }
+        // Within `limit` unbalanced, and so the same splits below; a guard all the same, as the
+        // leaves are stored: past it no more is split.
+        let mut over = false;
+        let mut count = base.cell_count() as u64;
+        let leaves = refine_lattice(&base, self.levels, true, |leaf, _, _| {
+            let split = !over && near(leaf);
+            if split && count + 7 > limit {
+                over = true;
+                return false;
+            }
+            count += if split { 7 } else { 0 };
+            split
+        })?;
+        if over {
+            return past_limit();
+        }
+        Ok(LeafCount::Exact {
+            leaves: leaves.len() as u64,
+            finest: leaves.iter().map(|leaf| leaf.level).max().unwrap_or(0),
+        })
     }
 
     /// Build the scene. Errors when the knobs make no lattice or too many leaves
@@ -122,10 +268,9 @@ impl SphereOnAdaptiveBlock {
         let knobs = &self.uniform;
         let (lattice, field) = knobs.lattice_and_field()?;
         let s = knobs.scale;
-        let patch = DVec3::new(field.center.x, field.center.y, field.top);
-        let radius = self.refine_radius * s;
+        let rule = self.rule(&field);
         let mut leaves = refine_lattice(&lattice, self.levels, self.balanced, |_, low, high| {
-            (low - patch).max(patch - high).max(DVec3::ZERO).length() < radius
+            rule.splits(low, high)
         })?;
         if self.order == LeafOrder::Shuffled {
             leaves.shuffle(&mut ChaCha8Rng::seed_from_u64(knobs.seed ^ ORDER_STREAM));

@@ -5,6 +5,7 @@
 //! |---|---|
 //! | [`SphereOnBlock`] → [`Scene`] | the seed's block indented by a sphere, uniform lattice, every knob |
 //! | [`SphereOnAdaptiveBlock`] → [`AdaptiveScene`] | the same block refined by halving under the contact patch (levels, radius, 2:1 balanced or not), hanging nodes filled from their constraints |
+//! | [`SphereOnAdaptiveBlock::leaf_count`] → [`LeafCount`] | the leaves an adaptive scene would have, counted without building it |
 //! | [`indented_block`], [`adaptive_block`], [`block_cells_for`] | scalable uniform and adaptive blocks for benchmarks, and a uniform block as large as an adaptive one |
 //! | [`refine_lattice`] | the leaves of any refinement of a lattice by a split predicate, balanced or not |
 //! | [`known_points`], [`adaptive_known_points`] | points made from known (cell, ξ): per cell, per leaf or by volume ([`LeafDraw`]) |
@@ -53,7 +54,7 @@ mod refine;
 mod sphere;
 
 pub use adaptive::{
-    AdaptiveScene, LeafOrder, SphereOnAdaptiveBlock, adaptive_block, block_cells_for,
+    AdaptiveScene, LeafCount, LeafOrder, SphereOnAdaptiveBlock, adaptive_block, block_cells_for,
     hanging_node_moved,
 };
 pub use field::Indentation;

@@ -61,17 +61,8 @@ pub fn refine_lattice(
     balanced: bool,
     mut split: impl FnMut(Leaf, DVec3, DVec3) -> bool,
 ) -> Result<Vec<Leaf>, Error> {
-    if levels > MAX_LEVEL {
-        return Err(Error::InvalidLattice(format!(
-            "{levels} refinement levels exceed the {MAX_LEVEL} an adaptive body holds"
-        )));
-    }
+    check_levels(lattice, levels)?;
     let counts = lattice.cells();
-    if counts.iter().any(|&n| u64::from(n) << levels >= 1 << BITS) {
-        return Err(Error::InvalidLattice(format!(
-            "{counts:?} base cells refined {levels} levels exceed the 2^{BITS} - 1 finest cells per axis"
-        )));
-    }
     let mut tree = Tree {
         split: vec![HashSet::new(); usize::from(levels)],
         leaves: counts.iter().map(|&n| n as usize).product(),
@@ -110,6 +101,30 @@ pub fn refine_lattice(
     Ok(tree.leaves(counts, levels))
 }
 
+/// Refuse `levels` beyond [`MAX_LEVEL`], or a finest level's lattice beyond the 2^21 − 1 cells per
+/// axis the core indexes: the knobs [`refine_lattice`] refuses before it refines anything.
+pub(crate) fn check_levels(lattice: &Lattice, levels: u8) -> Result<(), Error> {
+    if levels > MAX_LEVEL {
+        return Err(Error::InvalidLattice(format!(
+            "{levels} refinement levels exceed the {MAX_LEVEL} an adaptive body holds"
+        )));
+    }
+    let counts = lattice.cells();
+    if counts.iter().any(|&n| u64::from(n) << levels >= 1 << BITS) {
+        return Err(Error::InvalidLattice(format!(
+            "{counts:?} base cells refined {levels} levels exceed the 2^{BITS} - 1 finest cells per axis"
+        )));
+    }
+    Ok(())
+}
+
+/// The error of a refinement that makes more than [`MAX_REFINED_LEAVES`] leaves.
+pub(crate) fn too_many_leaves() -> Error {
+    Error::InvalidLattice(format!(
+        "the refinement makes more than {MAX_REFINED_LEAVES} leaves"
+    ))
+}
+
 /// The split cells of each level, and how many leaves they make.
 struct Tree {
     split: Vec<HashSet<u64>>,
@@ -119,9 +134,7 @@ struct Tree {
 impl Tree {
     fn check(&self) -> Result<(), Error> {
         if self.leaves > MAX_REFINED_LEAVES {
-            return Err(Error::InvalidLattice(format!(
-                "the refinement makes more than {MAX_REFINED_LEAVES} leaves"
-            )));
+            return Err(too_many_leaves());
         }
         Ok(())
     }

@@ -6,8 +6,8 @@
 use cgcontact::glam::DVec3;
 use cgcontact::{AdaptiveBody, AdaptiveLocator, LatticeLocator, Leaf, Locator, Settings};
 use cgcontact_scenes::{
-    AdaptiveScene, LeafDraw, LeafOrder, SphereOnAdaptiveBlock, SphereOnBlock, adaptive_block,
-    block_cells_for, leaf_box,
+    AdaptiveScene, LeafCount, LeafDraw, LeafOrder, SphereOnAdaptiveBlock, SphereOnBlock,
+    adaptive_block, block_cells_for, leaf_box,
 };
 
 /// The coarse seed's block with few points, refined `levels` levels within `radius`.
@@ -359,6 +359,66 @@ fn the_contact_patch_is_inside_as_in_the_uniform_scene() {
         adaptive.abs_diff(flat) <= flat / 5 + 2,
         "{adaptive} vs {flat}"
     );
+}
+
+/// `leaf_count` counts, without building, the leaves `build` makes: checked against the built
+/// scene's leaves and finest level, balanced and not, on the coarse spacing, a spacing of another
+/// size per axis, and a scaled and moved block; and past a cap just below the count it stops.
+#[test]
+fn leaf_count_is_the_built_scenes() {
+    let knobs =
+        |h: DVec3, scale: f64, levels: u8, radius: f64, balanced: bool| SphereOnAdaptiveBlock {
+            levels,
+            refine_radius: radius,
+            balanced,
+            ..SphereOnAdaptiveBlock::refining(SphereOnBlock {
+                h,
+                scale,
+                offset: DVec3::new(-3.0, 1.5, 20.0),
+                contact_points: 0,
+                known_points: 0,
+                ..SphereOnBlock::coarse()
+            })
+        };
+    let mut settings = Vec::new();
+    for (h, scale) in [
+        (DVec3::splat(0.5), 1.0),
+        (DVec3::new(0.5, 0.25, 1.0), 1.0),
+        (DVec3::splat(0.5), 2.5),
+    ] {
+        for levels in 0..=2 {
+            for radius in [0.0, 0.7, 1.5] {
+                settings.push((h, scale, levels, radius));
+            }
+        }
+        settings.push((h, scale, 3, 0.4));
+    }
+    for (h, scale, levels, radius) in settings {
+        let mut unbalanced_leaves = 0;
+        for balanced in [false, true] {
+            let scene = knobs(h, scale, levels, radius, balanced);
+            let what = format!("h {h}, scale {scale}, {levels} levels within {radius}, {balanced}");
+            let built = scene.build("counted").unwrap();
+            let leaves = built.body.cell_count() as u64;
+            let count = scene.leaf_count(u64::MAX).unwrap();
+            assert_eq!(
+                count,
+                LeafCount::Exact {
+                    leaves,
+                    finest: built.body.finest_level()
+                },
+                "{what}"
+            );
+            assert_eq!(scene.leaf_count(leaves).unwrap(), count, "{what}");
+            if !balanced {
+                unbalanced_leaves = leaves;
+            }
+            // Balanced too, the count stops on passing the unbalanced one, before any balance.
+            let cap = unbalanced_leaves - 1;
+            let stopped = scene.leaf_count(cap).unwrap();
+            assert_eq!(stopped, LeafCount::MoreThan(cap), "{what}");
+        }
+    }
 }
 
 #[test]
