@@ -54,6 +54,7 @@ mod csv_io;
 mod error;
 mod input;
 mod legacy_sections;
+mod legacy_strings;
 mod lzma_arrays;
 mod mesh;
 mod raw_appended;

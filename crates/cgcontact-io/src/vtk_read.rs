@@ -8,7 +8,7 @@ use vtkio::model::{Attribute, CellType, DataSet, UnstructuredGridPiece, VertexNu
 
 use crate::{
     ErrorKind, HexMesh, IoError, LatticeMesh, MeshBody, block_headers, legacy_sections,
-    lzma_arrays, raw_appended, xml_cells, xml_normal,
+    legacy_strings, lzma_arrays, raw_appended, xml_cells, xml_normal,
 };
 
 /// The point-data array used when the caller names none.
@@ -175,6 +175,10 @@ fn parse_vtk(bytes: &[u8]) -> Result<Vtk, ErrorKind> {
     if start.len() >= 5 && start[..5].eq_ignore_ascii_case(b"# vtk") {
         // Legacy binary files are big-endian by definition of the format.
         guarded("legacy VTK", || {
+            // vtkio's parser has no string type: string arrays are blanked out first.
+            let without_strings = legacy_strings::blank(bytes)
+                .map_err(|fault| ErrorKind::Vtk(format!("legacy VTK: {fault}")))?;
+            let bytes = without_strings.as_deref().unwrap_or(bytes);
             let blanked = blank_dataset_field(bytes);
             parse_legacy_whole(blanked.as_deref().unwrap_or(bytes))
         })
