@@ -12,8 +12,9 @@
 //! The same walk finds the string arrays of `FIELD` blocks (`name components tuples string`),
 //! which vtkio's parser cannot read, for `legacy_strings` to blank out before it parses; a string
 //! array that does not hold what it declares is a fault (cut, a length past the end of the file,
-//! an ASCII count above or below its strings, other tuples than its section's nodes or cells, an
-//! array after it with other tuples: where a wrong length lands the walk). The walk measures
+//! an ASCII count above or below its strings, binary strings that do not end at VTK's line end,
+//! other tuples than its section's nodes or cells, an array after it with other tuples: where a
+//! wrong length lands the walk). The walk measures
 //! them as VTK's reader reads them (`vtkDataReader::ReadArray`): in an ASCII file one string a
 //! line, percent-encoded by the writer so that it holds no whitespace (an empty string is an empty
 //! line); in a binary file each string's bytes after a big-endian length whose first two bits
@@ -719,6 +720,17 @@ fn binary_walk<'a>(bytes: &'a [u8], v5: bool, strings: &mut Vec<StringArray<'a>>
                         ));
                     }
                     data += length as usize;
+                }
+                // VTK's writer ends the strings with a line end: a wrong length that ends them
+                // elsewhere would blank the start of the next header (a renamed array).
+                if bytes.get(data).is_some_and(|&b| b != b'\n') {
+                    return Some(Fault::strings(format!(
+                        "line {}: the string array `{}`: its {count} strings end at byte {data}, \
+                         where VTK writes a line end, not {} (a wrong count or length?)",
+                        header.line,
+                        header.text,
+                        crate::excerpt(&bytes[data..(data + 12).min(len)], 12)
+                    )));
                 }
                 strings.push(StringArray {
                     field: field.header,

@@ -213,9 +213,9 @@ fn a_string_array_of_other_tuples_than_its_cells_or_nodes_is_refused_naming_it()
 }
 
 /// In a binary file: a count above the strings reads the next header as lengths, past the end of
-/// the file; one below leaves strings where a header should be; a length past the end of the
-/// file, in any width, a length that lands the walk on an array header of another section, and a
-/// count that overflows are named too.
+/// the file; one below, or a length a little long, ends the strings where VTK's line end is not; a
+/// length past the end of the file, in any width, a length that lands the walk on an array header
+/// of another section, and a count that overflows are named too.
 #[test]
 fn a_binary_string_length_or_count_that_is_not_the_strings_is_refused_naming_it() {
     for flavour in ["4.2-binary", "5.1-binary"] {
@@ -229,11 +229,26 @@ fn a_binary_string_length_or_count_that_is_not_the_strings_is_refused_naming_it(
             )) && message.contains("bytes long, but only"),
             "{flavour}: {message}"
         );
+        // VTK ends the strings with a line end: 5 end before the 6th's length.
         let fewer = replaced(&bytes, b"notes 1 6 string", b"notes 1 5 string");
         let message = parse(&fewer).unwrap_err();
         assert!(
             message.contains(&format!(
-                "line {notes}: the string array `notes 1 5 string` holds more than its 5 strings"
+                "line {notes}: the string array `notes 1 5 string`: its 5 strings end at byte "
+            )) && message.contains("where VTK writes a line end, not `\\u{fffd}Fxxx"),
+            "{flavour}: {message}"
+        );
+        // The last node label, `node 34` (length byte 0xc7), made 2 bytes longer: it would take
+        // the line end and the `d` of `displacement`, the displacement renamed `isplacement`.
+        let label = line_of(&bytes, b"node%20label 1 35 string");
+        let last = position(&bytes, b"\xc7node 34\ndisplacement");
+        let longer = [&bytes[..last], &[0xc9], &bytes[last + 1..]].concat();
+        let message = parse(&longer).unwrap_err();
+        assert!(
+            message.contains(&format!(
+                "line {label}: the string array `node%20label 1 35 string`: its 35 strings end \
+                 at byte {}, where VTK writes a line end, not `isplacement",
+                last + 10
             )),
             "{flavour}: {message}"
         );
@@ -266,11 +281,13 @@ fn a_binary_string_length_or_count_that_is_not_the_strings_is_refused_naming_it(
             )),
             "{flavour}: {message}"
         );
-        // Its last string, `aluminium 6061-T6` (0xd1), made 0x85 0x61: 1377 bytes, from the
-        // `tags` array over the point data into `remark 1 35 string`, whose end (`k 1 35
-        // string` or so) reads as the cell data's next array.
+        // Its last string, `aluminium 6061-T6` (0xd1), given a 2-byte length that ends it on
+        // the line end before `remark 1 35 string`: from the `tags` array over the point data,
+        // `remark` read as the cell data's next array.
         let last = position(&bytes, b"\xd1aluminium 6061-T6\ntags");
-        let message = parse(&with_length(last, &[0x85])).unwrap_err();
+        // The length takes a byte more than 0xd1 did: the strings end where `\nremark` was.
+        let length = (position(&bytes, b"\nremark 1 35 string") - last - 1) as u16;
+        let message = parse(&with_length(last, &(0x8000 | length).to_be_bytes())).unwrap_err();
         assert!(
             message.contains(&format!(
                 "line {line}: the string array `material 1 10 string` ends where `"
