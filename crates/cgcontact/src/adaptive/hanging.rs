@@ -27,8 +27,9 @@ pub(super) struct Constraints {
     pub(super) nodes: Vec<u32>,
     /// The leaf each row's node hangs on.
     pub(super) leaf: Vec<u32>,
-    /// Rows by the level of their leaf, coarsest first, then by node: in this order a node's
-    /// leaf's corners are independent or filled already.
+    /// Rows by the level of their leaf, coarsest first, then by leaf and node: in this order a
+    /// node's leaf's corners are independent or filled already, and the nodes a leaf binds come
+    /// together (its corners are computed once for them).
     pub(super) order: Vec<u32>,
 }
 
@@ -75,7 +76,10 @@ impl Constraints {
     pub(super) fn new(mut direct: Vec<Direct>) -> Self {
         direct.sort_unstable_by_key(|d| d.node);
         let mut order: Vec<u32> = (0..direct.len() as u32).collect();
-        order.sort_unstable_by_key(|&r| (direct[r as usize].level, direct[r as usize].node));
+        order.sort_unstable_by_key(|&r| {
+            let d = &direct[r as usize];
+            (d.level, d.leaf, d.node)
+        });
         Self {
             nodes: direct.iter().map(|d| d.node).collect(),
             leaf: direct.iter().map(|d| d.leaf).collect(),

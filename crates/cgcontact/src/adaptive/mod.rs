@@ -130,6 +130,10 @@ pub struct AdaptiveBody {
     open_faces: std::sync::OnceLock<Box<OpenFaces>>,
 }
 
+/// The last leaf whose corners [`AdaptiveBody::bound_value`] computed, and those corners.
+#[derive(Clone, Copy, Default)]
+struct CornerCache(Option<(u32, [u32; 8])>);
+
 impl AdaptiveBody {
     /// An undeformed body of `leaves` on the base `lattice`; a leaf's id ([`CellId`]) is its
     /// position in `leaves`.
@@ -219,7 +223,7 @@ impl AdaptiveBody {
         let finest = u32::from(self.finest);
         let limit = self.lattice.cells().map(|n| n << finest);
         let mut direct = Vec::new();
-        for (node, p) in self.nodes.positions().enumerate() {
+        let _ = self.nodes.try_for_each_position(|node, p| {
             // The coarsest leaf that holds p without having it as a corner (lowest id on a tie).
             let mut binding: Option<(u8, u32)> = None;
             for octant in 0..8u32 {
@@ -254,12 +258,13 @@ impl AdaptiveBody {
             }
             if let Some((level, id)) = binding {
                 direct.push(Direct {
-                    node: node as u32,
+                    node,
                     level,
                     leaf: id,
                 });
             }
-        }
+            Ok::<(), ()>(())
+        });
         Constraints::new(direct)
     }
 
@@ -399,17 +404,20 @@ impl AdaptiveBody {
         let h = self.spacing(self.finest);
         let origin = self.lattice.origin();
         let limit = self.displacement_limit();
-        for ((node, u), q) in u.iter_mut().enumerate().zip(self.nodes.positions()) {
-            if self.hanging.nodes.get(row) == Some(&(node as u32)) {
+        self.nodes.try_for_each_position(|node, q| {
+            if self.hanging.nodes.get(row) == Some(&node) {
                 row += 1;
-                continue;
+                return Ok(());
             }
-            let x = origin + h * DVec3::new(q[0] as f64, q[1] as f64, q[2] as f64);
+            let (node, u) = (node as usize, &mut u[node as usize]);
+            let x = origin + h * DVec3::new(f64::from(q[0]), f64::from(q[1]), f64::from(q[2]));
             f(node, x, u);
-            if !displacement_ok(*u, limit) {
-                return Err(displacement_error(node, *u, limit));
+            if displacement_ok(*u, limit) {
+                Ok(())
+            } else {
+                Err(displacement_error(node, *u, limit))
             }
-        }
+        })?;
         self.u = u;
         self.fill_hanging();
         Ok(())
@@ -417,36 +425,46 @@ impl AdaptiveBody {
 
     /// Sets every hanging node's displacement to its constraint's value.
     pub fn fill_hanging(&mut self) {
+        let mut corners = CornerCache::default();
         for &r in &self.hanging.order {
             let r = r as usize;
             let node = self.hanging.nodes[r];
-            self.u[node as usize] = self.bound_value(node, self.hanging.leaf[r]);
+            let value = self.bound_value(node, self.hanging.leaf[r], &mut corners);
+            self.u[node as usize] = value;
         }
     }
 
-    /// The corner nodes of leaf `id` and `node`'s local coordinates there (`node` a point of the
-    /// leaf's closed box; exact, dyadic).
-    fn binding_frame(&self, node: u32, id: u32) -> ([u32; 8], DVec3) {
-        let leaf = self.leaves.at(id);
+    /// `node`'s local coordinates in `leaf` (`node` a point of the leaf's closed box; exact,
+    /// dyadic).
+    fn binding_xi(&self, node: u32, leaf: Leaf) -> DVec3 {
         let p = self.nodes.position(node);
         let s = u32::from(self.finest - leaf.level);
         let rel = [0, 1, 2].map(|a| f64::from(p[a] - (leaf.ijk[a] << s)));
-        let xi = DVec3::from_array(rel) * (2.0 / f64::from(1u32 << s)) - 1.0;
-        (self.leaf_nodes(id, leaf), xi)
+        DVec3::from_array(rel) * (2.0 / f64::from(1u32 << s)) - 1.0
     }
 
     /// The corners of leaf `id` and their weights at `node` (the zero weights dropped): what
     /// `node` interpolates when it hangs on that leaf.
     fn binding(&self, node: u32, id: u32) -> Vec<(u32, f64)> {
-        let (corners, xi) = self.binding_frame(node, id);
-        corner_weights(&corners, xi)
+        let leaf = self.leaves.at(id);
+        corner_weights(&self.leaf_nodes(id, leaf), self.binding_xi(node, leaf))
     }
 
     /// The displacement leaf `id` interpolates at `node`: the sum of [`AdaptiveBody::binding`]'s
-    /// terms in its order, without a list (it runs for every hanging node at every update).
-    fn bound_value(&self, node: u32, id: u32) -> DVec3 {
-        let (corners, xi) = self.binding_frame(node, id);
-        hex8::shape(xi)
+    /// terms in its order, without a list (it runs for every hanging node at every update). The
+    /// leaf's corners come from `cache` when they are the last leaf's: the hanging nodes are
+    /// visited leaf by leaf, and a leaf binds several.
+    fn bound_value(&self, node: u32, id: u32, cache: &mut CornerCache) -> DVec3 {
+        let leaf = self.leaves.at(id);
+        let corners = match *cache {
+            CornerCache(Some((last, corners))) if last == id => corners,
+            _ => {
+                let corners = self.leaf_nodes(id, leaf);
+                *cache = CornerCache(Some((id, corners)));
+                corners
+            }
+        };
+        hex8::shape(self.binding_xi(node, leaf))
             .into_iter()
             .zip(corners)
             .filter(|&(w, _)| w != 0.0)
@@ -500,14 +518,22 @@ impl AdaptiveBody {
             worst: None,
         };
         let mut worst_rank = (f64::NEG_INFINITY, f64::NEG_INFINITY);
-        for r in 0..self.hanging.nodes.len() {
+        let mut corners = CornerCache::default();
+        // Leaf by leaf (the fill's order, which shares each leaf's corners); of nodes equally
+        // far, the lowest is the worst, as in node order.
+        for &r in &self.hanging.order {
+            let r = r as usize;
             let node = self.hanging.nodes[r] as usize;
-            let off = (self.u[node] - self.bound_value(node as u32, self.hanging.leaf[r])).abs();
-            let (breaks, rank, by) = judge(off);
+            let bound = self.bound_value(node as u32, self.hanging.leaf[r], &mut corners);
+            let (breaks, rank, by) = judge((self.u[node] - bound).abs());
             if breaks {
                 report.violating += 1;
             }
-            if report.worst.is_none() || rank > worst_rank {
+            let worse = match report.worst {
+                None => true,
+                Some((worst, _)) => rank > worst_rank || (rank == worst_rank && node < worst),
+            };
+            if worse {
                 report.worst = Some((node, by));
                 worst_rank = rank;
             }
