@@ -3,6 +3,7 @@
 
 use std::sync::{Arc, PoisonError, RwLock, RwLockReadGuard, RwLockWriteGuard};
 
+use cgcontact::adaptive::FlatConstraints;
 use cgcontact::glam::DVec3;
 use cgcontact::{AdaptiveBody, Body, CellId, Lattice};
 use cgcontact_baseline::BodyRef;
@@ -63,57 +64,6 @@ impl AnyBody {
     }
 }
 
-/// The Q1 constraints of an adaptive body's hanging nodes, flattened to independent nodes: what
-/// an update checks in the caller's values before the body takes them.
-#[derive(Debug, Default)]
-struct Hanging {
-    /// (hanging node, end of its parents in `parents`), ascending by node.
-    rows: Vec<(u32, u32)>,
-    /// (independent node, weight).
-    parents: Vec<(u32, f64)>,
-}
-
-impl Hanging {
-    fn of(body: &AdaptiveBody) -> Self {
-        let mut hanging = Self::default();
-        for node in body.hanging_nodes() {
-            let parents = body
-                .constraint(node)
-                .expect("a hanging node has a constraint");
-            hanging
-                .parents
-                .extend(parents.into_iter().map(|(p, w)| (p as u32, w)));
-            // Node and parent counts fit u32: the body indexes its nodes with u32.
-            hanging
-                .rows
-                .push((node as u32, hanging.parents.len() as u32));
-        }
-        hanging
-    }
-
-    /// The hanging nodes farther than `tol` from their constraint in `u`: how many, and the worst
-    /// (node, by how much).
-    fn violations(&self, u: &[DVec3], tol: f64) -> (usize, Option<(usize, f64)>) {
-        let (mut count, mut worst) = (0, None);
-        let mut start = 0;
-        for &(node, end) in &self.rows {
-            let value: DVec3 = self.parents[start..end as usize]
-                .iter()
-                .map(|&(p, w)| w * u[p as usize])
-                .sum();
-            start = end as usize;
-            let off = (u[node as usize] - value).abs().max_element();
-            if off > tol {
-                count += 1;
-                if worst.is_none_or(|(_, w)| off > w) {
-                    worst = Some((node as usize, off));
-                }
-            }
-        }
-        (count, worst)
-    }
-}
-
 /// What a body handle holds; shared with the locators made from it.
 #[derive(Debug)]
 pub(crate) struct BodyState {
@@ -129,7 +79,7 @@ pub(crate) struct BodyState {
     /// displacements must agree with the slot's.
     duplicates: Vec<(usize, usize)>,
     /// The hanging nodes' constraints (none for uniform bodies).
-    hanging: Hanging,
+    hanging: FlatConstraints,
     /// The displacements in slot order, reused by every update.
     scratch: Vec<DVec3>,
 }
@@ -145,7 +95,7 @@ impl BodyState {
             source_count: lattice.node_count(),
             source_of_slot,
             duplicates: Vec::new(),
-            hanging: Hanging::default(),
+            hanging: FlatConstraints::default(),
             cells: CellNumbering::Lattice {
                 cells: lattice.cell_count(),
             },
@@ -236,8 +186,8 @@ impl BodyState {
             // The values given at hanging nodes are ignored once found finite: zeros in their
             // place, which `fill_hanging` overwrites, so that the body's limit on a displacement's
             // size does not refuse a value it would not keep (no hanging nodes: nothing to do).
-            for &(node, _) in &self.hanging.rows {
-                self.scratch[node as usize] = DVec3::ZERO;
+            for node in self.hanging.nodes() {
+                self.scratch[node] = DVec3::ZERO;
             }
         }
         let caller_nodes = |e| in_caller_nodes(e, &self.scratch, self.source_of_slot.as_deref());
@@ -292,17 +242,19 @@ fn in_caller_nodes(e: cgcontact::Error, u: &[DVec3], source: Option<&[u32]>) -> 
 /// rounding of the largest displacement.
 fn check_hanging(
     body: &AdaptiveBody,
-    hanging: &Hanging,
+    hanging: &FlatConstraints,
     u: &[DVec3],
     source: Option<&[u32]>,
 ) -> Result<(), Failure> {
-    if hanging.rows.is_empty() {
+    if hanging.is_empty() {
         return Ok(());
     }
     let largest = u.iter().fold(0.0f64, |m, v| m.max(v.abs().max_element()));
     let tol = LATTICE_TOLERANCE * body.spacing(body.finest_level()).min_element()
         + ROUNDING_SLACK * largest;
-    let (count, worst) = hanging.violations(u, tol);
+    let (count, worst) = hanging
+        .violations(u, tol)
+        .map_err(|e| in_caller_nodes(e, u, source))?;
     let Some((slot, by)) = worst else {
         return Ok(());
     };
@@ -312,7 +264,7 @@ fn check_hanging(
         CgcError::HangingConstraint,
         format!(
             "displacements: {count} of {} hanging nodes break their constraint by more than {tol:.1e}; the worst, node {node} (0-based) at {at}, by {by:.3e}: the deformed mesh would gap or overlap there (give each hanging node the trilinear interpolation of the coarse cell it hangs on, or pass CGC_FILL_HANGING)",
-            hanging.rows.len()
+            hanging.len()
         ),
     ))
 }
@@ -540,7 +492,7 @@ fn uniform_state(mesh: &HexMesh, body: Body, cells: CellMap) -> BodyState {
         source_count: mesh.points.len(),
         source_of_slot: Some(source_of_slot),
         duplicates,
-        hanging: Hanging::default(),
+        hanging: FlatConstraints::default(),
         cells: CellNumbering::Mesh(cells),
         body: AnyBody::Uniform(body),
     }
@@ -564,7 +516,7 @@ fn adaptive_state(mesh: &HexMesh, body: AdaptiveBody, cells: CellMap) -> BodySta
         source_count: mesh.points.len(),
         source_of_slot: Some(source_of_slot),
         duplicates,
-        hanging: Hanging::of(&body),
+        hanging: FlatConstraints::of(&body),
         cells: CellNumbering::Mesh(cells),
         body: AnyBody::Adaptive(body),
     }
@@ -683,7 +635,7 @@ pub unsafe extern "C" fn cgc_body_hanging_count(
                 raw::slice_mut(n_hanging, 1, "n_hanging")?,
             )
         };
-        out[0] = CgcBody::read(&body.state).hanging.rows.len();
+        out[0] = CgcBody::read(&body.state).hanging.len();
         Ok(())
     })
 }

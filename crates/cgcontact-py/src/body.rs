@@ -4,6 +4,7 @@
 use std::sync::{Arc, PoisonError, RwLock, RwLockReadGuard};
 
 use cgcontact::glam::DVec3;
+use cgcontact::adaptive::FlatConstraints;
 use cgcontact::{AdaptiveBody, Body, CellId, Lattice};
 use cgcontact_baseline::BodyRef;
 use cgcontact_io::{CellMap, CellNumbering, HexMesh, LATTICE_TOLERANCE, MeshBody};
@@ -40,57 +41,6 @@ impl AnyBody {
     }
 }
 
-/// The Q1 constraints of an adaptive body's hanging nodes, flattened to independent nodes: what
-/// an update checks in the caller's values before the body takes them.
-#[derive(Debug, Default)]
-struct Hanging {
-    /// (hanging node, end of its parents in `parents`), ascending by node.
-    rows: Vec<(u32, u32)>,
-    /// (independent node, weight).
-    parents: Vec<(u32, f64)>,
-}
-
-impl Hanging {
-    fn of(body: &AdaptiveBody) -> Self {
-        let mut hanging = Self::default();
-        for node in body.hanging_nodes() {
-            let parents = body
-                .constraint(node)
-                .expect("a hanging node has a constraint");
-            hanging
-                .parents
-                .extend(parents.into_iter().map(|(p, w)| (p as u32, w)));
-            // Node and parent counts fit u32: the body indexes its nodes with u32.
-            hanging
-                .rows
-                .push((node as u32, hanging.parents.len() as u32));
-        }
-        hanging
-    }
-
-    /// The hanging nodes farther than `tol` from their constraint in `u`: how many, and the worst
-    /// (node, by how much).
-    fn violations(&self, u: &[DVec3], tol: f64) -> (usize, Option<(usize, f64)>) {
-        let (mut count, mut worst) = (0, None);
-        let mut start = 0;
-        for &(node, end) in &self.rows {
-            let value: DVec3 = self.parents[start..end as usize]
-                .iter()
-                .map(|&(p, w)| w * u[p as usize])
-                .sum();
-            start = end as usize;
-            let off = (u[node as usize] - value).abs().max_element();
-            if off > tol {
-                count += 1;
-                if worst.is_none_or(|(_, w)| off > w) {
-                    worst = Some((node as usize, off));
-                }
-            }
-        }
-        (count, worst)
-    }
-}
-
 /// What a `Body` holds; shared with the locators made from it.
 #[derive(Debug)]
 pub struct BodyState {
@@ -105,7 +55,7 @@ pub struct BodyState {
     /// Further caller's nodes at a slot's node (an unmerged mesh): (node, slot).
     duplicates: Vec<(usize, usize)>,
     /// The hanging nodes' constraints (none for uniform bodies).
-    hanging: Hanging,
+    hanging: FlatConstraints,
     /// The displacements in slot order, reused by every update.
     scratch: Vec<DVec3>,
 }
@@ -121,7 +71,7 @@ impl BodyState {
             source_count: lattice.node_count(),
             source_of_slot,
             duplicates: Vec::new(),
-            hanging: Hanging::default(),
+            hanging: FlatConstraints::default(),
             cells: CellNumbering::Lattice {
                 cells: lattice.cell_count(),
             },
@@ -250,17 +200,17 @@ fn in_caller_rows(e: cgcontact::Error, u: &[DVec3], source: Option<&[u32]>) -> S
 /// command line warns at: 1e-9 of the finest spacing plus the largest displacement's rounding).
 fn check_hanging(
     body: &AdaptiveBody,
-    hanging: &Hanging,
+    hanging: &FlatConstraints,
     u: &[DVec3],
     source: Option<&[u32]>,
 ) -> Result<(), String> {
-    if hanging.rows.is_empty() {
+    if hanging.is_empty() {
         return Ok(());
     }
     let largest = u.iter().fold(0.0f64, |m, v| m.max(v.abs().max_element()));
     let tol = LATTICE_TOLERANCE * body.spacing(body.finest_level()).min_element()
         + ROUNDING_SLACK * largest;
-    let (count, worst) = hanging.violations(u, tol);
+    let (count, worst) = hanging.violations(u, tol).map_err(|e| e.to_string())?;
     let Some((slot, by)) = worst else {
         return Ok(());
     };
@@ -268,7 +218,7 @@ fn check_hanging(
     let at = body.node_position(slot).unwrap_or(DVec3::NAN);
     Err(format!(
         "displacements: {count} of {} hanging nodes break their constraint by more than {tol:.1e}; the worst, node {node} (0-based) at {}, by {by:.3e}: the deformed mesh would gap or overlap there (give each hanging node the trilinear interpolation of the coarse cell it hangs on, or pass fill_hanging=True)",
-        hanging.rows.len(),
+        hanging.len(),
         arrays::show(at)
     ))
 }
@@ -297,7 +247,7 @@ fn uniform_state(mesh: &HexMesh, body: Body, cells: CellMap) -> BodyState {
         source_count: mesh.points.len(),
         source_of_slot: Some(source_of_slot),
         duplicates,
-        hanging: Hanging::default(),
+        hanging: FlatConstraints::default(),
         cells: CellNumbering::Mesh(cells),
         body: AnyBody::Uniform(body),
     }
@@ -321,7 +271,7 @@ fn adaptive_state(mesh: &HexMesh, body: AdaptiveBody, cells: CellMap) -> BodySta
         source_count: mesh.points.len(),
         source_of_slot: Some(source_of_slot),
         duplicates,
-        hanging: Hanging::of(&body),
+        hanging: FlatConstraints::of(&body),
         cells: CellNumbering::Mesh(cells),
         body: AnyBody::Adaptive(body),
     }
@@ -547,7 +497,7 @@ impl PyBody {
     /// Hanging nodes (0 for a uniform body).
     #[getter]
     fn hanging_count(&self) -> usize {
-        Self::read(&self.state).hanging.rows.len()
+        Self::read(&self.state).hanging.len()
     }
 
     fn __repr__(&self) -> String {

@@ -104,3 +104,98 @@ impl Constraints {
         (self.nodes.capacity() + self.leaf.capacity() + self.order.capacity()) * size_of::<u32>()
     }
 }
+
+/// Every hanging node's constraint flattened to independent nodes and weights
+/// ([`super::AdaptiveBody::constraint`] of each), in one table: to check displacements that are
+/// not the body's own, such as a caller's before the body takes them, in a few multiply-adds a
+/// node. The C and Python bindings refuse an update with it.
+///
+/// Unlike [`super::AdaptiveBody::check_constraints`], which compares each hanging node with its
+/// coarse leaf's interpolation of the values given (so a wrong value at a hanging corner also
+/// shows in the nodes that hang on its leaf), this compares each hanging node with the
+/// independent nodes alone: a wrong value shows at its own node only.
+#[derive(Clone, Debug, Default)]
+pub struct FlatConstraints {
+    /// Nodes of the body.
+    nodes: usize,
+    /// (hanging node, end of its parents in `parents`), ascending by node.
+    rows: Vec<(u32, u32)>,
+    /// (independent node, weight).
+    parents: Vec<(u32, f64)>,
+}
+
+impl FlatConstraints {
+    /// The flattened constraints of `body`'s hanging nodes (none on a body without).
+    #[must_use]
+    pub fn of(body: &super::AdaptiveBody) -> Self {
+        let mut flat = Self {
+            nodes: body.node_count(),
+            ..Self::default()
+        };
+        for node in body.hanging_nodes() {
+            let parents = body
+                .constraint(node)
+                .expect("a hanging node has a constraint");
+            flat.parents
+                .extend(parents.into_iter().map(|(p, w)| (p as u32, w)));
+            // Node and parent counts fit u32: the body indexes its nodes with u32.
+            flat.rows.push((node as u32, flat.parents.len() as u32));
+        }
+        flat
+    }
+
+    /// How many hanging nodes there are.
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.rows.len()
+    }
+
+    /// Whether there is no hanging node.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.rows.is_empty()
+    }
+
+    /// The hanging nodes, ascending.
+    pub fn nodes(&self) -> impl Iterator<Item = usize> + '_ {
+        self.rows.iter().map(|&(node, _)| node as usize)
+    }
+
+    /// The hanging nodes farther than `tol` (largest component, length units) from their
+    /// constraint in `u`, one displacement per node of the body: how many, and the farthest of
+    /// them (node, by how much), `None` when none is. A NaN tolerance counts no node: check it
+    /// first.
+    ///
+    /// # Errors
+    /// [`crate::Error::LengthMismatch`] when `u` does not hold one displacement per node.
+    pub fn violations(
+        &self,
+        u: &[DVec3],
+        tol: f64,
+    ) -> Result<(usize, Option<(usize, f64)>), crate::Error> {
+        if u.len() != self.nodes {
+            return Err(crate::Error::LengthMismatch {
+                what: "node displacements",
+                expected: self.nodes,
+                got: u.len(),
+            });
+        }
+        let (mut count, mut worst) = (0, None);
+        let mut start = 0;
+        for &(node, end) in &self.rows {
+            let value: DVec3 = self.parents[start..end as usize]
+                .iter()
+                .map(|&(p, w)| w * u[p as usize])
+                .sum();
+            start = end as usize;
+            let off = (u[node as usize] - value).abs().max_element();
+            if off > tol {
+                count += 1;
+                if worst.is_none_or(|(_, w)| off > w) {
+                    worst = Some((node as usize, off));
+                }
+            }
+        }
+        Ok((count, worst))
+    }
+}

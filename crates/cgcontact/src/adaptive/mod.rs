@@ -42,7 +42,7 @@ use hanging::{Constraints, Direct, corner_weights};
 use leaves::LeafStore;
 use nodes::Nodes;
 
-pub use hanging::ConstraintReport;
+pub use hanging::{ConstraintReport, FlatConstraints};
 pub use leaves::Leaves;
 pub use locate::AdaptiveLocator;
 
