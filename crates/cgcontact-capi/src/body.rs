@@ -7,7 +7,7 @@ use cgcontact::adaptive::FlatConstraints;
 use cgcontact::glam::DVec3;
 use cgcontact::{AdaptiveBody, Body, CellId, Lattice};
 use cgcontact_baseline::BodyRef;
-use cgcontact_io::{CellMap, CellNumbering, HexMesh, LATTICE_TOLERANCE, MeshBody};
+use cgcontact_io::{CellMap, CellNumbering, HexMesh, LATTICE_TOLERANCE, MeshBody, NodeSources};
 
 use crate::error::{CgcError, Failure, guard};
 use crate::raw;
@@ -470,25 +470,12 @@ pub unsafe extern "C" fn cgc_body_from_mesh(
 /// The state of a uniform body detected from `mesh`: which input node gives each displacement
 /// slot.
 fn uniform_state(mesh: &HexMesh, body: Body, cells: CellMap) -> BodyState {
-    let lattice = *body.lattice();
-    let slot_nodes: Vec<usize> = body.nodes().collect();
-    let mut slot_of_input = vec![UNSET; mesh.points.len()];
-    for (input, corners) in mesh.cells.iter().enumerate() {
-        let cell = cells
-            .lattice_cell(input)
-            .expect("one lattice cell per input cell");
-        let ijk = lattice
-            .cell_ijk(cell)
-            .expect("detected cells lie in the lattice");
-        for (&node, lattice_node) in corners.iter().zip(lattice.corner_nodes(ijk)) {
-            slot_of_input[node as usize] = slot_nodes
-                .binary_search(&lattice_node)
-                .expect("corners of active cells are body nodes");
-        }
-    }
-    let (source_of_slot, duplicates) = sources(&slot_of_input, slot_nodes.len());
+    let NodeSources {
+        source_of_slot,
+        duplicates,
+    } = NodeSources::uniform(mesh, &body, &cells);
     BodyState {
-        scratch: vec![DVec3::ZERO; slot_nodes.len()],
+        scratch: vec![DVec3::ZERO; source_of_slot.len()],
         source_count: mesh.points.len(),
         source_of_slot: Some(source_of_slot),
         duplicates,
@@ -501,18 +488,12 @@ fn uniform_state(mesh: &HexMesh, body: Body, cells: CellMap) -> BodyState {
 /// The state of an adaptive body detected from `mesh`, whose leaf `c` is input cell `c` with its
 /// corners in the same (VTK) order: input node → body node through the cells' corners.
 fn adaptive_state(mesh: &HexMesh, body: AdaptiveBody, cells: CellMap) -> BodyState {
-    let mut slot_of_input = vec![UNSET; mesh.points.len()];
-    for (input, corners) in mesh.cells.iter().enumerate() {
-        let nodes = body
-            .cell_nodes(CellId(input as u32))
-            .expect("a leaf per input cell");
-        for (&node, slot) in corners.iter().zip(nodes) {
-            slot_of_input[node as usize] = slot;
-        }
-    }
-    let (source_of_slot, duplicates) = sources(&slot_of_input, body.node_count());
+    let NodeSources {
+        source_of_slot,
+        duplicates,
+    } = NodeSources::adaptive(mesh, &body);
     BodyState {
-        scratch: vec![DVec3::ZERO; body.node_count()],
+        scratch: vec![DVec3::ZERO; source_of_slot.len()],
         source_count: mesh.points.len(),
         source_of_slot: Some(source_of_slot),
         duplicates,
@@ -520,30 +501,6 @@ fn adaptive_state(mesh: &HexMesh, body: AdaptiveBody, cells: CellMap) -> BodySta
         cells: CellNumbering::Mesh(cells),
         body: AnyBody::Adaptive(body),
     }
-}
-
-/// An input node no cell uses.
-const UNSET: usize = usize::MAX;
-
-/// From each input node's slot (or `UNSET`): the first input node of each of `slots` slots, and
-/// the further input nodes at a slot already given, as (node, slot).
-fn sources(slot_of_input: &[usize], slots: usize) -> (Vec<u32>, Vec<(usize, usize)>) {
-    // Input nodes used by cells are u32 (the cells' indices are).
-    let mut source_of_slot = vec![u32::MAX; slots];
-    let mut duplicates = Vec::new();
-    for (node, &slot) in slot_of_input
-        .iter()
-        .enumerate()
-        .filter(|(_, s)| **s != UNSET)
-    {
-        if source_of_slot[slot] == u32::MAX {
-            source_of_slot[slot] = node as u32;
-        } else {
-            duplicates.push((node, slot));
-        }
-    }
-    debug_assert!(!source_of_slot.contains(&u32::MAX));
-    (source_of_slot, duplicates)
 }
 
 /// Sets every displacement of the body, in place (nothing is rebuilt; locators made from the body

@@ -57,6 +57,7 @@ mod legacy_sections;
 mod legacy_strings;
 mod lzma_arrays;
 mod mesh;
+mod node_sources;
 mod raw_appended;
 mod vtk_read;
 mod vtk_write;
@@ -74,6 +75,7 @@ pub use input::{
     DEFAULT_MAX_INPUT_BYTES, MAX_INPUT_BYTES_VAR, TextInput, max_input_bytes, read_text,
 };
 pub use mesh::{CellMap, CellNumbering, HexMesh, LATTICE_TOLERANCE, LatticeMesh};
+pub use node_sources::NodeSources;
 pub use vtk_read::{
     DEFAULT_DISPLACEMENT, DisplacementArray, parse_hex_mesh, read_body, read_hex_mesh, read_mesh,
 };
