@@ -8,9 +8,9 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use crate::field::Indentation;
-use crate::known::{KnownPoint, LeafDraw, adaptive_known_points};
+use crate::known::{LeafDraw, adaptive_known_points};
 use crate::refine::{MAX_REFINED_LEAVES, check_levels, leaf_box, refine_lattice, too_many_leaves};
-use crate::sphere::{JITTER_STREAM, SphereOnBlock, fibonacci_sphere};
+use crate::sphere::{JITTER_STREAM, Scene, SphereOnBlock, fibonacci_sphere};
 
 /// Mixed into the seed for the shuffle of [`LeafOrder::Shuffled`].
 const ORDER_STREAM: u64 = 0x0dde_4a11;
@@ -27,32 +27,10 @@ pub enum LeafOrder {
     Shuffled,
 }
 
-/// A generated adaptive scene: a deformed h-adaptive body, query points, and the known answers.
-#[derive(Clone, Debug)]
-pub struct AdaptiveScene {
-    /// Short name ("sphere-adaptive", ...).
-    pub name: String,
-    /// The deformed block; hanging nodes obey their constraints.
-    pub body: AdaptiveBody,
-    /// The sphere's contact points (no known answer: check them against the brute-force oracle).
-    pub contact_points: Vec<DVec3>,
-    /// Points made from known (leaf, ξ) in the deformed block; `cell` is the leaf's id.
-    pub known: Vec<KnownPoint>,
-    /// The sphere (center, radius), for pictures.
-    pub sphere: (DVec3, f64),
-}
-
-impl AdaptiveScene {
-    /// Every query point: the contact points, then the known points.
-    #[must_use]
-    pub fn all_points(&self) -> Vec<DVec3> {
-        self.contact_points
-            .iter()
-            .copied()
-            .chain(self.known.iter().map(|k| k.x))
-            .collect()
-    }
-}
+/// A generated adaptive scene: a deformed h-adaptive body (hanging nodes obeying their
+/// constraints), the sphere's contact points, and points made from known (leaf, ξ), `cell` the
+/// leaf's id.
+pub type AdaptiveScene = Scene<AdaptiveBody>;
 
 /// How many leaves [`SphereOnAdaptiveBlock::build`] makes, from
 /// [`SphereOnAdaptiveBlock::leaf_count`].

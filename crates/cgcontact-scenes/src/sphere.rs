@@ -13,21 +13,23 @@ use crate::known::{KnownPoint, known_points};
 pub(crate) const JITTER_STREAM: u64 = 0x6a17_7e12;
 
 /// A generated scene: a deformed body, query points, and the known answers where they exist.
+/// `B` is the body: a uniform [`Body`], or an adaptive one ([`crate::AdaptiveScene`]).
 #[derive(Clone, Debug)]
-pub struct Scene {
-    /// Short name ("sphere-fine", ...).
+pub struct Scene<B = Body> {
+    /// Short name ("sphere-fine", "sphere-adaptive", ...).
     pub name: String,
     /// The deformed block.
-    pub body: Body,
+    pub body: B,
     /// The sphere's contact points (no known answer: check them against the brute-force oracle).
     pub contact_points: Vec<DVec3>,
-    /// Points made from known (cell, ξ) in the deformed block.
+    /// Points made from known (cell, ξ) in the deformed block (on adaptive bodies, `cell` is the
+    /// leaf's id).
     pub known: Vec<KnownPoint>,
     /// The sphere (center, radius), for pictures.
     pub sphere: (DVec3, f64),
 }
 
-impl Scene {
+impl<B> Scene<B> {
     /// Every query point: the contact points, then the known points.
     #[must_use]
     pub fn all_points(&self) -> Vec<DVec3> {
