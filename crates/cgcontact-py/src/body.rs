@@ -3,8 +3,8 @@
 
 use std::sync::{Arc, PoisonError, RwLock, RwLockReadGuard};
 
-use cgcontact::glam::DVec3;
 use cgcontact::adaptive::FlatConstraints;
+use cgcontact::glam::DVec3;
 use cgcontact::{AdaptiveBody, Body, CellId, Lattice};
 use cgcontact_baseline::BodyRef;
 use cgcontact_io::{CellMap, CellNumbering, HexMesh, LATTICE_TOLERANCE, MeshBody, NodeSources};
@@ -151,6 +151,14 @@ impl BodyState {
                     arrays::show(first),
                     arrays::show(value)
                 ));
+            }
+        }
+        if fill {
+            // The rows of hanging nodes are ignored once found finite, as the C API ignores them:
+            // zeros in their place, which `fill_hanging` overwrites, so that the body's limit on
+            // a displacement's size does not refuse a value it would not keep.
+            for node in self.hanging.nodes() {
+                self.scratch[node] = DVec3::ZERO;
             }
         }
         match &mut self.body {

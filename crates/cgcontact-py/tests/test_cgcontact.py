@@ -796,6 +796,37 @@ def test_a_hanging_node_off_its_constraint_is_warned_or_refused_as_the_cli_does(
         cgcontact.read_mesh(mesh, strict=True)
 
 
+def test_fill_hanging_ignores_the_values_given_at_hanging_nodes():
+    """With fill_hanging=True the hanging nodes take their constraints' values, whatever finite
+    values their rows held (a solver that leaves them unset): a value there beyond the body's
+    limit is not refused, as the C API does not refuse it, and the body answers as with the
+    constraints' values given. A NaN there is still refused, as everywhere."""
+    nodes, hexes, hanging = coarse_beside_refined()
+    exact = cgcontact.Body.from_hexes(nodes, hexes)
+    filled = cgcontact.Body.from_hexes(nodes, hexes)
+    # A linear field: every hanging node's constraint value is the field at the node.
+    def field(x):
+        return np.stack([0.02 * x[:, 1], -0.01 * x[:, 2], 0.03 * x[:, 0]], axis=1)
+
+    u = field(nodes)
+    exact.set_displacements(u)
+    garbage = u.copy()
+    garbage[hanging] = 1e300
+    filled.set_displacements(garbage, fill_hanging=True)
+    inside = 0.03 + nodes * [0.95, 0.9, 0.9]
+    points = inside + field(inside)
+    cells_exact, xi_exact = cgcontact.Locator(exact).locate(points)
+    cells_filled, xi_filled = cgcontact.Locator(filled).locate(points)
+    assert (cells_exact >= 0).all()
+    np.testing.assert_array_equal(cells_filled, cells_exact)
+    np.testing.assert_array_equal(xi_filled, xi_exact)
+    with pytest.raises(ValueError, match="5 of 5 hanging nodes break their constraint"):
+        filled.set_displacements(garbage)
+    garbage[hanging[0]] = np.nan
+    with pytest.raises(ValueError, match="not finite"):
+        filled.set_displacements(garbage, fill_hanging=True)
+
+
 def test_an_anisotropic_mesh_vtk_wrote_reads_strictly():
     """Cells of 1 : 1e-3 : 0.1 written by VTK's legacy ASCII writer (11 digits): each axis's
     constraint is checked against its own spacing, so the rounding is not a broken node."""
