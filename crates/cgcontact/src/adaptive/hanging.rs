@@ -163,8 +163,8 @@ impl FlatConstraints {
 
     /// The hanging nodes farther than `tol` (largest component, length units) from their
     /// constraint in `u`, one displacement per node of the body: how many, and the farthest of
-    /// them (node, by how much), `None` when none is. A NaN tolerance counts no node: check it
-    /// first.
+    /// them (node, by how much), `None` when none is. A NaN tolerance holds no node within it:
+    /// every hanging node is counted, as [`super::AdaptiveBody::check_constraints`] counts them.
     ///
     /// # Errors
     /// [`crate::Error::LengthMismatch`] when `u` does not hold one displacement per node.
@@ -189,7 +189,9 @@ impl FlatConstraints {
                 .sum();
             start = end as usize;
             let off = (u[node as usize] - value).abs().max_element();
-            if off > tol {
+            // Written so that a NaN tolerance counts the node (`off > tol` passed every node).
+            let within = off <= tol;
+            if !within {
                 count += 1;
                 if worst.is_none_or(|(_, w)| off > w) {
                     worst = Some((node as usize, off));

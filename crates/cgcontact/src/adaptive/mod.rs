@@ -223,7 +223,7 @@ impl AdaptiveBody {
         let finest = u32::from(self.finest);
         let limit = self.lattice.cells().map(|n| n << finest);
         let mut direct = Vec::new();
-        let _ = self.nodes.try_for_each_position(|node, p| {
+        let Ok(()) = self.nodes.try_for_each_position(|node, p| {
             // The coarsest leaf that holds p without having it as a corner (lowest id on a tie).
             let mut binding: Option<(u8, u32)> = None;
             for octant in 0..8u32 {
@@ -263,7 +263,7 @@ impl AdaptiveBody {
                     leaf: id,
                 });
             }
-            Ok::<(), ()>(())
+            Ok::<(), std::convert::Infallible>(())
         });
         Constraints::new(direct)
     }

@@ -603,6 +603,10 @@ fn flat_constraints_agree_with_the_fill_and_name_the_node_moved() {
             flat.violations(&u[1..], tol),
             Err(Error::LengthMismatch { .. })
         ));
+        // A NaN tolerance holds no node, as in check_constraints.
+        let (count, _) = flat.violations(&u, f64::NAN).unwrap();
+        assert_eq!(count, flat.len());
+        assert_eq!(body.check_constraints(f64::NAN).violating, count);
     }
 }
 
