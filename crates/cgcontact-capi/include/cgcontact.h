@@ -215,8 +215,9 @@ cgc_error cgc_body_from_mesh(const double *nodes,
 // Sets every displacement of the body, in place (nothing is rebuilt; locators made from the body
 // see the new values at their next call). `u` holds `3 n_nodes` doubles in `layout`
 // (`CGC_LAYOUT_NODE_MAJOR` or `CGC_LAYOUT_COMPONENT_MAJOR`, optionally `| CGC_FILL_HANGING`);
-// `n_nodes` must be `cgc_body_node_count`. On any error (a length, a NaN, a flag, a hanging node
-// off its constraint) the body keeps its displacements.
+// `n_nodes` must be `cgc_body_node_count`. Every value must be finite, at nodes that no cell
+// uses too (`CGC_ERROR_NON_FINITE` names the first such node). On any error (a length, a NaN, a
+// flag, a hanging node off its constraint) the body keeps its displacements.
 //
 // On an adaptive body, each hanging node's displacement is checked against its constraint (to
 // 1e-9 of the finest spacing plus the rounding of the largest displacement):

@@ -143,12 +143,19 @@ impl BodyState {
             CGC_LAYOUT_NODE_MAJOR => DVec3::new(u[3 * node], u[3 * node + 1], u[3 * node + 2]),
             _ => DVec3::new(u[node], u[n + node], u[2 * n + node]),
         };
-        let non_finite = |node: usize, value: DVec3| {
-            Failure::new(
+        // Every node given must be finite, those no cell uses included (as Python's binding and
+        // the mesh reader require): the first one that is not is named.
+        if !u.iter().all(|v| v.is_finite())
+            && let Some(node) = (0..n).find(|&node| !at(node).is_finite())
+        {
+            return Err(Failure::new(
                 CgcError::NonFinite,
-                format!("the displacement of node {node} (0-based) is not finite: {value}"),
-            )
-        };
+                format!(
+                    "the displacement of node {node} (0-based) is not finite: {}",
+                    at(node)
+                ),
+            ));
+        }
         match &self.source_of_slot {
             None => {
                 for (node, slot) in self.scratch.iter_mut().enumerate() {
@@ -161,15 +168,9 @@ impl BodyState {
                 }
             }
         }
-        if let Some(s) = self.scratch.iter().position(|v| !v.is_finite()) {
-            return Err(non_finite(self.source(s), self.scratch[s]));
-        }
         let tol = LATTICE_TOLERANCE * self.body.lattice().h().max_element();
         for &(node, slot) in &self.duplicates {
             let (value, first) = (at(node), self.scratch[slot]);
-            if !value.is_finite() {
-                return Err(non_finite(node, value));
-            }
             if (value - first).abs().max_element()
                 > tol + 4.0 * f64::EPSILON * first.abs().max_element()
             {
@@ -506,8 +507,9 @@ fn adaptive_state(mesh: &HexMesh, body: AdaptiveBody, cells: CellMap) -> BodySta
 /// Sets every displacement of the body, in place (nothing is rebuilt; locators made from the body
 /// see the new values at their next call). `u` holds `3 n_nodes` doubles in `layout`
 /// (`CGC_LAYOUT_NODE_MAJOR` or `CGC_LAYOUT_COMPONENT_MAJOR`, optionally `| CGC_FILL_HANGING`);
-/// `n_nodes` must be `cgc_body_node_count`. On any error (a length, a NaN, a flag, a hanging node
-/// off its constraint) the body keeps its displacements.
+/// `n_nodes` must be `cgc_body_node_count`. Every value must be finite, at nodes that no cell
+/// uses too (`CGC_ERROR_NON_FINITE` names the first such node). On any error (a length, a NaN, a
+/// flag, a hanging node off its constraint) the body keeps its displacements.
 ///
 /// On an adaptive body, each hanging node's displacement is checked against its constraint (to
 /// 1e-9 of the finest spacing plus the rounding of the largest displacement):

@@ -381,6 +381,85 @@ fn mesh_body_numbers_cells_as_the_mesh_and_reads_both_layouts() {
     );
 }
 
+/// A node that no cell uses still needs a finite displacement, as in Python and in mesh files:
+/// a NaN there is refused, naming it, in both layouts, and nothing changes.
+#[test]
+fn a_nan_at_a_node_no_cell_uses_is_refused() {
+    let body = block();
+    let (points, _) = known_points(&body);
+    let mesh = HexMesh::from_body(&body);
+    let m = mesh.points.len();
+    // The mesh's nodes, then one more that no cell lists, far from the body.
+    let mut nodes: Vec<f64> = mesh.points.iter().flat_map(|p| p.to_array()).collect();
+    nodes.extend([1e3, -1e3, 7.0]);
+    let topology: Vec<i64> = mesh.cells.iter().flat_map(|c| c.map(i64::from)).collect();
+    let u = mesh.displacement.as_ref().unwrap();
+    let mut node_major: Vec<f64> = u.iter().flat_map(|v| v.to_array()).collect();
+    node_major.extend([0.5, 0.0, 0.0]);
+    let mut handles = Handles {
+        body: ptr::null_mut(),
+        locator: ptr::null_mut(),
+    };
+    // SAFETY: every array holds the length passed (m + 1 nodes, 8 corners per cell).
+    unsafe {
+        let code = cgc_body_from_mesh(
+            nodes.as_ptr(),
+            m + 1,
+            topology.as_ptr(),
+            mesh.cells.len(),
+            0,
+            &mut handles.body,
+        );
+        assert_eq!(code, CgcError::Ok, "{}", last_error());
+        let set =
+            |u: &[f64], layout| cgc_body_set_displacements(handles.body, u.as_ptr(), m + 1, layout);
+        assert_eq!(
+            set(&node_major, CGC_LAYOUT_NODE_MAJOR),
+            CgcError::Ok,
+            "{}",
+            last_error()
+        );
+        assert_eq!(
+            cgc_locator_new(handles.body, ptr::null(), &mut handles.locator),
+            CgcError::Ok
+        );
+        let before = locate(handles.locator, &flat(&points));
+        assert_eq!(before.0, CgcError::Ok);
+
+        let mut bad = node_major.clone();
+        bad[3 * m + 1] = f64::NAN;
+        assert_eq!(set(&bad, CGC_LAYOUT_NODE_MAJOR), CgcError::NonFinite);
+        assert!(
+            last_error().contains(&format!("node {m} ")),
+            "{}",
+            last_error()
+        );
+        let mut component_major: Vec<f64> = (0..3)
+            .flat_map(|a| (0..=m).map(move |n| (n, a)))
+            .map(|(n, a)| node_major[3 * n + a])
+            .collect();
+        component_major[2 * (m + 1) + m] = f64::INFINITY;
+        assert_eq!(
+            set(&component_major, CGC_LAYOUT_COMPONENT_MAJOR),
+            CgcError::NonFinite
+        );
+        assert!(
+            last_error().contains(&format!("node {m} ")),
+            "{}",
+            last_error()
+        );
+        // With the fill flag too: the node is not a hanging node, its value is checked.
+        assert_eq!(
+            set(&bad, CGC_LAYOUT_NODE_MAJOR | CGC_FILL_HANGING),
+            CgcError::NonFinite
+        );
+
+        // Nothing changed: the same answers, bitwise.
+        let after = locate(handles.locator, &flat(&points));
+        assert_eq!((bits(&after.2), &after.1), (bits(&before.2), &before.1));
+    }
+}
+
 #[test]
 fn bad_inputs_are_error_codes_with_messages() {
     let body = block();
