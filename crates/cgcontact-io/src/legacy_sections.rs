@@ -9,18 +9,26 @@
 //! - in a binary file, a section whose bytes run past the end of the file (`POINTS 4000000000
 //!   double` in a file of 4 KB).
 //!
-//! The same walk finds the string arrays of `FIELD` blocks (`name components tuples string`),
-//! which vtkio's parser cannot read, for `legacy_strings` to blank out before it parses; a string
-//! array that does not hold what it declares is a fault (cut, a length past the end of the file,
-//! an ASCII count above or below its strings, binary strings that do not end at VTK's line end,
-//! other tuples than its section's nodes or cells, an array after it with other tuples: where a
-//! wrong length lands the walk). The walk measures
-//! them as VTK's reader reads them (`vtkDataReader::ReadArray`): in an ASCII file one string a
-//! line, percent-encoded by the writer so that it holds no whitespace (an empty string is an empty
-//! line); in a binary file each string's bytes after a big-endian length whose first two bits
-//! give its width (`11`: 6 bits in 1 byte, `10`: 14 bits in 2, `01`: 30 bits in 4, `00`: 64 bits
-//! in 8). A `METADATA` block (text, up to an empty line, in either kind of file) is skipped, and
-//! belongs to the string array it follows.
+//! The same walk finds what vtkio's parser cannot read and the reader never needs, for
+//! `legacy_strings` to blank out before it parses:
+//! - the string arrays of `FIELD` blocks (`name components tuples string`);
+//! - the `GLOBAL_IDS name type`, `PEDIGREE_IDS name type` and `EDGE_FLAGS name type` sections of
+//!   point and cell data (edge flags of point data only, as VTK reads them), one value a node or
+//!   cell, of any type VTK writes there: its number types (`vtkIdType` is written as 4-byte
+//!   integers), `bit` (binary: packed 8 a byte; ASCII: one number each), `string` and `variant` (text lines, `type value`, in binary files
+//!   too).
+//!
+//! Such an array or section that does not hold what it declares is a fault (cut, a length past the
+//! end of the file, an ASCII count above or below its values or strings, binary values or strings
+//! that do not end at VTK's line end, a string array of other tuples than its section's nodes or
+//! cells, an array after it with other tuples: where a wrong length lands the walk). The walk
+//! measures them as VTK's reader reads them (`vtkDataReader::ReadArray`): numbers and variants as
+//! words, over any lines; strings in an ASCII file one a line, percent-encoded by the writer so
+//! that they hold no whitespace (an empty string is an empty line); in a binary file each
+//! string's bytes after a big-endian length whose first two bits give its width (`11`: 6 bits in
+//! 1 byte, `10`: 14 bits in 2, `01`: 30 bits in 4, `00`: 64 bits in 8). A `METADATA` block (text,
+//! up to an empty line, in either kind of file) is skipped, and belongs to the array or section it
+//! follows.
 
 use std::ops::Range;
 
@@ -32,45 +40,55 @@ pub(crate) struct Header<'a> {
     pub(crate) text: &'a str,
 }
 
-/// A string array of a `FIELD` block, as a walk measured it.
-pub(crate) struct StringArray<'a> {
-    /// The header line of its `FIELD` block: `FIELD name n`, exactly these words.
-    pub(crate) field: Header<'a>,
-    /// That block's `n`, the arrays it declares.
-    pub(crate) field_arrays: u64,
-    /// Its bytes: from its header line to the end of its strings, or of the `METADATA` block
+/// What vtkio's parser cannot read and the reader never needs, as a walk measured it.
+pub(crate) struct Unread<'a> {
+    /// Where it is.
+    pub(crate) within: Within<'a>,
+    /// Its bytes: from its header line to the end of its values, or of the `METADATA` block
     /// after them.
     pub(crate) span: Range<usize>,
 }
 
-/// The first section at fault: `line N: what is wrong`, and whether it is a string array.
+/// Where an unread array is.
+#[derive(Clone, Copy)]
+pub(crate) enum Within<'a> {
+    /// A string array of the `FIELD` block with this header line (`FIELD name n`, exactly these
+    /// words), which declares `arrays` arrays.
+    Field { header: Header<'a>, arrays: u64 },
+    /// A section of point or cell data of its own, with this header line: `GLOBAL_IDS name
+    /// type`, `PEDIGREE_IDS name type` or `EDGE_FLAGS name type`.
+    Attribute(Header<'a>),
+}
+
+/// The first section at fault: `line N: what is wrong`, and whether it is in what the walk
+/// measures for blanking (a string array or an id section).
 pub(crate) struct Fault {
     pub(crate) message: String,
-    pub(crate) in_strings: bool,
+    pub(crate) in_unread: bool,
 }
 
 impl Fault {
     fn section(message: String) -> Self {
         Self {
             message,
-            in_strings: false,
+            in_unread: false,
         }
     }
 
-    fn strings(message: String) -> Self {
+    fn unread(message: String) -> Self {
         Self {
             message,
-            in_strings: true,
+            in_unread: true,
         }
     }
 }
 
-/// What a walk of a legacy file's sections found: the string arrays of its `FIELD` blocks up to
-/// the first fault, or to the first line the walk does not know in a binary file (after which it
-/// cannot tell data from headers).
+/// What a walk of a legacy file's sections found: the string arrays of its `FIELD` blocks and its
+/// id sections up to the first fault, or to the first line the walk does not know in a binary
+/// file (after which it cannot tell data from headers).
 #[derive(Default)]
 pub(crate) struct Walk<'a> {
-    pub(crate) strings: Vec<StringArray<'a>>,
+    pub(crate) unread: Vec<Unread<'a>>,
     pub(crate) fault: Option<Fault>,
 }
 
@@ -96,11 +114,19 @@ struct Declared<'a> {
     /// That section's header, once one is met: the arrays of its `FIELD` blocks hold one tuple
     /// per node or cell.
     attributes: Option<Header<'a>>,
-    /// The string array just measured, and its count: a header must follow it (the walks set
-    /// it; the next header read clears it).
-    after_strings: Option<(Header<'a>, u64)>,
+    /// The string array or id section just measured: a header must follow it (the walks set it;
+    /// the next header read clears it).
+    after_unread: Option<After<'a>>,
     /// The `FIELD` block whose arrays come next, while some are left.
     field: Option<FieldBlock<'a>>,
+}
+
+/// An unread array or section just measured, for the line after it.
+#[derive(Clone, Copy)]
+struct After<'a> {
+    header: Header<'a>,
+    /// The strings or values it holds.
+    count: u64,
 }
 
 /// A count of values, or the product that overflowed computing it.
@@ -125,10 +151,14 @@ enum Step<'a> {
         kind: Option<&'a str>,
         scalars: bool,
     },
-    /// A string array of a `FIELD` block: `strings` of them, in its block `field`.
-    Strings {
-        strings: Count,
-        field: FieldBlock<'a>,
+    /// A string array: `strings` of them, in a `FIELD` block or a section of its own.
+    Strings { strings: Count, within: Within<'a> },
+    /// An id section of numbers or variants: `values` of them, laid out as `layout`, one a node
+    /// or cell of the section `of` (`POINT_DATA n` or `CELL_DATA n`).
+    Ids {
+        values: u64,
+        layout: Layout,
+        of: Header<'a>,
     },
     /// A header with no values of its own (`DATASET`, `POINT_DATA n`, `FIELD name n`, ...).
     NoData,
@@ -152,9 +182,9 @@ pub(crate) fn walk(bytes: &[u8]) -> Option<Walk<'_>> {
     let kind = lines.next()?.trim_ascii();
     let mut walk = Walk::default();
     walk.fault = if kind.eq_ignore_ascii_case(b"ascii") {
-        ascii_walk(bytes, v5, &mut walk.strings)
+        ascii_walk(bytes, v5, &mut walk.unread)
     } else if kind.eq_ignore_ascii_case(b"binary") {
-        binary_walk(bytes, v5, &mut walk.strings)
+        binary_walk(bytes, v5, &mut walk.unread)
     } else {
         return None;
     };
@@ -162,9 +192,10 @@ pub(crate) fn walk(bytes: &[u8]) -> Option<Walk<'_>> {
 }
 
 /// Reads one header line; `Err` names a `POINT_DATA` or `CELL_DATA` count that is not the
-/// file's, and an array of such a section after or of a string array whose tuples are not that
+/// file's, an array of such a section after or of a string array whose tuples are not that
 /// count (a string array must hold one string a node or cell; a wrong length among the strings
-/// before would land the walk on bytes that read as an array header).
+/// before would land the walk on bytes that read as an array header), and an id section VTK's
+/// reader would not read.
 fn section<'a>(
     header: Header<'a>,
     v5: bool,
@@ -176,7 +207,7 @@ fn section<'a>(
     };
     // A `FIELD` block's arrays follow its header: any other header ends it.
     let field = declared.field.take();
-    let after_strings = declared.after_strings.take();
+    let after_unread = declared.after_unread.take();
     let count = |word: Option<&str>| word.and_then(|n| n.parse::<u64>().ok());
     let data = |values, kind| Step::Data {
         values,
@@ -246,6 +277,9 @@ fn section<'a>(
             }
             None => Step::Unknown,
         },
+        which @ ("GLOBAL_IDS" | "PEDIGREE_IDS" | "EDGE_FLAGS") => {
+            id_section(header, which, declared)?
+        }
         "VECTORS" | "NORMALS" => data(product(declared.tuples, 3), words.nth(1)),
         "SCALARS" => {
             let kind = words.nth(1);
@@ -276,13 +310,13 @@ fn section<'a>(
                             && tuples != declared.tuples
                         {
                             let n = declared.tuples;
-                            if let Some((before, _)) = after_strings {
-                                return Err(Fault::strings(format!(
-                                    "line {}: the string array `{}` ends where `{}` (line {}) \
-                                     starts, an array of {tuples} tuples where `{}` (line {}) \
-                                     declares {n} (a wrong length or count of its strings?)",
-                                    before.line,
-                                    before.text,
+                            if let Some(before) = after_unread {
+                                return Err(Fault::unread(format!(
+                                    "line {}: {} ends where `{}` (line {}) starts, an array of \
+                                     {tuples} tuples where `{}` (line {}) declares {n} (a wrong \
+                                     length or count of its strings?)",
+                                    before.header.line,
+                                    called(before.header),
                                     header.text,
                                     header.line,
                                     attributes.text,
@@ -290,7 +324,7 @@ fn section<'a>(
                                 )));
                             }
                             if strings {
-                                return Err(Fault::strings(format!(
+                                return Err(Fault::unread(format!(
                                     "line {}: the string array `{}` has {tuples} tuples, but \
                                      `{}` (line {}) declares {n}",
                                     header.line, header.text, attributes.text, attributes.line
@@ -300,7 +334,10 @@ fn section<'a>(
                         if strings {
                             Step::Strings {
                                 strings: values,
-                                field: block,
+                                within: Within::Field {
+                                    header: block.header,
+                                    arrays: block.arrays,
+                                },
                             }
                         } else {
                             data(values, Some(kind))
@@ -312,6 +349,118 @@ fn section<'a>(
             _ => Step::Unknown,
         },
     })
+}
+
+/// How an id section's values are laid out.
+#[derive(Clone, Copy)]
+enum Layout {
+    /// Numbers: in a binary file, big-endian, of this many bytes each.
+    Numbers(u64),
+    /// `bit`: in a binary file, packed 8 a byte (the last byte padded).
+    Bits,
+    /// `variant`: a line `type value` each, as text in either kind of file.
+    Variant,
+}
+
+/// Reads the header of an id section, `which name type`, of the point or cell data.
+///
+/// VTK's reader reads `GLOBAL_IDS` and `PEDIGREE_IDS` in point and cell data, and `EDGE_FLAGS` in
+/// point data only; one value a node or cell, of the type the header names (lowercased:
+/// `vtkDataReader::ReadArray`). A string type is measured as a string array.
+fn id_section<'a>(
+    header: Header<'a>,
+    which: &str,
+    declared: &Declared<'a>,
+) -> Result<Step<'a>, Fault> {
+    let refuse = |what: String| Err(Fault::unread(format!("line {}: {what}", header.line)));
+    let mut words = header.text.split_whitespace().skip(1);
+    let (Some(_name), Some(kind), None) = (words.next(), words.next(), words.next()) else {
+        return refuse(format!(
+            "{} is not `{which} name type`",
+            crate::excerpt(header.text.as_bytes(), 60)
+        ));
+    };
+    let Some(of) = declared.attributes else {
+        return refuse(format!(
+            "the `{}` section comes before any `POINT_DATA n` or `CELL_DATA n` line (it holds \
+             one value a node or cell)",
+            header.text
+        ));
+    };
+    let cell_data = of
+        .text
+        .get(..9)
+        .is_some_and(|start| start.eq_ignore_ascii_case("CELL_DATA"));
+    if which == "EDGE_FLAGS" && cell_data {
+        return refuse(format!(
+            "the `{}` section is cell data (of `{}`, line {}): VTK reads edge flags of point \
+             data only",
+            header.text, of.text, of.line
+        ));
+    }
+    let values = declared.tuples;
+    Ok(match kind.to_ascii_lowercase().as_str() {
+        "string" | "utf8_string" => Step::Strings {
+            strings: Count::Values(values),
+            within: Within::Attribute(header),
+        },
+        "variant" => Step::Ids {
+            values,
+            layout: Layout::Variant,
+            of,
+        },
+        "bit" => Step::Ids {
+            values,
+            layout: Layout::Bits,
+            of,
+        },
+        number => match type_size(number) {
+            Some(size) => Step::Ids {
+                values,
+                layout: Layout::Numbers(size),
+                of,
+            },
+            None => {
+                return refuse(format!(
+                    "the `{}` section is of type {}, which VTK's reader does not read",
+                    header.text,
+                    crate::excerpt(kind.as_bytes(), 30)
+                ));
+            }
+        },
+    })
+}
+
+/// Whether a header line starts an id section.
+fn id_header(text: &str) -> bool {
+    text.split_whitespace().next().is_some_and(|keyword| {
+        ["GLOBAL_IDS", "PEDIGREE_IDS", "EDGE_FLAGS"]
+            .iter()
+            .any(|k| keyword.eq_ignore_ascii_case(k))
+    })
+}
+
+/// How a message names an unread array: `the string array `name 1 10 string`` or `the
+/// `GLOBAL_IDS name vtkIdType` section`.
+fn called(header: Header) -> String {
+    if id_header(header.text) {
+        format!("the `{}` section", header.text)
+    } else {
+        format!("the string array `{}`", header.text)
+    }
+}
+
+/// What an unread array holds: `strings` or `values`.
+fn unit(header: Header) -> &'static str {
+    let kind = header.text.split_whitespace().last().unwrap_or_default();
+    if ["string", "utf8_string"]
+        .iter()
+        .any(|k| kind.eq_ignore_ascii_case(k))
+    {
+        "strings"
+    } else {
+        "values"
+    }
 }
 
 fn overflow(header: Header, what: &str) -> String {
@@ -397,36 +546,49 @@ fn header_in_metadata(raw: &[u8]) -> bool {
     })
 }
 
-/// A `METADATA` block after a string array that runs into a header or into bytes that are not
-/// text: its empty line is missing, and blanking it would blank what follows.
-fn unended(strings: (Header, u64), line: usize, text: &[u8]) -> Fault {
-    let (header, _) = strings;
-    Fault::strings(format!(
-        "line {}: the METADATA block after the string array `{}` (line {}) runs into line \
-         {line}, {}, without the empty line that ends it",
-        header.line,
-        header.text,
-        header.line,
+/// A `METADATA` block after a string array or an id section that runs into a header or into
+/// bytes that are not text: its empty line is missing, and blanking it would blank what follows.
+fn unended(after: After, line: usize, text: &[u8]) -> Fault {
+    Fault::unread(format!(
+        "line {}: the METADATA block after {} (line {}) runs into line {line}, {}, without the \
+         empty line that ends it",
+        after.header.line,
+        called(after.header),
+        after.header.line,
         crate::excerpt(text.trim_ascii(), 40)
     ))
 }
 
-/// A line after a string array's strings that is no header: a string beyond its count.
-fn beyond(strings: (Header, u64), line: usize, text: &[u8]) -> Fault {
-    let (header, count) = strings;
-    Fault::strings(format!(
-        "line {}: the string array `{}` holds more than its {count} strings: line {line}, {}, \
-         follows them where a header should (a wrong count?)",
+/// A line after a string array's strings or an id section's values that is no header: a string
+/// or value beyond its count.
+fn beyond(after: After, line: usize, text: &[u8]) -> Fault {
+    let (header, count) = (after.header, after.count);
+    Fault::unread(format!(
+        "line {}: {} holds more than its {count} {}: line {line}, {}, follows them where a \
+         header should (a wrong count?)",
         header.line,
-        header.text,
+        called(header),
+        unit(header),
         crate::excerpt(text.trim_ascii(), 40)
     ))
 }
 
-/// Extends the last string array over the `METADATA` block at `block`, when nothing but
-/// whitespace lies between them: the block belongs to that array.
-fn metadata_of_strings(bytes: &[u8], strings: &mut [StringArray], block: Range<usize>) {
-    if let Some(last) = strings.last_mut()
+/// Whether the line after an unread array or section, `text`, is where its values end: a header.
+/// After an id section no number follows (its values are one a node or cell): a `FIELD` array
+/// named as a number is read after string arrays only.
+fn ends_values(after: After, text: &str) -> bool {
+    header_shaped(text)
+        && !(id_header(after.header.text)
+            && text
+                .split_whitespace()
+                .next()
+                .is_some_and(|first| first.parse::<f64>().is_ok()))
+}
+
+/// Extends the last unread array or section over the `METADATA` block at `block`, when nothing
+/// but whitespace lies between them: the block belongs to it.
+fn metadata_of_unread(bytes: &[u8], unread: &mut [Unread], block: Range<usize>) {
+    if let Some(last) = unread.last_mut()
         && bytes
             .get(last.span.end..block.start)
             .is_some_and(|between| between.iter().all(u8::is_ascii_whitespace))
@@ -435,9 +597,116 @@ fn metadata_of_strings(bytes: &[u8], strings: &mut [StringArray], block: Range<u
     }
 }
 
+/// How values written as words end (numbers, variants: VTK's reader reads them with `>>`, over
+/// any lines), or what is wrong with them.
+enum Words {
+    /// All read: the byte after the line end of the line holding the last.
+    End(usize),
+    /// The file ends after `found` of them.
+    Cut { found: u64 },
+    /// The line at this byte holds no more of them after `found`: a header, or a corrupt value.
+    Stopped { found: u64, at: usize },
+    /// The line at this byte, which holds the last, holds more after it.
+    More { at: usize },
+}
+
+/// Reads `count` words from the line at byte `from` on, each checked by `valid` (its index and
+/// its bytes).
+fn words(bytes: &[u8], from: usize, count: u64, valid: impl Fn(u64, &[u8]) -> bool) -> Words {
+    let mut found = 0;
+    let mut at = from;
+    while found < count {
+        if at >= bytes.len() {
+            return Words::Cut { found };
+        }
+        let end = bytes[at..]
+            .iter()
+            .position(|&b| b == b'\n')
+            .map_or(bytes.len(), |i| at + i + 1);
+        for word in bytes[at..end]
+            .split(u8::is_ascii_whitespace)
+            .filter(|w| !w.is_empty())
+        {
+            if found == count {
+                return Words::More { at };
+            }
+            if !valid(found, word) {
+                return Words::Stopped { found, at };
+            }
+            found += 1;
+        }
+        at = end;
+    }
+    Words::End(at)
+}
+
+/// The 1-based line of byte `at`.
+fn line_at(bytes: &[u8], at: usize) -> usize {
+    1 + bytes[..at].iter().filter(|&&b| b == b'\n').count()
+}
+
+/// The line at byte `at`, for a message.
+fn line_text(bytes: &[u8], at: usize) -> &[u8] {
+    let rest = &bytes[at.min(bytes.len())..];
+    let end = rest.iter().position(|&b| b == b'\n').unwrap_or(rest.len());
+    &rest[..end]
+}
+
+/// Measures the values of an id section of numbers, bits (in an ASCII file) or variants as
+/// words from byte `from` on: where they end, or the fault.
+fn id_words(
+    bytes: &[u8],
+    header: Header,
+    from: usize,
+    values: u64,
+    layout: Layout,
+    of: Header,
+) -> Result<usize, Fault> {
+    let number = |word: &[u8]| std::str::from_utf8(word).is_ok_and(|w| w.parse::<f64>().is_ok());
+    // A variant is two words, its VTK type (a number) and its value (percent-encoded).
+    let (count, per) = match layout {
+        Layout::Variant => match values.checked_mul(2) {
+            Some(words) => (words, 2),
+            None => {
+                return Err(Fault::unread(overflow(
+                    header,
+                    &format!("{values} × 2 words"),
+                )));
+            }
+        },
+        Layout::Numbers(_) | Layout::Bits => (values, 1),
+    };
+    let valid = |index: u64, word: &[u8]| index % per != 0 || number(word);
+    let declared = format!(
+        "the {values} values that `{}` (line {}) declares",
+        of.text, of.line
+    );
+    let section = format!("line {}: the `{}` section", header.line, header.text);
+    match words(bytes, from, count, valid) {
+        Words::End(end) => Ok(end),
+        Words::Cut { found } => Err(Fault::unread(format!(
+            "{section} holds {} of {declared} (the file is cut, or values are missing)",
+            found / per
+        ))),
+        Words::Stopped { found, at } => Err(Fault::unread(format!(
+            "{section} holds {} of {declared}: line {}, {}, is no value of it (values are \
+             missing, or one is corrupt)",
+            found / per,
+            line_at(bytes, at),
+            crate::excerpt(line_text(bytes, at).trim_ascii(), 40)
+        ))),
+        Words::More { at } => Err(Fault::unread(format!(
+            "{section} holds more than {declared}: line {}, {}, holds the last and more",
+            line_at(bytes, at),
+            crate::excerpt(line_text(bytes, at).trim_ascii(), 40)
+        ))),
+    }
+}
+
 /// An ASCII file: the values of each section are counted against its header; the strings of a
-/// string array are the lines after its header, one each.
-fn ascii_walk<'a>(bytes: &'a [u8], v5: bool, strings: &mut Vec<StringArray<'a>>) -> Option<Fault> {
+/// string array are the lines after its header, one each; the values of an id section are
+/// measured as words.
+fn ascii_walk<'a>(bytes: &'a [u8], v5: bool, unread: &mut Vec<Unread<'a>>) -> Option<Fault> {
     let number = |t: &str| t.parse::<f64>().is_ok() || t.eq_ignore_ascii_case("nan");
     // The open section: its header, the values it declares, those found, and where it ends.
     struct Open<'a> {
@@ -476,25 +745,26 @@ fn ascii_walk<'a>(bytes: &'a [u8], v5: bool, strings: &mut Vec<StringArray<'a>>)
             Some((at, raw))
         })
         .zip(1..)
-        .map(|((at, raw), line)| (line, at, raw));
+        .map(|((at, raw), line)| (line, at, raw))
+        .peekable();
     // The first three lines are the version, the title (anything) and `ASCII`.
     for _ in 0..3 {
         lines.next();
     }
     while let Some((number_of_line, at, raw)) = lines.next() {
-        let after_strings = declared.after_strings;
+        let after_unread = declared.after_unread;
         // A line that is not text: what follows cannot be told apart.
         let Ok(untrimmed) = std::str::from_utf8(raw) else {
-            return after_strings.map(|strings| beyond(strings, number_of_line, raw));
+            return after_unread.map(|after| beyond(after, number_of_line, raw));
         };
         let line = untrimmed.trim();
         let Some(first) = line.split_whitespace().next() else {
             continue;
         };
-        if let Some(strings) = after_strings
-            && !header_shaped(line)
+        if let Some(after) = after_unread
+            && !ends_values(after, line)
         {
-            return Some(beyond(strings, number_of_line, line.as_bytes()));
+            return Some(beyond(after, number_of_line, line.as_bytes()));
         }
         if number(first) {
             if let Some(open) = &mut current {
@@ -513,17 +783,17 @@ fn ascii_walk<'a>(bytes: &'a [u8], v5: bool, strings: &mut Vec<StringArray<'a>>)
         if line.eq_ignore_ascii_case("METADATA") {
             let mut end = at + raw.len();
             for (metadata_line, line_at, raw) in lines.by_ref() {
-                if let Some(strings) = after_strings
+                if let Some(after) = after_unread
                     && (std::str::from_utf8(raw).is_err() || header_in_metadata(raw))
                 {
-                    return Some(unended(strings, metadata_line, raw));
+                    return Some(unended(after, metadata_line, raw));
                 }
                 end = line_at + raw.len();
                 if empty_line(raw) {
                     break;
                 }
             }
-            metadata_of_strings(bytes, strings, at..end);
+            metadata_of_unread(bytes, unread, at..end);
             continue;
         }
         let header = Header {
@@ -550,21 +820,22 @@ fn ascii_walk<'a>(bytes: &'a [u8], v5: bool, strings: &mut Vec<StringArray<'a>>)
             }),
             Ok(Step::Strings {
                 strings: count,
-                field,
+                within,
             }) => {
                 let count = match count {
                     Count::Values(n) => n,
                     Count::Overflow(what) => {
-                        return Some(Fault::strings(overflow(header, &format!("{what} strings"))));
+                        return Some(Fault::unread(overflow(header, &format!("{what} strings"))));
                     }
                 };
                 let mut end = at + raw.len();
                 // Ends with the lines: a count past them is a cut file.
                 for met in 0..count {
                     let held = |more: &str| {
-                        Fault::strings(format!(
-                            "line {}: the string array `{}` holds {met} of its {count} strings{more}",
-                            header.line, header.text
+                        Fault::unread(format!(
+                            "line {}: {} holds {met} of its {count} strings{more}",
+                            header.line,
+                            called(header)
                         ))
                     };
                     let Some((string_line, string_at, string)) = lines.next() else {
@@ -580,12 +851,27 @@ fn ascii_walk<'a>(bytes: &'a [u8], v5: bool, strings: &mut Vec<StringArray<'a>>)
                     }
                     end = string_at + string.len();
                 }
-                strings.push(StringArray {
-                    field: field.header,
-                    field_arrays: field.arrays,
+                unread.push(Unread {
+                    within,
                     span: header.at..end,
                 });
-                declared.after_strings = Some((header, count));
+                declared.after_unread = Some(After { header, count });
+                None
+            }
+            Ok(Step::Ids { values, layout, of }) => {
+                let end = match id_words(bytes, header, at + raw.len(), values, layout, of) {
+                    Ok(end) => end,
+                    Err(fault) => return Some(fault),
+                };
+                while lines.next_if(|&(_, line_at, _)| line_at < end).is_some() {}
+                unread.push(Unread {
+                    within: Within::Attribute(header),
+                    span: header.at..end,
+                });
+                declared.after_unread = Some(After {
+                    header,
+                    count: values,
+                });
                 None
             }
             Ok(_) => None,
@@ -597,7 +883,7 @@ fn ascii_walk<'a>(bytes: &'a [u8], v5: bool, strings: &mut Vec<StringArray<'a>>)
 /// Bytes per value of a legacy type name; `None` for `bit` (packed) and names not known.
 fn type_size(kind: &str) -> Option<u64> {
     Some(match kind.to_ascii_lowercase().as_str() {
-        "char" | "unsigned_char" => 1,
+        "char" | "signed_char" | "unsigned_char" => 1,
         "short" | "unsigned_short" => 2,
         "int" | "unsigned_int" | "float" | "vtkidtype" => 4,
         "long" | "unsigned_long" | "double" | "vtktypeint64" | "vtktypeuint64" => 8,
@@ -607,8 +893,8 @@ fn type_size(kind: &str) -> Option<u64> {
 
 /// A binary file: each header's values are measured in bytes and skipped, and a section whose
 /// bytes run past the end of the file is named; a string array's strings are skipped by their
-/// lengths.
-fn binary_walk<'a>(bytes: &'a [u8], v5: bool, strings: &mut Vec<StringArray<'a>>) -> Option<Fault> {
+/// lengths, an id section's variants as words.
+fn binary_walk<'a>(bytes: &'a [u8], v5: bool, unread: &mut Vec<Unread<'a>>) -> Option<Fault> {
     let len = bytes.len();
     let line_end = |from: usize| {
         bytes[from..]
@@ -636,7 +922,7 @@ fn binary_walk<'a>(bytes: &'a [u8], v5: bool, strings: &mut Vec<StringArray<'a>>
     }
     let mut declared = Declared::default();
     loop {
-        let after_strings = declared.after_strings;
+        let after_unread = declared.after_unread;
         at = skip_blank(at);
         if at >= len {
             return None;
@@ -644,9 +930,9 @@ fn binary_walk<'a>(bytes: &'a [u8], v5: bool, strings: &mut Vec<StringArray<'a>>
         let end = line_end(at);
         let line = line_of(at);
         let text = match std::str::from_utf8(&bytes[at..end]) {
-            Ok(text) if after_strings.is_none() || header_shaped(text) => text.trim(),
+            Ok(text) if after_unread.is_none_or(|after| ends_values(after, text)) => text.trim(),
             // Not text: what follows cannot be told apart.
-            _ => return after_strings.map(|strings| beyond(strings, line, &bytes[at..end])),
+            _ => return after_unread.map(|after| beyond(after, line, &bytes[at..end])),
         };
         let header = Header { line, at, text };
         let mut data = (end + 1).min(len);
@@ -654,17 +940,17 @@ fn binary_walk<'a>(bytes: &'a [u8], v5: bool, strings: &mut Vec<StringArray<'a>>
             // Lines of text, up to an empty one.
             while data < len {
                 let raw = &bytes[data..line_end(data)];
-                if let Some(strings) = after_strings
+                if let Some(after) = after_unread
                     && (std::str::from_utf8(raw).is_err() || header_in_metadata(raw))
                 {
-                    return Some(unended(strings, line_of(data), raw));
+                    return Some(unended(after, line_of(data), raw));
                 }
                 data = (data + raw.len() + 1).min(len);
                 if empty_line(raw) {
                     break;
                 }
             }
-            metadata_of_strings(bytes, strings, at..data);
+            metadata_of_unread(bytes, unread, at..data);
             at = data;
             continue;
         }
@@ -674,22 +960,22 @@ fn binary_walk<'a>(bytes: &'a [u8], v5: bool, strings: &mut Vec<StringArray<'a>>
             Ok(Step::NoData) => {}
             Ok(Step::Strings {
                 strings: count,
-                field,
+                within,
             }) => {
                 let count = match count {
                     Count::Values(n) => n,
                     Count::Overflow(what) => {
-                        return Some(Fault::strings(overflow(header, &format!("{what} strings"))));
+                        return Some(Fault::unread(overflow(header, &format!("{what} strings"))));
                     }
                 };
                 // Each string takes a byte at least: the loop ends with the file.
                 for met in 0..count {
                     let fault = |what: String| {
-                        Some(Fault::strings(format!(
-                            "line {}: the string array `{}`: string {} of {count} {what} (a \
-                             wrong count or length, or the file is cut)",
+                        Some(Fault::unread(format!(
+                            "line {}: {}: string {} of {count} {what} (a wrong count or length, \
+                             or the file is cut)",
                             header.line,
-                            header.text,
+                            called(header),
                             met + 1
                         )))
                     };
@@ -724,20 +1010,79 @@ fn binary_walk<'a>(bytes: &'a [u8], v5: bool, strings: &mut Vec<StringArray<'a>>
                 // VTK's writer ends the strings with a line end: a wrong length that ends them
                 // elsewhere would blank the start of the next header (a renamed array).
                 if bytes.get(data).is_some_and(|&b| b != b'\n') {
-                    return Some(Fault::strings(format!(
-                        "line {}: the string array `{}`: its {count} strings end at byte {data}, \
-                         where VTK writes a line end, not {} (a wrong count or length?)",
+                    return Some(Fault::unread(format!(
+                        "line {}: {}: its {count} strings end at byte {data}, where VTK writes a \
+                         line end, not {} (a wrong count or length?)",
                         header.line,
-                        header.text,
+                        called(header),
                         crate::excerpt(&bytes[data..(data + 12).min(len)], 12)
                     )));
                 }
-                strings.push(StringArray {
-                    field: field.header,
-                    field_arrays: field.arrays,
+                unread.push(Unread {
+                    within,
                     span: at..data,
                 });
-                declared.after_strings = Some((header, count));
+                declared.after_unread = Some(After { header, count });
+            }
+            Ok(Step::Ids { values, layout, of }) => {
+                let declared_by = || {
+                    format!(
+                        "the {values} values that `{}` (line {}) declares",
+                        of.text, of.line
+                    )
+                };
+                let size = match layout {
+                    Layout::Variant => None,
+                    Layout::Numbers(size) => Some(values.checked_mul(size)),
+                    Layout::Bits => Some(Some(values.div_ceil(8))),
+                };
+                match size {
+                    // Variants are text, in binary files too.
+                    None => match id_words(bytes, header, data, values, layout, of) {
+                        Ok(end) => data = end,
+                        Err(fault) => return Some(fault),
+                    },
+                    Some(None) => {
+                        return Some(Fault::unread(overflow(
+                            header,
+                            &format!("{values} values × their bytes"),
+                        )));
+                    }
+                    Some(Some(need)) => {
+                        let room = (len - data) as u64;
+                        if need > room {
+                            return Some(Fault::unread(format!(
+                                "line {}: the `{}` section needs {need} bytes for {}, but only \
+                                 {room} bytes follow its header (the file is cut?)",
+                                header.line,
+                                header.text,
+                                declared_by()
+                            )));
+                        }
+                        data += need as usize;
+                        // VTK's writer ends the values with a line end: values of another count
+                        // or size end them elsewhere.
+                        if bytes.get(data).is_some_and(|&b| b != b'\n') {
+                            return Some(Fault::unread(format!(
+                                "line {}: the `{}` section: {} end at byte {data}, where VTK \
+                                 writes a line end, not {} (more values, or values of another \
+                                 type?)",
+                                header.line,
+                                header.text,
+                                declared_by(),
+                                crate::excerpt(&bytes[data..(data + 12).min(len)], 12)
+                            )));
+                        }
+                    }
+                }
+                unread.push(Unread {
+                    within: Within::Attribute(header),
+                    span: at..data,
+                });
+                declared.after_unread = Some(After {
+                    header,
+                    count: values,
+                });
             }
             Ok(Step::Data {
                 values,

@@ -1,51 +1,77 @@
-//! Legacy string arrays, blanked out before vtkio parses the file.
+//! Legacy string arrays and id sections, blanked out before vtkio parses the file.
 //!
 //! VTK's legacy writer puts a `vtkStringArray` (material names, a block name) in a `FIELD` block,
-//! of the data set, its cells or its nodes, with the type `string`; vtkio 0.7.0-rc2's parser has
-//! no such type and refused the whole file. The strings carry no geometry and no displacement, so
-//! each string array (`legacy_sections` finds and measures them) is blanked out: every byte of
-//! its header, its strings and a `METADATA` block after them made a space but line ends (so that
-//! later errors name the right lines), and the count of its `FIELD` block lowered by one. A block
-//! left with no array stays, as `FIELD name 0`: a bare `CELL_DATA n` at the end of a file reads
-//! as one cut after its header.
+//! of the data set, its cells or its nodes, with the type `string`; and the attributes of point
+//! and cell data that mark global ids, pedigree ids and edge flags (what ParaView's Exodus reader
+//! and its "Generate Global Ids" filter set) in sections of their own, `GLOBAL_IDS name type`,
+//! `PEDIGREE_IDS name type` and `EDGE_FLAGS name type`. vtkio 0.7.0-rc2's parser has no `string`
+//! type and knows none of those sections, and refused the whole file. They carry no geometry and
+//! no displacement, so each (`legacy_sections` finds and measures them) is blanked out: every byte
+//! of its header, its values and a `METADATA` block after them made a space but line ends (so that
+//! later errors name the right lines).
+//! - A string array's `FIELD` block has its count lowered by one. A block left with no array
+//!   stays, as `FIELD name 0`.
+//! - An id section's header becomes `FIELD name 0`, padded with spaces: a section that was all
+//!   its `POINT_DATA n` or `CELL_DATA n` held leaves that header followed by an empty block, not
+//!   bare, so the file does not read as one cut after its header (a bare `CELL_DATA n` or
+//!   `POINT_DATA n` at the end of a file).
 
 use std::collections::BTreeMap;
 
-use crate::legacy_sections::{self, Header, StringArray};
+use crate::legacy_sections::{self, Header, Within};
 
-/// The file with its string arrays blanked out; `None` when it has none (or is no legacy file
-/// the walk reads); `Err` names a string array that is cut or whose lengths run past the end of
-/// the file, as `line N: what is wrong`.
+/// The file with its string arrays and id sections blanked out; `None` when it has none (or is no
+/// legacy file the walk reads); `Err` names one that is cut, holds other than what it declares or
+/// whose lengths run past the end of the file, as `line N: what is wrong`.
 ///
-/// A fault in another section ends the walk: string arrays after it are left, and vtkio's parser
-/// then refuses the file at that section or at one of them.
+/// A fault in another section ends the walk: string arrays and id sections after it are left,
+/// and vtkio's parser then refuses the file at that section or at one of them.
 pub(crate) fn blank(bytes: &[u8]) -> Result<Option<Vec<u8>>, String> {
     let Some(walk) = legacy_sections::walk(bytes) else {
         return Ok(None);
     };
     if let Some(fault) = walk.fault
-        && fault.in_strings
+        && fault.in_unread
     {
         return Err(fault.message);
     }
-    if walk.strings.is_empty() {
+    if walk.unread.is_empty() {
         return Ok(None);
     }
     let mut blanked = bytes.to_vec();
-    // Each FIELD block, by the byte its header starts at, with the string arrays it loses.
-    let mut fields: BTreeMap<usize, (&StringArray, u64)> = BTreeMap::new();
-    for array in &walk.strings {
-        for byte in &mut blanked[array.span.clone()] {
+    // Each FIELD block, by the byte its header starts at: its header, its arrays, and the string
+    // arrays it loses.
+    let mut fields: BTreeMap<usize, (Header, u64, u64)> = BTreeMap::new();
+    for unread in &walk.unread {
+        for byte in &mut blanked[unread.span.clone()] {
             if *byte != b'\n' && *byte != b'\r' {
                 *byte = b' ';
             }
         }
-        fields.entry(array.field.at).or_insert((array, 0)).1 += 1;
+        match unread.within {
+            Within::Field { header, arrays } => {
+                fields.entry(header.at).or_insert((header, arrays, 0)).2 += 1;
+            }
+            Within::Attribute(header) => empty_field(&mut blanked, header),
+        }
     }
-    for (array, removed) in fields.into_values() {
-        lower_count(&mut blanked, array.field, array.field_arrays - removed);
+    for (header, arrays, removed) in fields.into_values() {
+        lower_count(&mut blanked, header, arrays - removed);
     }
     Ok(Some(blanked))
+}
+
+/// Writes `FIELD name 0` where the blanked header `KEYWORD name type` of an id section was: no
+/// longer than it (`FIELD` is shorter than each keyword, `0` than each type name), and a block
+/// that vtkio reads as one without arrays.
+fn empty_field(bytes: &mut [u8], header: Header) {
+    let name = header
+        .text
+        .split_whitespace()
+        .nth(1)
+        .expect("the walk measures an id section only when its header has three words");
+    let field = format!("FIELD {name} 0");
+    bytes[header.at..header.at + field.len()].copy_from_slice(field.as_bytes());
 }
 
 /// Rewrites the count of the header `FIELD name n` as `arrays`, padded with spaces to its
@@ -104,6 +130,23 @@ mod tests {
         // No string array: nothing to blank.
         let file = format!("{head}FIELD FieldData 1\nTimeValue 1 1 double\n0.5\n");
         assert_eq!(blanked(file.as_bytes()), None);
+    }
+
+    #[test]
+    fn id_sections_become_empty_field_blocks() {
+        let head =
+            "# vtk DataFile Version 4.2\nt\nBINARY\nDATASET UNSTRUCTURED_GRID\nPOINT_DATA 2\n";
+        let mut file = head.as_bytes().to_vec();
+        // Ids 1 and 10, a line end among the bytes of its values.
+        file.extend(b"GLOBAL_IDS ids vtkIdType\n\0\0\0\x01\0\0\0\n\n");
+        file.extend(b"EDGE_FLAGS flags bit\n\x80\nMETADATA\nINFORMATION 0\n\n");
+        let expected = format!(
+            "{head}FIELD ids 0{}\n{}\n\nFIELD flags 0{}\n \n        \n             \n\n",
+            " ".repeat(13),
+            " ".repeat(7),
+            " ".repeat(7)
+        );
+        assert_eq!(blanked(&file).unwrap(), expected);
     }
 
     #[test]

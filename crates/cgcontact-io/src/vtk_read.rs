@@ -175,7 +175,8 @@ fn parse_vtk(bytes: &[u8]) -> Result<Vtk, ErrorKind> {
     if start.len() >= 5 && start[..5].eq_ignore_ascii_case(b"# vtk") {
         // Legacy binary files are big-endian by definition of the format.
         guarded("legacy VTK", || {
-            // vtkio's parser has no string type: string arrays are blanked out first.
+            // vtkio's parser has no string type and knows no id sections (`GLOBAL_IDS`,
+            // `PEDIGREE_IDS`, `EDGE_FLAGS`): those are blanked out first.
             let without_strings = legacy_strings::blank(bytes)
                 .map_err(|fault| ErrorKind::Vtk(format!("legacy VTK: {fault}")))?;
             let bytes = without_strings.as_deref().unwrap_or(bytes);

@@ -7,6 +7,7 @@ mod common;
 mod csv_files;
 mod lattice_detection;
 mod legacy_dataset_field;
+mod legacy_id_sections;
 mod legacy_string_arrays;
 mod lzma_hostile;
 mod messages;
