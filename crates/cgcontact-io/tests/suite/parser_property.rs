@@ -213,6 +213,31 @@ fn vtk_lzma_file(index: usize) -> Vec<u8> {
     std::fs::read(path).unwrap()
 }
 
+/// The legacy files VTK 9.7.2 wrote with string arrays (fixtures/vtk-written-strings) and with
+/// id sections (fixtures/vtk-written-ids), which are measured and blanked before vtkio parses
+/// them: a mutation may move a binary length, a count or a line end.
+const VTK_LEGACY_FILES: [&str; 12] = [
+    "vtk-written-strings/strings-4.2-ascii.vtk",
+    "vtk-written-strings/strings-4.2-binary.vtk",
+    "vtk-written-strings/strings-5.1-ascii.vtk",
+    "vtk-written-strings/strings-5.1-binary.vtk",
+    "vtk-written-ids/ids-4.2-ascii.vtk",
+    "vtk-written-ids/ids-4.2-binary.vtk",
+    "vtk-written-ids/ids-5.1-ascii.vtk",
+    "vtk-written-ids/ids-5.1-binary.vtk",
+    "vtk-written-ids/ids-alone-4.2-ascii.vtk",
+    "vtk-written-ids/ids-alone-4.2-binary.vtk",
+    "vtk-written-ids/ids-alone-5.1-ascii.vtk",
+    "vtk-written-ids/ids-alone-5.1-binary.vtk",
+];
+
+fn vtk_legacy_file(index: usize) -> Vec<u8> {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../fixtures")
+        .join(VTK_LEGACY_FILES[index]);
+    std::fs::read(path).unwrap()
+}
+
 /// The byte range of the displacement array's data in an XML file: its inline text, or (appended)
 /// the block its `offset` points to, up to the next array's.
 fn displacement_range(bytes: &[u8]) -> Option<std::ops::Range<usize>> {
@@ -297,6 +322,13 @@ proptest! {
     #[test]
     fn mesh_parser_never_panics_on_mutated_lzma_files_written_by_vtk(file in 0usize..VTK_LZMA_FILES.len(), edits in edits()) {
         read_any_mesh(&mutate(vtk_lzma_file(file), &edits));
+    }
+
+    /// The legacy files VTK wrote with string arrays and id sections, mutated: an error value or
+    /// a mesh, never a panic.
+    #[test]
+    fn mesh_parser_never_panics_on_mutated_legacy_files_written_by_vtk(file in 0usize..VTK_LEGACY_FILES.len(), edits in edits()) {
+        read_any_mesh(&mutate(vtk_legacy_file(file), &edits));
     }
 
     /// The silent drop: a file whose displacement array is corrupted (edits inside its data only)
