@@ -179,9 +179,29 @@ fn parse_vtk(bytes: &[u8]) -> Result<Vtk, ErrorKind> {
             // `PEDIGREE_IDS`, `EDGE_FLAGS`): those are blanked out first.
             let without_strings = legacy_strings::blank(bytes)
                 .map_err(|fault| ErrorKind::Vtk(format!("legacy VTK: {fault}")))?;
-            let bytes = without_strings.as_deref().unwrap_or(bytes);
-            let blanked = blank_dataset_field(bytes);
-            parse_legacy_whole(blanked.as_deref().unwrap_or(bytes))
+            let blanked = blank_dataset_field(without_strings.as_deref().unwrap_or(bytes));
+            let vtk = parse_legacy_whole(
+                blanked
+                    .as_deref()
+                    .or(without_strings.as_deref())
+                    .unwrap_or(bytes),
+            )?;
+            match ascii_ends_in_a_value(start) {
+                Some((line, excerpt)) => {
+                    // Lines counted in the file: blank ones before `# vtk` too.
+                    let before = bytes[..bytes.len() - start.len()]
+                        .iter()
+                        .filter(|&&b| b == b'\n')
+                        .count();
+                    Err(ErrorKind::Vtk(format!(
+                        "legacy VTK: line {}: the file ends in {excerpt} with no line end after \
+                         it: cut inside its last value? (VTK's writer ends every line; add a \
+                         line end if the file is whole)",
+                        before + line
+                    )))
+                }
+                None => Ok(vtk),
+            }
         })
     } else if start.first() == Some(&b'<') {
         // vtkio is built without LZMA (its `xz2` feature is liblzma, in C): decompress LZMA arrays
@@ -594,6 +614,23 @@ fn dangling_data_header(bytes: &[u8]) -> Option<(usize, String)> {
         let number = 1 + bytes[..start].iter().filter(|&&b| b == b'\n').count();
         (number, line.trim().to_owned())
     })
+}
+
+/// In an ASCII legacy file `bytes` (from its `# vtk` line) whose last byte is not whitespace, the
+/// last line's number and an excerpt of its last word; `None` otherwise. A file cut inside its
+/// last number (`0.123456` cut to `0.12`) still parses, each count whole, into another value:
+/// only the missing line end tells, since VTK's writer ends every line, the last included.
+fn ascii_ends_in_a_value(bytes: &[u8]) -> Option<(usize, String)> {
+    let format = bytes.split(|&b| b == b'\n').nth(2)?;
+    if !format.trim_ascii().eq_ignore_ascii_case(b"ASCII") || bytes.last()?.is_ascii_whitespace() {
+        return None;
+    }
+    let word = bytes
+        .iter()
+        .rposition(u8::is_ascii_whitespace)
+        .map_or(0, |i| i + 1);
+    let line = 1 + bytes.iter().filter(|&&b| b == b'\n').count();
+    Some((line, crate::excerpt(&bytes[word..], 40)))
 }
 
 /// Extract points, hexahedra and the displacement array from a parsed file.

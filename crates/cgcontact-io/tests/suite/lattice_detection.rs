@@ -304,7 +304,8 @@ fn errors_from_files_name_the_file_and_the_cell() {
         .unwrap();
     lines[types_at + 3] = "13".into();
     let path = dir.path().join("wedge.vtk");
-    std::fs::write(&path, lines.join("\n")).unwrap();
+    // Every line ended, the last one too, as VTK writes them.
+    std::fs::write(&path, lines.join("\n") + "\n").unwrap();
     let err = read_mesh(&path, &DisplacementArray::Default).unwrap_err();
     assert!(
         matches!(
@@ -367,7 +368,8 @@ fn voxels_are_read_as_hexahedra() {
         .lines()
         .map(|l| if l == "12" { "11" } else { l })
         .collect::<Vec<_>>()
-        .join("\n");
+        .join("\n")
+        + "\n";
     let found = cgcontact_io::parse_hex_mesh(text.as_bytes(), &DisplacementArray::Default)
         .unwrap()
         .to_lattice()
