@@ -7,21 +7,20 @@
 //! written without them, bit for bit. A section that is cut, or does not hold one value a node or
 //! cell, is an error naming it and its line.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use cgcontact::glam::DVec3;
 use cgcontact_io::{DisplacementArray, HexMesh, parse_hex_mesh, read_mesh};
 
+use crate::common::legacy_fixtures::{self, FLAVOURS, line_of, parse, position, replaced};
+
 fn folder() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/vtk-written-ids")
+    legacy_fixtures::folder("vtk-written-ids")
 }
 
 fn file(name: &str) -> Vec<u8> {
-    std::fs::read(folder().join(name)).unwrap_or_else(|e| panic!("{name}: {e}"))
+    legacy_fixtures::read(&folder(), name)
 }
-
-/// The legacy file versions and kinds VTK 9.7.2 writes.
-const FLAVOURS: [&str; 4] = ["4.2-ascii", "4.2-binary", "5.1-ascii", "5.1-binary"];
 
 /// The id sections of `ids-{flavour}.vtk`, in file order: cell data, then point data.
 const IDS: [&str; 5] = [
@@ -39,23 +38,9 @@ const IDS_ALONE: [&str; 3] = [
     "EDGE_FLAGS EdgeFlag unsigned_char",
 ];
 
-fn parse(bytes: &[u8]) -> Result<HexMesh, String> {
-    parse_hex_mesh(bytes, &DisplacementArray::Default).map_err(|e| e.to_string())
-}
-
 /// The body of `plain-{flavour}.vtk`: the file written without the id sections.
 fn plain(flavour: &str) -> HexMesh {
-    let mesh = parse(&file(&format!("plain-{flavour}.vtk"))).unwrap();
-    // The body make.py wrote: 10 cells of 12, 35 nodes, displaced.
-    assert_eq!(mesh.cells.len(), 10, "{flavour}");
-    assert_eq!(mesh.points.len(), 35, "{flavour}");
-    assert!(
-        mesh.displacement
-            .as_ref()
-            .is_some_and(|u| u.iter().any(|v| *v != DVec3::ZERO)),
-        "{flavour}"
-    );
-    mesh
+    legacy_fixtures::plain(&folder(), flavour)
 }
 
 /// The body of `plain-alone-{flavour}.vtk`: the same, without point or cell data.
@@ -81,27 +66,6 @@ fn assert_same(read: &HexMesh, expected: &HexMesh, what: &str) {
         expected.displacement.as_deref().map(bits),
         "{what}"
     );
-}
-
-/// `bytes` with the first `from` replaced by `to`.
-fn replaced(bytes: &[u8], from: &[u8], to: &[u8]) -> Vec<u8> {
-    let at = position(bytes, from);
-    [&bytes[..at], to, &bytes[at + from.len()..]].concat()
-}
-
-fn position(bytes: &[u8], text: &[u8]) -> usize {
-    bytes
-        .windows(text.len())
-        .position(|w| w == text)
-        .unwrap_or_else(|| panic!("{:?} is in the file", String::from_utf8_lossy(text)))
-}
-
-/// The 1-based line of the first `text` in `bytes`, every line end before it counted.
-fn line_of(bytes: &[u8], text: &[u8]) -> usize {
-    1 + bytes[..position(bytes, text)]
-        .iter()
-        .filter(|&&b| b == b'\n')
-        .count()
 }
 
 fn refused(bytes: &[u8], what: &str) -> String {

@@ -6,60 +6,24 @@
 //! them. A string array that is cut, holds more or fewer strings than it declares, or whose
 //! lengths run past the end of the file is an error naming its line.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use cgcontact::glam::DVec3;
 use cgcontact_io::{DisplacementArray, HexMesh, parse_hex_mesh, read_mesh};
 
+use crate::common::legacy_fixtures::{self, FLAVOURS, line_of, parse, position, replaced};
+
 fn folder() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/vtk-written-strings")
+    legacy_fixtures::folder("vtk-written-strings")
 }
 
 fn file(name: &str) -> Vec<u8> {
-    std::fs::read(folder().join(name)).unwrap_or_else(|e| panic!("{name}: {e}"))
-}
-
-/// The legacy file versions and kinds VTK 9.7.2 writes.
-const FLAVOURS: [&str; 4] = ["4.2-ascii", "4.2-binary", "5.1-ascii", "5.1-binary"];
-
-fn parse(bytes: &[u8]) -> Result<HexMesh, String> {
-    parse_hex_mesh(bytes, &DisplacementArray::Default).map_err(|e| e.to_string())
+    legacy_fixtures::read(&folder(), name)
 }
 
 /// The body of `plain-{flavour}.vtk`: the file written without the string arrays.
 fn plain(flavour: &str) -> HexMesh {
-    let mesh = parse(&file(&format!("plain-{flavour}.vtk"))).unwrap();
-    // The body make.py wrote: 10 cells of 12, 35 nodes, displaced.
-    assert_eq!(mesh.cells.len(), 10, "{flavour}");
-    assert_eq!(mesh.points.len(), 35, "{flavour}");
-    assert!(
-        mesh.displacement
-            .as_ref()
-            .is_some_and(|u| u.iter().any(|v| *v != DVec3::ZERO)),
-        "{flavour}"
-    );
-    mesh
-}
-
-/// `bytes` with the first `from` replaced by `to`.
-fn replaced(bytes: &[u8], from: &[u8], to: &[u8]) -> Vec<u8> {
-    let at = position(bytes, from);
-    [&bytes[..at], to, &bytes[at + from.len()..]].concat()
-}
-
-fn position(bytes: &[u8], text: &[u8]) -> usize {
-    bytes
-        .windows(text.len())
-        .position(|w| w == text)
-        .unwrap_or_else(|| panic!("{:?} is in the file", String::from_utf8_lossy(text)))
-}
-
-/// The 1-based line of the first `text` in `bytes`, every line end before it counted.
-fn line_of(bytes: &[u8], text: &[u8]) -> usize {
-    1 + bytes[..position(bytes, text)]
-        .iter()
-        .filter(|&&b| b == b'\n')
-        .count()
+    legacy_fixtures::plain(&folder(), flavour)
 }
 
 #[test]

@@ -10,6 +10,8 @@ use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
+pub mod legacy_fixtures;
+
 /// [`body_with_holes`] at (1, −2, 0.5), spacing 0.5, 3 × 2 × 2 cells, as a mesh carrying
 /// displacements that are not all zero (dropping them would change every answer).
 pub fn displaced_mesh(seed: u64) -> cgcontact_io::HexMesh {
