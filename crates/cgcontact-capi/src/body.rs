@@ -3,11 +3,9 @@
 
 use std::sync::{Arc, PoisonError, RwLock, RwLockReadGuard, RwLockWriteGuard};
 
-use cgcontact::adaptive::FlatConstraints;
 use cgcontact::glam::DVec3;
-use cgcontact::{AdaptiveBody, Body, CellId, Lattice};
-use cgcontact_baseline::BodyRef;
-use cgcontact_io::{CellMap, CellNumbering, HexMesh, LATTICE_TOLERANCE, MeshBody, NodeSources};
+use cgcontact::{Body, CellId, Lattice};
+use cgcontact_io::{HexMesh, UpdateError};
 
 use crate::error::{CgcError, Failure, guard};
 use crate::raw;
@@ -24,8 +22,9 @@ pub const CGC_LAYOUT_COMPONENT_MAJOR: u32 = 1;
 /// effect on bodies without hanging nodes.
 pub const CGC_FILL_HANGING: u32 = 2;
 
-/// Rounding allowance relative to a value's magnitude (as `cgcontact-io`'s checks).
-const ROUNDING_SLACK: f64 = 4.0 * f64::EPSILON;
+/// A body handle's state: the body, how the caller numbers its cells and nodes, and what an
+/// update needs; shared with the locators made from it.
+pub(crate) use cgcontact_io::{AnyBody, CallerBody as BodyState};
 
 /// A deformed body (opaque). Created by `cgc_body_from_lattice` or `cgc_body_from_mesh`, freed by
 /// `cgc_body_free`.
@@ -33,241 +32,54 @@ pub struct CgcBody {
     pub(crate) state: Arc<RwLock<BodyState>>,
 }
 
-/// The body a handle holds: one lattice level, or an adaptive body of several.
-#[derive(Debug)]
-pub(crate) enum AnyBody {
-    /// Every cell one cell of the lattice.
-    Uniform(Body),
-    /// Leaves of several refinement levels of a base lattice; a leaf's id is its input cell.
-    Adaptive(AdaptiveBody),
-}
-
-impl AnyBody {
-    /// The body as the baselines take it.
-    fn as_ref(&self) -> BodyRef<'_> {
-        match self {
-            Self::Uniform(body) => body.into(),
-            Self::Adaptive(body) => body.into(),
-        }
-    }
-
-    /// The spacing of the body's finest cells (its lattice's, on a uniform body).
-    pub(crate) fn finest_spacing(&self) -> DVec3 {
-        self.as_ref().finest_spacing()
-    }
-
-    fn lattice(&self) -> &Lattice {
-        match self {
-            Self::Uniform(body) => body.lattice(),
-            Self::Adaptive(body) => body.lattice(),
-        }
-    }
-}
-
-/// What a body handle holds; shared with the locators made from it.
-#[derive(Debug)]
-pub(crate) struct BodyState {
-    pub body: AnyBody,
-    /// How the caller numbers the cells: the mesh's input order, or the lattice's cell ids.
-    pub cells: CellNumbering,
-    /// Number of displacement entries the caller passes (lattice nodes, or input nodes).
-    source_count: usize,
-    /// For each of the body's displacement slots, the caller's node that gives it; `None` when slot
-    /// s is node s (a lattice body with every cell active), so that such bodies store nothing.
-    source_of_slot: Option<Vec<u32>>,
-    /// Further caller's nodes at a slot's node (an unmerged mesh): (node, slot). Their
-    /// displacements must agree with the slot's.
-    duplicates: Vec<(usize, usize)>,
-    /// The hanging nodes' constraints (none for uniform bodies).
-    hanging: FlatConstraints,
-    /// The displacements in slot order, reused by every update.
-    scratch: Vec<DVec3>,
-}
-
-impl BodyState {
-    fn lattice(body: Body) -> Self {
-        let lattice = body.lattice();
-        // Lattice node indices fit u32 (`Lattice::new` refuses more nodes).
-        let source_of_slot = (body.node_count() != lattice.node_count())
-            .then(|| body.nodes().map(|n| n as u32).collect());
-        Self {
-            scratch: vec![DVec3::ZERO; body.node_count()],
-            source_count: lattice.node_count(),
-            source_of_slot,
-            duplicates: Vec::new(),
-            hanging: FlatConstraints::default(),
-            cells: CellNumbering::Lattice {
-                cells: lattice.cell_count(),
-            },
-            body: AnyBody::Uniform(body),
-        }
-    }
-
-    /// The caller's numbers of the cells whose Jacobian determinant is not positive at some
-    /// corner (inverted or degenerate), ascending: one pass over every cell.
-    fn inverted_cells(&self) -> Vec<i64> {
-        let found = self.body.as_ref().inverted_cells();
-        self.cells
-            .sorted_numbers(found.iter().map(|&(cell, _)| cell))
-    }
-
-    /// The caller's numbers of the cells that f64 coordinates of their magnitude cannot resolve
-    /// through their deformation (`Body::unresolved_cells`), ascending: one pass over every cell.
-    fn unresolved_cells(&self) -> Vec<i64> {
-        let found = self.body.as_ref().unresolved_cells();
-        self.cells
-            .sorted_numbers(found.iter().map(|&(cell, _)| cell))
-    }
-
-    /// The caller's node that gives slot `slot`.
-    fn source(&self, slot: usize) -> usize {
-        self.source_of_slot
-            .as_ref()
-            .map_or(slot, |source| source[slot] as usize)
-    }
-
-    /// Sets every displacement from the caller's array, or changes nothing and says why.
-    fn set_displacements(&mut self, u: &[f64], layout: u32) -> Result<(), Failure> {
-        let n = self.source_count;
-        if u.len() != 3 * n {
-            return Err(Failure::new(
-                CgcError::LengthMismatch,
-                format!(
-                    "displacements: the body needs {n} nodes × 3 values, got {} values",
-                    u.len()
-                ),
-            ));
-        }
-        let fill = layout & CGC_FILL_HANGING != 0;
-        let at = |node: usize| match layout & !CGC_FILL_HANGING {
-            CGC_LAYOUT_NODE_MAJOR => DVec3::new(u[3 * node], u[3 * node + 1], u[3 * node + 2]),
-            _ => DVec3::new(u[node], u[n + node], u[2 * n + node]),
-        };
-        // Every node given must be finite, those no cell uses included (as Python's binding and
-        // the mesh reader require): the first one that is not is named.
-        if !u.iter().all(|v| v.is_finite())
-            && let Some(node) = (0..n).find(|&node| !at(node).is_finite())
-        {
-            return Err(Failure::new(
-                CgcError::NonFinite,
-                format!(
-                    "the displacement of node {node} (0-based) is not finite: {}",
-                    at(node)
-                ),
-            ));
-        }
-        match &self.source_of_slot {
-            None => {
-                for (node, slot) in self.scratch.iter_mut().enumerate() {
-                    *slot = at(node);
-                }
-            }
-            Some(source) => {
-                for (slot, &node) in self.scratch.iter_mut().zip(source) {
-                    *slot = at(node as usize);
-                }
-            }
-        }
-        let tol = LATTICE_TOLERANCE * self.body.lattice().h().max_element();
-        for &(node, slot) in &self.duplicates {
-            let (value, first) = (at(node), self.scratch[slot]);
-            if (value - first).abs().max_element()
-                > tol + 4.0 * f64::EPSILON * first.abs().max_element()
-            {
-                return Err(Failure::new(
-                    CgcError::NotLattice,
-                    format!(
-                        "nodes {} and {node} (0-based) coincide but their displacements differ: {first} and {value}",
-                        self.source(slot)
-                    ),
-                ));
-            }
-        }
-        if fill {
-            // The values given at hanging nodes are ignored once found finite: zeros in their
-            // place, which `fill_hanging` overwrites, so that the body's limit on a displacement's
-            // size does not refuse a value it would not keep (no hanging nodes: nothing to do).
-            for node in self.hanging.nodes() {
-                self.scratch[node] = DVec3::ZERO;
-            }
-        }
-        let caller_nodes = |e| in_caller_nodes(e, &self.scratch, self.source_of_slot.as_deref());
-        match &mut self.body {
-            AnyBody::Uniform(body) => body
-                .set_displacements(&self.scratch)
-                .map_err(caller_nodes)?,
-            AnyBody::Adaptive(body) => {
-                if !fill {
-                    check_hanging(
-                        body,
-                        &self.hanging,
-                        &self.scratch,
-                        self.source_of_slot.as_deref(),
-                    )?;
-                }
-                body.set_displacements(&self.scratch)
-                    .map_err(caller_nodes)?;
-                if fill {
-                    body.fill_hanging();
-                }
-            }
-        }
-        Ok(())
-    }
-}
-
-/// The library's error for displacements `u` (slot order), with a displacement too large named
-/// by the caller's node (`source[slot]`): the library names its own node, a lattice node, which
-/// on a mesh is not the node the caller gave.
-fn in_caller_nodes(e: cgcontact::Error, u: &[DVec3], source: Option<&[u32]>) -> Failure {
-    if let cgcontact::Error::DisplacementTooLarge { limit, .. } = e
-        && let Some(slot) = u.iter().position(|v| v.abs().max_element() > limit)
-    {
-        let node = source.map_or(slot, |s| s[slot] as usize);
-        return Failure::new(
+/// Sets every displacement of `state` from the caller's `3 n` values `u` in `layout`, or changes
+/// nothing and says why.
+fn set_displacements(state: &mut BodyState, u: &[f64], layout: u32) -> Result<(), Failure> {
+    let n = state.node_count();
+    let at = |node: usize| match layout & !CGC_FILL_HANGING {
+        CGC_LAYOUT_NODE_MAJOR => DVec3::new(u[3 * node], u[3 * node + 1], u[3 * node + 2]),
+        _ => DVec3::new(u[node], u[n + node], u[2 * n + node]),
+    };
+    let fill = layout & CGC_FILL_HANGING != 0;
+    state.set_displacements(at, fill).map_err(|e| match e {
+        UpdateError::NonFinite { node, value } => Failure::new(
+            CgcError::NonFinite,
+            format!("the displacement of node {node} (0-based) is not finite: {value}"),
+        ),
+        UpdateError::Disagree {
+            first,
+            node,
+            first_value,
+            value,
+        } => Failure::new(
+            CgcError::NotLattice,
+            format!(
+                "nodes {first} and {node} (0-based) coincide but their displacements differ: {first_value} and {value}"
+            ),
+        ),
+        UpdateError::TooLarge { node, value, limit } => Failure::new(
             CgcError::InvalidArgument,
             format!(
                 "the displacement of node {node} (0-based) is too large: {:?} (at most {limit:e} \
                  per axis: displaced farther, coordinates cannot resolve this body's cells)",
-                u[slot].to_array()
+                value.to_array()
             ),
-        );
-    }
-    Failure::from(e)
-}
-
-/// An error naming how many hanging nodes of `body` break their constraint in `u` (slot order)
-/// and the worst, as the caller's node `source[slot]`; `Ok` when none does.
-///
-/// The tolerance is the one `cgcontact locate` warns at: 1e-9 of the finest spacing plus the
-/// rounding of the largest displacement.
-fn check_hanging(
-    body: &AdaptiveBody,
-    hanging: &FlatConstraints,
-    u: &[DVec3],
-    source: Option<&[u32]>,
-) -> Result<(), Failure> {
-    if hanging.is_empty() {
-        return Ok(());
-    }
-    let largest = u.iter().fold(0.0f64, |m, v| m.max(v.abs().max_element()));
-    let tol = LATTICE_TOLERANCE * body.spacing(body.finest_level()).min_element()
-        + ROUNDING_SLACK * largest;
-    let (count, worst) = hanging
-        .violations(u, tol)
-        .map_err(|e| in_caller_nodes(e, u, source))?;
-    let Some((slot, by)) = worst else {
-        return Ok(());
-    };
-    let node = source.map_or(slot, |s| s[slot] as usize);
-    let at = body.node_position(slot).unwrap_or(DVec3::NAN);
-    Err(Failure::new(
-        CgcError::HangingConstraint,
-        format!(
-            "displacements: {count} of {} hanging nodes break their constraint by more than {tol:.1e}; the worst, node {node} (0-based) at {at}, by {by:.3e}: the deformed mesh would gap or overlap there (give each hanging node the trilinear interpolation of the coarse cell it hangs on, or pass CGC_FILL_HANGING)",
-            hanging.len()
         ),
-    ))
+        UpdateError::Hanging {
+            violating,
+            hanging,
+            tol,
+            node,
+            at,
+            by,
+        } => Failure::new(
+            CgcError::HangingConstraint,
+            format!(
+                "displacements: {violating} of {hanging} hanging nodes break their constraint by more than {tol:.1e}; the worst, node {node} (0-based) at {at}, by {by:.3e}: the deformed mesh would gap or overlap there (give each hanging node the trilinear interpolation of the coarse cell it hangs on, or pass CGC_FILL_HANGING)"
+            ),
+        ),
+        UpdateError::Library(e) => Failure::from(e),
+    })
 }
 
 impl CgcBody {
@@ -459,49 +271,10 @@ pub unsafe extern "C" fn cgc_body_from_mesh(
             cells: hexes,
             displacement: None,
         };
-        let state = match mesh.to_body()? {
-            MeshBody::Uniform(found) => uniform_state(&mesh, found.body, found.cells),
-            MeshBody::Adaptive(found) => adaptive_state(&mesh, found.body, found.cells),
-        };
+        let state = BodyState::mesh(&mesh, mesh.to_body()?);
         // SAFETY: the caller guarantees `out` is writable.
         unsafe { raw::give(out, CgcBody::new(state), "out") }
     })
-}
-
-/// The state of a uniform body detected from `mesh`: which input node gives each displacement
-/// slot.
-fn uniform_state(mesh: &HexMesh, body: Body, cells: CellMap) -> BodyState {
-    let NodeSources {
-        source_of_slot,
-        duplicates,
-    } = NodeSources::uniform(mesh, &body, &cells);
-    BodyState {
-        scratch: vec![DVec3::ZERO; source_of_slot.len()],
-        source_count: mesh.points.len(),
-        source_of_slot: Some(source_of_slot),
-        duplicates,
-        hanging: FlatConstraints::default(),
-        cells: CellNumbering::Mesh(cells),
-        body: AnyBody::Uniform(body),
-    }
-}
-
-/// The state of an adaptive body detected from `mesh`, whose leaf `c` is input cell `c` with its
-/// corners in the same (VTK) order: input node → body node through the cells' corners.
-fn adaptive_state(mesh: &HexMesh, body: AdaptiveBody, cells: CellMap) -> BodyState {
-    let NodeSources {
-        source_of_slot,
-        duplicates,
-    } = NodeSources::adaptive(mesh, &body);
-    BodyState {
-        scratch: vec![DVec3::ZERO; source_of_slot.len()],
-        source_count: mesh.points.len(),
-        source_of_slot: Some(source_of_slot),
-        duplicates,
-        hanging: FlatConstraints::of(&body),
-        cells: CellNumbering::Mesh(cells),
-        body: AnyBody::Adaptive(body),
-    }
 }
 
 /// Sets every displacement of the body, in place (nothing is rebuilt; locators made from the body
@@ -538,18 +311,18 @@ pub unsafe extern "C" fn cgc_body_set_displacements(
             ));
         }
         let mut state = body.write();
-        if n_nodes != state.source_count {
+        if n_nodes != state.node_count() {
             return Err(Failure::new(
                 CgcError::LengthMismatch,
                 format!(
                     "displacements: the body has {} nodes, got {n_nodes}",
-                    state.source_count
+                    state.node_count()
                 ),
             ));
         }
         // SAFETY: the caller guarantees 3 n_nodes readable doubles.
         let u = unsafe { raw::slice(u, n_nodes.saturating_mul(3), "u") }?;
-        state.set_displacements(u, layout)
+        set_displacements(&mut state, u, layout)
     })
 }
 
@@ -571,7 +344,7 @@ pub unsafe extern "C" fn cgc_body_node_count(
                 raw::slice_mut(n_nodes, 1, "n_nodes")?,
             )
         };
-        out[0] = CgcBody::read(&body.state).source_count;
+        out[0] = CgcBody::read(&body.state).node_count();
         Ok(())
     })
 }
@@ -594,7 +367,7 @@ pub unsafe extern "C" fn cgc_body_hanging_count(
                 raw::slice_mut(n_hanging, 1, "n_hanging")?,
             )
         };
-        out[0] = CgcBody::read(&body.state).hanging.len();
+        out[0] = CgcBody::read(&body.state).hanging_count();
         Ok(())
     })
 }

@@ -11,6 +11,7 @@
 //! | [`read_points`], [`write_results`], [`read_results`] | CSV points `x,y,z` and results `point,cell,xi,eta,zeta,...` |
 //! | [`write_deformed_vtu`], [`write_points_vtu`] | the deformed mesh (cells with `points_held`, `active`) and the located points (`cell`, `xi`) for ParaView |
 //! | [`read_text`] | any other text input (a benchmark's log, say): read whole within its own size limit, refused at its first NUL byte |
+//! | [`CallerBody`], [`NodeSources`] | a body as the C and Python bindings' callers hold it: cells and nodes in the caller's numbering, displacements set in place from the caller's nodes and checked first ([`UpdateError`], worded by each binding) |
 //!
 //! Every file is written whole or not at all ([`write_file`]: a temporary file renamed over the
 //! target), and every error is an [`IoError`] naming the file and the offending line, cell or node; no input
@@ -50,6 +51,7 @@ mod adaptive_mesh;
 mod appended_sizes;
 mod atomic;
 mod block_headers;
+mod caller_body;
 mod csv_io;
 mod error;
 mod input;
@@ -66,6 +68,7 @@ mod xml_normal;
 
 pub use adaptive_mesh::{AdaptiveMesh, MeshBody};
 pub use atomic::{abandon_writes, write_file, write_target};
+pub use caller_body::{AnyBody, CallerBody, UpdateError};
 pub use csv_io::{
     GAP_HEADER, RESULTS_HEADER, ResultRow, parse_points, parse_results, read_points, read_results,
     write_owner_rows, write_points, write_results, write_results_counted, write_results_to,

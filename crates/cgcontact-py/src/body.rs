@@ -3,267 +3,78 @@
 
 use std::sync::{Arc, PoisonError, RwLock, RwLockReadGuard};
 
-use cgcontact::adaptive::FlatConstraints;
 use cgcontact::glam::DVec3;
-use cgcontact::{AdaptiveBody, Body, CellId, Lattice};
+use cgcontact::{Body, CellId, Lattice};
 use cgcontact_baseline::BodyRef;
-use cgcontact_io::{CellMap, CellNumbering, HexMesh, LATTICE_TOLERANCE, MeshBody, NodeSources};
+use cgcontact_io::{HexMesh, MeshBody, UpdateError};
 use numpy::{IntoPyArray, PyArray1};
 use pyo3::exceptions::{PyMemoryError, PyValueError};
 use pyo3::prelude::*;
 
 use crate::arrays;
 
-/// Rounding allowance relative to a value's magnitude (as `cgcontact-io`'s checks).
-const ROUNDING_SLACK: f64 = 4.0 * f64::EPSILON;
-
 /// A library or input error as Python's `ValueError`.
 pub fn value_error(e: impl std::fmt::Display) -> PyErr {
     PyValueError::new_err(e.to_string())
 }
 
-/// The body a `Body` holds: one lattice level, or an adaptive body of several.
-#[derive(Debug)]
-pub enum AnyBody {
-    /// Every cell one cell of the lattice.
-    Uniform(Body),
-    /// Leaves of several refinement levels of a base lattice.
-    Adaptive(AdaptiveBody),
-}
+/// What a `Body` holds: the body, how the caller numbers its cells and nodes, and what an update
+/// needs; shared with the locators made from it.
+pub use cgcontact_io::{AnyBody, CallerBody as BodyState};
 
-impl AnyBody {
-    /// The body as the baselines take it.
-    pub fn as_ref(&self) -> BodyRef<'_> {
-        match self {
-            Self::Uniform(body) => body.into(),
-            Self::Adaptive(body) => body.into(),
-        }
+/// `body` as the baselines take it.
+pub fn body_ref(body: &AnyBody) -> BodyRef<'_> {
+    match body {
+        AnyBody::Uniform(body) => body.into(),
+        AnyBody::Adaptive(body) => body.into(),
     }
 }
 
-/// What a `Body` holds; shared with the locators made from it.
-#[derive(Debug)]
-pub struct BodyState {
-    pub body: AnyBody,
-    /// How the caller numbers the cells: the mesh's input order, or the lattice's cell ids.
-    pub cells: CellNumbering,
-    /// Number of displacement rows the caller passes (lattice nodes, or input nodes).
-    pub source_count: usize,
-    /// For each of the body's displacement slots, the caller's node that gives it; `None` when slot
-    /// s is node s (a lattice body with every cell active).
-    source_of_slot: Option<Vec<u32>>,
-    /// Further caller's nodes at a slot's node (an unmerged mesh): (node, slot).
-    duplicates: Vec<(usize, usize)>,
-    /// The hanging nodes' constraints (none for uniform bodies).
-    hanging: FlatConstraints,
-    /// The displacements in slot order, reused by every update.
-    scratch: Vec<DVec3>,
-}
-
-impl BodyState {
-    fn lattice(body: Body) -> Self {
-        let lattice = body.lattice();
-        // Lattice node indices fit u32 (`Lattice::new` refuses more nodes).
-        let source_of_slot = (body.node_count() != lattice.node_count())
-            .then(|| body.nodes().map(|n| n as u32).collect());
-        Self {
-            scratch: vec![DVec3::ZERO; body.node_count()],
-            source_count: lattice.node_count(),
-            source_of_slot,
-            duplicates: Vec::new(),
-            hanging: FlatConstraints::default(),
-            cells: CellNumbering::Lattice {
-                cells: lattice.cell_count(),
-            },
-            body: AnyBody::Uniform(body),
-        }
+/// Sets every displacement of `state` from the caller's rows `u`, or changes nothing and says
+/// why.
+fn set_displacements(state: &mut BodyState, u: &[DVec3], fill: bool) -> Result<(), String> {
+    let n = state.node_count();
+    if u.len() != n {
+        return Err(format!(
+            "displacements: the body has {n} nodes, got {} rows",
+            u.len()
+        ));
     }
-
-    /// The state of the body detected from `mesh` (`found` is `mesh.to_body()`).
-    fn mesh(mesh: &HexMesh, found: MeshBody) -> Self {
-        match found {
-            MeshBody::Uniform(found) => uniform_state(mesh, found.body, found.cells),
-            MeshBody::Adaptive(found) => adaptive_state(mesh, found.body, found.cells),
-        }
-    }
-
-    /// The caller's numbers of the cells whose Jacobian determinant is not positive at some
-    /// corner (inverted or degenerate), ascending: one pass over every cell.
-    fn inverted_cells(&self) -> Vec<i64> {
-        let found = self.body.as_ref().inverted_cells();
-        self.cells
-            .sorted_numbers(found.iter().map(|&(cell, _)| cell))
-    }
-
-    /// The caller's numbers of the cells that f64 coordinates of their magnitude cannot resolve
-    /// through their deformation (`Body::unresolved_cells`), ascending: one pass over every cell.
-    fn unresolved_cells(&self) -> Vec<i64> {
-        let found = self.body.as_ref().unresolved_cells();
-        self.cells
-            .sorted_numbers(found.iter().map(|&(cell, _)| cell))
-    }
-
-    /// The caller's node that gives slot `slot`.
-    fn source(&self, slot: usize) -> usize {
-        self.source_of_slot
-            .as_ref()
-            .map_or(slot, |source| source[slot] as usize)
-    }
-
-    /// Sets every displacement from the caller's rows, or changes nothing and says why.
-    fn set_displacements(&mut self, u: &[DVec3], fill: bool) -> Result<(), String> {
-        let n = self.source_count;
-        if u.len() != n {
-            return Err(format!(
-                "displacements: the body has {n} nodes, got {} rows",
-                u.len()
-            ));
-        }
-        // Every row, those of nodes no (active) cell uses too: the command line refuses a NaN at
-        // any node of the file, and `from_hexes` at any of `nodes`.
-        if let Some(row) = u.iter().position(|v| !v.is_finite()) {
-            return Err(format!(
-                "displacement row {row} (0-based) is not finite: {}",
-                arrays::show(u[row])
-            ));
-        }
-        match &self.source_of_slot {
-            None => self.scratch.copy_from_slice(u),
-            Some(source) => {
-                for (slot, &node) in self.scratch.iter_mut().zip(source) {
-                    *slot = u[node as usize];
-                }
-            }
-        }
-        let h = match &self.body {
-            AnyBody::Uniform(body) => body.lattice().h(),
-            AnyBody::Adaptive(body) => body.lattice().h(),
-        };
-        let tol = LATTICE_TOLERANCE * h.max_element();
-        for &(node, slot) in &self.duplicates {
-            let (value, first) = (u[node], self.scratch[slot]);
-            if (value - first).abs().max_element()
-                > tol + ROUNDING_SLACK * first.abs().max_element()
-            {
-                return Err(format!(
-                    "nodes {} and {node} (0-based) coincide but their displacements differ: {} and {}",
-                    self.source(slot),
-                    arrays::show(first),
-                    arrays::show(value)
-                ));
-            }
-        }
-        if fill {
-            // The rows of hanging nodes are ignored once found finite, as the C API ignores them:
-            // zeros in their place, which `fill_hanging` overwrites, so that the body's limit on
-            // a displacement's size does not refuse a value it would not keep.
-            for node in self.hanging.nodes() {
-                self.scratch[node] = DVec3::ZERO;
-            }
-        }
-        match &mut self.body {
-            AnyBody::Uniform(body) => body
-                .set_displacements(&self.scratch)
-                .map_err(|e| in_caller_rows(e, &self.scratch, self.source_of_slot.as_deref()))?,
-            AnyBody::Adaptive(body) => {
-                if !fill {
-                    check_hanging(
-                        body,
-                        &self.hanging,
-                        &self.scratch,
-                        self.source_of_slot.as_deref(),
-                    )?;
-                }
-                body.set_displacements(&self.scratch).map_err(|e| {
-                    in_caller_rows(e, &self.scratch, self.source_of_slot.as_deref())
-                })?;
-                if fill {
-                    body.fill_hanging();
-                }
-            }
-        }
-        Ok(())
-    }
-}
-
-/// The library's error for displacements `u` (slot order), with a displacement too large named
-/// by the caller's row (`source[slot]`): the library names its own node, a lattice node, which
-/// on a mesh is not the row the caller gave.
-fn in_caller_rows(e: cgcontact::Error, u: &[DVec3], source: Option<&[u32]>) -> String {
-    if let cgcontact::Error::DisplacementTooLarge { limit, .. } = e
-        && let Some(slot) = u.iter().position(|v| v.abs().max_element() > limit)
-    {
-        let row = source.map_or(slot, |s| s[slot] as usize);
-        return format!(
-            "displacement row {row} (0-based) is too large: {} (at most {limit:e} per axis: \
-             displaced farther, coordinates cannot resolve this body's cells)",
-            arrays::show(u[slot])
-        );
-    }
-    e.to_string()
-}
-
-/// An error naming how many hanging nodes of `body` break their constraint in `u` (slot order)
-/// and the worst, as the caller's node `source[slot]`; `Ok` when none does (the tolerance the
-/// command line warns at: 1e-9 of the finest spacing plus the largest displacement's rounding).
-fn check_hanging(
-    body: &AdaptiveBody,
-    hanging: &FlatConstraints,
-    u: &[DVec3],
-    source: Option<&[u32]>,
-) -> Result<(), String> {
-    if hanging.is_empty() {
-        return Ok(());
-    }
-    let largest = u.iter().fold(0.0f64, |m, v| m.max(v.abs().max_element()));
-    let tol = LATTICE_TOLERANCE * body.spacing(body.finest_level()).min_element()
-        + ROUNDING_SLACK * largest;
-    let (count, worst) = hanging.violations(u, tol).map_err(|e| e.to_string())?;
-    let Some((slot, by)) = worst else {
-        return Ok(());
-    };
-    let node = source.map_or(slot, |s| s[slot] as usize);
-    let at = body.node_position(slot).unwrap_or(DVec3::NAN);
-    Err(format!(
-        "displacements: {count} of {} hanging nodes break their constraint by more than {tol:.1e}; the worst, node {node} (0-based) at {}, by {by:.3e}: the deformed mesh would gap or overlap there (give each hanging node the trilinear interpolation of the coarse cell it hangs on, or pass fill_hanging=True)",
-        hanging.len(),
-        arrays::show(at)
-    ))
-}
-
-/// The state of a uniform body detected from `mesh`: which input node gives each slot.
-fn uniform_state(mesh: &HexMesh, body: Body, cells: CellMap) -> BodyState {
-    let NodeSources {
-        source_of_slot,
-        duplicates,
-    } = NodeSources::uniform(mesh, &body, &cells);
-    BodyState {
-        scratch: vec![DVec3::ZERO; source_of_slot.len()],
-        source_count: mesh.points.len(),
-        source_of_slot: Some(source_of_slot),
-        duplicates,
-        hanging: FlatConstraints::default(),
-        cells: CellNumbering::Mesh(cells),
-        body: AnyBody::Uniform(body),
-    }
-}
-
-/// The state of an adaptive body detected from `mesh`, whose leaf `c` is input cell `c` with its
-/// corners in the same (VTK) order.
-fn adaptive_state(mesh: &HexMesh, body: AdaptiveBody, cells: CellMap) -> BodyState {
-    let NodeSources {
-        source_of_slot,
-        duplicates,
-    } = NodeSources::adaptive(mesh, &body);
-    BodyState {
-        scratch: vec![DVec3::ZERO; source_of_slot.len()],
-        source_count: mesh.points.len(),
-        source_of_slot: Some(source_of_slot),
-        duplicates,
-        hanging: FlatConstraints::of(&body),
-        cells: CellNumbering::Mesh(cells),
-        body: AnyBody::Adaptive(body),
-    }
+    state
+        .set_displacements(|row| u[row], fill)
+        .map_err(|e| match e {
+            UpdateError::NonFinite { node, value } => format!(
+                "displacement row {node} (0-based) is not finite: {}",
+                arrays::show(value)
+            ),
+            UpdateError::Disagree {
+                first,
+                node,
+                first_value,
+                value,
+            } => format!(
+                "nodes {first} and {node} (0-based) coincide but their displacements differ: {} and {}",
+                arrays::show(first_value),
+                arrays::show(value)
+            ),
+            UpdateError::TooLarge { node, value, limit } => format!(
+                "displacement row {node} (0-based) is too large: {} (at most {limit:e} per axis: \
+                 displaced farther, coordinates cannot resolve this body's cells)",
+                arrays::show(value)
+            ),
+            UpdateError::Hanging {
+                violating,
+                hanging,
+                tol,
+                node,
+                at,
+                by,
+            } => format!(
+                "displacements: {violating} of {hanging} hanging nodes break their constraint by more than {tol:.1e}; the worst, node {node} (0-based) at {}, by {by:.3e}: the deformed mesh would gap or overlap there (give each hanging node the trilinear interpolation of the coarse cell it hangs on, or pass fill_hanging=True)",
+                arrays::show(at)
+            ),
+            UpdateError::Library(e) => e.to_string(),
+        })
 }
 
 /// An error, before the allocation, when a body of `nodes` nodes with every cell active cannot be
@@ -416,7 +227,7 @@ impl PyBody {
         let u: &[DVec3] = &u;
         py.detach(|| {
             let mut state = self.state.write().unwrap_or_else(PoisonError::into_inner);
-            state.set_displacements(u, fill_hanging)
+            set_displacements(&mut state, u, fill_hanging)
         })
         .map_err(PyValueError::new_err)
     }
@@ -446,13 +257,13 @@ impl PyBody {
     /// given for a mesh.
     #[getter]
     fn node_count(&self) -> usize {
-        Self::read(&self.state).source_count
+        Self::read(&self.state).node_count()
     }
 
     /// Cells searched: the active cells, or an adaptive body's leaves.
     #[getter]
     fn cell_count(&self) -> usize {
-        Self::read(&self.state).body.as_ref().cell_count()
+        Self::read(&self.state).body.cell_count()
     }
 
     /// Whether the body has cells of several refinement levels.
@@ -464,7 +275,7 @@ impl PyBody {
     /// Hanging nodes (0 for a uniform body).
     #[getter]
     fn hanging_count(&self) -> usize {
-        Self::read(&self.state).hanging.len()
+        Self::read(&self.state).hanging_count()
     }
 
     fn __repr__(&self) -> String {
@@ -475,8 +286,8 @@ impl PyBody {
         };
         format!(
             "<cgcontact.Body {kind}: {} cells, {} nodes>",
-            state.body.as_ref().cell_count(),
-            state.source_count
+            state.body.cell_count(),
+            state.node_count()
         )
     }
 }

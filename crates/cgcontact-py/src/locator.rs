@@ -19,7 +19,7 @@ use pyo3::types::{PyDict, PyList, PyTuple};
 use rayon::prelude::*;
 
 use crate::arrays;
-use crate::body::{AnyBody, BodyState, PyBody, value_error};
+use crate::body::{AnyBody, BodyState, PyBody, body_ref, value_error};
 
 /// What `locate` returns: the cells, and xi.
 type Located<'py> = (Bound<'py, PyArray1<i64>>, Bound<'py, PyArray2<f64>>);
@@ -176,7 +176,7 @@ impl PyLocator {
         self.on_threads(|| {
             let locator = self
                 .strategy
-                .build(state.body.as_ref(), self.settings)
+                .build(body_ref(&state.body), self.settings)
                 .map_err(value_error)?;
             Ok(f(&*locator, state))
         })
