@@ -6,8 +6,8 @@ use anyhow::Result;
 use cgcontact::{AdaptiveLocator, GapAnswer, GapFinder, LatticeLocator, Settings};
 use cgcontact_baseline::BodyRef;
 use cgcontact_io::{
-    DisplacementArray, MeshBody, read_body, read_points, write_deformed_adaptive_vtu,
-    write_deformed_vtu, write_points_vtu, write_results_counted,
+    DisplacementArray, MeshBody, read_body, read_points, unended_points_file,
+    write_deformed_adaptive_vtu, write_deformed_vtu, write_points_vtu, write_results_counted,
 };
 use clap::Args;
 use std::time::Instant;
@@ -145,6 +145,11 @@ pub fn run(args: &LocateArgs) -> Result<()> {
         }
     }
     let points = reading(&args.points, quiet, || read_points(&args.points))?;
+    if let Some(warning) = unended_points_file(&args.points)
+        && !args.search.quiet
+    {
+        eprintln!("cgcontact: warning: {warning}");
+    }
     let body: BodyRef<'_> = match &mesh {
         MeshBody::Uniform(m) => (&m.body).into(),
         MeshBody::Adaptive(m) => (&m.body).into(),

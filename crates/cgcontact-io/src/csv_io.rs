@@ -1,6 +1,6 @@
 //! CSV points in, CSV results out (and back in, for tests and scripts).
 
-use std::io::{Read, Write};
+use std::io::{Read, Seek, SeekFrom, Write};
 use std::path::Path;
 
 use cgcontact::{Answer, CellId, GapAnswer, Hit};
@@ -31,6 +31,38 @@ pub const RESULTS_HEADER: [&str; 8] = [
 /// data rows is an error.
 pub fn read_points(path: impl AsRef<Path>) -> Result<Vec<DVec3>, IoError> {
     read_with(path.as_ref(), points_from_bytes)
+}
+
+/// A warning for a points file that ends in a value with no line end after it: a file cut inside
+/// its last number reads as another number (`0.0123456789` cut to `0.012`), and only the missing
+/// line end tells. `None` when the file ends in whitespace, is empty, is not a regular file (a
+/// pipe cannot be read again) or cannot be read.
+#[must_use]
+pub fn unended_points_file(path: impl AsRef<Path>) -> Option<String> {
+    let path = path.as_ref();
+    let mut file = std::fs::File::open(path).ok()?;
+    let meta = file.metadata().ok()?;
+    let len = meta.len();
+    if !meta.is_file() || len == 0 {
+        return None;
+    }
+    let tail = len.min(64);
+    file.seek(SeekFrom::Start(len - tail)).ok()?;
+    let mut bytes = vec![0; tail as usize];
+    file.read_exact(&mut bytes).ok()?;
+    if bytes.last()?.is_ascii_whitespace() {
+        return None;
+    }
+    let word = bytes
+        .iter()
+        .rposition(|&b| b.is_ascii_whitespace() || b == b',')
+        .map_or(0, |i| i + 1);
+    Some(format!(
+        "{}: the file ends in {} with no line end after it: if it was cut inside that value, \
+         the last point is not the one written (add the line end if the file is whole)",
+        path.display(),
+        crate::excerpt(&bytes[word..], 40)
+    ))
 }
 
 /// Read `path` (within the input size limit, refused at once if binary) and parse it with `parse`,

@@ -71,7 +71,8 @@ pub use atomic::{abandon_writes, write_file, write_target};
 pub use caller_body::{AnyBody, CallerBody, UpdateError};
 pub use csv_io::{
     GAP_HEADER, RESULTS_HEADER, ResultRow, parse_points, parse_results, read_points, read_results,
-    write_owner_rows, write_points, write_results, write_results_counted, write_results_to,
+    unended_points_file, write_owner_rows, write_points, write_results, write_results_counted,
+    write_results_to,
 };
 pub use error::{ErrorKind, IoError};
 pub use input::{

@@ -15,7 +15,8 @@ use anyhow::{Context, Result, anyhow, bail};
 use cgcontact::glam::DVec3;
 use cgcontact::{CellId, Settings};
 use cgcontact_io::{
-    DisplacementArray, MeshBody, read_body, read_points, write_owner_rows, write_results_counted,
+    DisplacementArray, MeshBody, read_body, read_points, unended_points_file, write_owner_rows,
+    write_results_counted,
 };
 use cgcontact_mpi::{
     Config, DistributedBody, Error, Gaps, Located, OwnedCell, OwnedLeaf, Partition, QueryStats,
@@ -348,6 +349,12 @@ fn locate(world: &SimpleCommunicator, args: &LocateArgs) -> Result<(), Failure> 
         world,
         read_points(&args.points).map_err(anyhow::Error::from),
     )?;
+    if rank == 0
+        && !args.quiet
+        && let Some(warning) = unended_points_file(&args.points)
+    {
+        eprintln!("cgcontact-mpi: warning: {warning}");
+    }
     let read_seconds = read_start.elapsed().as_secs_f64();
     // Each rank keeps its partition of the cells and its run of the points by what it read
     // itself: ranks that read different files (another copy on another node's disk, a file

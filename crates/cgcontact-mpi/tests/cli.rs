@@ -573,6 +573,40 @@ fn cell_warnings_are_those_of_cgcontact_locate() {
     }
 }
 
+/// A points file whose last line has no line end (a file cut inside its last number reads as
+/// another number): the warning `cgcontact locate` gives, in its words, once (rank 0), and not
+/// with `--quiet`; none for the file with its line end.
+#[test]
+fn an_unended_points_file_is_warned_about_as_cgcontact_locate_warns() {
+    let bin = cgcontact();
+    let dir = tempfile::tempdir().unwrap();
+    for (csv, warned) in [
+        ("x,y,z\n0.5,0.5,0.5\n0.25,0.5,0.75", true),
+        ("x,y,z\n0.5,0.5,0.5\n0.25,0.5,0.75\n", false),
+    ] {
+        let (mesh, points) = two_cells(dir.path(), 0.0, csv);
+        let args = [
+            "locate",
+            "--mesh",
+            mesh.to_str().unwrap(),
+            "--points",
+            points.to_str().unwrap(),
+        ];
+        let serial = Command::new(&bin).args(args).output().unwrap();
+        assert!(serial.status.success(), "{serial:?}");
+        let want = warnings(&serial.stderr);
+        assert_eq!(want.len(), usize::from(warned), "{want:?}");
+        for ranks in [1, 3] {
+            let result = mpirun(ranks, &args);
+            assert!(result.status.success(), "{result:?}");
+            assert_eq!(warnings(&result.stderr), want, "{ranks} ranks");
+            let quiet = mpirun(ranks, &[&args[..], &["--quiet"]].concat());
+            assert!(quiet.status.success(), "{quiet:?}");
+            assert!(warnings(&quiet.stderr).is_empty(), "{quiet:?}");
+        }
+    }
+}
+
 /// The summary on a standard output that cannot take it, the binary started without mpirun (a
 /// singleton, where the rank's standard output is the caller's): on a full device, exit code 2
 /// and one line saying so, as `cgcontact locate` gives; on a closed pipe, exit code 0. Before,

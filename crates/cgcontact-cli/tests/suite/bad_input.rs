@@ -499,3 +499,45 @@ fn scene_numbers_out_of_range_are_refused() {
         .unwrap();
     assert!(status.success());
 }
+
+/// A points file cut inside its last number reads as another number: a points file that ends in
+/// a value with no line end after it gets a warning naming it (not an error: CSV writers often
+/// leave the last line unended), and the answers are those of the file with its line end.
+#[test]
+fn a_points_file_with_its_last_line_unended_is_warned_about() {
+    let files = Files::new();
+    let text = "x,y,z\n1.2,2.3,3.4\n1.9,2.1,3.6";
+    let locate = |points: &Path, quiet: bool| {
+        let out = files.path("out.csv");
+        let mut command = Command::new(env!("CARGO_BIN_EXE_cgcontact"));
+        command
+            .args(["locate", "--mesh"])
+            .arg(files.path("good.vtk"))
+            .arg("--points")
+            .arg(points)
+            .arg("--out")
+            .arg(&out);
+        if quiet {
+            command.arg("-q");
+        }
+        let output = command.output().unwrap();
+        assert!(output.status.success(), "{output:?}");
+        (
+            String::from_utf8_lossy(&output.stderr).into_owned(),
+            std::fs::read_to_string(out).unwrap(),
+        )
+    };
+    let unended = files.write("unended.csv", text);
+    let ended = files.write("ended.csv", &format!("{text}\r\n"));
+    let (warned, answers) = locate(&unended, false);
+    assert!(
+        warned.contains("warning: ")
+            && warned.contains("unended.csv: the file ends in `3.6` with no line end after it"),
+        "{warned}"
+    );
+    let (silent, ended_answers) = locate(&ended, false);
+    assert!(!silent.contains("warning"), "{silent}");
+    assert_eq!(answers, ended_answers);
+    let (quiet, _) = locate(&unended, true);
+    assert!(quiet.is_empty(), "{quiet}");
+}
