@@ -513,7 +513,6 @@ fn warnings(stderr: &[u8]) -> Vec<String> {
 /// untrusted answers came back without a word.
 #[test]
 fn cell_warnings_are_those_of_cgcontact_locate() {
-    let bin = cgcontact();
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     // 3 × 2 × 2 cells of h = 1 whose middle node (1, 1, 1) is pushed through its neighbours.
@@ -551,25 +550,31 @@ fn cell_warnings_are_those_of_cgcontact_locate() {
     )
     .unwrap();
     for mesh in [&inverted_mesh, &sheared_mesh] {
-        let args = [
-            "locate",
-            "--mesh",
-            mesh.to_str().unwrap(),
-            "--points",
-            points.to_str().unwrap(),
-        ];
-        let serial = Command::new(&bin).args(args).output().unwrap();
-        assert!(serial.status.success(), "{serial:?}");
-        let want = warnings(&serial.stderr);
-        assert_eq!(want.len(), 1, "{mesh:?}: {want:?}");
-        for ranks in [1, 3] {
-            let result = mpirun(ranks, &args);
-            assert!(result.status.success(), "{result:?}");
-            assert_eq!(warnings(&result.stderr), want, "{mesh:?}, {ranks} ranks");
-            let quiet = mpirun(ranks, &[&args[..], &["--quiet"]].concat());
-            assert!(quiet.status.success(), "{quiet:?}");
-            assert!(warnings(&quiet.stderr).is_empty(), "{quiet:?}");
-        }
+        assert_warns_as_cgcontact_locate(mesh, &points, 1);
+    }
+}
+
+/// `locate --mesh mesh --points points` warns `count` times under `cgcontact locate`, and on 1
+/// and 3 ranks gives the same warnings in the same words, once (rank 0), and none with `--quiet`.
+fn assert_warns_as_cgcontact_locate(mesh: &Path, points: &Path, count: usize) {
+    let args = [
+        "locate",
+        "--mesh",
+        mesh.to_str().unwrap(),
+        "--points",
+        points.to_str().unwrap(),
+    ];
+    let serial = Command::new(cgcontact()).args(args).output().unwrap();
+    assert!(serial.status.success(), "{serial:?}");
+    let want = warnings(&serial.stderr);
+    assert_eq!(want.len(), count, "{mesh:?}: {want:?}");
+    for ranks in [1, 3] {
+        let result = mpirun(ranks, &args);
+        assert!(result.status.success(), "{result:?}");
+        assert_eq!(warnings(&result.stderr), want, "{mesh:?}, {ranks} ranks");
+        let quiet = mpirun(ranks, &[&args[..], &["--quiet"]].concat());
+        assert!(quiet.status.success(), "{quiet:?}");
+        assert!(warnings(&quiet.stderr).is_empty(), "{quiet:?}");
     }
 }
 
@@ -578,32 +583,13 @@ fn cell_warnings_are_those_of_cgcontact_locate() {
 /// with `--quiet`; none for the file with its line end.
 #[test]
 fn an_unended_points_file_is_warned_about_as_cgcontact_locate_warns() {
-    let bin = cgcontact();
     let dir = tempfile::tempdir().unwrap();
     for (csv, warned) in [
         ("x,y,z\n0.5,0.5,0.5\n0.25,0.5,0.75", true),
         ("x,y,z\n0.5,0.5,0.5\n0.25,0.5,0.75\n", false),
     ] {
         let (mesh, points) = two_cells(dir.path(), 0.0, csv);
-        let args = [
-            "locate",
-            "--mesh",
-            mesh.to_str().unwrap(),
-            "--points",
-            points.to_str().unwrap(),
-        ];
-        let serial = Command::new(&bin).args(args).output().unwrap();
-        assert!(serial.status.success(), "{serial:?}");
-        let want = warnings(&serial.stderr);
-        assert_eq!(want.len(), usize::from(warned), "{want:?}");
-        for ranks in [1, 3] {
-            let result = mpirun(ranks, &args);
-            assert!(result.status.success(), "{result:?}");
-            assert_eq!(warnings(&result.stderr), want, "{ranks} ranks");
-            let quiet = mpirun(ranks, &[&args[..], &["--quiet"]].concat());
-            assert!(quiet.status.success(), "{quiet:?}");
-            assert!(warnings(&quiet.stderr).is_empty(), "{quiet:?}");
-        }
+        assert_warns_as_cgcontact_locate(&mesh, &points, usize::from(warned));
     }
 }
 

@@ -3,18 +3,15 @@
 //! VTK's writer ends every line, the last included, so a file that ends in a value with no line
 //! end after it is now an error naming the last line; the same file with its line end reads.
 
-use std::path::Path;
-
-use cgcontact_io::{DisplacementArray, parse_hex_mesh};
-
-use crate::common::{LegacyData, body_with_holes, legacy_ascii};
 use cgcontact::glam::DVec3;
-use cgcontact_io::HexMesh;
+use cgcontact_io::{DisplacementArray, HexMesh, parse_hex_mesh};
+
+use crate::common::legacy_fixtures::{folder, read};
+use crate::common::{LegacyData, body_with_holes, legacy_ascii};
 
 /// ASCII legacy files written by VTK (displacements last, string arrays last, id sections last)
 /// and by the tests' own writer.
 fn files() -> Vec<(String, Vec<u8>)> {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures");
     let mut files: Vec<(String, Vec<u8>)> = [
         "vtk-written/legacy-ascii.vtk",
         "vtk-written/float-points-legacy-ascii.vtk",
@@ -25,7 +22,10 @@ fn files() -> Vec<(String, Vec<u8>)> {
         "vtk-written-ids/ids-alone-5.1-ascii.vtk",
     ]
     .iter()
-    .map(|name| (name.to_string(), std::fs::read(root.join(name)).unwrap()))
+    .map(|name| {
+        let (dir, file) = name.split_once('/').unwrap();
+        (name.to_string(), read(&folder(dir), file))
+    })
     .collect();
     let body = body_with_holes(DVec3::new(1.0, -2.0, 0.5), DVec3::splat(0.25), [3, 2, 2], 4);
     let mesh = HexMesh::from_body(&body);
