@@ -2,7 +2,8 @@
 //! cells, h = 0.25) refined two levels within 1.5 of the top face's centre, 2:1 balanced: 51,840
 //! leaves, most of them at level 2, with 1,000,000 points made from known (leaf, ξ), drawn per leaf.
 //! Against it, a uniform indented block of about as many cells (`block_cells_for`, shape 1 : 2 : 1,
-//! the same physical size) with 1 M known points. Both on one thread, f64 and f32 (the adaptive body
+//! the same physical size) with 1 M known points, and its twin (`uniform_twin`): the same cells
+//! under the adaptive scene's indentation, with the adaptive scene's points. All on one thread, f64 and f32 (the adaptive body
 //! with and without its corner table: `AdaptiveBody::set_corner_table`), answers written
 //! into a reused buffer. Also the adaptive locator's build (`AdaptiveLocator::new`), on this scene
 //! and on a body of over a million nodes, and, printed once: memory per node, where it goes, and
@@ -15,7 +16,7 @@ use std::time::{Duration, Instant};
 
 use cgcontact::glam::DVec3;
 use cgcontact::{AdaptiveBody, AdaptiveLocator, LatticeLocator, Locator, Settings};
-use cgcontact_scenes::{adaptive_block, block_cells_for, indented_block};
+use cgcontact_scenes::{adaptive_block, block_cells_for, indented_block, uniform_twin};
 use criterion::{Criterion, SamplingMode, Throughput, criterion_group, criterion_main};
 
 const POINTS: usize = 1_000_000;
@@ -98,6 +99,8 @@ fn adaptive(c: &mut Criterion) {
             f64::from(cells[2]),
         );
     let uniform = indented_block(cells, uniform_h, POINTS, SEED).expect("valid uniform scene");
+    // The same problem meshed uniformly: the adaptive scene's indentation and points.
+    let twin = uniform_twin(BASE_CELLS, h, cells, &scene).expect("valid uniform twin");
     eprintln!(
         "scenes built in {:.1} s: adaptive {BASE_CELLS:?} base cells, h = {BASE_H}, {LEVELS} levels \
          within {RADIUS}: {leaves} leaves (per level {:?}); uniform {cells:?} = {} cells, h = {:.4}",
@@ -119,6 +122,7 @@ fn adaptive(c: &mut Criterion) {
     );
     let adaptive_points: Vec<DVec3> = scene.known.iter().map(|k| k.x).collect();
     let uniform_points: Vec<DVec3> = uniform.known.iter().map(|k| k.x).collect();
+    let twin_points: Vec<DVec3> = twin.known.iter().map(|k| k.x).collect();
     // Where the known points lie: per leaf level.
     let mut per_level = vec![0usize; usize::from(body.finest_level()) + 1];
     for k in &scene.known {
@@ -141,6 +145,8 @@ fn adaptive(c: &mut Criterion) {
         let lattice = LatticeLocator::new(&uniform.body, settings).expect("valid settings");
         report_inversions(&format!("adaptive {name}"), &adaptive, &adaptive_points);
         report_inversions(&format!("uniform {name}"), &lattice, &uniform_points);
+        let twin_lattice = LatticeLocator::new(&twin.body, settings).expect("valid settings");
+        report_inversions(&format!("uniform twin {name}"), &twin_lattice, &twin_points);
 
         let mut group = c.benchmark_group(format!("adaptive/locate-1M-{name}"));
         group
@@ -175,6 +181,18 @@ fn adaptive(c: &mut Criterion) {
             |b| {
                 b.iter(|| {
                     one.install(|| lattice.locate_all_into(black_box(&uniform_points), &mut out));
+                    black_box(&out);
+                })
+            },
+        );
+        group.bench_function(
+            format!(
+                "uniform twin {} cells, same indentation and points, 1 thread",
+                twin.body.lattice().cell_count()
+            ),
+            |b| {
+                b.iter(|| {
+                    one.install(|| twin_lattice.locate_all_into(black_box(&twin_points), &mut out));
                     black_box(&out);
                 })
             },

@@ -1,7 +1,8 @@
 //! A fixed single-threaded load on the `adaptive` bench's scene, for profilers (perf, callgrind).
 //!
-//! Run: `cargo run --release -p cgcontact-benches --example profile_adaptive [repeats] [f32] [uniform] [big] [table] [each] [points=N] [levels=L] [radius=R] [stats]`
-//! (`uniform`: the uniform block of about as many cells instead; `big`: the bench's 1.3 M-node
+//! Run: `cargo run --release -p cgcontact-benches --example profile_adaptive [repeats] [f32] [uniform [twin]] [big] [table] [each] [points=N] [levels=L] [radius=R] [stats]`
+//! (`uniform`: the uniform block of about as many cells instead, `twin` its `uniform_twin`: the
+//! adaptive scene's indentation and points; `big`: the bench's 1.3 M-node
 //! block; `table`: the body stores its corner table; `each`: one `locate` call per
 //! point instead of `locate_all_into`; `points=N`: N known points instead of 1 M; `levels=L`
 //! and `radius=R`: refined L levels (2 by default) within R (1.5) of the top face's centre;
@@ -11,7 +12,7 @@ use std::time::Instant;
 
 use cgcontact::glam::DVec3;
 use cgcontact::{AdaptiveLocator, LatticeLocator, Locator, Settings};
-use cgcontact_scenes::{adaptive_block, block_cells_for, indented_block};
+use cgcontact_scenes::{adaptive_block, block_cells_for, indented_block, uniform_twin};
 
 fn main() -> Result<(), cgcontact::Error> {
     let args: Vec<String> = std::env::args().collect();
@@ -92,9 +93,16 @@ fn main() -> Result<(), cgcontact::Error> {
                 f64::from(cells[1]),
                 f64::from(cells[2]),
             );
-        let uniform = indented_block(cells, uniform_h, points, 7)?;
-        let xs: Vec<DVec3> = uniform.known.iter().map(|k| k.x).collect();
-        run(&LatticeLocator::new(&uniform.body, settings)?, &xs);
+        if has("twin") {
+            // The same problem meshed uniformly (`uniform_twin`).
+            let twin = uniform_twin(base, h, cells, &scene)?;
+            let xs: Vec<DVec3> = twin.known.iter().map(|k| k.x).collect();
+            run(&LatticeLocator::new(&twin.body, settings)?, &xs);
+        } else {
+            let uniform = indented_block(cells, uniform_h, points, 7)?;
+            let xs: Vec<DVec3> = uniform.known.iter().map(|k| k.x).collect();
+            run(&LatticeLocator::new(&uniform.body, settings)?, &xs);
+        }
     } else {
         let xs: Vec<DVec3> = scene.known.iter().map(|k| k.x).collect();
         run(&AdaptiveLocator::new(&scene.body, settings)?, &xs);

@@ -8,8 +8,10 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use crate::field::Indentation;
-use crate::known::{LeafDraw, adaptive_known_points};
+use crate::known::{KnownPoint, LeafDraw, adaptive_known_points};
 use crate::refine::{MAX_REFINED_LEAVES, check_levels, leaf_box, refine_lattice, too_many_leaves};
+#[cfg(doc)]
+use crate::sphere::indented_block;
 use crate::sphere::{JITTER_STREAM, Scene, SphereOnBlock, fibonacci_sphere};
 
 /// Mixed into the seed for the shuffle of [`LeafOrder::Shuffled`].
@@ -355,6 +357,60 @@ pub fn adaptive_block(
         "adaptive-{}x{}x{}-l{levels}",
         cells[0], cells[1], cells[2]
     ))
+}
+
+/// The uniform twin of `adaptive_block(base, h, ..)` (its scene `adaptive`): the same block under
+/// the same indentation (its sink in lengths, not in the twin's spacing) meshed by a uniform
+/// lattice of `twin` cells, and `adaptive`'s known points carried over, each made in the twin
+/// from its undeformed place (cell and ξ computed there), so both bodies answer points spread
+/// alike over the same deformed block. What an adaptive body's speed is compared with when the
+/// problem, not only the cell count, is the same: [`indented_block`] of as many cells sinks by
+/// its own spacing and draws its points per cell, away from the indentation, where the
+/// adaptive scene draws them per leaf, under it.
+///
+/// # Errors
+/// When `base`, `h` and `twin` make no lattice.
+pub fn uniform_twin(
+    base: [u32; 3],
+    h: DVec3,
+    twin: [u32; 3],
+    adaptive: &AdaptiveScene,
+) -> Result<Scene, Error> {
+    let counts = |c: [u32; 3]| DVec3::from(c.map(f64::from));
+    let block = h * counts(base);
+    let twin_h = block / counts(twin);
+    let fine = SphereOnBlock::fine();
+    let knobs = SphereOnBlock {
+        block,
+        h: twin_h,
+        radius: 0.2 * block.min_element(),
+        sink_in_h: fine.sink_in_h * h.z / twin_h.z,
+        contact_points: 0,
+        known_points: 0,
+        ..fine
+    };
+    let mut scene = knobs.build(&format!("twin-{}x{}x{}", twin[0], twin[1], twin[2]))?;
+    let body = &adaptive.body;
+    let lattice = *scene.body.lattice();
+    scene.known = adaptive
+        .known
+        .iter()
+        .map(|k| {
+            let leaf = body.leaves().get(k.cell.index()).ok_or_else(|| {
+                Error::InvalidLattice(format!("known leaf {} is not a leaf", k.cell.index()))
+            })?;
+            let at = body.leaf_origin(leaf) + body.spacing(leaf.level) * (k.xi + 1.0) * 0.5;
+            let t = (at - lattice.origin()) / lattice.h();
+            let ijk = lattice.clamped_cell(t);
+            let xi = ((t - counts(ijk)) * 2.0 - 1.0).clamp(DVec3::NEG_ONE, DVec3::ONE);
+            let cell = lattice.cell_id(ijk);
+            let x = scene.body.point_at(cell, xi).ok_or_else(|| {
+                Error::InvalidLattice(format!("twin cell {} is inactive", cell.index()))
+            })?;
+            Ok(KnownPoint { x, cell, xi })
+        })
+        .collect::<Result<_, Error>>()?;
+    Ok(scene)
 }
 
 /// The smallest body with hanging nodes: two unit base cells along x, the second refined once

@@ -6,7 +6,7 @@
 //! | [`SphereOnBlock`] → [`Scene`] | the seed's block indented by a sphere, uniform lattice, every knob |
 //! | [`SphereOnAdaptiveBlock`] → [`AdaptiveScene`] | the same block refined by halving under the contact patch (levels, radius, 2:1 balanced or not), hanging nodes filled from their constraints |
 //! | [`SphereOnAdaptiveBlock::leaf_count`] → [`LeafCount`] | the leaves an adaptive scene would have, counted without building it |
-//! | [`indented_block`], [`adaptive_block`], [`block_cells_for`] | scalable uniform and adaptive blocks for benchmarks, and a uniform block as large as an adaptive one |
+//! | [`indented_block`], [`adaptive_block`], [`block_cells_for`], [`uniform_twin`] | scalable uniform and adaptive blocks for benchmarks, a uniform block as large as an adaptive one, and one answering the same problem |
 //! | [`refine_lattice`] | the leaves of any refinement of a lattice by a split predicate, balanced or not |
 //! | [`known_points`], [`adaptive_known_points`] | points made from known (cell, ξ): per cell, per leaf or by volume ([`LeafDraw`]) |
 //! | [`Indentation`], [`fibonacci_sphere`] | the analytic field and the sphere's contact points |
@@ -55,7 +55,7 @@ mod sphere;
 
 pub use adaptive::{
     AdaptiveScene, LeafCount, LeafOrder, SphereOnAdaptiveBlock, adaptive_block, block_cells_for,
-    hanging_node_moved,
+    hanging_node_moved, uniform_twin,
 };
 pub use field::Indentation;
 pub use known::{KnownPoint, LeafDraw, adaptive_known_points, known_points};

@@ -7,7 +7,7 @@ use cgcontact::glam::DVec3;
 use cgcontact::{AdaptiveBody, AdaptiveLocator, LatticeLocator, Leaf, Locator, Settings};
 use cgcontact_scenes::{
     AdaptiveScene, LeafCount, LeafDraw, LeafOrder, SphereOnAdaptiveBlock, SphereOnBlock,
-    adaptive_block, block_cells_for, leaf_box,
+    adaptive_block, block_cells_for, indented_block, leaf_box, uniform_twin,
 };
 
 /// The coarse seed's block with few points, refined `levels` levels within `radius`.
@@ -466,4 +466,65 @@ fn large_jitter_ends_valid_and_conforming() {
             assert!(scene.body.check_constraints(1e-12).holds());
         }
     }
+}
+
+/// The uniform twin answers the adaptive scene's problem: each known point made at the same
+/// undeformed place, found at its (cell, ξ) by the lattice locator, and displaced alike (both
+/// bodies interpolate the same indentation, so the deformed points differ by the interpolation
+/// error only, far below the sink).
+#[test]
+fn the_uniform_twin_carries_the_same_points_under_the_same_indentation() {
+    let (base, h) = ([10, 20, 10], DVec3::splat(0.5));
+    let adaptive = adaptive_block(base, h, 2, 1.5, 3_000, 11).unwrap();
+    let twin_cells = block_cells_for(adaptive.body.cell_count(), DVec3::new(1.0, 2.0, 1.0));
+    let twin = uniform_twin(base, h, twin_cells, &adaptive).unwrap();
+    assert_eq!(twin.body.lattice().cells(), twin_cells);
+    assert_eq!(twin.known.len(), adaptive.known.len());
+    let sink = AdaptiveLocator::new(&adaptive.body, Settings::default())
+        .unwrap()
+        .max_displacement()
+        .z;
+    let locator = LatticeLocator::new(&twin.body, Settings::default()).unwrap();
+    let twin_sink = locator.max_displacement().z;
+    assert!(
+        (twin_sink - sink).abs() < 0.05 * sink,
+        "{twin_sink} against {sink}"
+    );
+    let (lattice, body) = (twin.body.lattice(), &adaptive.body);
+    let mut moved = 0;
+    for (t, a) in twin.known.iter().zip(&adaptive.known) {
+        let ijk = lattice.cell_ijk(t.cell).unwrap().map(f64::from);
+        let at_twin = lattice.origin() + lattice.h() * (DVec3::from(ijk) + (t.xi + 1.0) * 0.5);
+        let leaf = body.leaves().get(a.cell.index()).unwrap();
+        let at = body.leaf_origin(leaf) + body.spacing(leaf.level) * (a.xi + 1.0) * 0.5;
+        assert!(
+            (at_twin - at).abs().max_element() < 1e-12,
+            "{at_twin} against {at}"
+        );
+        assert!((t.x - a.x).length() < 0.1 * sink, "{} against {}", t.x, a.x);
+        moved += usize::from((t.x - at).length() > 0.1 * sink);
+        let hit = locator
+            .locate(t.x)
+            .unwrap()
+            .expect("a known point is found");
+        assert!((hit.xi - t.xi).abs().max_element() < 1e-9 || hit.cell != t.cell);
+        let x = twin.body.point_at(hit.cell, hit.xi).unwrap();
+        assert!((x - t.x).length() < 1e-12, "{x} against {}", t.x);
+    }
+    // The points crowd under the indentation, as the adaptive scene draws them per leaf: far more
+    // of them move than of the points of a block drawn per cell.
+    let spread = indented_block(twin_cells, lattice.h(), 3_000, 11).unwrap();
+    let spread_moved = spread
+        .known
+        .iter()
+        .filter(|k| {
+            let ijk = DVec3::from(lattice.cell_ijk(k.cell).unwrap().map(f64::from));
+            let at = lattice.origin() + lattice.h() * (ijk + (k.xi + 1.0) * 0.5);
+            (k.x - at).length() > 0.1 * sink
+        })
+        .count();
+    assert!(
+        moved > 4 * spread_moved,
+        "{moved} against {spread_moved} moved"
+    );
 }
