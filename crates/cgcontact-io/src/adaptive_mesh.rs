@@ -17,8 +17,8 @@ use cgcontact::{AdaptiveBody, CORNER_OFFSETS, Lattice, Leaf};
 use glam::DVec3;
 
 use crate::mesh::{
-    F32_ROUNDING_SLACK, LatticeMesh, ROUNDING_SLACK, all_f32, beyond_rounding, coordinate_slack,
-    merge_displacements,
+    F32_ROUNDING_SLACK, LatticeMesh, ROUNDING_SLACK, Rounding, STEP, all_f32, beyond_rounding,
+    coordinate_slack, merge_displacements,
 };
 use crate::{CellMap, ErrorKind, HexMesh, LATTICE_TOLERANCE};
 
@@ -113,9 +113,6 @@ fn edges(points: &[DVec3], cell: &[u32; 8]) -> [f64; 3] {
     [0, 1, 2].map(|a| (points[cell[STEP[a]] as usize][a] - points[cell[0] as usize][a]).abs())
 }
 
-/// The corner one edge from corner 0 along each axis (VTK hexahedron order).
-const STEP: [usize; 3] = [1, 3, 4];
-
 /// [`edges`] of cell `c`, or the error naming the first corner of 1, 3 and 4 that does not
 /// advance along its axis (a flat or collapsed cell, or corners out of VTK order): such a cell
 /// would otherwise be blamed on another cell, or measured with an edge of 0.
@@ -142,7 +139,8 @@ impl HexMesh {
         let mut low = [f64::INFINITY; 3];
         let mut high = [0.0f64; 3];
         for (c, cell) in self.cells.iter().enumerate() {
-            let e = checked_edges(&self.points, c, cell)?;
+            let e = checked_edges(&self.points, c, cell)
+                .map_err(|e| self.imprecise_before_detection(e, &used))?;
             for a in 0..3 {
                 low[a] = low[a].min(e[a]);
                 high[a] = high[a].max(e[a]);
@@ -150,7 +148,9 @@ impl HexMesh {
         }
         let several = (0..3).any(|a| high[a] > LEVEL_RATIO * low[a]);
         if several {
-            Ok(MeshBody::Adaptive(self.adaptive_with(&used)?))
+            Ok(MeshBody::Adaptive(
+                self.detect_rounded(&used, |rounding| self.adaptive_with(&used, rounding))?,
+            ))
         } else {
             Ok(MeshBody::Uniform(self.to_lattice()?))
         }
@@ -163,10 +163,11 @@ impl HexMesh {
             return Err(ErrorKind::NoCells);
         }
         let used = self.used_nodes()?;
-        self.adaptive_with(&used)
+        self.detect_rounded(&used, |rounding| self.adaptive_with(&used, rounding))
     }
 
-    fn adaptive_with(&self, used: &BitVec) -> Result<AdaptiveMesh, ErrorKind> {
+    /// [`HexMesh::to_adaptive`] for the coordinates' `rounding`.
+    fn adaptive_with(&self, used: &BitVec, rounding: Rounding) -> Result<AdaptiveMesh, ErrorKind> {
         if let Some(u) = &self.displacement
             && u.len() != self.points.len()
         {
@@ -206,17 +207,12 @@ impl HexMesh {
             let s = shape(e);
             (0..2).any(|k| (s[k] - typical[k]).abs() > 0.25 * typical[k])
         });
-        // Coordinates all 32-bit floats round by more (checked against the cells below).
-        let point_slack = if all_f32(&self.points) {
-            F32_ROUNDING_SLACK
-        } else {
-            ROUNDING_SLACK
-        };
         // How far cell c's edges may be from their size, relative: 1e-6 plus the rounding of the
-        // coordinates (far from the origin a tiny cell's edge carries |x| ε), at most a twentieth.
+        // coordinates (far from the origin a tiny cell's edge carries |x| ε; coordinates all
+        // 32-bit floats, or printed with few digits, round by more), at most a twentieth.
         let relative_slack = |c: usize, expected: f64| {
             let magnitude = self.points[self.cells[c][0] as usize].abs().max_element();
-            1e-6 + (4.0 * point_slack * magnitude / expected).min(1.0 / 20.0)
+            1e-6 + (4.0 * rounding.slack_at(magnitude) / expected).min(1.0 / 20.0)
         };
         // The cells whose x edge is the median cell's times a power of two: the others cannot
         // set the base spacing, or a cell 1.5 times the coarsest would have made every other
@@ -353,8 +349,7 @@ impl HexMesh {
         // Every used node on the finest lattice.
         let limit = counts.map(|n| u64::from(n) * steps);
         let magnitude = origin.abs().max(lattice.upper().abs());
-        let tol =
-            LATTICE_TOLERANCE * h_fine + coordinate_slack(&self.points, used, magnitude, h_fine);
+        let tol = LATTICE_TOLERANCE * h_fine + coordinate_slack(rounding, magnitude, h_fine);
         let mut q = vec![[u32::MAX; 3]; self.points.len()];
         for n in used.iter_ones() {
             let p = self.points[n];

@@ -276,6 +276,29 @@ pub enum ErrorKind {
         /// The spacing of the cell's level.
         h: [f64; 3],
     },
+    /// A mesh that is not a lattice at the precision of its coordinates: the lattice detection's
+    /// `error`, where the coordinates' rounding near their largest magnitude is a thousandth of
+    /// the smallest cell edge or more (cells too small for how far from the origin they lie, at
+    /// the digits the file holds).
+    #[error(
+        "{error}; the coordinates are {rounding}: near {magnitude:.3e} they are known only to about \
+         {resolution:.1e}, {} % of the smallest cell edge {edge:.3e}, so the file cannot place cells \
+         this small this far from the origin (write it with more digits, as binary data, or with \
+         the mesh nearer the origin)",
+        percent(*resolution / *edge)
+    )]
+    Imprecise {
+        /// What the lattice detection refused.
+        error: Box<ErrorKind>,
+        /// How the coordinates are rounded, in words.
+        rounding: String,
+        /// The largest magnitude of a used coordinate.
+        magnitude: f64,
+        /// Half a unit in the last place there.
+        resolution: f64,
+        /// The smallest cell edge.
+        edge: f64,
+    },
     /// Two input cells cover the same region (an adaptive mesh's leaves must tile without overlap).
     #[error("cells {first} and {second} overlap: a region is covered twice")]
     OverlappingCells {
@@ -308,7 +331,33 @@ pub enum ErrorKind {
     },
 }
 
+/// `share` in percent, with two significant digits (at least the units).
+fn percent(share: f64) -> String {
+    let p = 100.0 * share;
+    if p >= 10.0 {
+        format!("{p:.0}")
+    } else {
+        format!("{p:.2}")
+    }
+}
+
 impl ErrorKind {
+    /// Whether the coordinates' rounding may explain this refusal of a mesh as a lattice: a node
+    /// off or outside the lattice, a cell of the wrong size, not aligned, flat, or whose corners
+    /// are not one lattice cell's.
+    #[must_use]
+    pub fn rounding_may_explain(&self) -> bool {
+        matches!(
+            self,
+            Self::OffLattice { .. }
+                | Self::OutsideLattice { .. }
+                | Self::CellSize { .. }
+                | Self::NotAligned { .. }
+                | Self::NotLatticeCell { .. }
+                | Self::FlatCell { .. }
+        )
+    }
+
     /// This error, in file `path`.
     #[must_use]
     pub fn in_file(self, path: impl Into<PathBuf>) -> IoError {

@@ -27,23 +27,99 @@ pub(crate) fn all_f32<'a>(values: impl IntoIterator<Item = &'a DVec3>) -> bool {
         .all(|v| v.to_array().iter().all(|&c| f64::from(c as f32) == c))
 }
 
-/// How far (per axis) a node may be off its lattice position by the rounding of its
-/// coordinates, at the lattice's `magnitude`: [`ROUNDING_SLACK`] of it, or when the used nodes
-/// are all 32-bit floats [`F32_ROUNDING_SLACK`] of it, but at most a twentieth of a cell of
-/// spacing `h` (so that a node is never near two lattice positions; floats that round more than
-/// that are off the lattice, an error naming the node).
-pub(crate) fn coordinate_slack(
-    points: &[DVec3],
-    used: &BitVec,
-    magnitude: DVec3,
-    h: DVec3,
-) -> DVec3 {
-    if all_f32(used.iter_ones().map(|n| &points[n])) {
-        (F32_ROUNDING_SLACK * magnitude).min(h / 20.0)
-    } else {
-        ROUNDING_SLACK * magnitude
+/// How the used coordinates of a mesh were rounded: what its lattice detection tolerates, and
+/// what its errors say when even that is not enough ([`ErrorKind::Imprecise`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Rounding {
+    /// 64-bit floats, as computed: [`ROUNDING_SLACK`].
+    F64,
+    /// All 32-bit floats (or read as floats): [`F32_ROUNDING_SLACK`].
+    F32,
+    /// Every coordinate printed with at most this many significant decimal digits (9 to 15),
+    /// as VTK's legacy ASCII writer prints doubles (11): found only once the detection failed
+    /// with [`Rounding::F64`] ([`HexMesh::detect_rounded`]).
+    Decimal(u32),
+}
+
+impl Rounding {
+    /// The rounding of the used coordinates as far as it is cheap to tell: 32-bit floats or not.
+    pub(crate) fn of(points: &[DVec3], used: &BitVec) -> Self {
+        if all_f32(used.iter_ones().map(|n| &points[n])) {
+            Self::F32
+        } else {
+            Self::F64
+        }
+    }
+
+    /// How far a coordinate near `magnitude` may be off by this rounding, with a margin for the
+    /// origin and spacing found from rounded coordinates: [`ROUNDING_SLACK`] and
+    /// [`F32_ROUNDING_SLACK`] of it, and for D digits a unit of the D-th digit there (twice the
+    /// print's rounding).
+    pub(crate) fn slack_at(self, magnitude: f64) -> f64 {
+        match self {
+            Self::F64 => ROUNDING_SLACK * magnitude,
+            Self::F32 => F32_ROUNDING_SLACK * magnitude,
+            Self::Decimal(_) => 2.0 * self.resolution(magnitude),
+        }
+    }
+
+    /// Half a unit in the last place near `magnitude`: how far a coordinate there may be from
+    /// the value it stands for.
+    pub(crate) fn resolution(self, magnitude: f64) -> f64 {
+        match self {
+            Self::F64 => 0.5 * f64::EPSILON * magnitude,
+            Self::F32 => 0.5 * f64::from(f32::EPSILON) * magnitude,
+            Self::Decimal(_) if !(magnitude > 0.0 && magnitude.is_finite()) => 0.0,
+            Self::Decimal(d) => {
+                0.5 * 10f64.powi((magnitude.log10().floor() as i32).saturating_add(1 - d as i32))
+            }
+        }
+    }
+
+    /// The rounding in words.
+    pub(crate) fn describe(self) -> String {
+        match self {
+            Self::F64 => "64-bit floats".to_owned(),
+            Self::F32 => "32-bit floats".to_owned(),
+            Self::Decimal(d) => format!("printed with {d} significant digits"),
+        }
     }
 }
+
+/// The most significant decimal digits any of `values` needs (its shortest exact print), or
+/// `None` when one needs more than 15: then they are not decimal prints of fewer digits.
+pub(crate) fn decimal_digits(values: impl IntoIterator<Item = f64>) -> Option<u32> {
+    use std::fmt::Write;
+    let mut text = String::with_capacity(32);
+    let mut most = 1;
+    for v in values {
+        text.clear();
+        write!(text, "{v:e}").expect("a String takes any text");
+        let mantissa = text.split('e').next().unwrap_or("");
+        let digits = mantissa.bytes().filter(u8::is_ascii_digit).count() as u32;
+        if digits > 15 {
+            return None;
+        }
+        most = most.max(digits);
+    }
+    Some(most)
+}
+
+/// How far (per axis) a node may be off its lattice position by the `rounding` of its
+/// coordinates, at the lattice's `magnitude`: [`Rounding::slack_at`] it, at most a twentieth
+/// of a cell of spacing `h` when the coordinates are rounded beyond 64-bit floats (so that a
+/// node is never near two lattice positions; coordinates that round more than that are off the
+/// lattice, an error naming the node).
+pub(crate) fn coordinate_slack(rounding: Rounding, magnitude: DVec3, h: DVec3) -> DVec3 {
+    let slack = DVec3::from_array(magnitude.to_array().map(|m| rounding.slack_at(m)));
+    match rounding {
+        Rounding::F64 => slack,
+        _ => slack.min(h / 20.0),
+    }
+}
+
+/// The corner one edge from corner 0 along each axis (VTK hexahedron order).
+pub(crate) const STEP: [usize; 3] = [1, 3, 4];
 
 /// Below this share of the coordinates' magnitude (per axis), nodes' offsets from their lattice
 /// positions are the rounding of f64 arithmetic (`origin + i * h` with a spacing found to an ulp)
@@ -370,9 +446,12 @@ impl HexMesh {
             )));
         }
         let used = self.used_nodes()?;
-        let lattice = self.detect_lattice(&used)?;
-        let node_ijk = self.lattice_nodes(&lattice, &used)?;
-        let cells = self.lattice_cells(&lattice, &node_ijk)?;
+        let (lattice, node_ijk, cells) = self.detect_rounded(&used, |rounding| {
+            let lattice = self.detect_lattice(&used)?;
+            let node_ijk = self.lattice_nodes(&lattice, &used, rounding)?;
+            let cells = self.lattice_cells(&lattice, &node_ijk)?;
+            Ok((lattice, node_ijk, cells))
+        })?;
 
         let mut body = Body::from_cells(lattice, cells.lattice_of_input.iter().copied())?;
         let u = match &self.displacement {
@@ -394,6 +473,84 @@ impl HexMesh {
             point_count: self.points.len(),
             has_displacement: self.displacement.is_some(),
         })
+    }
+
+    /// Runs a lattice detection `detect` with the coordinates' [`Rounding::of`]; when that fails
+    /// for a reason rounding can explain ([`ErrorKind::rounding_may_explain`]) and the used
+    /// coordinates are decimal prints of 9 to 15 significant digits ([`decimal_digits`]), once
+    /// more with that print's rounding. VTK's legacy ASCII writer prints doubles with 11 digits,
+    /// which near 1000 leave the nodes of a lattice of spacing 1/3 a ten-millionth of a cell off
+    /// their positions, past the 64-bit floats' slack. The nodes keep their offsets as
+    /// displacement, so the deformed mesh is the file's. A failure that remains is wrapped in
+    /// [`ErrorKind::Imprecise`] where the rounding is a thousandth of the smallest cell edge or
+    /// more: then the coordinates cannot place cells this small this far from the origin.
+    pub(crate) fn detect_rounded<T>(
+        &self,
+        used: &BitVec,
+        detect: impl Fn(Rounding) -> Result<T, ErrorKind>,
+    ) -> Result<T, ErrorKind> {
+        let rounding = Rounding::of(&self.points, used);
+        let result = detect(rounding);
+        match result {
+            Err(e) if e.rounding_may_explain() && rounding == Rounding::F64 => {
+                match self.decimal_rounding(used) {
+                    Some(decimal) => detect(decimal).map_err(|e| self.imprecise(e, decimal, used)),
+                    None => Err(self.imprecise(e, rounding, used)),
+                }
+            }
+            result => result.map_err(|e| self.imprecise(e, rounding, used)),
+        }
+    }
+
+    /// [`Rounding::Decimal`] when the used coordinates are decimal prints of 9 to 15 significant
+    /// digits ([`decimal_digits`]). Fewer digits are more likely numbers written on purpose: a
+    /// cell 1.0001 wide beside cells of 1 is a wrong cell, not a 6-digit print of 1.
+    fn decimal_rounding(&self, used: &BitVec) -> Option<Rounding> {
+        let digits = decimal_digits(used.iter_ones().flat_map(|n| self.points[n].to_array()))?;
+        (digits >= 9).then_some(Rounding::Decimal(digits))
+    }
+
+    /// `error`, found before the lattice detection (a flat cell), as [`Self::detect_rounded`]
+    /// words it.
+    pub(crate) fn imprecise_before_detection(&self, error: ErrorKind, used: &BitVec) -> ErrorKind {
+        if !error.rounding_may_explain() {
+            return error;
+        }
+        let rounding = match Rounding::of(&self.points, used) {
+            Rounding::F64 => self.decimal_rounding(used).unwrap_or(Rounding::F64),
+            r => r,
+        };
+        self.imprecise(error, rounding, used)
+    }
+
+    /// `error`, wrapped in [`ErrorKind::Imprecise`] when rounding may explain it and the
+    /// coordinates' `rounding` near their largest magnitude is a thousandth of the smallest cell
+    /// edge or more.
+    fn imprecise(&self, error: ErrorKind, rounding: Rounding, used: &BitVec) -> ErrorKind {
+        if !error.rounding_may_explain() {
+            return error;
+        }
+        let points = &self.points;
+        let magnitude = (used.iter_ones())
+            .map(|n| points[n].abs().max_element())
+            .fold(0.0, f64::max);
+        let edge = (self.cells.iter())
+            .flat_map(|c| {
+                [0, 1, 2].map(|a| (points[c[STEP[a]] as usize][a] - points[c[0] as usize][a]).abs())
+            })
+            .filter(|&e| e > 0.0)
+            .fold(f64::INFINITY, f64::min);
+        let resolution = rounding.resolution(magnitude);
+        if !(resolution >= 1e-3 * edge && edge.is_finite()) {
+            return error;
+        }
+        ErrorKind::Imprecise {
+            error: Box::new(error),
+            rounding: rounding.describe(),
+            magnitude,
+            resolution,
+            edge,
+        }
     }
 
     /// Which nodes some cell uses; checks indices and coordinates of those.
@@ -434,8 +591,6 @@ impl HexMesh {
         let mut origin = [0.0; 3];
         let mut h = [0.0; 3];
         let mut counts = [0u32; 3];
-        // Corner whose offset from corner 0 is one step along each axis, in VTK order.
-        const STEP: [usize; 3] = [1, 3, 4];
         let axis_name = ["x", "y", "z"];
         for axis in 0..3 {
             let mut edges: Vec<f64> = self
@@ -495,12 +650,17 @@ impl HexMesh {
     }
 
     /// Lattice indices of every used node (unused ones get `[u32::MAX; 3]`).
-    fn lattice_nodes(&self, lattice: &Lattice, used: &BitVec) -> Result<Vec<[u32; 3]>, ErrorKind> {
+    fn lattice_nodes(
+        &self,
+        lattice: &Lattice,
+        used: &BitVec,
+        rounding: Rounding,
+    ) -> Result<Vec<[u32; 3]>, ErrorKind> {
         let origin = lattice.origin();
         let h = lattice.h();
         let nodes = lattice.nodes();
         let magnitude = origin.abs().max(lattice.upper().abs());
-        let tol = LATTICE_TOLERANCE * h + coordinate_slack(&self.points, used, magnitude, h);
+        let tol = LATTICE_TOLERANCE * h + coordinate_slack(rounding, magnitude, h);
         let mut ijk = vec![[u32::MAX; 3]; self.points.len()];
         for n in used.iter_ones() {
             let p = self.points[n];
@@ -716,6 +876,26 @@ mod tests {
 
     fn block(origin: DVec3, h: DVec3, n: [u32; 3]) -> Body {
         Body::full(Lattice::new(origin, h, n).unwrap())
+    }
+
+    #[test]
+    fn decimal_digits_are_those_of_the_shortest_exact_print() {
+        assert_eq!(decimal_digits([1000.3333333, 1000.0, -0.0]), Some(11));
+        assert_eq!(decimal_digits([0.1, 2.5e-7, -3e300]), Some(2));
+        assert_eq!(decimal_digits([123_456_789_012_345.0]), Some(15));
+        assert_eq!(decimal_digits([0.1, 1.0 / 3.0]), None);
+        assert_eq!(decimal_digits([f64::from(0.1f32)]), None);
+        assert_eq!(decimal_digits([]), Some(1));
+    }
+
+    #[test]
+    fn a_decimal_print_resolves_half_a_unit_of_its_last_digit() {
+        let r = Rounding::Decimal(11);
+        assert!((r.resolution(1000.3) - 5e-8).abs() < 1e-20);
+        assert!((r.resolution(2e6) - 5e-5).abs() < 1e-17);
+        assert!((r.resolution(9.99e5) - 5e-6).abs() < 1e-18);
+        assert_eq!(r.resolution(0.0), 0.0);
+        assert_eq!(r.slack_at(2e6), 2.0 * r.resolution(2e6));
     }
 
     #[test]

@@ -24,6 +24,7 @@ mod regression_legacy_cut_inside_last_value;
 mod regression_legacy_names_percent_encoded;
 mod regression_many_appended_arrays_quadratic;
 mod regression_many_pieces_quadratic;
+mod regression_printed_coordinates_refused;
 mod regression_xml_errors_named_no_array;
 mod regression_xml_faults_unnamed_in_any_encoding;
 mod regression_xml_spellings_bypassed_the_guard;

@@ -11,6 +11,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 pub mod legacy_fixtures;
+pub mod probes;
 
 /// [`body_with_holes`] at (1, −2, 0.5), spacing 0.5, 3 × 2 × 2 cells, as a mesh carrying
 /// displacements that are not all zero (dropping them would change every answer).

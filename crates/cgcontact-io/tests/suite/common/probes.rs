@@ -1,0 +1,63 @@
+//! Points made on a mesh as its file holds it, with their owners known independently: the
+//! trilinear map of each cell's corners at ξ ∈ {−1, 0, 1}³ (nodes, edge and face centres, the
+//! centre), whose owners are the cells whose closed box holds the point's lattice position.
+
+use std::collections::BTreeSet;
+
+use cgcontact::CORNER_OFFSETS;
+use cgcontact_io::{CellMap, HexMesh};
+use glam::DVec3;
+
+/// The trilinear map of a cell's 8 deformed corners (VTK order) at `xi`.
+pub fn map(corners: &[DVec3; 8], xi: DVec3) -> DVec3 {
+    let mut x = DVec3::ZERO;
+    for (c, offset) in CORNER_OFFSETS.iter().enumerate() {
+        let s = DVec3::new(offset[0] as f64, offset[1] as f64, offset[2] as f64) * 2.0 - 1.0;
+        let w = (DVec3::ONE + s * xi) * 0.5;
+        x += corners[c] * (w.x * w.y * w.z);
+    }
+    x
+}
+
+/// Each cell's deformed corners as the file holds them.
+pub fn deformed(mesh: &HexMesh, cell: usize) -> [DVec3; 8] {
+    mesh.cells[cell].map(|n| {
+        let u = mesh
+            .displacement
+            .as_ref()
+            .map_or(DVec3::ZERO, |u| u[n as usize]);
+        mesh.points[n as usize] + u
+    })
+}
+
+/// Every point made from each cell at ξ ∈ {−1, 0, 1}³, with its cell and its position on the
+/// finest lattice in half steps (`2 · low + s · (ξ + 1)` for a cell of `s` finest steps).
+pub fn probes(mesh: &HexMesh, low: &[[u32; 3]], size: &[u32]) -> Vec<(DVec3, usize, [u32; 3])> {
+    let mut out = Vec::new();
+    for cell in 0..mesh.cells.len() {
+        let corners = deformed(mesh, cell);
+        for k in 0..27u32 {
+            let step = [k % 3, (k / 3) % 3, k / 9];
+            let xi = DVec3::new(step[0] as f64, step[1] as f64, step[2] as f64) - 1.0;
+            let half = std::array::from_fn(|a| 2 * low[cell][a] + size[cell] * step[a]);
+            out.push((map(&corners, xi), cell, half));
+        }
+    }
+    out
+}
+
+/// The cells whose closed box holds the half-step lattice position `half`.
+pub fn owners_of(low: &[[u32; 3]], size: &[u32], half: [u32; 3]) -> BTreeSet<usize> {
+    (0..low.len())
+        .filter(|&c| {
+            (0..3).all(|a| 2 * low[c][a] <= half[a] && half[a] <= 2 * (low[c][a] + size[c]))
+        })
+        .collect()
+}
+
+pub fn found(owners: &cgcontact::Owners, cells: &CellMap) -> BTreeSet<usize> {
+    owners
+        .iter()
+        .map(|hit| cells.input_cell(hit.cell).expect("a cell of the mesh"))
+        .collect()
+}
