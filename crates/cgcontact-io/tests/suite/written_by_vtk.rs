@@ -19,7 +19,12 @@ fn folder() -> PathBuf {
 
 /// known.csv: x,y,z,cell,xi,eta,zeta.
 fn known() -> Vec<(DVec3, usize, DVec3)> {
-    let text = std::fs::read_to_string(folder().join("known.csv")).unwrap();
+    known_in("known.csv")
+}
+
+/// A file of points made at known (cell, ξ): x,y,z,cell,xi,eta,zeta.
+fn known_in(file: &str) -> Vec<(DVec3, usize, DVec3)> {
+    let text = std::fs::read_to_string(folder().join(file)).unwrap();
     text.lines()
         .skip(1)
         .map(|line| {
@@ -159,6 +164,34 @@ fn float_points_as_vtk_writes_them_by_default() {
             let hit = locator.locate(centre).unwrap().unwrap();
             assert_eq!(mesh.input_cell(hit.cell), Some(input), "{file}");
         }
+    }
+}
+
+/// VTK's legacy ASCII writer prints doubles with 11 significant digits. On spacings no decimal
+/// holds (1/3, 1/7, 1/9) near (1000, −2000, 3000) that leaves the nodes up to 5e-8 off their
+/// lattice positions, and the file was refused ("node 0 at [1001.0, -1999.8571429, ..] is not on
+/// the lattice"). It now reads, the print's offsets kept in the displacement: each point made
+/// at a known (cell, ξ) from the exact values is found in that cell, at that ξ to the print's
+/// rounding (5e-8 over cells of 1/9: 1e-6 of ξ).
+#[test]
+fn double_points_printed_with_11_digits_read() {
+    let file = "thirds-legacy-ascii.vtk";
+    let known = known_in("thirds-known.csv");
+    assert!(known.len() > 100);
+    let mesh = read_mesh(folder().join(file), &DisplacementArray::Default)
+        .unwrap_or_else(|e| panic!("{file}: {e}"));
+    let h = DVec3::new(1.0 / 3.0, 1.0 / 7.0, 1.0 / 9.0);
+    // Found from the extreme planes, each rounded by the print.
+    assert!(((mesh.body.lattice().h() - h) / h).abs().max_element() < 1e-6);
+    let locator = LatticeLocator::new(&mesh.body, Settings::default()).unwrap();
+    for (x, cell, xi) in &known {
+        let hit = locator.locate(*x).unwrap().expect("a known point is found");
+        assert_eq!(mesh.input_cell(hit.cell), Some(*cell), "point {x}");
+        assert!(
+            (hit.xi - *xi).abs().max_element() < 1e-6,
+            "xi {} vs {xi}",
+            hit.xi
+        );
     }
 }
 
