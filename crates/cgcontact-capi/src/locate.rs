@@ -2,12 +2,13 @@
 
 use std::ptr;
 use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::{Arc, Mutex, RwLock, TryLockError};
+use std::sync::{Arc, RwLock};
 use std::time::Instant;
 
 use cgcontact::glam::DVec3;
 use cgcontact::{AdaptiveLocator, Answer, LatticeLocator, Locator, Precision, Settings};
 use cgcontact_baseline::BruteForce;
+use cgcontact_io::{Kept, KeptBuffers};
 use rayon::prelude::*;
 
 use crate::body::{AnyBody, BodyState, CgcBody};
@@ -97,36 +98,10 @@ pub struct CgcLocator {
     strategy: u32,
     pub(crate) settings: Settings,
     pool: Option<rayon::ThreadPool>,
-    kept: Mutex<Kept>,
-}
-
-/// The buffers of a locator's last batch answered whole (one the library sorts by cell), kept for
-/// its next call: a solver loop asks the same batch again, and a fresh answer buffer of that size
-/// costs its page faults at every call (Python's `bench_unordered.py`: 17 to 25 % of the query
-/// on 1 M points in a 4.2 M-cell block).
-#[derive(Default)]
-struct Kept {
-    answers: Vec<Answer>,
-    order: Vec<usize>,
+    kept: KeptBuffers,
 }
 
 impl CgcLocator {
-    /// Runs `f` with this locator's kept buffers, or with fresh ones while another call (from
-    /// another thread) holds them.
-    fn with_kept<R>(&self, f: impl FnOnce(&mut Kept) -> R) -> R {
-        let mut fresh = None;
-        let mut guard = match self.kept.try_lock() {
-            Ok(kept) => Some(kept),
-            // A panic left them as they were: every use overwrites them.
-            Err(TryLockError::Poisoned(p)) => Some(p.into_inner()),
-            Err(TryLockError::WouldBlock) => None,
-        };
-        f(match guard.as_deref_mut() {
-            Some(kept) => kept,
-            None => fresh.insert(Kept::default()),
-        })
-    }
-
     /// Runs `f` on the body's current state, on this locator's threads (the body stays read-locked
     /// meanwhile, so that an update waits for it).
     pub(crate) fn on_body<R: Send>(
@@ -253,7 +228,7 @@ pub unsafe extern "C" fn cgc_locator_new(
             strategy: given.strategy,
             settings,
             pool,
-            kept: Mutex::new(Kept::default()),
+            kept: KeptBuffers::default(),
         };
         // SAFETY: the caller guarantees `out` is writable.
         unsafe { raw::give(out, locator, "out") }
@@ -411,7 +386,7 @@ fn locate_checked(locator: &CgcLocator, arrays: Arrays<'_>, warm: bool) -> Resul
         status,
     } = arrays;
     let first_bad = AtomicUsize::new(usize::MAX);
-    locator.with_kept(|kept| {
+    locator.kept.with(|kept| {
         locator.with(|search, state| {
             if warm && let Some(i) = cells.iter().position(|&c| !is_hint(state, c)) {
                 let why = if state.cells.cell(cells[i]).is_ok() {

@@ -68,7 +68,7 @@ mod xml_normal;
 
 pub use adaptive_mesh::{AdaptiveMesh, MeshBody};
 pub use atomic::{abandon_writes, write_file, write_target};
-pub use caller_body::{AnyBody, CallerBody, UpdateError};
+pub use caller_body::{AnyBody, CallerBody, Kept, KeptBuffers, UpdateError};
 pub use csv_io::{
     GAP_HEADER, RESULTS_HEADER, ResultRow, parse_points, parse_results, read_points, read_results,
     unended_points_file, write_owner_rows, write_points, write_results, write_results_counted,

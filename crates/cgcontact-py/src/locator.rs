@@ -2,13 +2,14 @@
 //! released.
 
 use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::{Arc, Mutex, RwLock, TryLockError};
+use std::sync::{Arc, RwLock};
 
 use cgcontact::glam::DVec3;
 use cgcontact::{AdaptiveLocator, Answer, GapAnswer, GapFinder, LatticeLocator, Locator, Settings};
 use cgcontact_baseline::{
     BodyRef, BruteForce, CentroidRadius, Inversion, NodeRadius, NodeRadiusOptions, RTree,
 };
+use cgcontact_io::{Kept, KeptBuffers};
 use numpy::{
     BorrowError, IntoPyArray, PyArray1, PyArray2, PyArrayMethods, PyUntypedArray,
     PyUntypedArrayMethods,
@@ -135,35 +136,10 @@ pub struct PyLocator {
     strategy: Strategy,
     settings: Settings,
     pool: Option<rayon::ThreadPool>,
-    kept: Mutex<Kept>,
-}
-
-/// The buffers of a locator's last batch answered whole (one the library sorts by cell), kept for
-/// its next call: a solver loop asks the same batch again, and a fresh answer buffer of that size
-/// costs its page faults at every call (`bench_unordered.py`: README).
-#[derive(Default)]
-struct Kept {
-    answers: Vec<Answer>,
-    order: Vec<usize>,
+    kept: KeptBuffers,
 }
 
 impl PyLocator {
-    /// Runs `f` with this locator's kept buffers, or with fresh ones while another call (from
-    /// another Python thread) holds them.
-    fn with_kept<R>(&self, f: impl FnOnce(&mut Kept) -> R) -> R {
-        let mut fresh = None;
-        let mut guard = match self.kept.try_lock() {
-            Ok(kept) => Some(kept),
-            // A panic left them as they were: every use overwrites them.
-            Err(TryLockError::Poisoned(p)) => Some(p.into_inner()),
-            Err(TryLockError::WouldBlock) => None,
-        };
-        f(match guard.as_deref_mut() {
-            Some(kept) => kept,
-            None => fresh.insert(Kept::default()),
-        })
-    }
-
     /// Runs `f` with the strategy over the body's current state, on this locator's threads (the
     /// body stays read-locked meanwhile, so that an update waits for it).
     ///
@@ -212,7 +188,7 @@ impl PyLocator {
             let cells_slice = cells_out.as_slice_mut().map_err(value_error)?;
             let xi_slice = xi_out.as_slice_mut().map_err(value_error)?;
             py.detach(|| {
-                self.with_kept(|kept| {
+                self.kept.with(|kept| {
                     self.with(|locator, state| {
                         if warm
                             && let Some(row) = cells_slice.iter().position(|&c| !is_hint(state, c))
@@ -309,7 +285,7 @@ impl PyLocator {
             strategy,
             settings,
             pool,
-            kept: Mutex::new(Kept::default()),
+            kept: KeptBuffers::default(),
         })
     }
 
@@ -383,7 +359,7 @@ impl PyLocator {
             let cells_slice = cells_out.as_slice_mut().map_err(value_error)?;
             let xi_slice = xi_out.as_slice_mut().map_err(value_error)?;
             py.detach(|| {
-                self.with_kept(|kept| {
+                self.kept.with(|kept| {
                     self.with(|locator, state| {
                         let out = (order_slice, cells_slice, xi_slice);
                         locate_unordered_into(locator, state, points, out, kept)
