@@ -64,6 +64,7 @@ mod common;
 mod noderad;
 mod rtree;
 mod seed_newton;
+mod strategy;
 
 pub use brute::BruteForce;
 pub use centroid::CentroidRadius;
@@ -71,3 +72,4 @@ pub use common::BodyRef;
 pub use noderad::{Inversion, NodeRadius, NodeRadiusOptions, RadiusRule};
 pub use rtree::RTree;
 pub use seed_newton::{SEED_MAX_ITER, SEED_TOL, seed_eval_loc_coords};
+pub use strategy::Strategy;

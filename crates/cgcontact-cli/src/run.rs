@@ -6,10 +6,8 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use cgcontact::glam::DVec3;
-use cgcontact::{AdaptiveLocator, Answer, Hit, LatticeLocator, Locator, Precision, Settings};
-use cgcontact_baseline::{
-    BodyRef, BruteForce, CentroidRadius, Inversion, NodeRadius, NodeRadiusOptions, RTree,
-};
+use cgcontact::{Answer, Hit, Locator, Precision, Settings};
+use cgcontact_baseline::{BodyRef, Strategy};
 use clap::{Args, ValueEnum};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rayon::prelude::*;
@@ -404,34 +402,28 @@ fn first_ten(cells: &[usize]) -> String {
     format!("{}{more}", first.join(", "))
 }
 
-/// The one place where a strategy is built: the command line's `--strategy` and the tradeoff's
-/// configurations both come here.
+/// The strategy this name stands for.
+impl From<StrategyName> for Strategy {
+    fn from(name: StrategyName) -> Self {
+        match name {
+            StrategyName::Lattice => Self::Lattice,
+            StrategyName::Centroid => Self::Centroid,
+            StrategyName::Noderad => Self::Noderad,
+            StrategyName::NoderadSeed => Self::NoderadSeed,
+            StrategyName::Rtree => Self::Rtree,
+            StrategyName::Brute => Self::Brute,
+        }
+    }
+}
+
+/// The command line's `--strategy` and the tradeoff's configurations build their strategy here
+/// ([`Strategy::build`], which the Python module shares).
 pub fn build_locator<'a>(
     strategy: StrategyName,
     body: BodyRef<'a>,
     settings: Settings,
 ) -> Result<Box<dyn Locator + 'a>> {
-    let node_radius = |inversion| {
-        NodeRadius::with_options(
-            body,
-            settings,
-            NodeRadiusOptions {
-                inversion,
-                ..Default::default()
-            },
-        )
-    };
-    Ok(match strategy {
-        StrategyName::Lattice => match body {
-            BodyRef::Uniform(body) => Box::new(LatticeLocator::new(body, settings)?),
-            BodyRef::Adaptive(body) => Box::new(AdaptiveLocator::new(body, settings)?),
-        },
-        StrategyName::Brute => Box::new(BruteForce::new(body, settings)?),
-        StrategyName::Centroid => Box::new(CentroidRadius::new(body, settings)?),
-        StrategyName::Noderad => Box::new(node_radius(Inversion::Exact)?),
-        StrategyName::NoderadSeed => Box::new(node_radius(Inversion::SeedFaithful)?),
-        StrategyName::Rtree => Box::new(RTree::new(body, settings)?),
-    })
+    Ok(Strategy::from(strategy).build(body, settings)?)
 }
 
 /// Build the strategy, locate every point on `pool` with a progress bar (on a terminal, for long

@@ -6,9 +6,7 @@ use std::sync::{Arc, RwLock};
 
 use cgcontact::glam::DVec3;
 use cgcontact::{AdaptiveLocator, Answer, GapAnswer, GapFinder, LatticeLocator, Locator, Settings};
-use cgcontact_baseline::{
-    BodyRef, BruteForce, CentroidRadius, Inversion, NodeRadius, NodeRadiusOptions, RTree,
-};
+use cgcontact_baseline::Strategy;
 use cgcontact_io::{Kept, KeptBuffers};
 use numpy::{
     BorrowError, IntoPyArray, PyArray1, PyArray2, PyArrayMethods, PyUntypedArray,
@@ -37,77 +35,15 @@ const PIECE: usize = 1024;
 /// The most threads a locator's own pool may have.
 const MAX_THREADS: usize = 1024;
 
-/// The search strategies, named as the command line's `--strategy`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Strategy {
-    Lattice,
-    Centroid,
-    Noderad,
-    NoderadSeed,
-    Rtree,
-    Brute,
-}
-
-impl Strategy {
-    const NAMES: [(&'static str, Self); 6] = [
-        ("lattice", Self::Lattice),
-        ("centroid", Self::Centroid),
-        ("noderad", Self::Noderad),
-        ("noderad-seed", Self::NoderadSeed),
-        ("rtree", Self::Rtree),
-        ("brute", Self::Brute),
-    ];
-
-    fn parse(name: &str) -> PyResult<Self> {
-        let wanted = name.replace('_', "-");
-        Self::NAMES
-            .iter()
-            .find(|(n, _)| *n == wanted)
-            .map(|&(_, s)| s)
-            .ok_or_else(|| {
-                let names: Vec<&str> = Self::NAMES.iter().map(|(n, _)| *n).collect();
-                PyValueError::new_err(format!(
-                    "strategy {name:?}: must be one of {}",
-                    names.join(", ")
-                ))
-            })
-    }
-
-    fn name(self) -> &'static str {
-        Self::NAMES
-            .iter()
-            .find(|(_, s)| *s == self)
-            .map_or("?", |(n, _)| n)
-    }
-
-    /// The strategy over `body`, built as the command line builds it.
-    fn build<'a>(
-        self,
-        body: BodyRef<'a>,
-        settings: Settings,
-    ) -> Result<Box<dyn Locator + 'a>, cgcontact::Error> {
-        let node_radius = |inversion| {
-            NodeRadius::with_options(
-                body,
-                settings,
-                NodeRadiusOptions {
-                    inversion,
-                    ..Default::default()
-                },
-            )
-        };
-        Ok(match self {
-            Self::Lattice => match body {
-                BodyRef::Uniform(body) => Box::new(LatticeLocator::new(body, settings)?),
-                BodyRef::Adaptive(body) => Box::new(AdaptiveLocator::new(body, settings)?),
-            },
-            Self::Brute => Box::new(BruteForce::new(body, settings)?),
-            Self::Centroid => Box::new(CentroidRadius::new(body, settings)?),
-            Self::Noderad => Box::new(node_radius(Inversion::Exact)?),
-            Self::NoderadSeed => Box::new(node_radius(Inversion::SeedFaithful)?),
-            Self::Rtree => Box::new(RTree::new(body, settings)?),
-        })
-    }
+/// The strategy named `name` (the command line's spelling, `_` for `-` allowed).
+fn parse_strategy(name: &str) -> PyResult<Strategy> {
+    Strategy::from_name(&name.replace('_', "-")).ok_or_else(|| {
+        let names: Vec<&str> = Strategy::ALL.iter().map(|s| s.name()).collect();
+        PyValueError::new_err(format!(
+            "strategy {name:?}: must be one of {}",
+            names.join(", ")
+        ))
+    })
 }
 
 /// The error for the first point of `what` a query refused (a NaN or infinite coordinate).
@@ -248,7 +184,7 @@ impl PyLocator {
         let threads = threads
             .map(|t| arrays::argument::<usize>(t, "threads", "a whole number at least 1"))
             .transpose()?;
-        let strategy = Strategy::parse(strategy)?;
+        let strategy = parse_strategy(strategy)?;
         let mut settings = match precision {
             "f64" => Settings::default(),
             "f32" => Settings::f32(),
