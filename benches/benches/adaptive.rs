@@ -3,9 +3,9 @@
 //! leaves, most of them at level 2, with 1,000,000 points made from known (leaf, ξ), drawn per leaf.
 //! Against it, a uniform indented block of about as many cells (`block_cells_for`, shape 1 : 2 : 1,
 //! the same physical size) with 1 M known points, and its twin (`uniform_twin`): the same cells
-//! under the adaptive scene's indentation, with the adaptive scene's points. All on one thread, f64 and f32 (the adaptive body
-//! with and without its corner table: `AdaptiveBody::set_corner_table`), answers written
-//! into a reused buffer. Also the adaptive locator's build (`AdaptiveLocator::new`), on this scene
+//! under the adaptive scene's indentation, with the adaptive scene's points. All on one thread,
+//! f64 and f32 (the adaptive body with and without its corner table:
+//! `AdaptiveBody::set_corner_table`), answers written into a reused buffer. Also the adaptive locator's build (`AdaptiveLocator::new`), on this scene
 //! and on a body of over a million nodes, and, printed once: memory per node, where it goes, and
 //! Newton inversions per located point (`locate_counted`, failed inversions included).
 //!

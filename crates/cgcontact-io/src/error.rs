@@ -331,7 +331,7 @@ pub enum ErrorKind {
     },
 }
 
-/// `share` in percent, with two significant digits (at least the units).
+/// `share` in percent: whole from 10 % up, with two decimals below.
 fn percent(share: f64) -> String {
     let p = 100.0 * share;
     if p >= 10.0 {

@@ -369,7 +369,8 @@ pub fn adaptive_block(
 /// adaptive scene draws them per leaf, under it.
 ///
 /// # Errors
-/// When `base`, `h` and `twin` make no lattice.
+/// When `base`, `h` and `twin` make no lattice, or a known point's leaf is not one of
+/// `adaptive`'s.
 pub fn uniform_twin(
     base: [u32; 3],
     h: DVec3,
