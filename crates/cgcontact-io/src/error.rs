@@ -282,9 +282,9 @@ pub enum ErrorKind {
     /// the digits the file holds).
     #[error(
         "{error}; the coordinates are {rounding}: near {magnitude:.3e} they are known only to about \
-         {resolution:.1e}, {} % of the smallest cell edge {edge:.3e}, so the file cannot place cells \
-         this small this far from the origin (write it with more digits, as binary data, or with \
-         the mesh nearer the origin)",
+         {resolution:.1e}, {} % of the smallest cell edge {edge:.3e}: too coarse to place cells this \
+         small this far from the origin (keep more digits, as binary data do, or move the mesh \
+         nearer the origin)",
         percent(*resolution / *edge)
     )]
     Imprecise {

@@ -206,6 +206,24 @@ def test_a_lattice_body_and_the_same_hexes_answer_alike():
         assert body.node_count == len(nodes) and body.cell_count == len(hexes)
 
 
+def test_nodes_printed_with_11_digits_make_the_lattice_they_print():
+    """Nodes as VTK's legacy ASCII writer prints doubles (11 significant digits): a lattice of
+    spacing 1/3 near 1000 lies up to 5e-8 off its positions. It reads, and each cell's point is
+    found there; cells too small for such digits far from the origin are refused saying so."""
+    points, cells, xi = cell_points()
+    nodes, hexes = lattice_hexes()
+    third = np.array([1 / 3, 1 / 3, 1 / 3]) / np.array(SPACING)
+    place = lambda p: (p - np.array(ORIGIN)) * third + 1000.0
+    print11 = np.vectorize(lambda v: float(f"{v:.10e}"))
+    body = cgcontact.Body.from_hexes(print11(place(nodes)), hexes)
+    cell, got = cgcontact.Locator(body).locate(place(points))
+    np.testing.assert_array_equal(cell, cells)
+    np.testing.assert_allclose(got, np.tile(xi, (len(cells), 1)), atol=1e-6)
+    far = (place(nodes) - 1000.0) * 1e-4 + 2e6
+    with pytest.raises(ValueError, match="printed with 11 significant digits.*too coarse"):
+        cgcontact.Body.from_hexes(print11(far), hexes)
+
+
 def test_displacements_move_the_cells():
     points, cells, xi = cell_points()
     nodes, hexes = lattice_hexes()

@@ -199,7 +199,7 @@ fn cells_the_coordinates_cannot_place_are_refused_saying_why() {
         let message = mesh.to_body().err().unwrap().to_string();
         assert!(message.contains(words), "{message}");
         assert!(
-            message.contains("cannot place cells this small"),
+            message.contains("too coarse to place cells this small"),
             "{message}"
         );
     }
