@@ -336,17 +336,8 @@ pub unsafe extern "C" fn cgc_body_node_count(
     body: *const CgcBody,
     n_nodes: *mut usize,
 ) -> CgcError {
-    guard(|| {
-        // SAFETY: the caller guarantees a live handle and a writable output.
-        let (body, out) = unsafe {
-            (
-                raw::handle(body, "body")?,
-                raw::slice_mut(n_nodes, 1, "n_nodes")?,
-            )
-        };
-        out[0] = CgcBody::read(&body.state).node_count();
-        Ok(())
-    })
+    // SAFETY: forwarded from the caller, under the same contract.
+    unsafe { write_count(body, n_nodes, "n_nodes", BodyState::node_count) }
 }
 
 /// Writes to `*n_hanging` how many of the body's nodes are hanging (a node of a finer cell on an
@@ -359,15 +350,24 @@ pub unsafe extern "C" fn cgc_body_hanging_count(
     body: *const CgcBody,
     n_hanging: *mut usize,
 ) -> CgcError {
+    // SAFETY: forwarded from the caller, under the same contract.
+    unsafe { write_count(body, n_hanging, "n_hanging", BodyState::hanging_count) }
+}
+
+/// Writes `count` of the body's current state to `*out` (named `name` in errors).
+///
+/// # Safety
+/// As the public functions that call it: `body` a live handle or NULL, `out` writable or NULL.
+unsafe fn write_count(
+    body: *const CgcBody,
+    out: *mut usize,
+    name: &str,
+    count: fn(&BodyState) -> usize,
+) -> CgcError {
     guard(|| {
         // SAFETY: the caller guarantees a live handle and a writable output.
-        let (body, out) = unsafe {
-            (
-                raw::handle(body, "body")?,
-                raw::slice_mut(n_hanging, 1, "n_hanging")?,
-            )
-        };
-        out[0] = CgcBody::read(&body.state).hanging_count();
+        let (body, out) = unsafe { (raw::handle(body, "body")?, raw::slice_mut(out, 1, name)?) };
+        out[0] = count(&CgcBody::read(&body.state));
         Ok(())
     })
 }
