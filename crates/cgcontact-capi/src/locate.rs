@@ -269,7 +269,7 @@ pub unsafe extern "C" fn cgc_locate(
     status: *mut u8,
 ) -> CgcError {
     // SAFETY: forwarded from the caller.
-    guard(|| unsafe { locate(locator, points, n_points, cells, xi, status, false) })
+    guard(|| unsafe { locate(locator, points, n_points, None, cells, xi, status, false) })
 }
 
 /// `cgc_locate` warm started, for a solver loop: `cells` and `xi` hold each point's previous
@@ -296,17 +296,21 @@ pub unsafe extern "C" fn cgc_relocate(
     status: *mut u8,
 ) -> CgcError {
     // SAFETY: forwarded from the caller.
-    guard(|| unsafe { locate(locator, points, n_points, cells, xi, status, true) })
+    guard(|| unsafe { locate(locator, points, n_points, None, cells, xi, status, true) })
 }
 
-/// `cgc_locate` (`warm` false) and `cgc_relocate` (`warm` true).
+/// `cgc_locate` (`order` `None`, `warm` false), `cgc_relocate` (`warm` true) and
+/// `cgc_locate_unordered` (`order` given).
 ///
 /// # Safety
-/// As `cgc_relocate` when `warm`, else as `cgc_locate`.
+/// As `cgc_relocate` when `warm`, `cgc_locate_unordered` when `order` is given, else as
+/// `cgc_locate`.
+#[allow(clippy::too_many_arguments)]
 unsafe fn locate(
     locator: *const CgcLocator,
     points: *const f64,
     n_points: usize,
+    order: Option<*mut i64>,
     cells: *mut i64,
     xi: *mut f64,
     status: *mut u8,
@@ -314,7 +318,7 @@ unsafe fn locate(
 ) -> Result<(), Failure> {
     // SAFETY: forwarded from the caller.
     let (locator, arrays) =
-        unsafe { query_arrays(locator, points, n_points, None, cells, xi, status) }?;
+        unsafe { query_arrays(locator, points, n_points, order, cells, xi, status) }?;
     locate_checked(locator, arrays, warm)
 }
 
@@ -531,26 +535,18 @@ pub unsafe extern "C" fn cgc_locate_unordered(
     status: *mut u8,
 ) -> CgcError {
     // SAFETY: forwarded from the caller.
-    guard(|| unsafe { locate_unordered(locator, points, n_points, order, cells, xi, status) })
-}
-
-/// `cgc_locate_unordered`.
-///
-/// # Safety
-/// As `cgc_locate_unordered`.
-unsafe fn locate_unordered(
-    locator: *const CgcLocator,
-    points: *const f64,
-    n_points: usize,
-    order: *mut i64,
-    cells: *mut i64,
-    xi: *mut f64,
-    status: *mut u8,
-) -> Result<(), Failure> {
-    // SAFETY: forwarded from the caller.
-    let (handle, arrays) =
-        unsafe { query_arrays(locator, points, n_points, Some(order), cells, xi, status) }?;
-    locate_checked(handle, arrays, false)
+    guard(|| unsafe {
+        locate(
+            locator,
+            points,
+            n_points,
+            Some(order),
+            cells,
+            xi,
+            status,
+            false,
+        )
+    })
 }
 
 /// `cgc_locate_unordered`'s rows from the library's unordered answers of a sorted batch: row k
