@@ -17,7 +17,7 @@ use cgcontact_io::{HexMesh, MeshBody};
 use glam::DVec3;
 
 use crate::common::mesh_of;
-use crate::common::probes::{found, owners_of, probes};
+use crate::common::probes::{displaced_leaf_boxes, found, owners_of, probes};
 
 /// The mesh as a file of float coordinates holds it: each coordinate rounded to f32.
 fn as_floats(mesh: &HexMesh) -> HexMesh {
@@ -117,23 +117,8 @@ fn points_where_a_float_file_has_them_are_in_their_leaf_in_an_adaptive_mesh() {
     leaves.extend(Leaf::new(0, [2, 1, 1]).children());
     let lattice = Lattice::new(origin, h, cells).unwrap();
     let mut body = AdaptiveBody::from_leaves(lattice, leaves).unwrap();
-    body.update_independent(|_, x, u| {
-        let t = (x - origin) / h;
-        *u = 0.03 * h * DVec3::new(t.y.sin(), t.z.cos(), t.x.sin());
-    })
-    .unwrap();
-    let finest = body.finest_level();
+    let (low, size) = displaced_leaf_boxes(&mut body);
     let mesh = as_floats(&mesh_of(&body));
-    let low: Vec<[u32; 3]> = body
-        .leaves()
-        .iter()
-        .map(|l| l.ijk.map(|v| v << (finest - l.level)))
-        .collect();
-    let size: Vec<u32> = body
-        .leaves()
-        .iter()
-        .map(|l| 1 << (finest - l.level))
-        .collect();
 
     let MeshBody::Adaptive(read) = mesh.to_body().unwrap() else {
         panic!("read as uniform");

@@ -16,7 +16,7 @@ use cgcontact_io::{ErrorKind, HexMesh, MeshBody};
 use glam::DVec3;
 
 use crate::common::mesh_of;
-use crate::common::probes::{found, owners_of, probes};
+use crate::common::probes::{displaced_leaf_boxes, found, owners_of, probes};
 
 /// The mesh with each coordinate printed with `digits` significant digits and read back.
 fn printed(mesh: &HexMesh, digits: usize) -> HexMesh {
@@ -111,19 +111,8 @@ fn an_adaptive_mesh_printed_with_11_digits_keeps_each_point_in_its_leaf() {
         leaves.extend(Leaf::new(0, [0, 0, 0]).children());
         let lattice = Lattice::new(origin, h, cells).unwrap();
         let mut body = AdaptiveBody::from_leaves(lattice, leaves).unwrap();
-        body.update_independent(|_, x, u| {
-            let t = (x - origin) / h;
-            *u = 0.03 * h * DVec3::new(t.y.sin(), t.z.cos(), t.x.sin());
-        })
-        .unwrap();
-        let finest = body.finest_level();
+        let (low, size) = displaced_leaf_boxes(&mut body);
         let mesh = printed(&mesh_of(&body), 11);
-        let low: Vec<[u32; 3]> = (body.leaves().iter())
-            .map(|l| l.ijk.map(|v| v << (finest - l.level)))
-            .collect();
-        let size: Vec<u32> = (body.leaves().iter())
-            .map(|l| 1 << (finest - l.level))
-            .collect();
         let read = match mesh.to_body() {
             Ok(MeshBody::Adaptive(read)) => read,
             other => panic!("origin {origin} h {h}: {:?}", other.err()),

@@ -4,7 +4,7 @@
 
 use std::collections::BTreeSet;
 
-use cgcontact::CORNER_OFFSETS;
+use cgcontact::{AdaptiveBody, CORNER_OFFSETS};
 use cgcontact_io::{CellMap, HexMesh};
 use glam::DVec3;
 
@@ -60,4 +60,22 @@ pub fn found(owners: &cgcontact::Owners, cells: &CellMap) -> BTreeSet<usize> {
         .iter()
         .map(|hit| cells.input_cell(hit.cell).expect("a cell of the mesh"))
         .collect()
+}
+
+/// `body` displaced by a smooth field of 3 % of a base cell, and each leaf's lowest corner and
+/// edge in steps of the finest lattice: what [`probes`] and [`owners_of`] take for its leaves.
+pub fn displaced_leaf_boxes(body: &mut AdaptiveBody) -> (Vec<[u32; 3]>, Vec<u32>) {
+    let (origin, h) = (body.lattice().origin(), body.lattice().h());
+    body.update_independent(|_, x, u| {
+        let t = (x - origin) / h;
+        *u = 0.03 * h * DVec3::new(t.y.sin(), t.z.cos(), t.x.sin());
+    })
+    .unwrap();
+    let finest = body.finest_level();
+    let leaves = body.leaves();
+    let low = (leaves.iter())
+        .map(|l| l.ijk.map(|v| v << (finest - l.level)))
+        .collect();
+    let size = leaves.iter().map(|l| 1 << (finest - l.level)).collect();
+    (low, size)
 }
