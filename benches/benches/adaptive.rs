@@ -156,47 +156,42 @@ fn adaptive(c: &mut Criterion) {
             .warm_up_time(Duration::from_secs(1))
             .measurement_time(Duration::from_secs(3));
         let mut out = Vec::with_capacity(POINTS);
-        group.bench_function(format!("adaptive {leaves} leaves, 1 thread"), |b| {
-            b.iter(|| {
-                one.install(|| adaptive.locate_all_into(black_box(&adaptive_points), &mut out));
-                black_box(&out);
-            })
-        });
-        group.bench_function(
-            format!("adaptive {leaves} leaves, corner table, 1 thread"),
-            |b| {
-                b.iter(|| {
-                    one.install(|| {
-                        with_table.locate_all_into(black_box(&adaptive_points), &mut out)
-                    });
-                    black_box(&out);
-                })
-            },
-        );
-        group.bench_function(
-            format!(
-                "uniform {} cells, 1 thread",
-                uniform.body.lattice().cell_count()
+        let rows: [(String, &dyn Locator, &[DVec3]); 4] = [
+            (
+                format!("adaptive {leaves} leaves, 1 thread"),
+                &adaptive,
+                &adaptive_points,
             ),
-            |b| {
-                b.iter(|| {
-                    one.install(|| lattice.locate_all_into(black_box(&uniform_points), &mut out));
-                    black_box(&out);
-                })
-            },
-        );
-        group.bench_function(
-            format!(
-                "uniform twin {} cells, same indentation and points, 1 thread",
-                twin.body.lattice().cell_count()
+            (
+                format!("adaptive {leaves} leaves, corner table, 1 thread"),
+                &with_table,
+                &adaptive_points,
             ),
-            |b| {
+            (
+                format!(
+                    "uniform {} cells, 1 thread",
+                    uniform.body.lattice().cell_count()
+                ),
+                &lattice,
+                &uniform_points,
+            ),
+            (
+                format!(
+                    "uniform twin {} cells, same indentation and points, 1 thread",
+                    twin.body.lattice().cell_count()
+                ),
+                &twin_lattice,
+                &twin_points,
+            ),
+        ];
+        for (row, locator, points) in rows {
+            group.bench_function(row, |b| {
                 b.iter(|| {
-                    one.install(|| twin_lattice.locate_all_into(black_box(&twin_points), &mut out));
+                    one.install(|| locator.locate_all_into(black_box(points), &mut out));
                     black_box(&out);
                 })
-            },
-        );
+            });
+        }
         group.finish();
     }
 }
