@@ -7,7 +7,8 @@
 //! f64 and f32 (the adaptive body with and without its corner table:
 //! `AdaptiveBody::set_corner_table`), answers written into a reused buffer. Also the adaptive locator's build (`AdaptiveLocator::new`), on this scene
 //! and on a body of over a million nodes, and, printed once: memory per node, where it goes, and
-//! Newton inversions per located point (`locate_counted`, failed inversions included).
+//! Newton inversions per located point (`locate_counted`, failed inversions included). Last, the
+//! same block unrefined, as an adaptive body of one level and as its uniform twin.
 //!
 //! Run: `cargo bench -p cgcontact-benches --bench adaptive`
 
@@ -181,6 +182,52 @@ fn adaptive(c: &mut Criterion) {
                     twin.body.lattice().cell_count()
                 ),
                 &twin_lattice,
+                &twin_points,
+            ),
+        ];
+        for (row, locator, points) in rows {
+            group.bench_function(row, |b| {
+                b.iter(|| {
+                    one.install(|| locator.locate_all_into(black_box(points), &mut out));
+                    black_box(&out);
+                })
+            });
+        }
+        group.finish();
+    }
+    one_level(c, &one);
+}
+
+/// An adaptive body of one level is a uniform body, not a slower copy of one: the seed's block
+/// unrefined (`adaptive_block` with 0 levels: 16,000 leaves of level 0) against its uniform twin,
+/// the same cells, indentation and points, 1 M of them, one thread.
+fn one_level(c: &mut Criterion, one: &rayon::ThreadPool) {
+    let h = DVec3::splat(BASE_H);
+    let scene = adaptive_block(BASE_CELLS, h, 0, RADIUS, POINTS, SEED).expect("valid scene");
+    let twin = uniform_twin(BASE_CELLS, h, BASE_CELLS, &scene).expect("valid uniform twin");
+    let adaptive_points: Vec<DVec3> = scene.known.iter().map(|k| k.x).collect();
+    let twin_points: Vec<DVec3> = twin.known.iter().map(|k| k.x).collect();
+    for (name, settings) in [("f64", Settings::default()), ("f32", Settings::f32())] {
+        let adaptive = AdaptiveLocator::new(&scene.body, settings).expect("valid settings");
+        let uniform = LatticeLocator::new(&twin.body, settings).expect("valid settings");
+        let mut group = c.benchmark_group(format!("adaptive/one-level-1M-{name}"));
+        group
+            .throughput(Throughput::Elements(POINTS as u64))
+            .sample_size(10)
+            .sampling_mode(SamplingMode::Flat)
+            .warm_up_time(Duration::from_secs(1))
+            .measurement_time(Duration::from_secs(3));
+        let mut out = Vec::with_capacity(POINTS);
+        let cells = scene.body.cell_count();
+        let rows: [(String, &dyn Locator, &[DVec3]); 2] = [
+            (
+                format!("adaptive, one level, {cells} leaves, 1 thread"),
+                &adaptive,
+                &adaptive_points,
+            ),
+            (
+                format!("uniform, the same {cells} cells and points, 1 thread"),
+                &uniform,
                 &twin_points,
             ),
         ];

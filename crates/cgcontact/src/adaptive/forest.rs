@@ -266,6 +266,13 @@ impl Forest {
         (leaf | brick, level, word)
     }
 
+    /// The leaf of a base `entry` on a body of one level: the entry itself, or `None` in a hole
+    /// (such a body has no bricks or trees).
+    #[inline(always)]
+    pub(super) fn unrefined_leaf(entry: u32) -> Option<u32> {
+        (entry & NODE == 0).then_some(entry)
+    }
+
     /// The leaf of a flat entry ([`Forest::flat_lane`]'s level and word) of rank `rank` on its
     /// level's lattice ((z, y, x) order): the word itself on level 0, else the brick's entry.
     /// Without a branch, as `flat_lane`: on level 0 it loads `bricks[0]`, 0, and adds the word.

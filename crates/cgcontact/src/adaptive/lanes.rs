@@ -17,6 +17,7 @@
 
 use glam::DVec3;
 
+use super::forest::Forest;
 use super::locate::{LaneNodes, level_scale, level_size};
 use super::{AdaptiveLocator, Leaf};
 use crate::hex8::lanes::Maps;
@@ -66,6 +67,31 @@ impl AdaptiveLocator<'_> {
         let cells = body.lattice().cells();
         let zero = D::splat(0.0);
         let b = clamped_cells(cells, t);
+        if let (Some(one), Some(dense)) = (&self.one_level, forest.dense_base()) {
+            // One level: each leaf is the base cell holding t, its corners found from the cell's
+            // lattice index, as the uniform locator finds its cells'. The level and indices the
+            // lookup below would compute: 0, and the cell's own.
+            let asked = D::mask_from_bits(ask);
+            let one_ = D::splat(1.0);
+            found.scale = D::select(asked, one_, found.scale);
+            found.size = D::select(asked, one_, found.size);
+            found.ijk = V3::select(asked, b, found.ijk);
+            found.has &= !ask;
+            let key = lane_indices(&b, cells);
+            let base = lane_indices(&b, one.grid);
+            for l in 0..D::W {
+                let bit = 1 << l;
+                if ask & bit == 0 {
+                    continue;
+                }
+                if let Some(id) = Forest::unrefined_leaf(dense[key[l]]) {
+                    found.id[l] = id;
+                    found.nodes[l] = one.corners(base[l]);
+                    found.has |= bit;
+                }
+            }
+            return;
+        }
         let mut level = [0u32; MAX_W];
         let mut word = [0u32; MAX_W];
         let mut flat = 0u32;

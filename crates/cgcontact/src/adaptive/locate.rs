@@ -17,6 +17,7 @@
 use glam::{DVec3, Vec3A};
 use smallvec::SmallVec;
 
+use super::nodes::OneLevel;
 use super::{AdaptiveBody, Leaf};
 use crate::hex8::lanes::Maps;
 use crate::hex8::{Hex8Map, Hex8Map32, Kernel, NewtonOptions, Status};
@@ -52,6 +53,10 @@ pub struct AdaptiveLocator<'a> {
     u_f32: Vec<Vec3A>,
     /// The batched queries' schedule and its sort's buffers.
     scheduler: Scheduler,
+    /// On a body of one level with dense base cells and owners, its node numbering as a uniform
+    /// body's: the lanes then find its leaves and their corners as the uniform locator finds
+    /// its cells.
+    pub(super) one_level: Option<OneLevel<'a>>,
 }
 
 impl<'a> AdaptiveLocator<'a> {
@@ -92,6 +97,10 @@ impl<'a> AdaptiveLocator<'a> {
                 Precision::F64 => Vec::new(),
             },
             scheduler: Scheduler::new(settings.schedule),
+            one_level: body
+                .forest
+                .dense_base()
+                .and_then(|_| body.nodes.one_level()),
         })
     }
 
@@ -984,6 +993,62 @@ mod tests {
         (body, points)
     }
 
+    /// A body of one level: every base cell of an 8 × 6 × 5 lattice a leaf (every lattice node
+    /// a node), or with `holes` a sixth of them missing, the lattice's first corner cell among
+    /// them (so that some lattice node is no node). Its leaves in any order, its displacements
+    /// and points as [`refined_scene`]'s; the lanes find its leaves through [`OneLevel`].
+    fn one_level_scene(holes: bool) -> (AdaptiveBody, Vec<DVec3>) {
+        let lattice = Lattice::new(
+            DVec3::new(-1.5, 2.0, 0.75),
+            DVec3::new(0.25, 0.5, 0.125),
+            [8, 6, 5],
+        )
+        .unwrap();
+        let mut leaves: Vec<Leaf> = (0..lattice.cell_count() as u32)
+            .filter(|&c| !holes || (c != 0 && (c.wrapping_mul(2_654_435_761) >> 7) % 6 != 5))
+            .map(|c| Leaf::new(0, lattice.cell_ijk(CellId(c)).unwrap()))
+            .collect();
+        let n = leaves.len();
+        for i in 0..n {
+            leaves.swap(i, (i * 7919 + 13) % n);
+        }
+        let mut body = AdaptiveBody::from_leaves(lattice, leaves).unwrap();
+        assert_eq!(body.node_count() < lattice.node_count(), holes);
+        let h = body.spacing(0).min_element();
+        body.update_independent(|n, x, u| {
+            *u = h * DVec3::new(
+                0.3 * (x.y * 3.0).sin() + 0.05 * (n % 5) as f64,
+                0.2 * (x.z * 5.0).cos(),
+                0.1 * (n % 7) as f64,
+            )
+        })
+        .unwrap();
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut points = Vec::new();
+        for cell in 0..body.cell_count() as u32 {
+            let mut xi = DVec3::new(next(), next(), next()) * 2.0 - 1.0;
+            // On faces, edges and nodes too.
+            match cell % 4 {
+                0 => xi.y = -1.0,
+                1 => (xi.x, xi.z) = (1.0, -1.0),
+                2 => xi = DVec3::new(1.0, 1.0, -1.0),
+                _ => {}
+            }
+            points.push(body.point_at(CellId(cell), xi).unwrap());
+        }
+        let (low, high) = (lattice.origin() - 0.2, lattice.upper() + 0.2);
+        for _ in 0..300 {
+            points.push(low + (high - low) * DVec3::new(next(), next(), next()));
+        }
+        (body, points)
+    }
+
     /// A hit's fields as bits: cell, ξ, iterations, residual, inversions.
     type HitBits = (u32, [u64; 3], u32, u64, u32);
 
@@ -1014,11 +1079,15 @@ mod tests {
             refined_scene([6, 5, 4], None, 0.0, 0.0),
             refined_scene([6, 5, 4], None, 0.0, -1.0 / 128.0),
             refined_scene([70, 60, 50], Some(5), 1.0, 0.0),
+            one_level_scene(false),
+            one_level_scene(true),
         ];
         for (body, points) in &scenes {
             for order in [CandidateOrder::Predicted, CandidateOrder::Undeformed] {
                 for &base in precisions {
                     let locator = AdaptiveLocator::new(body, Settings { order, ..base }).unwrap();
+                    // The one-level scenes take the lanes' one-level lookup, the others not.
+                    assert_eq!(locator.one_level.is_some(), body.finest == 0);
                     let mut out: Vec<Answer> = points
                         .iter()
                         .map(|x| match x.is_finite() {

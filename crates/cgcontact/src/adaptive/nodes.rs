@@ -71,6 +71,34 @@ enum Owners {
     },
 }
 
+/// The node numbering of a body of one level (finest level 0) whose owners are stored densely,
+/// as a uniform body's: every owner cell holds at most its lowest corner, so a lattice node's
+/// number is its owner's first node, and on a body holding every lattice node, the node's
+/// lattice index itself. What [`Nodes::corners`] computes for such a body, without its search
+/// among the owners around a cell.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct OneLevel<'a> {
+    /// Owner cells per axis: the lattice's nodes per axis.
+    pub(super) grid: [u32; 3],
+    /// The owners, where some lattice node is no node; `None` where every one is.
+    owners: Option<&'a [Owner]>,
+    /// The lattice index offsets of a cell's 8 corners (VTK order) from its lowest corner's.
+    offsets: [usize; 8],
+}
+
+impl OneLevel<'_> {
+    /// The corner nodes (VTK order) of the cell whose lowest corner has lattice index `base`.
+    #[inline(always)]
+    pub(super) fn corners(&self, base: usize) -> [u32; 8] {
+        match self.owners {
+            None => self.offsets.map(|o| (base + o) as u32),
+            Some(owners) => self
+                .offsets
+                .map(|o| owners.get(base + o).map_or(0, |owner| owner.first)),
+        }
+    }
+}
+
 /// The node numbering of an adaptive body.
 #[derive(Clone, Debug)]
 pub(super) struct Nodes {
@@ -481,6 +509,23 @@ impl Nodes {
             *node = self.in_owner(owner, q, l).unwrap_or(0);
         }
         nodes
+    }
+
+    /// The numbering as [`OneLevel`] reads it, on a body of one level with dense owners.
+    pub(super) fn one_level(&self) -> Option<OneLevel<'_>> {
+        let Owners::Dense(owners) = &self.owners else {
+            return None;
+        };
+        if self.finest != 0 {
+            return None;
+        }
+        let [gx, gy, gz] = self.grid.map(|g| g as usize);
+        let gxy = gx * gy;
+        Some(OneLevel {
+            grid: self.grid,
+            owners: (self.count != gxy * gz).then_some(&owners[..]),
+            offsets: [0, 1, gx + 1, gx, gxy, gxy + 1, gxy + gx + 1, gxy + gx],
+        })
     }
 
     /// The finest-level coordinates of `node` (in range).
