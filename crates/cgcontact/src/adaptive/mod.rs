@@ -874,6 +874,8 @@ impl AdaptiveBody {
     pub(crate) fn leaf_nodes(&self, id: u32, leaf: Leaf) -> [u32; 8] {
         match self.corner_table.get(id as usize) {
             Some(&corners) => corners,
+            // One level: as a uniform body's (a test on the body, the same for every leaf).
+            None if self.finest == 0 => self.nodes.unrefined_corners(leaf.ijk),
             None => self.nodes.corners(u32::from(leaf.level), leaf.ijk),
         }
     }

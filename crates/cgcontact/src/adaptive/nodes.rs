@@ -528,6 +528,19 @@ impl Nodes {
         })
     }
 
+    /// [`Nodes::corners`] of the cell at `ijk` on a body of one level, through [`OneLevel`] where
+    /// the owners are dense.
+    pub(super) fn unrefined_corners(&self, ijk: [u32; 3]) -> [u32; 8] {
+        match self.one_level() {
+            Some(one) => {
+                let [gx, gy, _] = self.grid.map(|g| g as usize);
+                let [i, j, k] = ijk.map(|v| v as usize);
+                one.corners(i + gx * (j + gy * k))
+            }
+            None => self.corners(0, ijk),
+        }
+    }
+
     /// The finest-level coordinates of `node` (in range).
     pub(super) fn position(&self, node: u32) -> [u32; 3] {
         let (cell, owner) = match &self.owners {
@@ -708,6 +721,10 @@ mod tests {
                         if at.iter().all(Option::is_some) {
                             let expected: Vec<u32> = at.into_iter().flatten().collect();
                             assert_eq!(nodes.corners(l, [i, j, k]).to_vec(), expected);
+                            if finest == 0 {
+                                let one = nodes.unrefined_corners([i, j, k]);
+                                assert_eq!(one.to_vec(), expected, "one level at {i} {j} {k}");
+                            }
                             checked[l as usize] += 1;
                         }
                     }
@@ -903,8 +920,17 @@ mod tests {
         }
         let expected = p.clone();
         p.reverse();
-        let nodes = Nodes::new(cells, 0, p);
+        let nodes = Nodes::new(cells, 0, p.clone());
         assert_eq!(nodes.positions(), expected);
         assert!(nodes.local.is_empty());
+        // Every lattice node: corners by their lattice index alone.
+        assert!(nodes.one_level().is_some_and(|one| one.owners.is_none()));
+        assert_eq!(corners_are_found(&nodes, cells, 0), vec![24]);
+        // Without the cell (0, 0, 0)'s lowest corner and the cells (2, 1, 3)'s upper corners
+        // (its last, and the lattice's): the corners through the owners' first nodes.
+        p.retain(|&q| q != [0, 0, 0] && q != [3, 2, 4] && q != [3, 2, 3] && q != [2, 2, 4]);
+        let holed = Nodes::new(cells, 0, p);
+        assert!(holed.one_level().is_some_and(|one| one.owners.is_some()));
+        assert_eq!(corners_are_found(&holed, cells, 0), vec![20]);
     }
 }
