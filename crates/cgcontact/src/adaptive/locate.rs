@@ -56,7 +56,7 @@ pub struct AdaptiveLocator<'a> {
     /// On a body of one level with dense base cells and owners, its node numbering as a uniform
     /// body's: the lanes then find its leaves and their corners as the uniform locator finds
     /// its cells.
-    pub(super) one_level: Option<OneLevel<'a>>,
+    pub(crate) one_level: Option<OneLevel<'a>>,
 }
 
 impl<'a> AdaptiveLocator<'a> {

@@ -77,7 +77,7 @@ enum Owners {
 /// lattice index itself. What [`Nodes::corners`] computes for such a body, without its search
 /// among the owners around a cell.
 #[derive(Clone, Copy, Debug)]
-pub(super) struct OneLevel<'a> {
+pub(crate) struct OneLevel<'a> {
     /// Owner cells per axis: the lattice's nodes per axis.
     pub(super) grid: [u32; 3],
     /// The owners, where some lattice node is no node; `None` where every one is.

@@ -460,6 +460,9 @@ impl crate::adaptive::AdaptiveLocator<'_> {
     fn locate_chunk_avx(&self, points: &[DVec3], out: &mut [Answer]) {
         use crate::hex8::{Hex8Map, Hex8Map32};
         match self.settings().precision {
+            Precision::F32 if self.one_level.is_some() => {
+                self.locate_chunk_lanes::<Hex8Map32, F32x8>(points, out);
+            }
             Precision::F32 => self.locate_chunk_lanes::<Hex8Map32, F32x4>(points, out),
             Precision::F64 => self.locate_chunk_lanes::<Hex8Map, F64x4>(points, out),
         }
