@@ -1,12 +1,17 @@
 //! A fixed single-threaded load on the `adaptive` bench's scene, for profilers (perf, callgrind).
 //!
-//! Run: `cargo run --release -p cgcontact-benches --example profile_adaptive [repeats] [f32] [uniform [twin]] [big] [table] [each] [points=N] [levels=L] [radius=R] [stats]`
+//! Run: `cargo run --release -p cgcontact-benches --example profile_adaptive [repeats] [f32] [uniform [twin]] [ratio] [big] [table] [each] [points=N] [levels=L] [radius=R] [stats]`
 //! (`uniform`: the uniform block of about as many cells instead, `twin` its `uniform_twin`: the
 //! adaptive scene's indentation and points; `big`: the bench's 1.3 M-node
 //! block; `table`: the body stores its corner table; `each`: one `locate` call per
 //! point instead of `locate_all_into`; `points=N`: N known points instead of 1 M; `levels=L`
 //! and `radius=R`: refined L levels (2 by default) within R (1.5) of the top face's centre;
 //! `stats`: the body's leaves, nodes and heap bytes per node on stderr).
+//!
+//! `ratio`: the adaptive body against its uniform twin in one process, alternated pass by pass
+//! (`repeats` rounds, at least 3, of one `locate_all_into` each), so that a VM whose speed drifts
+//! over seconds moves both alike; prints each round's adaptive ÷ twin and their median. With
+//! `levels=0`, the twin has the adaptive body's own cells.
 
 use std::time::Instant;
 
@@ -84,6 +89,48 @@ fn main() -> Result<(), cgcontact::Error> {
             (repeats * xs.len()) as f64 / seconds / 1e6
         );
     };
+    if has("ratio") {
+        let cells = block_cells_for(scene.body.cell_count(), DVec3::new(1.0, 2.0, 1.0));
+        let cells = if levels == 0 { base } else { cells };
+        let twin = uniform_twin(base, h, cells, &scene)?;
+        let adaptive = AdaptiveLocator::new(&scene.body, settings)?;
+        let uniform = LatticeLocator::new(&twin.body, settings)?;
+        let xs: Vec<DVec3> = scene.known.iter().map(|k| k.x).collect();
+        let ys: Vec<DVec3> = twin.known.iter().map(|k| k.x).collect();
+        let one = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .expect("pool");
+        let mut out = Vec::with_capacity(xs.len());
+        let mut pass = |locator: &dyn Locator, xs: &[DVec3]| {
+            let start = Instant::now();
+            one.install(|| locator.locate_all_into(xs, &mut out));
+            std::hint::black_box(&out);
+            xs.len() as f64 / start.elapsed().as_secs_f64() / 1e6
+        };
+        // A warm-up pass each: buffers, caches.
+        pass(&adaptive, &xs);
+        pass(&uniform, &ys);
+        let mut ratios = Vec::new();
+        for round in 0..repeats.max(3) {
+            let (a, u) = (pass(&adaptive, &xs), pass(&uniform, &ys));
+            println!(
+                "round {round}: adaptive {a:.2}, twin {u:.2} M points/s: {:.3}",
+                a / u
+            );
+            ratios.push(a / u);
+        }
+        ratios.sort_by(f64::total_cmp);
+        println!(
+            "adaptive / twin ({} cells): median {:.3}, from {:.3} to {:.3} over {} rounds",
+            twin.body.lattice().cell_count(),
+            ratios[ratios.len() / 2],
+            ratios[0],
+            ratios[ratios.len() - 1],
+            ratios.len()
+        );
+        return Ok(());
+    }
     if has("uniform") {
         let cells = block_cells_for(scene.body.cell_count(), DVec3::new(1.0, 2.0, 1.0));
         let size = h * DVec3::new(f64::from(base[0]), f64::from(base[1]), f64::from(base[2]));
