@@ -6,7 +6,9 @@
 //! unrefined base cell, or a brick: a base cell refined uniformly): the base cell, the leaf's
 //! indices and its rank in the brick are computed for all lanes at once, then each lane loads its
 //! base entry and its leaf id. A lane under a tree takes the scalar descent. The corner nodes are
-//! computed per lane (`nodes.rs`), their displacements gathered into lanes. Then, as the scalar
+//! computed per lane (`nodes.rs`), their displacements gathered into lanes. On a body of one
+//! level each leaf is its base cell, and its corners come from the cell's lattice index
+//! (`OneLevel`), as the uniform locator's do. Then, as the scalar
 //! search does: the guess x − ũ in lanes; the leaf there, which is x's own (no lookup) when the
 //! guess lies in its box; one inversion in lanes, each with its leaf's spacing.
 //!
