@@ -149,14 +149,6 @@ fn adaptive(c: &mut Criterion) {
         let twin_lattice = LatticeLocator::new(&twin.body, settings).expect("valid settings");
         report_inversions(&format!("uniform twin {name}"), &twin_lattice, &twin_points);
 
-        let mut group = c.benchmark_group(format!("adaptive/locate-1M-{name}"));
-        group
-            .throughput(Throughput::Elements(POINTS as u64))
-            .sample_size(10)
-            .sampling_mode(SamplingMode::Flat)
-            .warm_up_time(Duration::from_secs(1))
-            .measurement_time(Duration::from_secs(3));
-        let mut out = Vec::with_capacity(POINTS);
         let rows: [(String, &dyn Locator, &[DVec3]); 4] = [
             (
                 format!("adaptive {leaves} leaves, 1 thread"),
@@ -185,17 +177,36 @@ fn adaptive(c: &mut Criterion) {
                 &twin_points,
             ),
         ];
-        for (row, locator, points) in rows {
-            group.bench_function(row, |b| {
-                b.iter(|| {
-                    one.install(|| locator.locate_all_into(black_box(points), &mut out));
-                    black_box(&out);
-                })
-            });
-        }
-        group.finish();
+        bench_rows(c, &format!("adaptive/locate-1M-{name}"), &rows, &one);
     }
     one_level(c, &one);
+}
+
+/// One criterion group of `rows` (name, locator, points): each row a `locate_all_into` of its
+/// points into a reused buffer, on the one-thread pool `one`.
+fn bench_rows(
+    c: &mut Criterion,
+    group: &str,
+    rows: &[(String, &dyn Locator, &[DVec3])],
+    one: &rayon::ThreadPool,
+) {
+    let mut group = c.benchmark_group(group);
+    group
+        .throughput(Throughput::Elements(POINTS as u64))
+        .sample_size(10)
+        .sampling_mode(SamplingMode::Flat)
+        .warm_up_time(Duration::from_secs(1))
+        .measurement_time(Duration::from_secs(3));
+    let mut out = Vec::with_capacity(POINTS);
+    for &(ref row, locator, points) in rows {
+        group.bench_function(row, |b| {
+            b.iter(|| {
+                one.install(|| locator.locate_all_into(black_box(points), &mut out));
+                black_box(&out);
+            })
+        });
+    }
+    group.finish();
 }
 
 /// An adaptive body of one level is a uniform body, not a slower copy of one: the seed's block
@@ -210,14 +221,6 @@ fn one_level(c: &mut Criterion, one: &rayon::ThreadPool) {
     for (name, settings) in [("f64", Settings::default()), ("f32", Settings::f32())] {
         let adaptive = AdaptiveLocator::new(&scene.body, settings).expect("valid settings");
         let uniform = LatticeLocator::new(&twin.body, settings).expect("valid settings");
-        let mut group = c.benchmark_group(format!("adaptive/one-level-1M-{name}"));
-        group
-            .throughput(Throughput::Elements(POINTS as u64))
-            .sample_size(10)
-            .sampling_mode(SamplingMode::Flat)
-            .warm_up_time(Duration::from_secs(1))
-            .measurement_time(Duration::from_secs(3));
-        let mut out = Vec::with_capacity(POINTS);
         let cells = scene.body.cell_count();
         let rows: [(String, &dyn Locator, &[DVec3]); 2] = [
             (
@@ -231,15 +234,7 @@ fn one_level(c: &mut Criterion, one: &rayon::ThreadPool) {
                 &twin_points,
             ),
         ];
-        for (row, locator, points) in rows {
-            group.bench_function(row, |b| {
-                b.iter(|| {
-                    one.install(|| locator.locate_all_into(black_box(points), &mut out));
-                    black_box(&out);
-                })
-            });
-        }
-        group.finish();
+        bench_rows(c, &format!("adaptive/one-level-1M-{name}"), &rows, one);
     }
 }
 

@@ -962,16 +962,39 @@ mod tests {
         }
         let mut body = AdaptiveBody::from_leaves(lattice, leaves).unwrap();
         let fine = amplitude * body.spacing(body.finest).min_element();
+        displace(&mut body, fine, shift);
+        let points = scene_points(&body, 0x9e37_79b9_7f4a_7c15, 500, |cell, xi| {
+            if cell % 3 == 0 {
+                xi.y = -1.0;
+            }
+        });
+        (body, points)
+    }
+
+    /// Displaces `body`'s independent nodes smoothly and by node, by about `scale`, then moves
+    /// them by `shift` along y.
+    fn displace(body: &mut AdaptiveBody, scale: f64, shift: f64) {
         body.update_independent(|n, x, u| {
-            *u =
-                fine * DVec3::new(
+            *u = scale
+                * DVec3::new(
                     0.3 * (x.y * 3.0).sin() + 0.05 * (n % 5) as f64,
                     0.2 * (x.z * 5.0).cos(),
                     0.1 * (n % 7) as f64,
-                ) + DVec3::new(0.0, shift, 0.0)
+                )
+                + DVec3::new(0.0, shift, 0.0)
         })
         .unwrap();
-        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+    }
+
+    /// One point in each leaf, at a random ξ that `place` may move onto the leaf's faces, edges
+    /// or nodes, then `random` points all over the lattice's box widened by 0.2: a xorshift
+    /// stream from `state`.
+    fn scene_points(
+        body: &AdaptiveBody,
+        mut state: u64,
+        random: usize,
+        place: impl Fn(u32, &mut DVec3),
+    ) -> Vec<DVec3> {
         let mut next = || {
             state ^= state << 13;
             state ^= state >> 7;
@@ -981,16 +1004,15 @@ mod tests {
         let mut points = Vec::new();
         for cell in 0..body.cell_count() as u32 {
             let mut xi = DVec3::new(next(), next(), next()) * 2.0 - 1.0;
-            if cell % 3 == 0 {
-                xi.y = -1.0;
-            }
+            place(cell, &mut xi);
             points.push(body.point_at(CellId(cell), xi).unwrap());
         }
+        let lattice = body.lattice();
         let (low, high) = (lattice.origin() - 0.2, lattice.upper() + 0.2);
-        for _ in 0..500 {
+        for _ in 0..random {
             points.push(low + (high - low) * DVec3::new(next(), next(), next()));
         }
-        (body, points)
+        points
     }
 
     /// A body of one level: every base cell of an 8 × 6 × 5 lattice a leaf (every lattice node
@@ -1015,37 +1037,16 @@ mod tests {
         let mut body = AdaptiveBody::from_leaves(lattice, leaves).unwrap();
         assert_eq!(body.node_count() < lattice.node_count(), holes);
         let h = body.spacing(0).min_element();
-        body.update_independent(|n, x, u| {
-            *u = h * DVec3::new(
-                0.3 * (x.y * 3.0).sin() + 0.05 * (n % 5) as f64,
-                0.2 * (x.z * 5.0).cos(),
-                0.1 * (n % 7) as f64,
-            )
-        })
-        .unwrap();
-        let mut state = 0x2545_f491_4f6c_dd1du64;
-        let mut next = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
-        let mut points = Vec::new();
-        for cell in 0..body.cell_count() as u32 {
-            let mut xi = DVec3::new(next(), next(), next()) * 2.0 - 1.0;
-            // On faces, edges and nodes too.
+        displace(&mut body, h, 0.0);
+        // On faces, edges and nodes too.
+        let points = scene_points(&body, 0x2545_f491_4f6c_dd1d, 300, |cell, xi| {
             match cell % 4 {
                 0 => xi.y = -1.0,
                 1 => (xi.x, xi.z) = (1.0, -1.0),
-                2 => xi = DVec3::new(1.0, 1.0, -1.0),
+                2 => *xi = DVec3::new(1.0, 1.0, -1.0),
                 _ => {}
             }
-            points.push(body.point_at(CellId(cell), xi).unwrap());
-        }
-        let (low, high) = (lattice.origin() - 0.2, lattice.upper() + 0.2);
-        for _ in 0..300 {
-            points.push(low + (high - low) * DVec3::new(next(), next(), next()));
-        }
+        });
         (body, points)
     }
 
