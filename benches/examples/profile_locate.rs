@@ -12,6 +12,12 @@
 //! `locate_all_unordered_into`, the answers in the order they were found, with the permutation;
 //! `stats`: how many points needed more than one inversion, and Newton iterations per hit).
 //! `CGCONTACT_SIMD=avx2` (or `portable`) caps the instruction set the batched path uses.
+//!
+//! `ratio`: the `scale` bench's 16,000- and 4,194,304-cell blocks, 1 M random points each, in one
+//! process, alternated pass by pass (`repeats` rounds, at least 3: the small block's
+//! `locate_all_into`, the large block's, then its `locate_all_unordered_into`), so that a VM whose
+//! speed drifts over seconds moves them alike; prints each round's large ÷ small for both calls
+//! and their medians (the targets of docs/benchmarks.md, "scale").
 
 use std::time::Instant;
 
@@ -34,6 +40,9 @@ fn main() -> Result<(), cgcontact::Error> {
     // 6,700 sphere contact points on its fine block (most of them outside the block).
     let args: Vec<String> = std::env::args().collect();
     let has = |flag: &str| args.iter().any(|a| a == flag);
+    if has("ratio") {
+        return ratio(repeats, precision);
+    }
     let (body, points) = if has("sphere") {
         let scene = SphereOnBlock::fine().build("sphere")?;
         (scene.body, scene.contact_points)
@@ -179,5 +188,73 @@ fn main() -> Result<(), cgcontact::Error> {
         "{precision:?} {how}: {located} located in {seconds:.3} s: {:.3} M points/s on one thread",
         (repeats * points.len()) as f64 / seconds / 1e6
     );
+    Ok(())
+}
+
+/// The `ratio` mode (see the header): the `scale` bench's smallest and largest blocks alternated.
+fn ratio(repeats: usize, precision: Precision) -> Result<(), cgcontact::Error> {
+    let block = |cells: [u32; 3]| {
+        let scene = indented_block(cells, DVec3::splat(5.0 / f64::from(cells[0])), 1_000_000, 7)?;
+        let points: Vec<DVec3> = scene.known.iter().map(|k| k.x).collect();
+        Ok::<_, cgcontact::Error>((scene.body, points))
+    };
+    let (small, small_points) = block([20, 40, 20])?;
+    let (large, large_points) = block([128, 256, 128])?;
+    let settings = Settings {
+        precision,
+        ..Settings::default()
+    };
+    let small = LatticeLocator::new(&small, settings)?;
+    let large = LatticeLocator::new(&large, settings)?;
+    let one = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .expect("a one-thread pool");
+    let (mut out, mut order) = (Vec::new(), Vec::new());
+    let mut pass = |locator: &LatticeLocator<'_>, points: &[DVec3], unordered: bool| {
+        let start = Instant::now();
+        one.install(|| {
+            if unordered {
+                locator.locate_all_unordered_into(points, &mut order, &mut out);
+            } else {
+                locator.locate_all_into(points, &mut out);
+            }
+        });
+        std::hint::black_box(&out);
+        points.len() as f64 / start.elapsed().as_secs_f64() / 1e6
+    };
+    // A warm-up pass each: the buffers, the sort's pool.
+    pass(&small, &small_points, false);
+    pass(&large, &large_points, false);
+    pass(&large, &large_points, true);
+    let (mut into, mut unordered) = (Vec::new(), Vec::new());
+    for round in 0..repeats.max(3) {
+        let s = pass(&small, &small_points, false);
+        let l = pass(&large, &large_points, false);
+        let u = pass(&large, &large_points, true);
+        println!(
+            "round {round}: 16,000 cells {s:.2}, 4.2 M cells {l:.2}, unordered {u:.2} M points/s: \
+             {:.3}, {:.3}",
+            l / s,
+            u / s
+        );
+        into.push(l / s);
+        unordered.push(u / s);
+    }
+    let median = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        (v[v.len() / 2], v[0], v[v.len() - 1])
+    };
+    for (name, v) in [
+        ("locate_all_into", &mut into),
+        ("locate_all_unordered_into", &mut unordered),
+    ] {
+        let (m, low, high) = median(v);
+        println!(
+            "{precision:?} {name}, 4.2 M cells / 16,000 cells: median {m:.3}, from {low:.3} to \
+             {high:.3} over {} rounds",
+            v.len()
+        );
+    }
     Ok(())
 }
