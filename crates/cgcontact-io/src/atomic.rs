@@ -5,7 +5,8 @@
 //! (a full disk, an error of the writer) removes the temporary file and leaves the target as it
 //! was; a process killed mid-write leaves at most a hidden `.NAME.XXXXXX.partial` file beside an
 //! intact target. A program that catches its interruption (Ctrl-C, `kill`) calls
-//! [`abandon_writes`] before it exits, and leaves not even that.
+//! [`abandon_writes`] before it exits, and leaves not even that. Devices, and paths to an open
+//! descriptor (`/dev/stdout`: [`descriptor`]), are written in place.
 
 use std::fs::OpenOptions;
 use std::io::{BufWriter, Write};
@@ -64,6 +65,13 @@ impl Drop for Registered {
 /// does not exist yet makes it, in the target's folder: see [`write_target`]). A target that
 /// exists and is not a regular file (`/dev/null`, a named pipe) is written in place, since there
 /// is nothing there to keep. A folder is refused.
+///
+/// A path that leads to an open file descriptor ([`descriptor`]: `/dev/stdout`, `/dev/fd/N`,
+/// `/proc/self/fd/N`) is written through that descriptor, never replaced: the file the shell
+/// redirected it to (`> log`, `>> log`) keeps its inode and what it held, and the program's
+/// later output follows in the same file. Standard output and standard error are written
+/// through the program's own handles (at their offsets); any other descriptor is opened again
+/// and appended to.
 pub fn write_file(
     path: impl AsRef<Path>,
     write: impl FnOnce(&mut dyn Write) -> Result<(), ErrorKind>,
@@ -71,6 +79,24 @@ pub fn write_file(
     let path = path.as_ref();
     let in_file = |kind: ErrorKind| kind.in_file(path);
     let io = |e: std::io::Error| ErrorKind::Io(e).in_file(path);
+    if let Some(descriptor) = descriptor(path) {
+        return match descriptor {
+            Descriptor::Stdout => {
+                let mut out = Recorder::new(BufWriter::new(std::io::stdout().lock()));
+                finish(write(&mut out), out)
+            }
+            Descriptor::Stderr => {
+                let mut out = Recorder::new(BufWriter::new(std::io::stderr().lock()));
+                finish(write(&mut out), out)
+            }
+            Descriptor::Other(link) => {
+                let file = OpenOptions::new().append(true).open(link).map_err(io)?;
+                let mut out = Recorder::new(BufWriter::new(file));
+                finish(write(&mut out), out)
+            }
+        }
+        .map_err(in_file);
+    }
     let target = write_target(path).ok_or_else(|| {
         in_file(ErrorKind::Mismatch(
             "symbolic links that lead back to themselves".to_owned(),
@@ -160,6 +186,75 @@ fn temporary_prefix(name: &std::ffi::OsStr) -> std::ffi::OsString {
     }
 }
 
+/// An open file descriptor that a path leads to.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Descriptor {
+    /// This program's standard output (`/dev/stdout`, `/proc/self/fd/1`).
+    Stdout,
+    /// This program's standard error.
+    Stderr,
+    /// Another descriptor, of this program or another: the link that names it
+    /// (`/proc/PID/fd/N`, `/dev/fd/N`).
+    Other(PathBuf),
+}
+
+/// The open file descriptor `path` leads to, following symbolic links: a path whose folder is a
+/// process's descriptor table (`/proc/PID/fd`, `/proc/PID/task/TID/fd`, `/dev/fd`) and whose
+/// name is a number, as `/dev/stdout` (a link to `/proc/self/fd/1`) and `/dev/fd/2` are. Such a
+/// link names the file the descriptor has open (on Linux, a regular file as well as a pipe or a
+/// terminal), and a write must go through the descriptor: renaming a new file over the one it
+/// names would cut the descriptor's file from its name, and lose what the file held (a log
+/// redirected with `>>`). `None` for any other path.
+#[must_use]
+pub fn descriptor(path: &Path) -> Option<Descriptor> {
+    const MAX_LINKS: usize = 40;
+    let mut current = path.to_path_buf();
+    for _ in 0..=MAX_LINKS {
+        if let Some((pid, fd)) = descriptor_link(&current) {
+            let own = pid.is_none_or(|pid| pid == std::process::id());
+            return Some(match fd {
+                1 if own => Descriptor::Stdout,
+                2 if own => Descriptor::Stderr,
+                _ => Descriptor::Other(current),
+            });
+        }
+        let meta = std::fs::symlink_metadata(&current).ok()?;
+        if !meta.file_type().is_symlink() {
+            return None;
+        }
+        let link = std::fs::read_link(&current).ok()?;
+        current = match current.parent() {
+            Some(folder) if link.is_relative() => folder.join(link),
+            _ => link,
+        };
+    }
+    None
+}
+
+/// The process (`None` for `/dev/fd`: the caller's own) and descriptor number of `path` when its
+/// folder is a descriptor table and its name a number.
+fn descriptor_link(path: &Path) -> Option<(Option<u32>, u32)> {
+    let fd: u32 = path.file_name()?.to_str()?.parse().ok()?;
+    let folder = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    let folder = std::fs::canonicalize(folder).ok()?;
+    if folder == Path::new("/dev/fd") {
+        return Some((None, fd));
+    }
+    let parts: Vec<&str> = folder
+        .components()
+        .skip(1)
+        .map(|c| c.as_os_str().to_str())
+        .collect::<Option<_>>()?;
+    let pid = match parts[..] {
+        ["proc", pid, "fd"] | ["proc", pid, "task", _, "fd"] => pid.parse().ok()?,
+        _ => return None,
+    };
+    Some((Some(pid), fd))
+}
+
 /// The file a write to `path` makes or replaces: a symbolic link's target, followed through
 /// every link even where the last one dangles (a link to a file not made yet: the file is made
 /// there, and the link then leads to it), else `path` itself. `None` for links that lead back to
@@ -243,6 +338,40 @@ mod tests {
     }
 
     /// A write that fails halfway leaves the old file as it was and no temporary file behind.
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn descriptors_are_told_from_files() {
+        let own = std::process::id();
+        assert_eq!(
+            descriptor(Path::new("/dev/stdout")),
+            Some(Descriptor::Stdout)
+        );
+        assert_eq!(
+            descriptor(Path::new("/dev/stderr")),
+            Some(Descriptor::Stderr)
+        );
+        assert_eq!(descriptor(Path::new("/dev/fd/1")), Some(Descriptor::Stdout));
+        let path = format!("/proc/{own}/fd/2");
+        assert_eq!(descriptor(Path::new(&path)), Some(Descriptor::Stderr));
+        let path = PathBuf::from("/proc/self/fd/7");
+        assert_eq!(descriptor(&path), Some(Descriptor::Other(path.clone())));
+        // Another process's standard output is not ours.
+        let path = PathBuf::from("/proc/1/fd/1");
+        assert_eq!(descriptor(&path), Some(Descriptor::Other(path.clone())));
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("1");
+        std::fs::write(&file, "x").unwrap();
+        assert_eq!(descriptor(&file), None);
+        // A link to a descriptor is one too; a link to a file is not.
+        let link = dir.path().join("out");
+        std::os::unix::fs::symlink("/dev/stdout", &link).unwrap();
+        assert_eq!(descriptor(&link), Some(Descriptor::Stdout));
+        let link = dir.path().join("plain");
+        std::os::unix::fs::symlink(&file, &link).unwrap();
+        assert_eq!(descriptor(&link), None);
+        assert_eq!(descriptor(Path::new("/dev/null")), None);
+    }
+
     #[test]
     fn failed_write_keeps_the_old_file_and_leaves_no_temporary() {
         let dir = tempfile::tempdir().unwrap();

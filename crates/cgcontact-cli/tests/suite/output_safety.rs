@@ -561,3 +561,72 @@ fn a_failed_run_leaves_no_folder_it_made() {
     assert!(run.status.success(), "{}", stderr(&run));
     assert!(vtk.join("mesh.vtu").is_file() && vtk.join("points.vtu").is_file());
 }
+
+/// `--out /dev/stdout` with standard output appended to a log (`>> run.log`): the results go
+/// into the log after what it held, then the summary; the log is the same file (inode) as
+/// before. Renamed over, as a regular file is, it lost its lines and the summary went nowhere.
+#[cfg(target_os = "linux")]
+#[test]
+fn out_to_standard_output_writes_into_the_redirected_file() {
+    use std::os::unix::fs::MetadataExt;
+    let (dir, mesh, points) = scene();
+    for (flag, name) in [("/dev/stdout", "run.log"), ("/dev/stderr", "err.log")] {
+        let log = dir.path().join(name);
+        std::fs::write(&log, "a line before\n").unwrap();
+        let inode = std::fs::metadata(&log).unwrap().ino();
+        let file = std::fs::OpenOptions::new().append(true).open(&log).unwrap();
+        let (stdout, stderr) = if name == "run.log" {
+            (Stdio::from(file), Stdio::null())
+        } else {
+            (Stdio::null(), Stdio::from(file))
+        };
+        let status = Command::new(env!("CARGO_BIN_EXE_cgcontact"))
+            .args(["locate", "--mesh", s(&mesh), "--points", s(&points)])
+            .args(["--out", flag])
+            .stdout(stdout)
+            .stderr(stderr)
+            .status()
+            .unwrap();
+        assert!(status.success(), "{flag}");
+        assert_eq!(std::fs::metadata(&log).unwrap().ino(), inode, "{flag}");
+        let text = std::fs::read_to_string(&log).unwrap();
+        let mut lines = text.lines();
+        assert_eq!(lines.next(), Some("a line before"), "{flag}: {text}");
+        assert_eq!(
+            lines.next(),
+            Some("point,cell,xi,eta,zeta,iterations,residual,inversions"),
+            "{flag}: {text}"
+        );
+        // The 50 points' rows, one after the other.
+        let rows = lines.take_while(|l| l.split(',').count() == 8).count();
+        assert_eq!(rows, 50, "{flag}: {text}");
+        if name == "run.log" {
+            assert!(text.contains(&format!("wrote {flag}")), "{text}");
+        }
+    }
+}
+
+/// The descriptor of another redirection (`3>> extra.log`, `--out /dev/fd/3`) is appended to, in
+/// place, and an output on a descriptor needs no writable folder.
+#[cfg(target_os = "linux")]
+#[test]
+fn out_to_another_descriptor_appends_in_place() {
+    use std::os::unix::fs::MetadataExt;
+    let (dir, mesh, points) = scene();
+    let log = dir.path().join("extra.log");
+    std::fs::write(&log, "kept\n").unwrap();
+    let inode = std::fs::metadata(&log).unwrap().ino();
+    let script = format!(
+        "exec 3>>'{}'; exec '{}' locate --mesh '{}' --points '{}' --out /dev/fd/3 --quiet",
+        s(&log),
+        env!("CARGO_BIN_EXE_cgcontact"),
+        s(&mesh),
+        s(&points)
+    );
+    let run = Command::new("sh").args(["-c", &script]).output().unwrap();
+    assert!(run.status.success(), "{}", stderr(&run));
+    assert_eq!(std::fs::metadata(&log).unwrap().ino(), inode);
+    let text = std::fs::read_to_string(&log).unwrap();
+    assert!(text.starts_with("kept\npoint,cell,xi"), "{text}");
+    assert_eq!(text.lines().count(), 52, "{text}");
+}
