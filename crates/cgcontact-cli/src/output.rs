@@ -187,6 +187,9 @@ pub fn check_outputs(inputs: &[(&str, &Path)], outputs: &[(&str, PathBuf)]) -> R
                 )
             })?;
         }
+        // A file the write could not replace (read-only, another user's in `/tmp`) likewise.
+        cgcontact_io::check_replaceable(output)
+            .map_err(|e| anyhow::anyhow!("{}: {flag}: {}", output.display(), e.kind()))?;
     }
     Ok(())
 }

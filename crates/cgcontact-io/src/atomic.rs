@@ -109,6 +109,9 @@ pub fn write_file(
                 "is a folder, not a file".to_owned(),
             )));
         }
+        if meta.is_file() {
+            replaceable(&target, meta).map_err(in_file)?;
+        }
         if !meta.is_file() {
             let file = OpenOptions::new().write(true).open(&target).map_err(io)?;
             let mut out = Recorder::new(BufWriter::new(file));
@@ -154,6 +157,68 @@ pub fn write_file(
     drop(list);
     persisted.map_err(|e| io(e.error))?;
     Ok(())
+}
+
+/// Whether this program may replace the existing regular file `path` (metadata `meta`), as the
+/// shell's `>` would write it: refused when the file is read-only for this user (a result kept
+/// with `chmod a-w`), or when it lies in a folder with the sticky bit (`/tmp`) and neither the
+/// file nor the folder is this user's, where the system refuses the rename after the work.
+fn replaceable(path: &Path, meta: &std::fs::Metadata) -> Result<(), ErrorKind> {
+    if let Err(e) = OpenOptions::new().write(true).open(path) {
+        return Err(if e.kind() == std::io::ErrorKind::PermissionDenied {
+            ErrorKind::Mismatch(
+                "is read-only for this user: make it writable or choose another output".to_owned(),
+            )
+        } else {
+            ErrorKind::Io(e)
+        });
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        let folder = match path.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p,
+            _ => Path::new("."),
+        };
+        let Ok(folder_meta) = std::fs::metadata(folder) else {
+            return Ok(());
+        };
+        const STICKY: u32 = 0o1000;
+        if folder_meta.mode() & STICKY != 0 {
+            // This user's id, as the system gives it to a file it makes.
+            let user = tempfile::tempfile_in(folder)
+                .and_then(|f| f.metadata())
+                .map(|m| m.uid());
+            if let Ok(user) = user
+                && user != 0
+                && user != meta.uid()
+                && user != folder_meta.uid()
+            {
+                return Err(ErrorKind::Mismatch(format!(
+                    "belongs to another user in {}, whose sticky bit lets only the file's owner \
+                     replace it: choose another output",
+                    folder.display()
+                )));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Checks, before any work, that a write to `path` ([`write_file`]) will not be refused for
+/// its existing target: not read-only for this user, not another user's in a sticky folder.
+/// Nothing to check for a target that does not exist yet, a device or a descriptor.
+pub fn check_replaceable(path: &Path) -> Result<(), IoError> {
+    if descriptor(path).is_some() {
+        return Ok(());
+    }
+    let Some(target) = write_target(path) else {
+        return Ok(());
+    };
+    match std::fs::metadata(&target) {
+        Ok(meta) if meta.is_file() => replaceable(&target, &meta).map_err(|k| k.in_file(path)),
+        _ => Ok(()),
+    }
 }
 
 /// The longest file name the usual file systems take, in bytes (Linux's `NAME_MAX`; 255 UTF-16

@@ -67,7 +67,9 @@ mod xml_cells;
 mod xml_normal;
 
 pub use adaptive_mesh::{AdaptiveMesh, MeshBody};
-pub use atomic::{Descriptor, abandon_writes, descriptor, write_file, write_target};
+pub use atomic::{
+    Descriptor, abandon_writes, check_replaceable, descriptor, write_file, write_target,
+};
 pub use caller_body::{AnyBody, CallerBody, Kept, KeptBuffers, UpdateError};
 pub use csv_io::{
     GAP_HEADER, RESULTS_HEADER, ResultRow, parse_points, parse_results, read_points, read_results,

@@ -630,3 +630,88 @@ fn out_to_another_descriptor_appends_in_place() {
     assert!(text.starts_with("kept\npoint,cell,xi"), "{text}");
     assert_eq!(text.lines().count(), 52, "{text}");
 }
+
+/// Whether this test runs as root (the owner of a file it makes).
+#[cfg(unix)]
+fn running_as_root() -> bool {
+    use std::os::unix::fs::MetadataExt;
+    tempfile::tempfile().unwrap().metadata().unwrap().uid() == 0
+}
+
+/// A result the shell's `>` could not write (read-only for the user, `chmod a-w`) is refused
+/// before any work, and kept; so is another user's file in a sticky folder (`/tmp`), whose rename
+/// the system refuses after the work. Root may replace a read-only file, as the shell's `>` does,
+/// so as root the run goes through `su nobody` (and the sticky case, which needs a file of
+/// another user, runs only then).
+#[cfg(unix)]
+#[test]
+fn results_that_cannot_be_replaced_are_refused_before_any_work() {
+    use std::os::unix::fs::PermissionsExt;
+    let root = running_as_root();
+    let (dir, mesh, points) = scene();
+    let mode = |path: &Path, mode: u32| {
+        std::fs::set_permissions(path, std::fs::Permissions::from_mode(mode)).unwrap();
+    };
+    mode(dir.path(), 0o755);
+    let own = dir.path().join("own");
+    std::fs::create_dir(&own).unwrap();
+    let run = |out: &Path| -> Output {
+        let bin = env!("CARGO_BIN_EXE_cgcontact");
+        let args = [
+            "locate",
+            "--mesh",
+            s(&mesh),
+            "--points",
+            s(&points),
+            "--out",
+            s(out),
+        ];
+        if root {
+            let line = std::iter::once(bin)
+                .chain(args)
+                .map(|a| format!("'{a}'"))
+                .collect::<Vec<_>>()
+                .join(" ");
+            Command::new("su")
+                .args(["nobody", "-s", "/bin/sh", "-c", &line])
+                .output()
+                .expect("su runs")
+        } else {
+            cgcontact(&args)
+        }
+    };
+    if root {
+        let status = Command::new("chown")
+            .args(["nobody", s(&own)])
+            .status()
+            .unwrap();
+        assert!(status.success());
+    }
+    let kept = own.join("kept.csv");
+    let run_ok = run(&own.join("fresh.csv"));
+    assert!(run_ok.status.success(), "{}", stderr(&run_ok));
+    std::fs::rename(own.join("fresh.csv"), &kept).unwrap();
+    let before = std::fs::read(&kept).unwrap();
+    mode(&kept, 0o444);
+    let refusal = run(&kept);
+    refused(
+        &refusal,
+        &["kept.csv", "--out", "read-only"],
+        &[(&kept, &before)],
+    );
+    // Nothing was located: the refusal came first.
+    assert!(!String::from_utf8_lossy(&refusal.stdout).contains("located"));
+    if root {
+        let sticky = dir.path().join("sticky");
+        std::fs::create_dir(&sticky).unwrap();
+        mode(&sticky, 0o1777);
+        let foreign = sticky.join("res.csv");
+        std::fs::write(&foreign, "root's\n").unwrap();
+        mode(&foreign, 0o666);
+        refused(
+            &run(&foreign),
+            &["res.csv", "--out", "another user", "sticky"],
+            &[(&foreign, b"root's\n")],
+        );
+    }
+}
