@@ -61,10 +61,15 @@ pub(crate) enum Within<'a> {
 }
 
 /// The first section at fault: `line N: what is wrong`, and whether it is in what the walk
-/// measures for blanking (a string array or an id section).
+/// measures for blanking (a string array or an id section), and whether it is a fault even in a
+/// file vtkio's parser reads whole.
 pub(crate) struct Fault {
     pub(crate) message: String,
     pub(crate) in_unread: bool,
+    /// A `POINT_DATA n` or `CELL_DATA n` that is not the file's node or cell count: vtkio's
+    /// parser reads the arrays after it by their own lengths and never compares the two, so such
+    /// a file parses (a `POINT_DATA 1` before a displacement of every node).
+    pub(crate) unparsed_count: bool,
 }
 
 impl Fault {
@@ -72,6 +77,7 @@ impl Fault {
         Self {
             message,
             in_unread: false,
+            unparsed_count: false,
         }
     }
 
@@ -79,6 +85,7 @@ impl Fault {
         Self {
             message,
             in_unread: true,
+            unparsed_count: false,
         }
     }
 }
@@ -265,11 +272,14 @@ fn section<'a>(
                 if let Some((expected, by)) = by
                     && expected != n
                 {
-                    return Err(Fault::section(format!(
-                        "line {}: `{}` does not match the {expected} {what} that `{}` (line {}) \
-                         declares",
-                        header.line, header.text, by.text, by.line
-                    )));
+                    return Err(Fault {
+                        unparsed_count: true,
+                        ..Fault::section(format!(
+                            "line {}: `{}` does not match the {expected} {what} that `{}` (line \
+                             {}) declares",
+                            header.line, header.text, by.text, by.line
+                        ))
+                    });
                 }
                 declared.tuples = n;
                 declared.attributes = Some(header);

@@ -22,7 +22,8 @@ use crate::legacy_sections::{self, Header, Within};
 
 /// The file with its string arrays and id sections blanked out; `None` when it has none (or is no
 /// legacy file the walk reads); `Err` names one that is cut, holds other than what it declares or
-/// whose lengths run past the end of the file, as `line N: what is wrong`.
+/// whose lengths run past the end of the file, as `line N: what is wrong`, and a `POINT_DATA n`
+/// or `CELL_DATA n` that is not the file's node or cell count (which vtkio's parser never checks).
 ///
 /// A fault in another section ends the walk: string arrays and id sections after it are left,
 /// and vtkio's parser then refuses the file at that section or at one of them.
@@ -31,7 +32,7 @@ pub(crate) fn blank(bytes: &[u8]) -> Result<Option<Vec<u8>>, String> {
         return Ok(None);
     };
     if let Some(fault) = walk.fault
-        && fault.in_unread
+        && (fault.in_unread || fault.unparsed_count)
     {
         return Err(fault.message);
     }
