@@ -6,7 +6,7 @@ use anyhow::Result;
 use cgcontact::{AdaptiveLocator, GapAnswer, GapFinder, LatticeLocator, Settings};
 use cgcontact_baseline::BodyRef;
 use cgcontact_io::{
-    DisplacementArray, MeshBody, read_body, read_points, unended_points_file,
+    DEFAULT_DISPLACEMENT, DisplacementArray, MeshBody, read_body, read_points, unended_points_file,
     write_deformed_adaptive_vtu, write_deformed_vtu, write_points_vtu, write_results_counted,
 };
 use clap::Args;
@@ -143,6 +143,18 @@ pub fn run(args: &LocateArgs) -> Result<()> {
         if !args.search.quiet {
             eprintln!("cgcontact: warning: {message} (--strict refuses such a mesh)");
         }
+    }
+    if !mesh.has_displacement()
+        && args.displacement.is_none()
+        && !args.search.quiet
+        && let Some(arrays) = other_point_arrays(&args.mesh)
+    {
+        eprintln!(
+            "cgcontact: warning: {}: no point array named `{DEFAULT_DISPLACEMENT}`, so the mesh \
+             is read undeformed; its point arrays: {arrays} (--displacement NAME reads one as the \
+             displacement)",
+            args.mesh.display()
+        );
     }
     let points = reading(&args.points, quiet, || read_points(&args.points))?;
     if let Some(warning) = unended_points_file(&args.points)
@@ -286,5 +298,20 @@ fn gap_summary(gaps: &[GapAnswer], distance: f64, seconds: f64) -> GapSummary {
         inside,
         penetration,
         seconds,
+    }
+}
+
+/// The point arrays of the mesh at `path`, comma separated, when it has any: read again asking
+/// for an array no file names, whose error lists them. Only for a mesh read without a
+/// displacement (a second read), to tell a user whose displacement array is named otherwise
+/// (`Displacement`, `U`) that the mesh was solved undeformed.
+fn other_point_arrays(path: &std::path::Path) -> Option<String> {
+    let none = DisplacementArray::Named("\0".to_owned());
+    let error = cgcontact_io::read_hex_mesh(path, &none).err()?;
+    match error.kind() {
+        cgcontact_io::ErrorKind::MissingDisplacement { available, .. } if available != "none" => {
+            Some(available.clone())
+        }
+        _ => None,
     }
 }

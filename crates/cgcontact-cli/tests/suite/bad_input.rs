@@ -541,3 +541,55 @@ fn a_points_file_with_its_last_line_unended_is_warned_about() {
     let (quiet, _) = locate(&unended, true);
     assert!(quiet.is_empty(), "{quiet}");
 }
+
+/// A displacement array under another name (`Displacement`, `U`) solves the mesh undeformed, as
+/// documented: a warning on stderr says so and lists the point arrays, unless `--quiet`. Nothing
+/// to warn of when the file has the array, names it with `--displacement`, or has no point
+/// arrays at all.
+#[test]
+fn a_displacement_under_another_name_is_warned_of() {
+    let files = Files::new();
+    let points = files.path("good.csv");
+    for name in ["Displacement", "U"] {
+        let mesh = files.mesh_with(
+            &format!("{name}.vtk"),
+            "VECTORS displacement",
+            &format!("VECTORS {name}"),
+        );
+        let out = files.path("o.csv");
+        let (code, stderr) = locate(&mesh, &points, &["--out", out.to_str().unwrap()]);
+        assert_eq!(code, Some(0), "{stderr}");
+        assert_eq!(stderr.lines().count(), 1, "{stderr}");
+        for needle in [
+            "warning",
+            "undeformed",
+            &format!("point arrays: {name} "),
+            "--displacement",
+        ] {
+            assert!(stderr.contains(needle), "{needle} not in {stderr}");
+        }
+        let quiet = ["--out", out.to_str().unwrap(), "--quiet"];
+        assert_eq!(locate(&mesh, &points, &quiet), (Some(0), String::new()));
+        let named = ["--out", out.to_str().unwrap(), "--displacement", name];
+        assert_eq!(locate(&mesh, &points, &named), (Some(0), String::new()));
+    }
+    let good = files.path("good.vtk");
+    let o = files.path("o.csv");
+    let out = ["--out", o.to_str().unwrap()];
+    assert_eq!(locate(&good, &points, &out), (Some(0), String::new()));
+    // An XML mesh without point arrays: plainly undeformed.
+    let xml = files.path("bare.vtu");
+    let body = Body::full(Lattice::new(DVec3::ZERO, DVec3::splat(0.5), [2, 2, 2]).unwrap());
+    write_mesh(&xml, &body, MeshFormat::Xml).unwrap();
+    let text = std::fs::read_to_string(&xml).unwrap();
+    let (start, end) = (
+        text.find("<PointData").unwrap(),
+        text.find("</PointData>").unwrap(),
+    );
+    std::fs::write(
+        &xml,
+        format!("{}<PointData>{}", &text[..start], &text[end..]),
+    )
+    .unwrap();
+    assert_eq!(locate(&xml, &points, &out), (Some(0), String::new()));
+}
