@@ -515,6 +515,16 @@ fn parse_legacy_whole(bytes: &[u8]) -> Result<Vtk, ErrorKind> {
                 nom::Err::Incomplete(_) => ErrorKind::Vtk(
                     "legacy VTK: the file ends before its data does (truncated?)".to_owned(),
                 ),
+                nom::Err::Error(e) | nom::Err::Failure(e)
+                    if e.input.iter().all(u8::is_ascii_whitespace) =>
+                {
+                    // Stopped at the end of the file: nothing there to quote.
+                    let (line, _) = at_line(e.input);
+                    ErrorKind::Vtk(format!(
+                        "legacy VTK: line {line}: the file ends before its data does (truncated, \
+                         or a count larger than its values?)"
+                    ))
+                }
                 nom::Err::Error(e) | nom::Err::Failure(e) => {
                     // The parser's own code (`MapOpt`, `Digit`) names its combinator, not the
                     // file's mistake: the line and the text are what a reader can act on.

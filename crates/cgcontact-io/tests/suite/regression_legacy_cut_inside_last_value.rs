@@ -88,3 +88,30 @@ fn a_legacy_ascii_file_cut_inside_its_last_value_is_refused() {
         );
     }
 }
+
+/// A file VTK wrote, cut inside its last `METADATA` block (`INFORMATION` lines after the
+/// displacement), at every byte of its last 3 lines: an error, and never one quoting an empty
+/// excerpt (it said "line 71: cannot parse `` there" where the parser stopped at the end of the
+/// file).
+#[test]
+fn a_file_cut_inside_its_last_metadata_says_it_ends() {
+    let file = read(
+        &folder("vtk-written-adaptive"),
+        "float32-huge.legacy-ascii.vtk",
+    );
+    parse_hex_mesh(&file, &DisplacementArray::Default).unwrap();
+    let meta = file
+        .windows(9)
+        .rposition(|w| w == b"METADATA\n")
+        .expect("VTK wrote a METADATA block last");
+    let mut ends = 0;
+    for cut in meta + 9..file.len() - 4 {
+        let Err(error) = parse_hex_mesh(&file[..cut], &DisplacementArray::Default) else {
+            continue;
+        };
+        let error = error.to_string();
+        assert!(!error.contains("``"), "cut at {cut}: {error}");
+        ends += usize::from(error.contains("the file ends"));
+    }
+    assert!(ends > 0, "no cut said the file ends");
+}
