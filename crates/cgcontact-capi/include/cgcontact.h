@@ -195,6 +195,9 @@ cgc_error cgc_body_from_lattice(const double *origin,
 // a coarser neighbour's edge or face (hanging nodes) are nodes of the mesh too. Cells and nodes
 // may come in any order.
 //
+// Every coordinate must be finite, at nodes that no cell uses too (`CGC_ERROR_NON_FINITE` names
+// the first such node, 0-based).
+//
 // Displacements are then given for every node (`n_nodes` of them; those of nodes no cell uses
 // are ignored, and nodes at the same place must get the same displacement). On an adaptive body a
 // hanging node's displacement must be the trilinear interpolation of the coarse cell it hangs on

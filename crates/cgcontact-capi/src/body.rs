@@ -196,6 +196,9 @@ pub unsafe extern "C" fn cgc_body_from_lattice(
 /// a coarser neighbour's edge or face (hanging nodes) are nodes of the mesh too. Cells and nodes
 /// may come in any order.
 ///
+/// Every coordinate must be finite, at nodes that no cell uses too (`CGC_ERROR_NON_FINITE` names
+/// the first such node, 0-based).
+///
 /// Displacements are then given for every node (`n_nodes` of them; those of nodes no cell uses
 /// are ignored, and nodes at the same place must get the same displacement). On an adaptive body a
 /// hanging node's displacement must be the trilinear interpolation of the coarse cell it hangs on
@@ -265,6 +268,17 @@ pub unsafe extern "C" fn cgc_body_from_mesh(
                 };
             }
             hexes.push(cell);
+        }
+        // Every node, used or not, as the CLI's reader, Python and the MEX file check them: the
+        // library checks only the nodes some cell uses.
+        if let Some(node) = points.iter().position(|p| !p.is_finite()) {
+            return Err(Failure::new(
+                CgcError::NonFinite,
+                format!(
+                    "the coordinates of node {node} (0-based) are not finite: {}",
+                    points[node]
+                ),
+            ));
         }
         let mesh = HexMesh {
             points: points.to_vec(),

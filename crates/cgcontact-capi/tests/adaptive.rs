@@ -524,6 +524,29 @@ fn bad_adaptive_meshes_are_refused_naming_the_cell() {
     }
 }
 
+/// The unused node last in the input, at NaN or infinity: refused as a used one would be.
+#[test]
+fn a_non_finite_unused_node_of_an_adaptive_mesh_is_refused() {
+    let body = scene();
+    let mut input = input(&body);
+    let last = input.n_nodes() - 1;
+    let (code, handle) = input.body(&input.topology);
+    assert_eq!(code, CgcError::Ok, "{}", last_error());
+    // SAFETY: a live handle, freed once.
+    unsafe { cgc_body_free(handle) };
+    for value in [f64::NAN, f64::INFINITY] {
+        input.nodes[3 * last + 1] = value;
+        let (code, handle) = input.body(&input.topology);
+        assert_eq!(code, CgcError::NonFinite, "{value}: {}", last_error());
+        assert!(handle.is_null());
+        assert!(
+            last_error().contains(&format!("node {last} (0-based)")),
+            "{}",
+            last_error()
+        );
+    }
+}
+
 /// `cgc_gap` on the shuffled adaptive mesh (hanging faces partly covered, leaves of 3 levels):
 /// the adaptive locator's `GapFinder` answers, faces named by the input cell.
 #[test]

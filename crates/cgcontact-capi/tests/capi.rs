@@ -677,6 +677,57 @@ fn meshes_that_are_not_lattices_are_refused() {
     }
 }
 
+/// A node that no cell uses is still a node of the input: a NaN or infinite coordinate there is
+/// refused, as the CLI's reader, Python and the MEX file refuse it (the library checks only the
+/// nodes its cells use).
+#[test]
+fn a_non_finite_node_that_no_cell_uses_is_refused() {
+    let cube = [
+        [0.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [1.0, 1.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, 0.0, 1.0],
+        [1.0, 0.0, 1.0],
+        [1.0, 1.0, 1.0],
+        [0.0, 1.0, 1.0],
+    ];
+    for (extra, shown) in [
+        ([f64::NAN; 3], "[NaN, NaN, NaN]"),
+        ([f64::INFINITY, 0.0, 0.0], "[inf, 0, 0]"),
+        ([0.0, f64::NEG_INFINITY, 0.0], "[0, -inf, 0]"),
+    ] {
+        let nodes: Vec<f64> = cube.iter().chain([&extra]).flatten().copied().collect();
+        for base in [0i64, 1] {
+            let topology: Vec<i64> = (base..base + 8).collect();
+            let mut b = ptr::null_mut();
+            // SAFETY: the arrays hold 3 × 9 and 8 values.
+            let code = unsafe {
+                cgc_body_from_mesh(nodes.as_ptr(), 9, topology.as_ptr(), 1, base, &mut b)
+            };
+            assert_eq!(code, CgcError::NonFinite, "{shown}: {}", last_error());
+            assert!(b.is_null());
+            let message = last_error();
+            assert!(
+                message.contains("node 8 (0-based)") && message.contains(shown),
+                "{message}"
+            );
+        }
+    }
+    // The same cube without the node is a body.
+    let nodes: Vec<f64> = cube.iter().flatten().copied().collect();
+    let topology: Vec<i64> = (0..8).collect();
+    let mut b = ptr::null_mut();
+    // SAFETY: the arrays hold 3 × 8 and 8 values; the handle is freed once.
+    unsafe {
+        assert_eq!(
+            cgc_body_from_mesh(nodes.as_ptr(), 8, topology.as_ptr(), 1, 0, &mut b),
+            CgcError::Ok
+        );
+        cgc_body_free(b);
+    }
+}
+
 #[test]
 fn a_locator_outlives_its_body_handle() {
     let body = block();
