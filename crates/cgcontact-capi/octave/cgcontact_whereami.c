@@ -90,6 +90,7 @@
  */
 #include <math.h>
 #include <stdint.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -154,10 +155,20 @@ static void fail_cgc(cgc_error code, const char *what) {
 /* Octave prefixes the message with the function's name; MATLAB shows it beside. */
 #define FAIL(id, ...) mexErrMsgIdAndTxt("cgcontact:" id, __VA_ARGS__)
 
+/* How an array was given, for a message: "sparse complex double 3 x 900" (a class name alone
+ * would say "double" for a complex or sparse one). Written to `text`, which is returned. */
+static const char *given(const mxArray *a, char *text, size_t size) {
+    snprintf(text, size, "%s%s%s %d x %d", mxIsSparse(a) ? "sparse " : "",
+             mxIsComplex(a) ? "complex " : "", mxGetClassName(a), (int)mxGetM(a), (int)mxGetN(a));
+    return text;
+}
+
 /* A real, full double matrix with `rows` rows (0 = any); returns its column count. */
 static size_t matrix(const mxArray *a, const char *name, size_t rows, const char *shape) {
+    char got[96];
     if (!mxIsDouble(a) || mxIsComplex(a) || mxIsSparse(a))
-        FAIL("badInput", "%s must be a real, full double matrix (%s)", name, shape);
+        FAIL("badInput", "%s must be a real, full double matrix (%s), got %s", name, shape,
+             given(a, got, sizeof got));
     if (mxGetNumberOfDimensions(a) != 2 || (rows && mxGetM(a) != rows && !mxIsEmpty(a)))
         FAIL("badSize", "%s must be %s, got %d x %d", name, shape, (int)mxGetM(a), (int)mxGetN(a));
     return mxIsEmpty(a) ? 0 : mxGetN(a);
@@ -257,10 +268,10 @@ static void update(entry *e, const mxArray *u, int owned) {
     if (owned && mxIsDouble(u) && mxIsEmpty(u)) return;
     if (!mxIsDouble(u) || mxIsComplex(u) || mxIsSparse(u) || mxGetNumberOfDimensions(u) != 2 ||
         mxGetM(u) != e->n_nodes || mxGetN(u) != 3) {
+        char got[96];
         if (owned) free_entry(e);
-        FAIL("badSize", "U must be a real, full double m x 3 matrix with m = %d nodes, got %s%s%s %d x %d",
-             (int)e->n_nodes, mxIsSparse(u) ? "sparse " : "", mxIsComplex(u) ? "complex " : "",
-             mxGetClassName(u), (int)mxGetM(u), (int)mxGetN(u));
+        FAIL("badSize", "U must be a real, full double m x 3 matrix with m = %d nodes, got %s",
+             (int)e->n_nodes, given(u, got, sizeof got));
     }
     cgc_error code = cgc_body_set_displacements(e->body, mxGetPr(u), e->n_nodes,
                                                 CGC_LAYOUT_COMPONENT_MAJOR | e->fill);
@@ -281,22 +292,25 @@ static void locate(entry *e, const mxArray *points, const mxArray *e0, const mxA
                    mxArray **out, int n_out, int owned) {
     if (!mxIsDouble(points) || mxIsComplex(points) || mxIsSparse(points) ||
         mxGetNumberOfDimensions(points) != 2 || (mxGetM(points) != 3 && !mxIsEmpty(points))) {
+        char got[96];
         if (owned) free_entry(e);
-        FAIL("badSize", "XYZ must be a real double 3 x n matrix, one point per column, got %s %d x %d",
-             mxGetClassName(points), (int)mxGetM(points), (int)mxGetN(points));
+        FAIL("badSize", "XYZ must be a real, full double 3 x n matrix, one point per column, got %s",
+             given(points, got, sizeof got));
     }
     size_t n = mxIsEmpty(points) ? 0 : mxGetN(points);
     if (e0) {
         /* Checked before anything is allocated: a bad hint costs nothing. */
+        char got[96];
         if (!mxIsDouble(e0) || mxIsComplex(e0) || mxIsSparse(e0))
-            FAIL("badInput", "E0 must be a real double vector (the last E), got %s", mxGetClassName(e0));
+            FAIL("badInput", "E0 must be a real, full double vector (the last E), got %s",
+                 given(e0, got, sizeof got));
         if (mxGetNumberOfDimensions(e0) != 2 || mxGetNumberOfElements(e0) != n ||
             (n > 0 && mxGetM(e0) != 1 && mxGetN(e0) != 1))
             FAIL("badSize", "E0 must be a vector of %d elements (XYZ's points), got %d x %d", (int)n,
                  (int)mxGetM(e0), (int)mxGetN(e0));
         if (!mxIsDouble(posl0) || mxIsComplex(posl0) || mxIsSparse(posl0))
-            FAIL("badInput", "PosL0 must be a real double matrix (the last PosL), got %s",
-                 mxGetClassName(posl0));
+            FAIL("badInput", "PosL0 must be a real, full double matrix (the last PosL), got %s",
+                 given(posl0, got, sizeof got));
         if (mxGetNumberOfDimensions(posl0) != 2 || mxGetNumberOfElements(posl0) != 3 * n ||
             (n > 0 && mxGetM(posl0) != 3))
             FAIL("badSize", "PosL0 must be 3 x %d, got %d x %d", (int)n, (int)mxGetM(posl0),

@@ -19,12 +19,15 @@ function check(ok, varargin)
   end
 end
 
-function expect_error(id, f, what)
+function expect_error(id, f, what, text)
+  % With `text`, the message must hold it too.
   try
     f();
   catch err
     check(strcmp(err.identifier, id), '%s: expected error %s, got %s (%s)', what, id, ...
           err.identifier, err.message);
+    check(nargin < 4 || ~isempty(strfind(err.message, text)), '%s: expected ''%s'' in: %s', ...
+          what, text, err.message);
     printf('  %-40s -> %s: %s\n', what, err.identifier, err.message);
     return;
   end
@@ -505,7 +508,29 @@ expect_error('cgcontact:usage', @() ask_outputs(2, 'inverted_cells', H), 'invert
 expect_error('cgcontact:usage', @() ask_outputs(4, XYZ, N0, T, U), 'one-shot with 4 outputs');
 expect_error('cgcontact:usage', @() cgcontact_whereami('handles', H), 'handles with an argument');
 expect_error('cgcontact:usage', @() cgcontact_whereami(repmat('x', 1, 40), H), 'a command of 40 characters');
-expect_error('cgcontact:badSize', @() cgcontact_whereami('update', H, sparse(U)), 'update with a sparse U');
+expect_error('cgcontact:badSize', @() cgcontact_whereami('update', H, sparse(U)), 'update with a sparse U', ...
+             sprintf('got sparse double %d x 3', rows(U)));
+expect_error('cgcontact:badSize', @() cgcontact_whereami('update', H, complex(U)), 'update with a complex U', ...
+             sprintf('got complex double %d x 3', rows(U)));
+% A complex or sparse XYZ was described by its class alone: "got double 3 x n".
+nX = columns(XYZ);
+expect_error('cgcontact:badSize', @() cgcontact_whereami('locate', H, complex(XYZ)), 'locate with a complex XYZ', ...
+             sprintf('got complex double 3 x %d', nX));
+expect_error('cgcontact:badSize', @() cgcontact_whereami('locate', H, sparse(XYZ)), 'locate with a sparse XYZ', ...
+             sprintf('got sparse double 3 x %d', nX));
+expect_error('cgcontact:badSize', @() cgcontact_whereami('locate', H, sparse(XYZ + 1i)), ...
+             'locate with a sparse complex XYZ', sprintf('got sparse complex double 3 x %d', nX));
+[Eh, Ph] = cgcontact_whereami('locate', H, XYZ);
+expect_error('cgcontact:badSize', @() cgcontact_whereami('relocate', H, complex(XYZ), Eh, Ph), ...
+             'relocate with a complex XYZ', sprintf('got complex double 3 x %d', nX));
+expect_error('cgcontact:badInput', @() cgcontact_whereami('relocate', H, XYZ, complex(Eh), Ph), ...
+             'relocate with a complex E0', sprintf('got complex double 1 x %d', nX));
+expect_error('cgcontact:badInput', @() cgcontact_whereami('relocate', H, XYZ, Eh, sparse(Ph)), ...
+             'relocate with a sparse PosL0', sprintf('got sparse double 3 x %d', nX));
+expect_error('cgcontact:badInput', @() cgcontact_whereami(complex(XYZ), N0, T, U), 'one-shot with a complex XYZ', ...
+             sprintf('got complex double 3 x %d', nX));
+expect_error('cgcontact:badInput', @() cgcontact_whereami('gap', H, sparse(XYZ), 0.5), 'gap with a sparse XYZ', ...
+             sprintf('got sparse double 3 x %d', nX));
 try
   cgcontact_whereami('locate_every_point_please', H, XYZ);
 catch err
