@@ -142,7 +142,10 @@ typedef struct {
   uint32_t strategy;
   // `CGC_PRECISION_F64` or `CGC_PRECISION_F32`.
   uint32_t precision;
-  // Newton stops when its step is at most this (ξ units); > 0.
+  // Newton stops when its step is at most this (ξ units); > 0. Keep it at most 1e-3: ξ spans 2
+  // across a cell, and a looser tolerance stops Newton before it has found the point, so
+  // answers can be off by about tol² and points near faces can be put in the wrong cell (or
+  // in none). `cgcontact --tol` and Python warn above 1e-3; this library accepts it silently.
   double newton_tol;
   // Newton iteration limit per candidate cell; ≥ 1.
   uint32_t max_iter;
