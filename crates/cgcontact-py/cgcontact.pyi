@@ -4,9 +4,9 @@ Find the hexahedron of a deformed body holding each point and its local coordina
 [-1, 1]^3 (VTK corner 0 at (-1, -1, -1)), every cell holding a point, and signed gaps to the
 body's deformed boundary surface. Queries release the GIL; C-contiguous, aligned float64 (n, 3)
 arrays are read in place (do not write to them from another thread while a call runs), anything
-else array-like is converted once; an empty list is no points. Complex, date and time arrays,
-and masked arrays with masked values, raise ValueError rather than being cast. Errors name the
-argument at fault.
+else array-like is converted once; an empty list is no points. Complex, boolean, text, date and
+time arrays, object arrays holding text, booleans or complex numbers, and masked arrays with
+masked values, raise ValueError rather than being cast. Errors name the argument at fault.
 """
 
 import os
@@ -88,9 +88,11 @@ class Locator:
         max_iter: Optional[int] = None,
         threads: Optional[int] = None,
     ) -> "Locator":
-        """`tol`: Newton step tolerance in xi units (default 1e-10 in f64, 1e-5 in f32);
-        `max_iter`: Newton iterations per candidate cell; `threads`: a pool of its own, 1 to
-        1024 (None: every core)."""
+        """`tol`: Newton step tolerance in xi units (default 1e-10 in f64, 1e-5 in f32; above
+        1e-3 a UserWarning, as `cgcontact --tol` warns: answers can be off by about tol^2 and
+        points near faces put in the wrong cell); `max_iter`: Newton iterations per candidate
+        cell; `threads`: a pool of its own, 1 to 1024 (None: every core). `max_iter`, `threads`
+        and `Body`'s `counts` refuse booleans (TypeError)."""
     @property
     def strategy(self) -> _Strategy: ...
     def locate(

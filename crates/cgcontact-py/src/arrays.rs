@@ -9,7 +9,7 @@ use pyo3::conversion::FromPyObjectOwned;
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
-use pyo3::types::{PyTuple, PyType};
+use pyo3::types::{PyBool, PyBytes, PyList, PyString, PyTuple, PyType};
 
 /// `obj`, the argument `what`, as a `T`, or an error naming the argument and what it must be
 /// (`expected`): pyo3 names the argument in a `TypeError` only, not in the `OverflowError` of a
@@ -34,6 +34,33 @@ pub fn argument<'py, T: FromPyObjectOwned<'py>>(
             PyValueError::new_err(message)
         }
     })
+}
+
+/// [`argument`] for a count (`counts`, `max_iter`, `threads`), refusing `True` and `False`, alone
+/// or in a list or tuple, as a `TypeError`: Python takes a boolean for the int 1 or 0, but no
+/// count is meant by it (as booleans are refused for coordinates and node numbers).
+pub fn count<'py, T: FromPyObjectOwned<'py>>(
+    obj: &Bound<'py, PyAny>,
+    what: &str,
+    expected: &str,
+) -> PyResult<T> {
+    let boolean = |o: &Bound<'py, PyAny>| o.is_instance_of::<PyBool>();
+    let holds = if obj.is_instance_of::<PyList>() || obj.is_instance_of::<PyTuple>() {
+        obj.try_iter()?
+            .any(|element| element.is_ok_and(|e| boolean(&e)))
+    } else {
+        boolean(obj)
+    };
+    if holds {
+        let given = obj
+            .repr()
+            .map_or_else(|_| "?".to_owned(), |r| r.to_string());
+        return Err(PyTypeError::new_err(format!(
+            "{what} must be {expected}, got {}",
+            clip(&given)
+        )));
+    }
+    argument(obj, what, expected)
 }
 
 /// `text` cut to about 80 characters, for an error message.
@@ -139,17 +166,66 @@ pub fn refuse_masked(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<()> {
 /// An error when `given` (a numpy array) holds values that are not real numbers: complex values
 /// (whose imaginary part numpy's float conversion drops with only a warning), dates and times,
 /// booleans (numpy would read them as 0 and 1), and text (numpy would parse it: an unread file's
-/// columns).
-fn refuse_unreal(given: &Bound<'_, PyAny>, what: &str) -> PyResult<()> {
+/// columns), as an array of that dtype or as elements of an object array. `expected` says what
+/// the argument `what` must hold ("real numbers", "integers").
+fn refuse_unreal(given: &Bound<'_, PyAny>, what: &str, expected: &str) -> PyResult<()> {
     let dtype = given.getattr("dtype")?;
     let kind: String = dtype.getattr("kind")?.extract()?;
     if matches!(kind.as_str(), "c" | "M" | "m" | "V" | "b" | "U" | "S") {
         return Err(PyValueError::new_err(format!(
-            "{what} must hold real numbers, got dtype {}",
+            "{what} must hold {expected}, got dtype {}",
             dtype.str()?
         )));
     }
+    if kind == "O"
+        && let Some((index, element)) = unreal_element(given)?
+    {
+        let shown = element
+            .repr()
+            .map_or_else(|_| "?".to_owned(), |r| r.to_string());
+        return Err(PyValueError::new_err(format!(
+            "{what} must hold {expected}, got dtype object holding {} {} at {index:?}",
+            element.get_type().name()?,
+            clip(&shown)
+        )));
+    }
     Ok(())
+}
+
+/// The first element of the object array `given` (its index and itself) that numpy's numeric
+/// conversion would take without a word but that is no real number: text (parsed: "3" becomes
+/// 3), a boolean (read as 0 or 1) or a complex number. Other objects (None, a dict) numpy
+/// refuses itself, naming the argument through [`naming`]; numbers of any real kind pass.
+fn unreal_element<'py>(
+    given: &Bound<'py, PyAny>,
+) -> PyResult<Option<(Vec<usize>, Bound<'py, PyAny>)>> {
+    let py = given.py();
+    let numpy = py.import("numpy")?;
+    let numbers = py.import("numbers")?;
+    let (complex, real) = (numbers.getattr("Complex")?, numbers.getattr("Real")?);
+    let refused = PyTuple::new(
+        py,
+        [
+            py.get_type::<PyString>().into_any(),
+            py.get_type::<PyBytes>().into_any(),
+            py.get_type::<PyBool>().into_any(),
+            numpy.getattr("bool_")?,
+        ],
+    )?;
+    for (k, element) in given.getattr("flat")?.try_iter()?.enumerate() {
+        let element = element?;
+        if element.is_instance(&refused)?
+            || (element.is_instance(&complex)? && !element.is_instance(&real)?)
+        {
+            let index = numpy
+                .call_method1("unravel_index", (k, given.getattr("shape")?))?
+                .try_iter()?
+                .map(|i| i?.extract::<usize>())
+                .collect::<PyResult<Vec<usize>>>()?;
+            return Ok(Some((index, element)));
+        }
+    }
+    Ok(None)
 }
 
 /// `what` as an `(n, 3)` float64 array: read in place when it is a C-contiguous, aligned float64
@@ -176,7 +252,7 @@ pub fn rows<'py>(obj: &Bound<'py, PyAny>, what: &str, single: bool) -> PyResult<
             shape_of(&given)
         )));
     }
-    refuse_unreal(&given, what)?;
+    refuse_unreal(&given, what, "real numbers")?;
     let converted = contiguous(&given, "float64").map_err(|e| naming(obj.py(), e, what))?;
     let converted = if was_single || empty {
         let shape = PyTuple::new(obj.py(), [usize::from(was_single), 3])?;
@@ -233,6 +309,8 @@ pub fn hexes(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<[i64; 8]>> {
     refuse_masked(obj, what)?;
     let numpy = obj.py().import("numpy")?;
     let given = as_array(obj, what)?;
+    // Booleans would be nodes 0 and 1, text parsed: both pass the whole-number check below.
+    refuse_unreal(&given, what, "integers")?;
     // NaN and out-of-range floats are refused below; numpy's warning on casting them is noise.
     let kwargs = pyo3::types::PyDict::new(obj.py());
     kwargs.set_item("invalid", "ignore")?;

@@ -141,7 +141,7 @@ impl PyBody {
         let three = "3 numbers (x, y, z)";
         let origin = DVec3::from_array(arrays::argument(origin, "origin", three)?);
         let h = DVec3::from_array(arrays::argument(spacing, "spacing", three)?);
-        let counts: [u32; 3] = arrays::argument(
+        let counts: [u32; 3] = arrays::count(
             counts,
             "counts",
             "3 whole numbers of cells (x, y, z), each from 1 to 2^32 - 1",

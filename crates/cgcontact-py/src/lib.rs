@@ -80,9 +80,10 @@ fn _data_address(points: &Bound<'_, PyAny>) -> PyResult<usize> {
 /// [-1, 1]^3 (VTK corner 0 at (-1, -1, -1)), every cell holding a point, and signed gaps to the
 /// body's deformed boundary surface. Queries release the GIL; C-contiguous, aligned float64
 /// (n, 3) arrays are read in place (do not write to them from another thread while a call
-/// runs), anything else array-like is converted once; an empty list is no points. Complex, date
-/// and time arrays, and masked arrays with masked values, raise ValueError rather than being
-/// cast. Errors name the argument at fault.
+/// runs), anything else array-like is converted once; an empty list is no points. Complex,
+/// boolean, text, date and time arrays, object arrays holding text, booleans or complex numbers,
+/// and masked arrays with masked values, raise ValueError rather than being cast. Errors name
+/// the argument at fault.
 ///
 /// `Body` holds a deformed body (`Body(origin, spacing, counts)`, `Body.from_hexes` or
 /// `read_mesh`); `Locator(body)` searches it. `cgcontact.pyi` gives every signature.

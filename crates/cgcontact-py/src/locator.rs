@@ -1,6 +1,7 @@
 //! Locators: every strategy of the command line by name, queries on numpy arrays with the GIL
 //! released.
 
+use std::ffi::CString;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, RwLock};
 
@@ -12,7 +13,7 @@ use numpy::{
     BorrowError, IntoPyArray, PyArray1, PyArray2, PyArrayMethods, PyUntypedArray,
     PyUntypedArrayMethods,
 };
-use pyo3::exceptions::PyValueError;
+use pyo3::exceptions::{PyUserWarning, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyTuple};
 use rayon::prelude::*;
@@ -34,6 +35,11 @@ const PIECE: usize = 1024;
 
 /// The most threads a locator's own pool may have.
 const MAX_THREADS: usize = 1024;
+
+/// Newton step tolerances (xi units) above which `tol` gets a warning, as the command line's
+/// `--tol` does: xi spans 2 across a cell, so a step tolerance this large stops Newton before
+/// it has found the point, and points near faces land in the wrong cell.
+const LOOSE_TOL: f64 = 1e-3;
 
 /// The strategy named `name` (the command line's spelling, `_` for `-` allowed).
 fn parse_strategy(name: &str) -> PyResult<Strategy> {
@@ -59,9 +65,10 @@ fn refused(what: &str, points: &[DVec3], row: usize) -> PyErr {
 /// `Locator(body, strategy="lattice", precision="f64", tol=None, max_iter=None, threads=None)`:
 /// `strategy` is one of "lattice" (this library's), "centroid", "noderad", "noderad-seed",
 /// "rtree" or "brute" (the command line's baselines); `precision` "f64" or "f32"; `tol` the
-/// Newton step tolerance in xi units (default 1e-10 in f64, 1e-5 in f32); `max_iter` the Newton
-/// iteration limit per candidate cell; `threads` the worker threads of a pool of its own, 1 to
-/// 1024 (None: every core, rayon's global pool).
+/// Newton step tolerance in xi units (default 1e-10 in f64, 1e-5 in f32; above 1e-3 a
+/// UserWarning, as the command line warns for `--tol`); `max_iter` the Newton iteration limit
+/// per candidate cell; `threads` the worker threads of a pool of its own, 1 to 1024 (None:
+/// every core, rayon's global pool).
 ///
 /// The locator shares its body: each query searches the body's current displacements (the
 /// strategy's setup, a pass over the nodes for the lattice strategy, runs again at each query).
@@ -171,6 +178,7 @@ impl PyLocator {
     #[new]
     #[pyo3(signature = (body, strategy = "lattice", precision = "f64", tol = None, max_iter = None, threads = None))]
     fn new(
+        py: Python<'_>,
         body: &PyBody,
         strategy: &str,
         precision: &str,
@@ -179,10 +187,10 @@ impl PyLocator {
         threads: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         let max_iter = max_iter
-            .map(|m| arrays::argument::<u32>(m, "max_iter", "a whole number from 1 to 2^32 - 1"))
+            .map(|m| arrays::count::<u32>(m, "max_iter", "a whole number from 1 to 2^32 - 1"))
             .transpose()?;
         let threads = threads
-            .map(|t| arrays::argument::<usize>(t, "threads", "a whole number at least 1"))
+            .map(|t| arrays::count::<usize>(t, "threads", "a whole number at least 1"))
             .transpose()?;
         let strategy = parse_strategy(strategy)?;
         let mut settings = match precision {
@@ -201,6 +209,16 @@ impl PyLocator {
             settings.max_iter = max_iter;
         }
         settings.validate().map_err(value_error)?;
+        if let Some(tol) = tol
+            && tol > LOOSE_TOL
+        {
+            // The command line's warning, word for word but for the flag's name.
+            let message = format!(
+                "tol {tol:?} is a Newton step tolerance in ξ units (a cell spans 2); above {LOOSE_TOL:e} answers can be off by about tol² and points near faces can be put in the wrong cell"
+            );
+            let message = CString::new(message).unwrap_or_default();
+            PyErr::warn(py, &py.get_type::<PyUserWarning>(), &message, 1)?;
+        }
         let pool = match threads {
             None => None,
             Some(0) => return Err(PyValueError::new_err("threads must be at least 1")),

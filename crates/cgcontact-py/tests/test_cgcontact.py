@@ -443,6 +443,58 @@ def test_boolean_and_text_arrays_are_refused_not_cast():
                                       locator.locate(given.astype(float))[0])
 
 
+def test_object_arrays_of_text_booleans_or_complex_are_refused_not_cast():
+    """numpy parses the text "3" in an object array (a table read without converting a column)
+    as 3.0, reads True as 1 and keeps a complex number's real part: refused as arrays of those
+    dtypes are, naming the element. Numbers of any real kind in an object array still are read."""
+    points, cells, _ = cell_points()
+    body = cgcontact.Body(ORIGIN, SPACING, COUNTS)
+    locator = cgcontact.Locator(body)
+    for element, shown in [("0.5", "str '0.5'"), (b"0.5", "bytes b'0.5'"), (True, "bool True"),
+                           (np.True_, "True"), (0.5 + 0j, "complex (0.5+0j)"),
+                           (np.complex128(0.5), "(0.5")]:
+        given = points.astype(object)
+        given[1, 2] = element
+        for query in [locator.locate, locator.locate_owners, lambda p: locator.gap(p, 0.1)]:
+            with pytest.raises(ValueError, match="must hold real numbers, got dtype object "
+                                                 "holding .* at \\[1, 2\\]") as caught:
+                query(given)
+            assert shown in str(caught.value), str(caught.value)
+    u = np.zeros((body.node_count, 3), dtype=object)
+    u[4, 0] = "0"
+    with pytest.raises(ValueError, match=r"u must hold real numbers, got dtype object holding "
+                                         r"str '0' at \[4, 0\]"):
+        body.set_displacements(u)
+    nodes, hexes = lattice_hexes()
+    text_node = nodes.astype(object)
+    text_node[0, 0] = str(nodes[0, 0])
+    with pytest.raises(ValueError, match="nodes must hold real numbers, got dtype object"):
+        cgcontact.Body.from_hexes(text_node, hexes)
+    text_hex = hexes.astype(object)
+    text_hex[0, 3] = str(hexes[0, 3])
+    with pytest.raises(ValueError, match=r"hexes must hold integers, got dtype object holding "
+                                         r"str .* at \[0, 3\]"):
+        cgcontact.Body.from_hexes(nodes, text_hex)
+    # Real numbers of any kind, in an object array, are read as before.
+    from decimal import Decimal
+    from fractions import Fraction
+    mixed = points.astype(object)
+    mixed[0, 0], mixed[1, 1], mixed[2, 2] = (Fraction(points[0, 0]), Decimal(points[1, 1]),
+                                             np.float32(points[2, 2]))
+    np.testing.assert_array_equal(locator.locate(mixed)[0], locator.locate(mixed.astype(float))[0])
+    cgcontact.Body.from_hexes(nodes, hexes.astype(object))
+
+
+def test_boolean_hexes_are_refused_not_read_as_nodes_0_and_1():
+    """numpy's int64 cast reads True as node 1 and False as node 0, whole numbers both."""
+    nodes, hexes = lattice_hexes()
+    for given in [hexes > 3, (hexes > 3).tolist()]:
+        with pytest.raises(ValueError, match="hexes must hold integers, got dtype bool"):
+            cgcontact.Body.from_hexes(nodes, given)
+    with pytest.raises(ValueError, match="hexes must hold integers, got dtype <U"):
+        cgcontact.Body.from_hexes(nodes, hexes.astype(str))
+
+
 def test_masked_values_are_refused_not_read_as_data():
     """A masked array's buffer holds values the caller marked as missing."""
     points, cells, _ = cell_points()
@@ -931,6 +983,41 @@ def test_a_nan_displacement_at_a_node_no_cell_uses_is_refused_as_the_cli_refuses
             "the body keeps its displacements"
 
 
+# A loose Newton tolerance: the command line's warning.
+
+
+def test_a_loose_tol_is_warned_as_the_cli_warns(cli, tmp_path):
+    """xi spans 2 across a cell: a step tolerance above 1e-3 stops Newton short of the point, and
+    points near faces land in the wrong cell (or none). `cgcontact --tol` warns; so does Python."""
+    nodes, hexes, _ = coarse_beside_refined()
+    mesh = tmp_path / "mesh.vtk"
+    write_vtk(mesh, nodes, hexes, np.zeros_like(nodes))
+    np.savetxt(tmp_path / "points.csv", nodes[:1], delimiter=",", header="x,y,z", comments="")
+    cli_run = subprocess.run([cli, "locate", "--mesh", str(mesh), "--points",
+                              str(tmp_path / "points.csv"), "--out", str(tmp_path / "out.csv"),
+                              "--tol", "0.1"], capture_output=True, text=True)
+    assert cli_run.returncode == 0, cli_run.stderr
+    body = cgcontact.Body(ORIGIN, SPACING, COUNTS)
+    for precision in ["f64", "f32"]:
+        with pytest.warns(UserWarning, match=r"tol 0\.1 is a Newton step tolerance") as caught:
+            cgcontact.Locator(body, precision=precision, tol=0.1)
+        message = str(caught[0].message)
+        assert "above 1e-3" in message and "points near faces" in message, message
+        assert f"--{message}" in cli_run.stderr, (message, cli_run.stderr)
+        assert caught[0].filename == __file__, caught[0].filename
+    # At most 1e-3, or the defaults: no warning.
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for tol in [None, 1e-3, 1e-10]:
+            cgcontact.Locator(body, tol=tol)
+            cgcontact.Locator(body, precision="f32", tol=tol)
+    # A refused tol is an error, not a warning.
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(ValueError):
+            cgcontact.Locator(body, tol=np.inf)
+
+
 # Arguments: errors name the argument and what it must be.
 
 
@@ -949,6 +1036,14 @@ def test_a_nan_displacement_at_a_node_no_cell_uses_is_refused_as_the_cli_refuses
         (lambda b: cgcontact.Locator(b, max_iter=-1), ValueError, "max_iter"),
         (lambda b: cgcontact.Locator(b, max_iter=2**40), ValueError, "max_iter"),
         (lambda b: cgcontact.Locator(b, threads=-1), ValueError, "threads"),
+        # A boolean is an int to Python (True is 1), but no count is meant by it: as booleans
+        # are refused for coordinates and node numbers.
+        (lambda b: cgcontact.Locator(b, max_iter=True), TypeError, "max_iter .* got True"),
+        (lambda b: cgcontact.Locator(b, threads=True), TypeError, "threads .* got True"),
+        (lambda b: cgcontact.Locator(b, threads=False), TypeError, "threads .* got False"),
+        (lambda b: cgcontact.Body((0, 0, 0), (1, 1, 1), (True, 2, 2)), TypeError,
+         r"counts .* got \(True, 2, 2\)"),
+        (lambda b: cgcontact.Body((0, 0, 0), (1, 1, 1), [2, 2, True]), TypeError, "counts"),
         # numpy's own conversion errors, which named no argument.
         (lambda b: cgcontact.Locator(b).locate([[0, 0, 0], [0, 0]]), ValueError, "points"),
         (lambda b: cgcontact.Locator(b).locate([["a", "b", "c"]]), ValueError, "points"),
