@@ -9,13 +9,14 @@
 //! --adaptive`'s scene), and the first `GapFinder::new` on that body, which makes the table of its
 //! leaves' open faces (kept by the body for every later finder).
 //!
-//! Run: `cargo bench -p cgcontact-benches --bench gap`
+//! Run: `cargo bench -p cgcontact-benches --bench gap`; for callgrind, a fixed load without
+//! criterion: `CGCONTACT_GAP_PASSES=N` and the bench's binary (see docs/benchmarks.md).
 
 use std::hint::black_box;
 
 use cgcontact::{AdaptiveLocator, GapFinder, LatticeLocator, Locator, Settings};
 use cgcontact_scenes::{SphereOnAdaptiveBlock, SphereOnBlock};
-use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+use criterion::{Criterion, Throughput, criterion_group};
 
 fn gap(c: &mut Criterion) {
     let scene = SphereOnBlock::fine()
@@ -100,4 +101,29 @@ fn gap(c: &mut Criterion) {
 }
 
 criterion_group!(benches, gap);
-criterion_main!(benches);
+/// `CGCONTACT_GAP_PASSES=N`: instead of criterion, N passes of the uniform group's
+/// `gap_all_into` (D = h, one thread) and nothing else, a fixed load for callgrind.
+fn main() {
+    if let Some(passes) = std::env::var("CGCONTACT_GAP_PASSES")
+        .ok()
+        .and_then(|n| n.parse::<usize>().ok())
+    {
+        let scene = SphereOnBlock::fine()
+            .build("sphere-fine")
+            .expect("the seed's scene");
+        let h = scene.body.lattice().h().z;
+        let locator = LatticeLocator::new(&scene.body, Settings::default()).expect("valid");
+        let finder = GapFinder::new(&locator, h).expect("a valid distance");
+        let one = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .expect("pool");
+        let mut gaps = Vec::new();
+        for _ in 0..passes {
+            one.install(|| finder.gap_all_into(black_box(&scene.contact_points), &mut gaps));
+        }
+        return;
+    }
+    benches();
+    Criterion::default().configure_from_args().final_summary();
+}

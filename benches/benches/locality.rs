@@ -8,13 +8,16 @@
 //! per point (85 s for the 6,700 points) and the translation 120× the deformed query; the targets
 //! are 50× and 3×.
 //!
+//! Then the gap search (`GapFinder::gap_all_into`, D = h) on the same bodies and points: it was
+//! bounded by the whole body's displacement range until it walked the same block ranges.
+//!
 //! Run: `cargo bench -p cgcontact-benches --bench locality`
 
 use std::hint::black_box;
 use std::time::Duration;
 
 use cgcontact::glam::DVec3;
-use cgcontact::{Body, LatticeLocator, Locator, Settings};
+use cgcontact::{Body, GapFinder, LatticeLocator, Locator, Settings};
 use cgcontact_scenes::SphereOnBlock;
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 
@@ -76,6 +79,24 @@ fn locality(c: &mut Criterion) {
         let mut out = Vec::with_capacity(points.len());
         group.bench_function(name, |b| {
             b.iter(|| one.install(|| locator.locate_all_into(black_box(&points), &mut out)))
+        });
+    }
+    group.finish();
+    // The gap search (D = h) on the same bodies and points: its box was bounded by the whole
+    // body's displacement range, so the spike made every point walk most of the lattice.
+    let mut group = c.benchmark_group("locality/gap-fine-sphere");
+    group
+        .sample_size(10)
+        .warm_up_time(Duration::from_millis(500))
+        .measurement_time(Duration::from_secs(2))
+        .throughput(Throughput::Elements(points.len() as u64));
+    for (name, body, shift) in bodies() {
+        let locator = LatticeLocator::new(&body, Settings::default()).expect("valid");
+        let finder = GapFinder::new(&locator, body.lattice().h().z).expect("a valid distance");
+        let points: Vec<DVec3> = points.iter().map(|&x| x + shift).collect();
+        let mut out = Vec::with_capacity(points.len());
+        group.bench_function(name, |b| {
+            b.iter(|| one.install(|| finder.gap_all_into(black_box(&points), &mut out)))
         });
     }
     group.finish();

@@ -241,7 +241,25 @@ pub(crate) struct Pyramid {
 impl Pyramid {
     /// The pyramid of `body`: one pass over its active cells' corners, then one over each level.
     pub(crate) fn new(body: &Body) -> Self {
-        let cells = body.lattice().cells();
+        let lattice = body.lattice();
+        Self::from_ranges(
+            lattice.cells(),
+            body.active_cells().map(|cell| {
+                let ijk = lattice
+                    .cell_ijk(cell)
+                    .expect("active cells lie in the lattice");
+                (ijk, Range::of(&body.corner_displacements(ijk)))
+            }),
+        )
+    }
+
+    /// The pyramid over a lattice of `cells` cells per axis from the displacement range of each
+    /// cell that has one (`(ijk, range)`, a cell may come several times: the ranges are joined;
+    /// an adaptive body gives each leaf's under its base cell).
+    pub(crate) fn from_ranges(
+        cells: [u32; 3],
+        ranges: impl IntoIterator<Item = ([u32; 3], Range)>,
+    ) -> Self {
         let blocks_of =
             |shift: u32| cells.map(|n| ((u64::from(n) + (1 << shift) - 1) >> shift) as u32);
         let mut finest = Level {
@@ -250,12 +268,7 @@ impl Pyramid {
             ranges: Vec::new(),
         };
         finest.ranges = vec![Range::EMPTY; finest.blocks.iter().map(|&n| n as usize).product()];
-        let lattice = body.lattice();
-        for cell in body.active_cells() {
-            let ijk = lattice
-                .cell_ijk(cell)
-                .expect("active cells lie in the lattice");
-            let range = Range::of(&body.corner_displacements(ijk));
+        for (ijk, range) in ranges {
             let slot = finest.index(ijk.map(|i| i >> LEAF_BITS));
             finest.ranges[slot] = finest.ranges[slot].union(range);
         }
@@ -292,6 +305,57 @@ impl Pyramid {
             .iter()
             .map(|l| l.ranges.capacity() * size_of::<Range>())
             .sum()
+    }
+
+    /// Descends to every finest block that meets the box of cells [`low`, `high`] and that
+    /// `keep` admits, as every block above it: `keep(first, cells, range)` is given a block's
+    /// lowest cell, its edge in cells and the displacement range of its cells (empty where it
+    /// has none). `leaf(from, to, range)` is then given the admitted finest block's cells
+    /// clipped to the box, [`from`, `to`], and its range. Blocks come depth first, in no
+    /// particular order.
+    pub(crate) fn descend(
+        &self,
+        low: [u32; 3],
+        high: [u32; 3],
+        mut keep: impl FnMut([u32; 3], u32, &Range) -> bool,
+        mut leaf: impl FnMut([u32; 3], [u32; 3], &Range),
+    ) {
+        let top = self.levels.len() - 1;
+        let mut stack: SmallVec<[(usize, [u32; 3]); 64]> = SmallVec::new();
+        let shift = self.levels[top].shift;
+        for k in low[2] >> shift..=high[2] >> shift {
+            for j in low[1] >> shift..=high[1] >> shift {
+                for i in low[0] >> shift..=high[0] >> shift {
+                    stack.push((top, [i, j, k]));
+                }
+            }
+        }
+        while let Some((l, b)) = stack.pop() {
+            let level = &self.levels[l];
+            let range = &level.ranges[level.index(b)];
+            let first = b.map(|b| b << level.shift);
+            if !keep(first, 1 << level.shift, range) {
+                continue;
+            }
+            let last = first.map(|f| f + (1 << level.shift) - 1);
+            let from = [0, 1, 2].map(|a| first[a].max(low[a]));
+            let to = [0, 1, 2].map(|a| last[a].min(high[a]));
+            if (0..3).any(|a| from[a] > to[a]) {
+                continue;
+            }
+            if l == 0 {
+                leaf(from, to, range);
+                continue;
+            }
+            let child = self.levels[l - 1].shift;
+            for k in from[2] >> child..=to[2] >> child {
+                for j in from[1] >> child..=to[1] >> child {
+                    for i in from[0] >> child..=to[0] >> child {
+                        stack.push((l - 1, [i, j, k]));
+                    }
+                }
+            }
+        }
     }
 
     /// The active cells of `body` in the box of cells [`low`, `high`] whose own shifted box holds

@@ -25,6 +25,17 @@
 //! (`gaps_on_a_sparse_body_with_cells_far_apart_match_the_oracle` did not end within a minute;
 //! 0.05 s now).
 //!
+//! The whole body's range makes that box as large as the largest displacement: one node moved
+//! 100 h made every point walk up to 200 cells per axis (135× the smooth body's time on a 60³
+//! lattice). So where the displacements spread over more than a few cells the finder keeps the
+//! lattice locator's octree of block ranges (`reach.rs`: per block of 2³ base cells, then 2³ of
+//! those, the range of its cells' corner displacements; over base cells on adaptive bodies), and
+//! a box of more than [`RING_CELLS`] base cells is walked through it: a block is entered only
+//! when its own box shifted by its own range is within the best distance (a face point of any of
+//! its cells lies in it), and each cell is pruned by its block's range. The base cells found are
+//! then visited in the walk's order, so the answers are bitwise the walk's (the same faces
+//! measured in the same order against the same bounds: a cell left out held no face as near).
+//!
 //! | file | what |
 //! |---|---|
 //! | `mod.rs` | [`GapFinder`], [`Contact`], [`Face`]: the search, the sign and the normal |
@@ -35,15 +46,17 @@ mod quad;
 mod surface;
 
 use glam::{DVec2, DVec3};
+use smallvec::SmallVec;
 
 use crate::lattice::CellId;
-use crate::reach::Range;
+use crate::reach::{RING_CELLS, Range};
 use crate::schedule::Scheduler;
 use crate::{Error, Frame, InsideTolerance, PointError};
 use quad::{Locus, Patch, box_distance2};
 use surface::Cell;
 pub(crate) use surface::Coverage;
 pub use surface::Surface;
+use surface::sealed::Blocks;
 
 /// The corners of each local face of a hexahedron (VTK order), counter-clockwise seen from
 /// outside: face `f` lies at local coordinate `f / 2` (ξ, η, ζ) = −1 when `f` is even, +1 when
@@ -100,10 +113,30 @@ pub struct GapFinder<'l, L> {
     surface: &'l L,
     distance: f64,
     u_range: Range,
+    /// The displacement range of each block of base cells (the lattice locator's octree), where
+    /// the whole body's range spreads over more than a few cells: a search box of more cells is
+    /// then walked through the blocks whose own shifted box is near enough.
+    blocks: Option<Blocks>,
     /// The locator's inside tolerance: how far outside a cell the locator's sign may reach.
     inside: InsideTolerance,
     /// The batched queries' schedule (the locator's) and its sort's buffers.
     scheduler: Scheduler,
+}
+
+#[cfg(test)]
+thread_local! {
+    /// The tests' work counter, per thread: the cells the search visited (each handed to its
+    /// lower bound) and the faces or squares it measured exactly.
+    static WORK: std::cell::Cell<[u64; 2]> = const { std::cell::Cell::new([0; 2]) };
+}
+
+#[cfg(test)]
+fn count(what: usize) {
+    WORK.with(|w| {
+        let mut v = w.get();
+        v[what] += 1;
+        w.set(v);
+    });
 }
 
 /// The best face so far.
@@ -213,6 +246,7 @@ impl<'l, L: Surface> GapFinder<'l, L> {
             surface,
             distance,
             u_range,
+            blocks: surface.block_ranges(u_range.high - u_range.low),
             inside,
             scheduler: Scheduler::new(surface.schedule().0),
         })
@@ -337,15 +371,16 @@ impl<'l, L: Surface> GapFinder<'l, L> {
         let hinted = hint.and_then(|face| Some((self.surface.cell(face.cell.0)?, face.local)));
         let first = match hinted {
             Some((cell, local)) if local < 6 => {
-                self.offer_cell(x, cell, 1 << local, &mut best, &mut bound);
-                self.offer_cell(x, cell, ALL_FACES & !(1 << local), &mut best, &mut bound);
+                self.offer_cell(x, cell, 1 << local, &range, &mut best, &mut bound);
+                let others = ALL_FACES & !(1 << local);
+                self.offer_cell(x, cell, others, &range, &mut best, &mut bound);
                 Some(cell)
             }
             _ => {
                 let t = (x - lattice.origin() - 0.5 * (range.low + range.high)) * inv_h;
                 let first = self.surface.cell_near(t);
                 if let Some(cell) = first {
-                    self.offer_cell(x, cell, ALL_FACES, &mut best, &mut bound);
+                    self.offer_cell(x, cell, ALL_FACES, &range, &mut best, &mut bound);
                 }
                 first
             }
@@ -364,16 +399,52 @@ impl<'l, L: Surface> GapFinder<'l, L> {
         let reach = DVec3::splat(reach) + lattice.h() * 1e-9 + rounding;
         let low = (x - lattice.origin() - range.high - reach) * inv_h;
         let high = (x - lattice.origin() - range.low + reach) * inv_h;
-        self.surface.cells_in_box(low, high, |cell| {
-            if cell.id == first || (L::OPEN_FACES_STORED && self.surface.open_faces(cell) == 0) {
-                return;
+        let blocks = self.blocks.as_ref().and_then(|Blocks(blocks)| {
+            let n = lattice.cells();
+            let mut cells = [(0, 0); 3];
+            for a in 0..3 {
+                cells[a] = surface::sealed::axis_range(low[a], high[a], n[a])?;
             }
-            let origin = self.surface.cell_origin(cell);
-            let size = self.surface.size(cell);
-            if !bound.prunes(box_distance2(x - origin, range.low, size + range.high)) {
-                self.offer_cell(x, cell, ALL_FACES, &mut best, &mut bound);
-            }
+            let count: u64 = cells.iter().map(|&(l, h)| u64::from(h - l + 1)).product();
+            (count > RING_CELLS).then_some((blocks, cells))
         });
+        if let Some((blocks, cells)) = blocks {
+            // A box of many cells on a body whose displacements spread (a far-moved node):
+            // only the base cells of the blocks whose own shifted box is near enough, each cell
+            // then pruned by its block's range. Visited in the order the walk below visits them
+            // (ascending id: the first face found at the least distance stays the answer).
+            let mut bases: SmallVec<[(u32, [u32; 3], Range); 32]> = SmallVec::new();
+            let h = lattice.h();
+            blocks.descend(
+                cells.map(|c| c.0),
+                cells.map(|c| c.1),
+                |first, edge, range| {
+                    let origin = lattice.node_position(first);
+                    let size = h * f64::from(edge);
+                    !bound.prunes(box_distance2(x - origin, range.low, size + range.high))
+                },
+                |from, to, range| {
+                    for k in from[2]..=to[2] {
+                        for j in from[1]..=to[1] {
+                            for i in from[0]..=to[0] {
+                                let ijk = [i, j, k];
+                                bases.push((lattice.cell_id(ijk).0, ijk, *range));
+                            }
+                        }
+                    }
+                },
+            );
+            bases.sort_unstable_by_key(|b| b.0);
+            for (_, base, range) in bases {
+                self.surface.cells_of_base(base, low, high, |cell| {
+                    self.visit(x, cell, first, &range, &mut best, &mut bound);
+                });
+            }
+        } else {
+            self.surface.cells_in_box(low, high, |cell| {
+                self.visit(x, cell, first, &range, &mut best, &mut bound);
+            });
+        }
         let Some(b) = best else {
             return Ok(None);
         };
@@ -438,14 +509,41 @@ impl<'l, L: Surface> GapFinder<'l, L> {
         }))
     }
 
+    /// A cell of the search box (other than `first`, measured already), its corners'
+    /// displacements in `range`: measured unless its box shifted by `range` is farther than the
+    /// best so far.
+    #[inline(always)]
+    fn visit(
+        &self,
+        x: DVec3,
+        cell: Cell,
+        first: u32,
+        range: &Range,
+        best: &mut Option<Best>,
+        bound: &mut Bound,
+    ) {
+        #[cfg(test)]
+        count(0);
+        if cell.id == first || (L::OPEN_FACES_STORED && self.surface.open_faces(cell) == 0) {
+            return;
+        }
+        let origin = self.surface.cell_origin(cell);
+        let size = self.surface.size(cell);
+        if !bound.prunes(box_distance2(x - origin, range.low, size + range.high)) {
+            self.offer_cell(x, cell, ALL_FACES, range, best, bound);
+        }
+    }
+
     /// Measures the faces of `cell` in the bit set `faces` (bit f: local face f) that can be
-    /// nearer than the best so far and are on the surface.
+    /// nearer than the best so far and are on the surface, its corners' displacements in
+    /// `range`.
     #[inline]
     fn offer_cell(
         &self,
         x: DVec3,
         cell: Cell,
         faces: u8,
+        range: &Range,
         best: &mut Option<Best>,
         bound: &mut Bound,
     ) {
@@ -453,7 +551,6 @@ impl<'l, L: Surface> GapFinder<'l, L> {
         if faces == 0 {
             return;
         }
-        let range = self.u_range;
         let origin = self.surface.cell_origin(cell);
         let size = self.surface.size(cell);
         let xl = x - origin;
@@ -575,6 +672,8 @@ impl<'l, L: Surface> GapFinder<'l, L> {
         if bound.prunes(box_distance2(xl, lo, hi)) {
             return;
         }
+        #[cfg(test)]
+        count(1);
         let Some(mut p) = quad::closest_below(xl, &part, bound.d2) else {
             return;
         };

@@ -6,6 +6,7 @@ use glam::DVec3;
 use crate::adaptive::AdaptiveLocator;
 use crate::lattice::{CellId, Lattice};
 use crate::locate::{LatticeLocator, Locator};
+use crate::reach::{self, Pyramid, Range};
 use crate::schedule::Layout;
 use crate::{Schedule, Settings};
 
@@ -29,6 +30,10 @@ pub(crate) mod sealed {
         pub level: u8,
         pub ijk: [u32; 3],
     }
+
+    /// The displacement ranges of a body's blocks of base cells ([`Faces::block_ranges`]).
+    #[derive(Clone, Debug)]
+    pub struct Blocks(pub(crate) Pyramid);
 
     /// How much of a face is on the boundary surface.
     #[derive(Clone, Debug, PartialEq)]
@@ -73,6 +78,14 @@ pub(crate) mod sealed {
         fn coverage(&self, cell: Cell, face: usize) -> Coverage;
         /// The corner displacements of `cell`, VTK order.
         fn corner_displacements(&self, cell: Cell) -> [DVec3; 8];
+        /// The displacement ranges of the body's blocks of base cells (the lattice locator's
+        /// octree, `reach.rs`), built only where the whole body's displacements spread (per
+        /// axis, `spread`) over more than a few cells, as the locator builds its own: a large
+        /// search box is then walked block by block, each block shifted by its own range.
+        fn block_ranges(&self, spread: DVec3) -> Option<Blocks>;
+        /// Every active cell of base cell `base` whose closed undeformed box meets [`low`,
+        /// `high`] (lattice coordinates), in the order of [`Faces::cells_in_box`].
+        fn cells_of_base(&self, base: [u32; 3], low: DVec3, high: DVec3, visit: impl FnMut(Cell));
         /// Whatever [`Faces::open_faces`] computes once per body, before the first search.
         fn prepare(&self) {}
         /// Whether [`Faces::open_faces`] is a table lookup (cheaper than any bound), so that the
@@ -83,7 +96,7 @@ pub(crate) mod sealed {
     /// Cell index range along one axis of the cells (`n` of them) whose closed interval meets
     /// [`low`, `high`]: `None` when none does (or on NaN).
     #[inline]
-    fn axis_range(low: f64, high: f64, n: u32) -> Option<(u32, u32)> {
+    pub(in crate::gap) fn axis_range(low: f64, high: f64, n: u32) -> Option<(u32, u32)> {
         if !(high >= 0.0 && low <= f64::from(n)) {
             return None;
         }
@@ -191,6 +204,28 @@ pub(crate) mod sealed {
             }
         }
 
+        fn block_ranges(&self, spread: DVec3) -> Option<Blocks> {
+            // As the locator decides for its own (whose is private to it): not on a sparse body
+            // whose lattice dwarfs it, the pyramid being dense over the lattice.
+            let body = self.body();
+            let lattice = body.lattice();
+            (reach::pyramid_pays(spread, lattice.h())
+                && lattice.cell_count() <= 64 * body.active_count())
+            .then(|| Blocks(Pyramid::new(body)))
+        }
+
+        #[inline]
+        fn cells_of_base(&self, ijk: [u32; 3], _: DVec3, _: DVec3, mut visit: impl FnMut(Cell)) {
+            let id = self.body().lattice().cell_id(ijk);
+            if self.body().is_active(id) {
+                visit(Cell {
+                    id: id.0,
+                    level: 0,
+                    ijk,
+                });
+            }
+        }
+
         /// Exact: a face is open where the cell across is outside the lattice or inactive. On
         /// a body whose every lattice cell is active, only the lattice's own faces are.
         #[inline]
@@ -287,6 +322,49 @@ pub(crate) mod sealed {
         fn cells_in_box(&self, low: DVec3, high: DVec3, mut visit: impl FnMut(Cell)) {
             self.body()
                 .for_each_surface_leaf_in_box(low, high, |id, leaf| {
+                    visit(Cell {
+                        id,
+                        level: leaf.level,
+                        ijk: leaf.ijk,
+                    });
+                });
+        }
+
+        fn block_ranges(&self, spread: DVec3) -> Option<Blocks> {
+            // Per base cell, the range of its leaves' corner displacements (their hanging
+            // corners' constrained values: what the leaves' maps take).
+            let body = self.body();
+            let lattice = body.lattice();
+            let leaves = body.leaves();
+            (reach::pyramid_pays(spread, lattice.h()) && lattice.cell_count() <= 64 * leaves.len())
+                .then(|| {
+                    Blocks(Pyramid::from_ranges(
+                        lattice.cells(),
+                        leaves.iter().enumerate().map(|(id, leaf)| {
+                            (leaf.base(), Range::of(&body.leaf_displacements(id as u32)))
+                        }),
+                    ))
+                })
+        }
+
+        fn cells_of_base(
+            &self,
+            base: [u32; 3],
+            low: DVec3,
+            high: DVec3,
+            mut visit: impl FnMut(Cell),
+        ) {
+            // The box clamped into [b + δ, b + 1 − δ] per axis, δ a quarter of the finest
+            // leaves' edge: the forest then looks at base cell b alone, and a leaf of b (its
+            // bounds on the finest grid, b + k/2^L) meets the clamped box exactly when it meets
+            // the box (`cells_in_box`'s order and leaves, restricted to b).
+            let delta = 0.25 * 0.5f64.powi(i32::from(self.body().finest_level()));
+            let b = DVec3::new(f64::from(base[0]), f64::from(base[1]), f64::from(base[2]));
+            let (lo, hi) = (b + delta, b + (1.0 - delta));
+            let (low, high) = (low.clamp(lo, hi), high.clamp(lo, hi));
+            self.body()
+                .for_each_surface_leaf_in_box(low, high, |id, leaf| {
+                    debug_assert_eq!(leaf.base(), base);
                     visit(Cell {
                         id,
                         level: leaf.level,

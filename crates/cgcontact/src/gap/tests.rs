@@ -916,3 +916,213 @@ fn warm_and_cold_answers_agree_on_the_surfaces_edges() {
         assert!(checked > 50_000, "amp {amp}: {checked}");
     }
 }
+
+/// The work of `points`' searches on this thread: cells visited and faces measured.
+fn work(finder: &GapFinder<'_, impl Surface>, points: &[DVec3]) -> ([u64; 2], Vec<GapAnswer>) {
+    let before = WORK.with(std::cell::Cell::get);
+    let answers = points.iter().map(|&x| finder.gap(x)).collect();
+    let after = WORK.with(std::cell::Cell::get);
+    ([after[0] - before[0], after[1] - before[1]], answers)
+}
+
+/// A full 12³ body (h = 0.1) with a smooth field, and the same with one interior node moved
+/// 100 h on every axis (its 8 cells inverted into a spike): the audit's case. The gap search
+/// was bounded by the whole body's displacement range, so the spike made every point walk a box
+/// of up to 100 cells per axis (clamped to the lattice): 135× the smooth body's time on a 60³
+/// lattice, and here 26× the cells visited. Now each point visits about the cells near it, and
+/// those of the blocks holding the spike where it passes near; the answers are the brute force's.
+#[test]
+fn one_far_moved_node_costs_the_gap_search_only_near_it() {
+    let h = DVec3::splat(0.1);
+    let lattice = Lattice::new(DVec3::ZERO, h, [12, 12, 12]).unwrap();
+    let dense: Vec<DVec3> = (0..lattice.node_count())
+        .map(|n| field(lattice.node_position(lattice.node_ijk(n).unwrap()), h, 0.05))
+        .collect();
+    let active = bitvec![1; lattice.cell_count()];
+    let smooth = Body::from_dense(lattice, active.clone(), &dense).unwrap();
+    let mut spiked = dense.clone();
+    spiked[lattice.node_index([7, 5, 4])] += 100.0 * h;
+    let spike = Body::from_dense(lattice, active, &spiked).unwrap();
+    let points = points_in(DVec3::splat(-0.3), lattice.upper() + 0.3, 120, 0x5b1e);
+    let d = 0.15;
+    let faces = uniform_faces(&smooth);
+    assert_eq!(faces, uniform_faces(&spike), "the spike is inside the body");
+    let want: Vec<f64> = points.iter().map(|&x| oracle(x, &faces).dist).collect();
+    let mut counts = Vec::new();
+    for body in [&smooth, &spike] {
+        let locator = LatticeLocator::new(body, Settings::default()).unwrap();
+        let finder = GapFinder::new(&locator, d).unwrap();
+        let (count, answers) = work(&finder, &points);
+        let mut found = 0;
+        for (i, ((&x, answer), &want)) in points.iter().zip(&answers).zip(&want).enumerate() {
+            if (want - d).abs() < 1e-9 {
+                continue;
+            }
+            match answer.unwrap() {
+                None => assert!(want > d, "point {i} {x}: None, the surface is {want} away"),
+                Some(c) => {
+                    found += 1;
+                    assert!(
+                        (c.gap.abs() - want).abs() <= 1e-11,
+                        "point {i} {x}: |gap| {} against {want}",
+                        c.gap
+                    );
+                }
+            }
+        }
+        assert!(found > 20 && found < points.len() - 20, "found {found}");
+        counts.push(count);
+    }
+    let (smooth, spike) = (counts[0], counts[1]);
+    eprintln!("cells visited, faces measured: smooth {smooth:?}, spike {spike:?}");
+    // Cells visited and faces measured, the spike's within a small factor of the smooth body's:
+    // 2.6× and 2.2× (the walk of the whole body's range visited 26× the cells). The spike's
+    // first cell, at x less the middle of that range, is far off: its bound is D, hence more
+    // cells and faces than on the smooth body.
+    assert!(
+        spike[0] <= 4 * smooth[0] && spike[1] <= 3 * smooth[1],
+        "cells visited {} against {}, faces measured {} against {}",
+        spike[0],
+        smooth[0],
+        spike[1],
+        smooth[1]
+    );
+}
+
+/// `finder`'s answers, cold, batched and warm, bitwise those of the same finder walking the box
+/// of the whole body's displacement range (the search before the block ranges), with the cells
+/// visited of each.
+fn same_as_the_walk<L: Surface>(finder: &GapFinder<'_, L>, points: &[DVec3]) -> [[u64; 2]; 2] {
+    assert!(finder.blocks.is_some(), "the body keeps block ranges");
+    let mut walk = GapFinder::new(finder.surface, finder.distance).unwrap();
+    walk.blocks = None;
+    let (a, blocks) = work(finder, points);
+    let (b, walked) = work(&walk, points);
+    let bits = |g: &GapAnswer| {
+        g.map(|c| {
+            c.map(|c| {
+                (
+                    c.gap.to_bits(),
+                    c.point.to_array().map(f64::to_bits),
+                    c.normal.to_array().map(f64::to_bits),
+                    c.st.to_array().map(f64::to_bits),
+                    c.face,
+                    c.interior,
+                )
+            })
+        })
+    };
+    for (i, (p, q)) in blocks.iter().zip(&walked).enumerate() {
+        assert_eq!(bits(p), bits(q), "point {i} {}", points[i]);
+    }
+    let (mut p, mut q) = (Vec::new(), Vec::new());
+    finder.gap_all_into(points, &mut p);
+    assert_eq!(p, blocks);
+    finder.regap_all(points, &mut p);
+    walk.gap_all_into(points, &mut q);
+    walk.regap_all(points, &mut q);
+    for (p, q) in p.iter().zip(&q) {
+        assert_eq!(bits(p), bits(q));
+    }
+    [a, b]
+}
+
+/// The walk through the block ranges answers bitwise as the walk of the whole range's box, on
+/// uniform bodies with a far-moved node inside and on the surface (its faces then measured),
+/// with inactive cells, and on an adaptive body; and visits fewer cells.
+#[test]
+fn block_ranges_answer_bitwise_as_the_whole_range() {
+    let h = DVec3::new(0.1, 0.12, 0.09);
+    let lattice = Lattice::new(DVec3::new(-0.4, 0.3, 1.0), h, [14, 11, 13]).unwrap();
+    let smooth: Vec<DVec3> = (0..lattice.node_count())
+        .map(|n| field(lattice.node_position(lattice.node_ijk(n).unwrap()), h, 0.07))
+        .collect();
+    let mut active = bitvec![1; lattice.cell_count()];
+    for k in 0..13 {
+        for j in 0..11 {
+            // A notch through the body (concave edges across the blocks) and a hole.
+            active.set(lattice.cell_id([9, j, k]).index(), k > 8);
+            active.set(lattice.cell_id([3, 4, k]).index(), !(3..7).contains(&k));
+        }
+    }
+    let points = points_in(lattice.origin() - 0.4, lattice.upper() + 0.4, 700, 0xb10c);
+    let mut on_lattice = points.clone();
+    // Points on nodes, edges and faces of the lattice: ties between faces.
+    for (n, x) in on_lattice.iter_mut().enumerate().take(200) {
+        let t = ((*x - lattice.origin()) / h * 2.0).round() * 0.5;
+        *x = lattice.origin()
+            + t * h
+            + if n % 3 == 0 {
+                smooth[n % 50]
+            } else {
+                DVec3::ZERO
+            };
+    }
+    for (node, by) in [
+        ([6, 5, 7], DVec3::splat(100.0)),
+        ([0, 4, 6], DVec3::new(-30.0, 2.0, 1.0)),
+        ([14, 11, 13], DVec3::new(3.0, 5.0, 40.0)),
+        ([9, 3, 10], DVec3::new(0.5, -20.0, 7.0)),
+    ] {
+        let mut u = smooth.clone();
+        u[lattice.node_index(node)] += by * h;
+        let body = Body::from_dense(lattice, active.clone(), &u).unwrap();
+        let locator = LatticeLocator::new(&body, Settings::default()).unwrap();
+        for d in [0.05, 0.2, 0.6] {
+            let finder = GapFinder::new(&locator, d).unwrap();
+            let [blocks, walk] = same_as_the_walk(&finder, &on_lattice);
+            eprintln!("{node:?} {d}: {blocks:?} {walk:?}");
+            assert!(
+                blocks[0] <= walk[0],
+                "{node:?} {d}: cells {blocks:?} {walk:?}"
+            );
+        }
+    }
+    // An adaptive body: a 10 × 9 × 8 base lattice, its top layer refined once and a corner of
+    // it twice (hanging nodes), one node moved far inside and one on the refined surface.
+    let h = DVec3::new(0.2, 0.15, 0.25);
+    let lattice = Lattice::new(DVec3::new(1.0, -0.5, 0.2), h, [10, 9, 8]).unwrap();
+    let mut leaves = Vec::new();
+    for k in 0..8 {
+        for j in 0..9 {
+            for i in 0..10 {
+                let base = Leaf::new(0, [i, j, k]);
+                if k < 7 {
+                    if (i, j, k) != (4, 4, 3) {
+                        leaves.push(base);
+                    }
+                    continue;
+                }
+                for child in base.children() {
+                    if i < 3 && j < 3 {
+                        leaves.extend(child.children());
+                    } else {
+                        leaves.push(child);
+                    }
+                }
+            }
+        }
+    }
+    let points = points_in(lattice.origin() - 0.3, lattice.upper() + 0.3, 700, 0xada5);
+    for (at, by) in [
+        (DVec3::new(5.0, 4.0, 3.0), DVec3::splat(60.0)),
+        (DVec3::new(1.5, 1.0, 8.0), DVec3::new(2.0, -1.0, 25.0)),
+    ] {
+        let mut body = AdaptiveBody::from_leaves(lattice, leaves.clone()).unwrap();
+        let spike = lattice.origin() + at * h;
+        body.update_independent(|_, x, u| {
+            *u = field(x, h, 0.05);
+            if (x - spike).length() < 1e-9 {
+                *u += by * h;
+            }
+        })
+        .unwrap();
+        let locator = AdaptiveLocator::new(&body, Settings::default()).unwrap();
+        for d in [0.05, 0.3] {
+            let finder = GapFinder::new(&locator, d).unwrap();
+            let [blocks, walk] = same_as_the_walk(&finder, &points);
+            eprintln!("{at} {d}: {blocks:?} {walk:?}");
+            assert!(blocks[0] <= walk[0], "{at} {d}: cells {blocks:?} {walk:?}");
+        }
+    }
+}
