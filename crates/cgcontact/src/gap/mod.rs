@@ -116,7 +116,7 @@ pub struct GapFinder<'l, L> {
     /// The displacement range of each block of base cells (the lattice locator's octree), where
     /// the whole body's range spreads over more than a few cells: a search box of more cells is
     /// then walked through the blocks whose own shifted box is near enough.
-    blocks: Option<Blocks>,
+    blocks: Option<Blocks<'l>>,
     /// The locator's inside tolerance: how far outside a cell the locator's sign may reach.
     inside: InsideTolerance,
     /// The batched queries' schedule (the locator's) and its sort's buffers.

@@ -31,9 +31,10 @@ pub(crate) mod sealed {
         pub ijk: [u32; 3],
     }
 
-    /// The displacement ranges of a body's blocks of base cells ([`Faces::block_ranges`]).
+    /// The displacement ranges of a body's blocks of base cells ([`Faces::block_ranges`]): the
+    /// lattice locator's own, borrowed, or built for an adaptive body.
     #[derive(Clone, Debug)]
-    pub struct Blocks(pub(crate) Pyramid);
+    pub struct Blocks<'a>(pub(crate) std::borrow::Cow<'a, Pyramid>);
 
     /// How much of a face is on the boundary surface.
     #[derive(Clone, Debug, PartialEq)]
@@ -82,7 +83,7 @@ pub(crate) mod sealed {
         /// octree, `reach.rs`), built only where the whole body's displacements spread (per
         /// axis, `spread`) over more than a few cells, as the locator builds its own: a large
         /// search box is then walked block by block, each block shifted by its own range.
-        fn block_ranges(&self, spread: DVec3) -> Option<Blocks>;
+        fn block_ranges(&self, spread: DVec3) -> Option<Blocks<'_>>;
         /// Every active cell of base cell `base` whose closed undeformed box meets [`low`,
         /// `high`] (lattice coordinates), in the order of [`Faces::cells_in_box`].
         fn cells_of_base(&self, base: [u32; 3], low: DVec3, high: DVec3, visit: impl FnMut(Cell));
@@ -204,14 +205,11 @@ pub(crate) mod sealed {
             }
         }
 
-        fn block_ranges(&self, spread: DVec3) -> Option<Blocks> {
-            // As the locator decides for its own (whose is private to it): not on a sparse body
-            // whose lattice dwarfs it, the pyramid being dense over the lattice.
-            let body = self.body();
-            let lattice = body.lattice();
-            (reach::pyramid_pays(spread, lattice.h())
-                && lattice.cell_count() <= 64 * body.active_count())
-            .then(|| Blocks(Pyramid::new(body)))
+        fn block_ranges(&self, _: DVec3) -> Option<Blocks<'_>> {
+            // The locator's own, built by the same rule from the same displacements (where they
+            // spread, and not on a sparse body whose lattice dwarfs it): borrowed, not built twice.
+            self.pyramid()
+                .map(|p| Blocks(std::borrow::Cow::Borrowed(p)))
         }
 
         #[inline]
@@ -330,7 +328,7 @@ pub(crate) mod sealed {
                 });
         }
 
-        fn block_ranges(&self, spread: DVec3) -> Option<Blocks> {
+        fn block_ranges(&self, spread: DVec3) -> Option<Blocks<'_>> {
             // Per base cell, the range of its leaves' corner displacements (their hanging
             // corners' constrained values: what the leaves' maps take).
             let body = self.body();
@@ -338,12 +336,12 @@ pub(crate) mod sealed {
             let leaves = body.leaves();
             (reach::pyramid_pays(spread, lattice.h()) && lattice.cell_count() <= 64 * leaves.len())
                 .then(|| {
-                    Blocks(Pyramid::from_ranges(
+                    Blocks(std::borrow::Cow::Owned(Pyramid::from_ranges(
                         lattice.cells(),
                         leaves.iter().enumerate().map(|(id, leaf)| {
                             (leaf.base(), Range::of(&body.leaf_displacements(id as u32)))
                         }),
-                    ))
+                    )))
                 })
         }
 

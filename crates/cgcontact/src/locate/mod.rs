@@ -345,6 +345,11 @@ impl<'a> LatticeLocator<'a> {
         self.body
     }
 
+    /// The per-block displacement ranges, where they were built (the gap search borrows them).
+    pub(crate) fn pyramid(&self) -> Option<&Pyramid> {
+        self.pyramid.as_ref()
+    }
+
     /// The settings in force.
     #[must_use]
     pub fn settings(&self) -> &Settings {
