@@ -19,7 +19,8 @@ use std::time::Duration;
 use cgcontact::glam::DVec3;
 use cgcontact::{Body, GapFinder, LatticeLocator, Locator, Settings};
 use cgcontact_scenes::SphereOnBlock;
-use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+use criterion::measurement::WallTime;
+use criterion::{BenchmarkGroup, Criterion, Throughput, criterion_group, criterion_main};
 
 /// The bodies of the comparison (as deformed, with a spike, translated twice) and how far each moves
 /// the query points.
@@ -54,6 +55,16 @@ pub fn bodies() -> Vec<(&'static str, Body, DVec3)> {
     ]
 }
 
+/// A group of 10 samples of 2 s each, after half a second of warm-up.
+fn new_group<'c>(c: &'c mut Criterion, name: &str) -> BenchmarkGroup<'c, WallTime> {
+    let mut group = c.benchmark_group(name);
+    group
+        .sample_size(10)
+        .warm_up_time(Duration::from_millis(500))
+        .measurement_time(Duration::from_secs(2));
+    group
+}
+
 fn locality(c: &mut Criterion) {
     let points = SphereOnBlock {
         jitter: 0.3,
@@ -67,12 +78,8 @@ fn locality(c: &mut Criterion) {
         .num_threads(1)
         .build()
         .expect("pool");
-    let mut group = c.benchmark_group("locality/fine-sphere");
-    group
-        .sample_size(10)
-        .warm_up_time(Duration::from_millis(500))
-        .measurement_time(Duration::from_secs(2))
-        .throughput(Throughput::Elements(points.len() as u64));
+    let mut group = new_group(c, "locality/fine-sphere");
+    group.throughput(Throughput::Elements(points.len() as u64));
     for (name, body, shift) in bodies() {
         let locator = LatticeLocator::new(&body, Settings::default()).expect("valid");
         let points: Vec<DVec3> = points.iter().map(|&x| x + shift).collect();
@@ -84,12 +91,8 @@ fn locality(c: &mut Criterion) {
     group.finish();
     // The gap search (D = h) on the same bodies and points: its box was bounded by the whole
     // body's displacement range, so the spike made every point walk most of the lattice.
-    let mut group = c.benchmark_group("locality/gap-fine-sphere");
-    group
-        .sample_size(10)
-        .warm_up_time(Duration::from_millis(500))
-        .measurement_time(Duration::from_secs(2))
-        .throughput(Throughput::Elements(points.len() as u64));
+    let mut group = new_group(c, "locality/gap-fine-sphere");
+    group.throughput(Throughput::Elements(points.len() as u64));
     for (name, body, shift) in bodies() {
         let locator = LatticeLocator::new(&body, Settings::default()).expect("valid");
         let finder = GapFinder::new(&locator, body.lattice().h().z).expect("a valid distance");
@@ -100,11 +103,7 @@ fn locality(c: &mut Criterion) {
         });
     }
     group.finish();
-    let mut group = c.benchmark_group("locality/build");
-    group
-        .sample_size(10)
-        .warm_up_time(Duration::from_millis(500))
-        .measurement_time(Duration::from_secs(2));
+    let mut group = new_group(c, "locality/build");
     for (name, body, _) in bodies().into_iter().take(3) {
         group.bench_function(name, |b| {
             b.iter(|| LatticeLocator::new(black_box(&body), Settings::default()).expect("valid"))

@@ -375,42 +375,15 @@ impl Pyramid {
     ) {
         let lattice = body.lattice();
         let h = lattice.h();
-        let top = self.levels.len() - 1;
-        let mut stack: SmallVec<[(usize, [u32; 3]); 64]> = SmallVec::new();
-        let shift = self.levels[top].shift;
-        for k in low[2] >> shift..=high[2] >> shift {
-            for j in low[1] >> shift..=high[1] >> shift {
-                for i in low[0] >> shift..=high[0] >> shift {
-                    stack.push((top, [i, j, k]));
-                }
-            }
-        }
-        while let Some((l, b)) = stack.pop() {
-            let level = &self.levels[l];
-            let range = level.ranges[level.index(b)];
-            let first = b.map(|b| b << level.shift);
-            let size = h * f64::from(1u32 << level.shift);
-            let rel = x - lattice.node_position(first);
-            if !range.reaches(rel, size, h, tau) {
-                continue;
-            }
-            let last = first.map(|f| f + (1 << level.shift) - 1);
-            let from = [0, 1, 2].map(|a| first[a].max(low[a]));
-            let to = [0, 1, 2].map(|a| last[a].min(high[a]));
-            if (0..3).any(|a| from[a] > to[a]) {
-                continue;
-            }
-            if l > 0 {
-                let child = self.levels[l - 1].shift;
-                for k in from[2] >> child..=to[2] >> child {
-                    for j in from[1] >> child..=to[1] >> child {
-                        for i in from[0] >> child..=to[0] >> child {
-                            stack.push((l - 1, [i, j, k]));
-                        }
-                    }
-                }
-                continue;
-            }
+        let keep = |first: [u32; 3], edge: u32, range: &Range| {
+            range.reaches(
+                x - lattice.node_position(first),
+                h * f64::from(edge),
+                h,
+                tau,
+            )
+        };
+        self.descend(low, high, keep, |from, to, range| {
             // The cells of this block that its range lets reach x: X = x − u, u in the range, and
             // cell i spans [i, i + 1] in lattice coordinates.
             let w = widening(h, range.high - range.low, tau);
@@ -429,7 +402,7 @@ impl Pyramid {
                 (lo[a], hi[a]) = (l as u32, u as u32);
             }
             if empty {
-                continue;
+                return;
             }
             for k in lo[2]..=hi[2] {
                 for j in lo[1]..=hi[1] {
@@ -445,7 +418,7 @@ impl Pyramid {
                     }
                 }
             }
-        }
+        });
     }
 }
 
