@@ -30,7 +30,7 @@
 //! lattice). So where the displacements spread over more than a few cells the finder keeps the
 //! lattice locator's octree of block ranges (`reach.rs`: per block of 2³ base cells, then 2³ of
 //! those, the range of its cells' corner displacements; over base cells on adaptive bodies), and
-//! a box of more than [`RING_CELLS`] base cells is walked through it: a block is entered only
+//! a box of more than `RING_CELLS` (125) base cells is walked through it: a block is entered only
 //! when its own box shifted by its own range is within the best distance (a face point of any of
 //! its cells lies in it), and each cell is pruned by its block's range. The base cells found are
 //! then visited in the walk's order, so the answers are bitwise the walk's (the same faces
