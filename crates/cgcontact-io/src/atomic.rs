@@ -118,10 +118,7 @@ pub fn write_file(
             return finish(write(&mut out), out).map_err(in_file);
         }
     }
-    let folder = match target.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
+    let folder = folder_of(&target).to_path_buf();
     let prefix = temporary_prefix(target.file_name().unwrap_or_default());
     let mut builder = tempfile::Builder::new();
     builder
@@ -176,10 +173,7 @@ fn replaceable(path: &Path, meta: &std::fs::Metadata) -> Result<(), ErrorKind> {
     #[cfg(unix)]
     {
         use std::os::unix::fs::MetadataExt;
-        let folder = match path.parent() {
-            Some(p) if !p.as_os_str().is_empty() => p,
-            _ => Path::new("."),
-        };
+        let folder = folder_of(path);
         let Ok(folder_meta) = std::fs::metadata(folder) else {
             return Ok(());
         };
@@ -251,6 +245,26 @@ fn temporary_prefix(name: &std::ffi::OsStr) -> std::ffi::OsString {
     }
 }
 
+/// The links followed at most, as the system allows (Linux's `MAXSYMLINKS`).
+const MAX_LINKS: usize = 40;
+
+/// Where the symbolic link `link` leads, one step: a relative target from the link's own folder.
+fn link_target(link: &Path) -> Option<PathBuf> {
+    let target = std::fs::read_link(link).ok()?;
+    Some(match link.parent() {
+        Some(folder) if target.is_relative() => folder.join(target),
+        _ => target,
+    })
+}
+
+/// The folder of `path`, `.` for a bare name.
+fn folder_of(path: &Path) -> &Path {
+    match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    }
+}
+
 /// An open file descriptor that a path leads to.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum Descriptor {
@@ -272,7 +286,6 @@ pub enum Descriptor {
 /// redirected with `>>`). `None` for any other path.
 #[must_use]
 pub fn descriptor(path: &Path) -> Option<Descriptor> {
-    const MAX_LINKS: usize = 40;
     let mut current = path.to_path_buf();
     for _ in 0..=MAX_LINKS {
         if let Some((pid, fd)) = descriptor_link(&current) {
@@ -287,11 +300,7 @@ pub fn descriptor(path: &Path) -> Option<Descriptor> {
         if !meta.file_type().is_symlink() {
             return None;
         }
-        let link = std::fs::read_link(&current).ok()?;
-        current = match current.parent() {
-            Some(folder) if link.is_relative() => folder.join(link),
-            _ => link,
-        };
+        current = link_target(&current)?;
     }
     None
 }
@@ -300,11 +309,7 @@ pub fn descriptor(path: &Path) -> Option<Descriptor> {
 /// folder is a descriptor table and its name a number.
 fn descriptor_link(path: &Path) -> Option<(Option<u32>, u32)> {
     let fd: u32 = path.file_name()?.to_str()?.parse().ok()?;
-    let folder = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
-    let folder = std::fs::canonicalize(folder).ok()?;
+    let folder = std::fs::canonicalize(folder_of(path)).ok()?;
     if folder == Path::new("/dev/fd") {
         return Some((None, fd));
     }
@@ -326,8 +331,6 @@ fn descriptor_link(path: &Path) -> Option<(Option<u32>, u32)> {
 /// themselves.
 #[must_use]
 pub fn write_target(path: &Path) -> Option<PathBuf> {
-    // As the system allows (Linux's MAXSYMLINKS).
-    const MAX_LINKS: usize = 40;
     let mut current = path.to_path_buf();
     for _ in 0..=MAX_LINKS {
         match std::fs::symlink_metadata(&current) {
@@ -335,12 +338,8 @@ pub fn write_target(path: &Path) -> Option<PathBuf> {
                 if let Ok(canonical) = std::fs::canonicalize(&current) {
                     return Some(canonical);
                 }
-                // Dangling: follow it by hand, a relative link from its own folder.
-                let link = std::fs::read_link(&current).ok()?;
-                current = match current.parent() {
-                    Some(folder) if link.is_relative() => folder.join(link),
-                    _ => link,
-                };
+                // Dangling: follow it by hand.
+                current = link_target(&current)?;
             }
             _ => return Some(current),
         }
