@@ -27,8 +27,9 @@ pub const RESULTS_HEADER: [&str; 8] = [
 /// names. Blank lines and
 /// lines starting with `#` are skipped; fields may be padded with spaces. NaN and infinite values
 /// (`nan`, `inf`) are read as such, so the library can answer for each point; a field that is not a
-/// number, or a row without exactly 3 fields, is an error naming its 1-based line. A file without
-/// data rows is an error.
+/// number, a finite number beyond f64's range (`1e400`, which would read as infinite), or a row
+/// without exactly 3 fields, is an error naming its 1-based line. A file without data rows is an
+/// error.
 pub fn read_points(path: impl AsRef<Path>) -> Result<Vec<DVec3>, IoError> {
     read_with(path.as_ref(), points_from_bytes)
 }
@@ -117,10 +118,10 @@ fn points_from_bytes(bytes: &[u8]) -> Result<Vec<DVec3>, ErrorKind> {
         }
         let mut xyz = [0.0; 3];
         for (field, text) in record.iter().enumerate() {
-            xyz[columns[field]] = text.parse().map_err(|_| ErrorKind::Csv {
+            xyz[columns[field]] = coordinate(text).map_err(|what| ErrorKind::Csv {
                 line,
                 message: format!(
-                    "field {} ({}) is not a number",
+                    "field {} ({}) {what}",
                     field + 1,
                     crate::excerpt(text.as_bytes(), 32)
                 ),
@@ -132,6 +133,17 @@ fn points_from_bytes(bytes: &[u8]) -> Result<Vec<DVec3>, ErrorKind> {
         return Err(ErrorKind::Empty);
     }
     Ok(points)
+}
+
+/// A coordinate of a points file: a number, `nan` or `inf` (any case, signed). A finite number
+/// beyond f64's range (`1e400`), which Rust's parser rounds to infinity, is refused rather than
+/// read as an infinite point: the file holds a value the program cannot, not an infinity.
+fn coordinate(text: &str) -> Result<f64, &'static str> {
+    let value: f64 = text.parse().map_err(|_| "is not a number")?;
+    if value.is_infinite() && !text.to_ascii_lowercase().contains("inf") {
+        return Err("is beyond the range of f64 (magnitudes up to 1.8e308)");
+    }
+    Ok(value)
 }
 
 /// The axis each column of a points file holds, from its 3-field header: x, y and z in any order

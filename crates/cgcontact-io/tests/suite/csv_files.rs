@@ -58,6 +58,31 @@ fn a_header_naming_the_axes_in_another_order_is_followed() {
     }
 }
 
+/// `1e400` was read as an infinite point (Rust's parser rounds a finite number beyond f64's
+/// range to infinity) and answered "not finite", as if the file held `inf`. It is the file's
+/// value the program cannot hold: an error naming the line and the field. Spelled infinities
+/// are still read, and a number that rounds to a subnormal or zero (`1e-400`) is rounding.
+#[test]
+fn numbers_beyond_f64_are_refused_not_read_as_infinite() {
+    for (row, field) in [
+        ("1e400,2,3", 1),
+        ("1,-1E+309,3", 2),
+        ("1,2,1.7976931348623159e308", 3),
+    ] {
+        let text = format!("x,y,z\n0,0,0\n{row}\n");
+        assert_eq!(line_of(&text), 3, "{row}");
+        let message = message_of(&text);
+        assert!(
+            message.contains(&format!("field {field}")) && message.contains("beyond the range"),
+            "{row}: {message}"
+        );
+    }
+    let read = points("x,y,z\n1e-400,-Infinity,+INF\n1.7976931348623157e308,0,0\n").unwrap();
+    assert_eq!(read[0].x, 0.0);
+    assert!(read[0].y == f64::NEG_INFINITY && read[0].z == f64::INFINITY);
+    assert_eq!(read[1].x, f64::MAX);
+}
+
 #[test]
 fn bad_rows_name_their_line() {
     assert_eq!(line_of("x,y,z\n1,2,3\n1,2\n"), 3);
