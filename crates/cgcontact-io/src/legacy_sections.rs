@@ -7,7 +7,8 @@
 //! - a `POINT_DATA n` or `CELL_DATA n` that is not the file's node or cell count;
 //! - in an ASCII file, a section holding fewer values than its header declares (counted);
 //! - in a binary file, a section whose bytes run past the end of the file (`POINTS 4000000000
-//!   double` in a file of 4 KB).
+//!   double` in a file of 4 KB), or end where no header follows (`POINTS 27 double` over the
+//!   bytes of 26 or 28 nodes).
 //!
 //! The same walk finds what vtkio's parser cannot read and the reader never needs, for
 //! `legacy_strings` to blank out before it parses:
@@ -522,6 +523,21 @@ const KEYWORDS: [&str; 32] = [
     "TRIANGLE_STRIPS",
 ];
 
+/// A line that should be a header, for a message: quoted when it is text, else its first bytes in
+/// hex (binary values, which quoted would read as a row of escapes).
+fn shown(line: &[u8]) -> String {
+    match std::str::from_utf8(line) {
+        Ok(text) if !text.chars().any(|c| c.is_control() && !c.is_whitespace()) => {
+            crate::excerpt(text.trim_ascii().as_bytes(), 40)
+        }
+        _ => {
+            let hex: Vec<String> = line.iter().take(8).map(|b| format!("{b:02x}")).collect();
+            let more = if line.len() > 8 { " …" } else { "" };
+            format!("binary bytes ({}{more})", hex.join(" "))
+        }
+    }
+}
+
 /// Whether a line reads as a header: a keyword first, or a `FIELD` array's `name n n type`.
 fn header_shaped(text: &str) -> bool {
     let words: Vec<&str> = text.split_whitespace().take(5).collect();
@@ -931,6 +947,9 @@ fn binary_walk<'a>(bytes: &'a [u8], v5: bool, unread: &mut Vec<Unread<'a>>) -> O
         at = (line_end(at) + 1).min(len);
     }
     let mut declared = Declared::default();
+    // The block of values just measured, for the line after it: its header, its values, their
+    // bytes each, and where they end.
+    let mut after_values: Option<(Header, u64, u64, usize)> = None;
     loop {
         let after_unread = declared.after_unread;
         at = skip_blank(at);
@@ -939,6 +958,21 @@ fn binary_walk<'a>(bytes: &'a [u8], v5: bool, unread: &mut Vec<Unread<'a>>) -> O
         }
         let end = line_end(at);
         let line = line_of(at);
+        // A block of values must end where a header (or the file) starts: values of another
+        // count or type end elsewhere, inside the next section's header or values. vtkio's
+        // parser then fails on the bytes it lands on, with a message that quotes them.
+        if let Some((header, values, size, ends)) = after_values.take()
+            && !std::str::from_utf8(&bytes[at..end]).is_ok_and(header_shaped)
+        {
+            return Some(Fault::section(format!(
+                "line {}: the `{}` section's {values} values of {size} bytes end at byte \
+                 {ends}, and no section header follows them but {} (a count that does not \
+                 match the values, or values of another type?)",
+                header.line,
+                header.text,
+                shown(&bytes[at..end])
+            )));
+        }
         let text = match std::str::from_utf8(&bytes[at..end]) {
             Ok(text) if after_unread.is_none_or(|after| ends_values(after, text)) => text.trim(),
             // Not text: what follows cannot be told apart.
@@ -1130,6 +1164,7 @@ fn binary_walk<'a>(bytes: &'a [u8], v5: bool, unread: &mut Vec<Unread<'a>>) -> O
                     )));
                 }
                 data += need as usize;
+                after_values = Some((header, values, size, data));
             }
         }
         at = data;

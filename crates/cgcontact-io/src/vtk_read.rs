@@ -99,14 +99,21 @@ fn is_xml(bytes: &[u8]) -> bool {
     start.iter().find(|b| !b.is_ascii_whitespace()) == Some(&b'<')
 }
 
-/// The names of the point-data arrays each `<Piece>` of an XML file declares, read from the text.
+/// A point-data array an XML file declares: its name, and its `NumberOfComponents` as written
+/// (`None` when absent: VTK then reads one component).
+struct DeclaredArray {
+    name: String,
+    components: Option<String>,
+}
+
+/// The point-data arrays each `<Piece>` of an XML file declares, read from the text.
 ///
 /// vtkio 0.7.0-rc2 drops a data array whose content fails to decode (a tuple short or long, bad
 /// base64, a zlib block of the wrong size, a payload that is not zlib) instead of reporting it:
 /// `read_mesh` would then solve the mesh as undeformed. Comparing what the file declares with what
 /// vtkio returns turns that into an error. (The fix upstream: `Attribute` decoding in
 /// `vtkio::xml` should return its error rather than skip the array.)
-fn declared_point_arrays(xml: &[u8]) -> Vec<Vec<String>> {
+fn declared_point_arrays(xml: &[u8]) -> Vec<Vec<DeclaredArray>> {
     use crate::raw_appended::{attribute, find};
     // Raw appended bytes could contain anything: the pieces all come before them.
     let end = find(xml, b"<AppendedData", 0).unwrap_or(xml.len());
@@ -125,9 +132,13 @@ fn declared_point_arrays(xml: &[u8]) -> Vec<Vec<String>> {
                 if let Some(name) = attribute(&piece[tag..close], b"Name") {
                     // Names as vtkio reads them: `xml_normal` leaves `&amp;` and its kind.
                     let name = String::from_utf8_lossy(&name).into_owned();
-                    names.push(
-                        quick_xml::escape::unescape(&name).map_or(name.clone(), |n| n.into_owned()),
-                    );
+                    let components = attribute(&piece[tag..close], b"NumberOfComponents")
+                        .map(|c| String::from_utf8_lossy(&c).trim().to_owned());
+                    names.push(DeclaredArray {
+                        name: quick_xml::escape::unescape(&name)
+                            .map_or(name.clone(), |n| n.into_owned()),
+                        components,
+                    });
                 }
                 tag_at = close;
             }
@@ -499,13 +510,17 @@ fn parse_legacy_whole(bytes: &[u8]) -> Result<Vtk, ErrorKind> {
                 ))),
                 None => Ok(vtk),
             },
-            Some(i) => {
-                let (line, excerpt) = at_line(&rest[i..]);
-                Err(ErrorKind::Vtk(format!(
-                    "legacy VTK: line {line}: unexpected {excerpt} after the last complete section (truncated or \
+            // Left over: a section the parser stopped in, which the walk may name.
+            Some(i) => Err(match legacy_sections::fault(bytes) {
+                Some(fault) => ErrorKind::Vtk(format!("legacy VTK: {fault}")),
+                None => {
+                    let (line, excerpt) = at_line(&rest[i..]);
+                    ErrorKind::Vtk(format!(
+                        "legacy VTK: line {line}: unexpected {excerpt} after the last complete section (truncated or \
                      malformed section?)"
-                )))
-            }
+                    ))
+                }
+            }),
         },
         // The parser backtracks to the start of the section (or of the file) it could not
         // finish: a walk of the sections against their headers says which one is at fault.
@@ -648,7 +663,7 @@ fn hex_mesh_from_vtk(
     vtk: Vtk,
     source: Option<&Path>,
     displacement: &DisplacementArray,
-    declared: Option<&[Vec<String>]>,
+    declared: Option<&[Vec<DeclaredArray>]>,
 ) -> Result<HexMesh, ErrorKind> {
     let pieces = match vtk.data {
         DataSet::UnstructuredGrid { pieces, .. } => pieces,
@@ -709,15 +724,30 @@ fn hex_mesh_from_vtk(
                     };
                     let in_file = declared
                         .and_then(|d| d.get(index))
-                        .is_some_and(|names| names.iter().any(|n| n == wanted));
-                    if in_file {
+                        .and_then(|arrays| arrays.iter().find(|a| a.name == wanted));
+                    if let Some(array) = in_file {
+                        // vtkio drops an array whose values are not its tuples × components: with
+                        // other than 3 components, that is the first thing to name.
+                        let message = match array.components.as_deref() {
+                            Some("3") => format!(
+                                "piece {index} declares it, but its data cannot be decoded (a \
+                                 length that does not match the node count, corrupt base64 or \
+                                 compressed data, or an empty appended block)"
+                            ),
+                            Some(c) => format!(
+                                "piece {index} declares it with NumberOfComponents=\"{}\", and \
+                                 a displacement has 3 components per node",
+                                crate::excerpt(c.as_bytes(), 20).trim_matches('`')
+                            ),
+                            None => format!(
+                                "piece {index} declares it without NumberOfComponents (1 \
+                                 component per node, as VTK reads it), and a displacement has \
+                                 3 components per node"
+                            ),
+                        };
                         return Err(ErrorKind::BadDisplacement {
                             name: wanted.to_owned(),
-                            message: format!(
-                                "piece {index} declares it, but its data cannot be decoded (a length \
-                                 that does not match the node count, corrupt base64 or compressed \
-                                 data, or an empty appended block)"
-                            ),
+                            message,
                         });
                     }
                     without.get_or_insert(index);

@@ -359,3 +359,39 @@ fn messages_that_quote_the_file_stay_on_one_line() {
         assert!(message.contains("\\n"), "{case}: {message}");
     }
 }
+
+/// A displacement declared with `NumberOfComponents="2"` (or none, which VTK reads as 1) over the
+/// 3 values a node of the file holds: vtkio drops the array, and the message listed a wrong
+/// length, corrupt base64 or compressed data as the causes without naming the component count,
+/// the one the file states. It now names it; the causes stay for a declared 3.
+#[test]
+fn a_component_count_other_than_3_is_named() {
+    let text = common::vtu_ascii(&mesh());
+    let declared = "Name=\"displacement\" NumberOfComponents=\"3\"";
+    assert!(text.contains(declared), "the fixture's declaration moved");
+    for (with, says) in [
+        (
+            "Name=\"displacement\" NumberOfComponents=\"2\"",
+            "NumberOfComponents=\"2\"",
+        ),
+        ("Name=\"displacement\"", "without NumberOfComponents"),
+    ] {
+        let bad = text.replacen(declared, with, 1);
+        refused(bad.as_bytes(), with);
+        let message = parse_hex_mesh(bad.as_bytes(), &DisplacementArray::Default)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            message.contains(says) && message.contains("3 components per node"),
+            "{with}: {message}"
+        );
+    }
+    let range = displacement_content(&text);
+    let values: Vec<&str> = text[range.clone()].split_whitespace().collect();
+    let short = values[..values.len() - 3].join(" ");
+    let short = format!("{}{short}{}", &text[..range.start], &text[range.end..]);
+    let message = parse_hex_mesh(short.as_bytes(), &DisplacementArray::Default)
+        .unwrap_err()
+        .to_string();
+    assert!(message.contains("cannot be decoded"), "{message}");
+}

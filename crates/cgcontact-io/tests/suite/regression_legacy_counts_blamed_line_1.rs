@@ -104,3 +104,34 @@ fn legacy_sections_with_impossible_counts_are_named_with_their_line() {
         assert!(!message.contains("line 1:"), "{flavour}: {message}");
     }
 }
+
+/// A binary file whose `POINTS n` or `CELL_TYPES n` is one more or one less than the values it
+/// holds was refused with vtkio's message, which quoted the raw bytes it landed on ("line 10:
+/// cannot parse `\u{1}\u{0}\u{0}\u{0}…`"). The walk now finds where the section's values end and
+/// that no header follows them, and names the section's line and header.
+#[test]
+fn binary_counts_off_by_one_name_their_section() {
+    let body = body_with_holes(DVec3::ZERO, DVec3::splat(0.5), [3, 2, 2], 4);
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("mesh.vtk");
+    write_mesh(&path, &body, MeshFormat::LegacyBinary).unwrap();
+    let binary = std::fs::read(&path).unwrap();
+    let mesh = parse_hex_mesh(&binary, &DisplacementArray::Default).unwrap();
+    let (nodes, cells) = (mesh.points.len(), mesh.cells.len());
+    for (keyword, count, tail) in [
+        ("POINTS", nodes - 1, " double"),
+        ("POINTS", nodes + 1, " double"),
+        ("CELL_TYPES", cells - 1, ""),
+        ("CELL_TYPES", cells + 1, ""),
+    ] {
+        let header = format!("{keyword} {count}{tail}");
+        let (bad, line) = replace_header(&binary, keyword, &header);
+        let message = error(&bad);
+        assert!(
+            message.contains(&format!("line {line}: the `{header}` section"))
+                && message.contains("no section header follows"),
+            "`{header}`: {message}"
+        );
+        assert!(!message.contains("\\u{"), "`{header}`: {message}");
+    }
+}
