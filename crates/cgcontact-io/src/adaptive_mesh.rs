@@ -448,6 +448,18 @@ impl HexMesh {
         }
         let constraints = body.check_constraints_per_axis(constraint_tolerance);
         self.add_lattice_offsets(&mut body, used, &q)?;
+        // The file's mesh is conforming only to its rounding: a hanging node's coordinates (each
+        // within `tol` of its lattice position, or it was refused) and displacement (within
+        // `constraint_tolerance` of its constraint where it holds) put it off the coarse face
+        // by up to their sum, 3e-8 of a base cell for float coordinates at a spacing of 0.1.
+        // Points at it or on the fine faces beside it, as the file has them, lay that far
+        // outside the coarse leaf and lost it as an owner: the locator's allowance takes the
+        // seam, beyond f64 rounding, at most that bound (a node that breaks its constraint by
+        // more is warned about, not covered).
+        let seam = body.constraint_offsets();
+        if beyond_rounding(seam, magnitude) {
+            body.set_seam(seam.min(constraint_tolerance + 2.0 * tol))?;
+        }
         let cells = CellMap::identity(self.cells.len());
         Ok(AdaptiveMesh {
             constraints,

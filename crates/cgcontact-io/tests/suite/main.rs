@@ -18,6 +18,7 @@ mod regression_appended_counts_unchecked;
 mod regression_block_of_the_wrong_size;
 mod regression_corrupt_block_header_aborted;
 mod regression_corrupt_displacement_dropped;
+mod regression_float_hanging_nodes_lost_owners;
 mod regression_float_points_off_the_lattice;
 mod regression_legacy_counts_blamed_line_1;
 mod regression_legacy_cut_inside_last_value;

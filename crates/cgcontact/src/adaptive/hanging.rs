@@ -23,14 +23,15 @@ use crate::hex8;
 /// than stored (12 bytes per hanging node).
 #[derive(Clone, Debug, Default)]
 pub(super) struct Constraints {
-    /// Hanging nodes, ascending.
-    pub(super) nodes: Vec<u32>,
+    /// Hanging nodes, ascending. (Boxed slices, not vectors: they are built once, and the body
+    /// stays small enough to sit unboxed in the io crate's enums beside a uniform body.)
+    pub(super) nodes: Box<[u32]>,
     /// The leaf each row's node hangs on.
-    pub(super) leaf: Vec<u32>,
+    pub(super) leaf: Box<[u32]>,
     /// Rows by the level of their leaf, coarsest first, then by leaf and node: in this order a
     /// node's leaf's corners are independent or filled already, and the nodes a leaf binds come
     /// together (its corners are computed once for them).
-    pub(super) order: Vec<u32>,
+    pub(super) order: Box<[u32]>,
 }
 
 /// How far the displacements are from obeying the constraints.
@@ -83,7 +84,7 @@ impl Constraints {
         Self {
             nodes: direct.iter().map(|d| d.node).collect(),
             leaf: direct.iter().map(|d| d.leaf).collect(),
-            order,
+            order: order.into_boxed_slice(),
         }
     }
 
@@ -101,7 +102,7 @@ impl Constraints {
 
     /// Bytes on the heap.
     pub(super) fn heap_bytes(&self) -> usize {
-        (self.nodes.capacity() + self.leaf.capacity() + self.order.capacity()) * size_of::<u32>()
+        (self.nodes.len() + self.leaf.len() + self.order.len()) * size_of::<u32>()
     }
 }
 

@@ -77,8 +77,9 @@ impl<'a> AdaptiveLocator<'a> {
             &settings,
             lattice.origin(),
             h_finest,
-            // The kernel rounds u − T (|u| with f64).
-            frame.reach(),
+            // The kernel rounds u − T (|u| with f64); the hanging nodes lie off their faces by
+            // up to the body's seam.
+            body.reach_with_seam(frame.reach(), &settings),
         );
         Ok(Self {
             body,

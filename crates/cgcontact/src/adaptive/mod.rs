@@ -125,6 +125,9 @@ pub struct AdaptiveBody {
     u: Vec<DVec3>,
     forest: Forest,
     hanging: Constraints,
+    /// How far (length units, per axis) the hanging nodes may lie off the leaves they hang on
+    /// ([`AdaptiveBody::set_seam`]): the locator's allowance grows by it.
+    seam: DVec3,
     /// What the gap search measures, from the geometry alone: computed once, by the first gap
     /// search's [`AdaptiveBody::prepare_open_faces`], and kept.
     open_faces: std::sync::OnceLock<Box<OpenFaces>>,
@@ -212,6 +215,7 @@ impl AdaptiveBody {
             corner_table: Vec::new(),
             forest,
             hanging: Constraints::default(),
+            seam: DVec3::ZERO,
             open_faces: std::sync::OnceLock::new(),
         };
         body.hanging = body.find_hanging();
@@ -539,6 +543,56 @@ impl AdaptiveBody {
             }
         }
         report
+    }
+
+    /// The largest offset of any hanging node from its constraint, per axis (length units; zero
+    /// without hanging nodes): how far the deformed mesh is from conforming at its fine/coarse
+    /// interfaces.
+    #[must_use]
+    pub fn constraint_offsets(&self) -> DVec3 {
+        let mut most = DVec3::ZERO;
+        let mut corners = CornerCache::default();
+        for &r in &self.hanging.order {
+            let r = r as usize;
+            let node = self.hanging.nodes[r];
+            let bound = self.bound_value(node, self.hanging.leaf[r], &mut corners);
+            most = most.max((self.u[node as usize] - bound).abs());
+        }
+        most
+    }
+
+    /// How far (length units, per axis) the hanging nodes may lie off the leaves they hang on:
+    /// the locators built afterwards (and the gap search's sign) hold a point that much beyond a
+    /// leaf's faces, on top of their inside tolerance, so that a point at a hanging node or on
+    /// a fine face against a coarse one is held by the leaves on both sides. A mesh read from
+    /// a file whose coordinates or displacements are 32-bit floats (VTK's default) or printed
+    /// decimals is conforming only to their rounding: the reader sets that rounding here. Zero
+    /// unless set.
+    ///
+    /// # Errors
+    /// [`Error::InvalidSettings`] when a component is negative or not finite.
+    pub fn set_seam(&mut self, seam: DVec3) -> Result<(), Error> {
+        if !(seam.is_finite() && seam.cmpge(DVec3::ZERO).all()) {
+            return Err(Error::InvalidSettings(format!(
+                "the seam {seam} must be finite and not negative"
+            )));
+        }
+        self.seam = seam;
+        Ok(())
+    }
+
+    /// The seam set by [`AdaptiveBody::set_seam`] (zero unless set).
+    #[must_use]
+    pub fn seam(&self) -> DVec3 {
+        self.seam
+    }
+
+    /// What the kernel's displacement reach `reach` ([`crate::InsideTolerance::with_spacing`]'s
+    /// `u_max`) becomes with the seam: the inside tolerance's rounding length is 4 ε_kernel
+    /// `u_max` per component, so the seam enters it as seam / (4 ε_kernel).
+    #[must_use]
+    pub(crate) fn reach_with_seam(&self, reach: DVec3, settings: &Settings) -> DVec3 {
+        reach.abs() + self.seam / (4.0 * settings.epsilon())
     }
 
     /// Whether `node` is hanging.

@@ -232,7 +232,8 @@ impl<'l, L: Surface> GapFinder<'l, L> {
                 high: DVec3::ZERO,
             }
         };
-        // The locator's own allowance (the kernel rounds u − T, |u| with f64).
+        // The locator's own allowance (the kernel rounds u − T, |u| with f64; an adaptive
+        // body's seam enters as its locator takes it, through the rounding length).
         let settings = surface.locator_settings();
         let finest = surface.finest_spacing();
         let frame = Frame::new(settings.precision, u_range.low, u_range.high, finest);
@@ -240,7 +241,7 @@ impl<'l, L: Surface> GapFinder<'l, L> {
             settings,
             surface.lattice().origin(),
             finest,
-            frame.reach(),
+            frame.reach().abs() + surface.seam() / (4.0 * settings.epsilon()),
         );
         Ok(Self {
             surface,

@@ -87,6 +87,11 @@ pub(crate) mod sealed {
         /// Every active cell of base cell `base` whose closed undeformed box meets [`low`,
         /// `high`] (lattice coordinates), in the order of [`Faces::cells_in_box`].
         fn cells_of_base(&self, base: [u32; 3], low: DVec3, high: DVec3, visit: impl FnMut(Cell));
+        /// How far (per axis) the body's faces may be apart where they should meet (an adaptive
+        /// body's [`crate::AdaptiveBody::seam`]): the locator's allowance grows by it.
+        fn seam(&self) -> DVec3 {
+            DVec3::ZERO
+        }
         /// Whatever [`Faces::open_faces`] computes once per body, before the first search.
         fn prepare(&self) {}
         /// Whether [`Faces::open_faces`] is a table lookup (cheaper than any bound), so that the
@@ -378,6 +383,10 @@ pub(crate) mod sealed {
 
         fn prepare(&self) {
             self.body().prepare_open_faces();
+        }
+
+        fn seam(&self) -> DVec3 {
+            self.body().seam()
         }
 
         const OPEN_FACES_STORED: bool = true;
