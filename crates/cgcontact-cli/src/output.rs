@@ -210,6 +210,10 @@ fn names_a_folder(path: &Path) -> bool {
 /// The folders it made are removed again when the returned guard drops while they are still empty:
 /// a run that fails before it writes anything leaves no empty folder behind.
 pub fn prepare_folder(flag: &str, dir: &Path) -> Result<MadeFolders> {
+    // `new/.` and `new/./` name the folder `new`, as `mkdir -p` takes them; the standard library's
+    // `create_dir_all` asks for `new/.` before `new` exists and fails, and `new/.` could not be
+    // removed again. Its components drop those dots (a leading `.` stays).
+    let dir = &dir.components().collect::<PathBuf>();
     if dir.exists() && !dir.is_dir() {
         bail!("{}: {flag} names a file, not a folder", dir.display());
     }

@@ -197,3 +197,25 @@ fn refusals_name_the_flags_at_fault() {
         ],
     );
 }
+
+/// Regression: `--out new/.` (or `new/./`), a folder that `mkdir -p` makes, failed with "cannot
+/// create the folder: No such file or directory": the standard library's `create_dir_all` asks
+/// for `new/.` before `new` exists. Found by running `scene`, `demo` and `tradeoff` with unusual
+/// `--out` targets. The scene must land in `new`, as the shell would put it there, and its mesh
+/// hold the cells the summary names.
+#[test]
+fn an_out_folder_named_with_a_trailing_dot_is_made() {
+    let dir = tempfile::tempdir().unwrap();
+    for (i, suffix) in ["/.", "/./", "/./."].into_iter().enumerate() {
+        let folder = dir.path().join(format!("new{i}"));
+        let out = std::path::PathBuf::from(format!("{}{suffix}", folder.display()));
+        let (code, stderr) = scene(&["block", "--cells", "2,1,1", "--known", "3"], &out);
+        assert_eq!(code, Some(0), "--out {}: {stderr}", out.display());
+        let known = std::fs::read_to_string(folder.join("known.csv")).unwrap();
+        // The header and one row per known point.
+        assert_eq!(known.lines().count(), 4, "{known}");
+        let mesh = std::fs::read_to_string(folder.join("mesh.vtu")).unwrap();
+        assert!(mesh.contains("NumberOfCells=\"2\""), "{mesh}");
+    }
+}
+
