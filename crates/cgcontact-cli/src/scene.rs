@@ -267,6 +267,18 @@ fn base_lattice(
         } else {
             String::new()
         };
+        // Without --offset the scene's own extent is too large for its finest spacing: a --h far
+        // finer along one axis than along another (`--h 1e-12,1,1e12`). Naming `--offset 0`,
+        // which the user never gave, sent them to the wrong flag.
+        if args.offset.is_none() {
+            bail!(
+                "the scene reaches {magnitude:.3e} from the origin, too far for its spacing \
+                 {fine:e} (from --h, --cells and --scale{refined}): coordinates there round by \
+                 {share:.1e} of a cell (at most {:e}); use spacings in --h closer to each other, \
+                 or fewer --cells",
+                Lattice::RESOLUTION
+            );
+        }
         bail!(
             "--offset {} puts the scene {magnitude:.3e} from the origin, too far for its spacing \
              {fine:e} (from --h and --scale{refined}): coordinates there round by {share:.1e} of \
@@ -464,6 +476,18 @@ pub fn run(args: &SceneArgs) -> Result<()> {
             "the scene's spacing {:e} and farthest coordinate {far:e} (from --h, --scale and \
              --offset) must lie between {MIN_LENGTH:e} and {MAX_LENGTH:e}",
             h.min_element()
+        );
+    }
+    // `block` has no contact points: with no known points either, points.csv would hold a header
+    // only, which `locate` refuses ("no data rows") after `scene` said it wrote it.
+    if knobs.contact_points == 0 && knobs.known_points == 0 {
+        eprintln!(
+            "cgcontact: warning: --known 0 on `{}`, which has no contact points: points.csv and \
+             known.csv will hold their header only (`locate` needs at least one point)",
+            match args.name {
+                SceneName::Block => "block",
+                _ => "this scene",
+            }
         );
     }
     knobs.jitter = args.jitter;

@@ -219,3 +219,60 @@ fn an_out_folder_named_with_a_trailing_dot_is_made() {
     }
 }
 
+/// Regression: a scene too wide for its finest spacing without any `--offset` (a `--h` far finer
+/// along one axis than another) was refused as "--offset 0 puts the scene ... from the origin":
+/// it named a flag the user never gave. Found with `block --h 1e-90,1,1e90`. The refusal itself
+/// is the lattice's (`Lattice::new` refuses the same lattice), checked here by the message naming
+/// --h and --cells and not --offset.
+#[test]
+fn a_scene_too_wide_for_its_spacing_without_an_offset_names_h_not_offset() {
+    refused(
+        &[
+            (
+                &["block", "--cells", "2,3,4", "--h", "1e-90,1,1e90"],
+                &["--h", "--cells", "from the origin"],
+            ),
+            (
+                &["block", "--cells", "2,3,4", "--h", "1e-12,1,1e12"],
+                &["--h", "--cells", "from the origin"],
+            ),
+        ],
+        &["--offset"],
+    );
+    // With an --offset given, it is still the flag named.
+    refused(
+        &[(
+            &["block", "--cells", "2,3,4", "--offset", "1e15"],
+            &["--offset 1e15"],
+        )],
+        &[],
+    );
+}
+
+/// Regression: `block --known 0` (no contact points, no known points) wrote a points.csv with a
+/// header only and said nothing, and `locate` then refused that file ("no data rows"). The scene
+/// now warns. Checked against `locate` itself: it refuses the file the warning is about.
+#[test]
+fn a_scene_without_any_point_warns() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("empty");
+    let (code, stderr) = scene(&["block", "--cells", "2,2,2", "--known", "0"], &out);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(
+        stderr.contains("warning") && stderr.contains("--known 0"),
+        "{stderr}"
+    );
+    let located = Command::new(env!("CARGO_BIN_EXE_cgcontact"))
+        .arg("locate")
+        .arg("--mesh")
+        .arg(out.join("mesh.vtu"))
+        .arg("--points")
+        .arg(out.join("points.csv"))
+        .output()
+        .unwrap();
+    assert_eq!(located.status.code(), Some(2));
+    // A scene with points says nothing of the kind.
+    let (code, stderr) = scene(&["block", "--cells", "2,2,2", "--known", "1"], &out);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(!stderr.contains("warning"), "{stderr}");
+}
