@@ -299,6 +299,14 @@ impl Pyramid {
         Self { levels }
     }
 
+    /// The displacement range of the finest block holding cell `ijk` (in the lattice; empty
+    /// where the block has no active cell).
+    #[inline]
+    pub(crate) fn range_at(&self, ijk: [u32; 3]) -> Range {
+        let level = &self.levels[0];
+        level.ranges[level.index(ijk.map(|i| i >> level.shift))]
+    }
+
     /// Bytes on the heap.
     pub(crate) fn heap_bytes(&self) -> usize {
         self.levels

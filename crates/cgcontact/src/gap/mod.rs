@@ -49,7 +49,7 @@ use glam::{DVec2, DVec3};
 use smallvec::SmallVec;
 
 use crate::lattice::CellId;
-use crate::reach::{RING_CELLS, Range};
+use crate::reach::{Pyramid, RING_CELLS, Range};
 use crate::schedule::Scheduler;
 use crate::{Error, Frame, InsideTolerance, PointError};
 use quad::{Locus, Patch, box_distance2};
@@ -158,6 +158,25 @@ struct Best {
     half_thickness: f64,
 }
 
+/// The cell a search measured to cap its bound ([`GapFinder::probe`]), and its nearest face
+/// within the bound of then (`u32::MAX`: none measured).
+struct Probed {
+    cell: u32,
+    found: Option<Best>,
+    /// Whether the search's walk came to the cell.
+    visited: bool,
+}
+
+impl Default for Probed {
+    fn default() -> Self {
+        Self {
+            cell: u32::MAX,
+            found: None,
+            visited: false,
+        }
+    }
+}
+
 /// Every local face, as a bit set.
 const ALL_FACES: u8 = 0b11_1111;
 
@@ -170,11 +189,19 @@ const SLACK: f64 = 1e-12;
 /// edge is at 1e-17 of two faces by rounding, and a box within 1e-16 of it, all rounding, was
 /// pruned by a bound of 1e-34, so the cold search kept one face and the warm one, measuring the
 /// other first, the other.
+///
+/// A cap may lower the pruning bound below the best distance's, not the distance a face must
+/// beat: the squared distance of a face measured only to bound the search (`cap`). Only boxes
+/// farther than that face are pruned, so every face at least as near is still measured, in the
+/// same order, and the answer (ties included) is the one without the cap.
 #[derive(Clone, Copy, Debug)]
 struct Bound {
     d2: f64,
     prune2: f64,
     rounding: f64,
+    /// The capping face's squared distance, and its pruning bound (infinite without one).
+    cap_d2: f64,
+    cap2: f64,
 }
 
 impl Bound {
@@ -183,6 +210,8 @@ impl Bound {
             d2,
             prune2: 0.0,
             rounding,
+            cap_d2: f64::INFINITY,
+            cap2: f64::INFINITY,
         };
         bound.set(d2);
         bound
@@ -192,8 +221,27 @@ impl Bound {
     #[inline]
     fn set(&mut self, d2: f64) {
         self.d2 = d2;
+        self.prune2 = self.grown(d2).min(self.cap2);
+    }
+
+    /// A face at squared distance `d2` exists, measured outside the search's order: nothing
+    /// farther can be the answer.
+    fn cap(&mut self, d2: f64) {
+        self.cap_d2 = self.cap_d2.min(d2);
+        self.cap2 = self.grown(self.cap_d2);
+        self.prune2 = self.prune2.min(self.cap2);
+    }
+
+    /// The squared distance within which the answer lies.
+    fn reach2(&self) -> f64 {
+        self.d2.min(self.cap_d2)
+    }
+
+    /// `d2` grown by the rounding and the slack.
+    #[inline]
+    fn grown(&self, d2: f64) -> f64 {
         let d = d2.sqrt() + self.rounding;
-        self.prune2 = d * d * (1.0 + SLACK);
+        d * d * (1.0 + SLACK)
     }
 
     /// Whether a box at squared distance `d2` (as `box_distance2` computes it) holds nothing
@@ -341,6 +389,11 @@ impl<'l, L: Surface> GapFinder<'l, L> {
 
     /// The search of one point (see the module), `hint` the previous answer's face.
     fn search(&self, x: DVec3, hint: Option<Face>) -> GapAnswer {
+        self.search_with(x, hint, true)
+    }
+
+    /// [`Self::search`], with or without the probe that caps the bound ([`Self::probe`]).
+    fn search_with(&self, x: DVec3, hint: Option<Face>, probe: bool) -> GapAnswer {
         if !x.is_finite() {
             return Err(PointError::NonFinite);
         }
@@ -370,6 +423,7 @@ impl<'l, L: Surface> GapFinder<'l, L> {
         // lattice): its faces usually set a bound that shrinks the box to a cell or two. The
         // hinted face is measured first, so that on a tie it stays the answer.
         let hinted = hint.and_then(|face| Some((self.surface.cell(face.cell.0)?, face.local)));
+        let mut probed = Probed::default();
         let first = match hinted {
             Some((cell, local)) if local < 6 => {
                 self.offer_cell(x, cell, 1 << local, &range, &mut best, &mut bound);
@@ -383,6 +437,9 @@ impl<'l, L: Surface> GapFinder<'l, L> {
                 if let Some(cell) = first {
                     self.offer_cell(x, cell, ALL_FACES, &range, &mut best, &mut bound);
                 }
+                if let Some(Blocks(blocks)) = self.blocks.as_ref().filter(|_| probe) {
+                    probed = self.probe(x, blocks, first.map(|c| c.id), &mut bound);
+                }
                 first
             }
         };
@@ -392,11 +449,16 @@ impl<'l, L: Surface> GapFinder<'l, L> {
         // The slack: 1e-9 of a cell, and the rounding of the box's bounds (of x's coordinates
         // and the distance), which on a fine spacing far out is larger: an ulp of 3000 is 4.5e-13,
         // 1e-9 of a spacing of 1e-4 only 1e-13, and a face at D to within that rounding was left
-        // out of the box, though the warm search, measuring it directly, found it within D.
-        let reach = bound.d2.sqrt();
+        // out of the box, though the warm search, measuring it directly, found it within D. The
+        // faces are measured in their cells' frames, whose origins round at the lattice origin's
+        // magnitude: at 1e8 a face 2e-9 away in its frame lay 6e-9 off in lattice coordinates.
+        let reach = bound.reach2().sqrt();
         let rounding = 8.0
             * f64::EPSILON
-            * ((x - lattice.origin()).abs() + range.low.abs().max(range.high.abs()) + reach);
+            * ((x - lattice.origin()).abs()
+                + lattice.origin().abs()
+                + range.low.abs().max(range.high.abs())
+                + reach);
         let reach = DVec3::splat(reach) + lattice.h() * 1e-9 + rounding;
         let low = (x - lattice.origin() - range.high - reach) * inv_h;
         let high = (x - lattice.origin() - range.low + reach) * inv_h;
@@ -438,13 +500,20 @@ impl<'l, L: Surface> GapFinder<'l, L> {
             bases.sort_unstable_by_key(|b| b.0);
             for (_, base, range) in bases {
                 self.surface.cells_of_base(base, low, high, |cell| {
-                    self.visit(x, cell, first, &range, &mut best, &mut bound);
+                    self.visit(x, cell, first, &mut probed, &range, &mut best, &mut bound);
                 });
             }
         } else {
             self.surface.cells_in_box(low, high, |cell| {
-                self.visit(x, cell, first, &range, &mut best, &mut bound);
+                self.visit(x, cell, first, &mut probed, &range, &mut best, &mut bound);
             });
+        }
+        if probed.found.is_some() && !probed.visited {
+            // The probed cell holds a face within the bound it capped, so the walk's box holds
+            // that cell: never here. Should rounding prove that wrong, the search again without
+            // the cap, rather than an answer that could have missed the nearest face.
+            debug_assert!(false, "the probed cell of {x} lay outside the search's box");
+            return self.search_with(x, hint, false);
         }
         let Some(b) = best else {
             return Ok(None);
@@ -510,15 +579,50 @@ impl<'l, L: Surface> GapFinder<'l, L> {
         }))
     }
 
-    /// A cell of the search box (other than `first`, measured already), its corners'
-    /// displacements in `range`: measured unless its box shifted by `range` is farther than the
-    /// best so far.
+    /// Where the whole body's displacements spread (a far-moved node), the first cell, at x less
+    /// the middle of their range, can be far from x's surface, and its bound then D: on the
+    /// lattice locator's 12³ body with one node moved 100 h, 2.6× the cells a smooth body's
+    /// search visits. So the cell at x less the middle of the range of x's own block is measured
+    /// too, outside the search's order, and caps the pruning bound (`Bound::cap`): the answer
+    /// is the one without it, ties included.
+    ///
+    /// Its nearest face is kept for the search's turn at the cell ([`Probed`]), so that no face
+    /// is measured twice.
+    fn probe(&self, x: DVec3, blocks: &Pyramid, first: Option<u32>, bound: &mut Bound) -> Probed {
+        let lattice = self.surface.lattice();
+        let inv_h = lattice.h().recip();
+        let local = blocks.range_at(lattice.clamped_cell((x - lattice.origin()) * inv_h));
+        if !local.low.cmple(local.high).all() {
+            return Probed::default();
+        }
+        let t = (x - lattice.origin() - 0.5 * (local.low + local.high)) * inv_h;
+        let Some(cell) = self.surface.cell_near(t).filter(|c| Some(c.id) != first) else {
+            return Probed::default();
+        };
+        let (mut found, mut scratch) = (None, Bound::new(bound.d2, bound.rounding));
+        // The whole range bounds every cell's corner displacements.
+        self.offer_cell(x, cell, ALL_FACES, &self.u_range, &mut found, &mut scratch);
+        if let Some(found) = &found {
+            bound.cap(found.d2);
+        }
+        Probed {
+            cell: cell.id,
+            found,
+            visited: false,
+        }
+    }
+
+    /// A cell of the search box (other than `first`, measured already; the probed cell's face,
+    /// measured then, is taken as it would be measured now), its corners' displacements in
+    /// `range`: measured unless its box shifted by `range` is farther than the best so far.
     #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
     fn visit(
         &self,
         x: DVec3,
         cell: Cell,
         first: u32,
+        probed: &mut Probed,
         range: &Range,
         best: &mut Option<Best>,
         bound: &mut Bound,
@@ -526,6 +630,20 @@ impl<'l, L: Surface> GapFinder<'l, L> {
         #[cfg(test)]
         count(0);
         if cell.id == first || (L::OPEN_FACES_STORED && self.surface.open_faces(cell) == 0) {
+            return;
+        }
+        if cell.id == probed.cell {
+            probed.visited = true;
+            // Measured already, from a bound no nearer than this one: its nearest face (the
+            // first of its faces at that distance) is what `offer_cell` would find, and is kept
+            // as `offer` keeps a face.
+            if let Some(found) = probed.found
+                && found.d2 <= bound.d2
+                && (best.is_none() || found.d2 < bound.d2)
+            {
+                bound.set(found.d2);
+                *best = Some(found);
+            }
             return;
         }
         let origin = self.surface.cell_origin(cell);
