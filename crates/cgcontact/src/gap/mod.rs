@@ -813,7 +813,7 @@ impl<'l, L: Surface> GapFinder<'l, L> {
             local: p.point,
             origin,
             locus: p.locus,
-            normal: patch.normal(p.st).normalize_or_zero(),
+            normal: quad::unit(patch.normal(p.st)),
             band: 1e-6 * size.min_element(),
             // (A coarser neighbour of an adaptive leaf may hold x: as thick as a base cell.)
             half_thickness: half_thickness(size, u, f / 2)

@@ -282,7 +282,56 @@ fn closest(x: DVec3, q: &[DVec3; 4]) -> QuadPoint {
 
 /// [`closest`], or `None` when no point of the quad is within squared distance `bound` (the
 /// search is then cut short).
+///
+/// The convexity certificate and the descent's determinant multiply four lengths of the face:
+/// on a lattice spacing of 1e78 they overflowed, on 1e-80 they underflowed, and gaps came out
+/// wrong (`gaps_at_extreme_spacings_are_those_of_the_unit_body_scaled`). A quad whose extent is
+/// beyond 2^±64 is therefore measured scaled by a power of two, which is exact: the answer is
+/// the unscaled one's to rounding, and between those extents nothing changes, bit for bit.
 pub(crate) fn closest_below(x: DVec3, q: &[DVec3; 4], bound: f64) -> Option<QuadPoint> {
+    let extent = q[1..]
+        .iter()
+        .fold(0.0f64, |m, &p| m.max((p - q[0]).abs().max_element()));
+    let Some(k) = scale_exponent(extent) else {
+        return closest_below_unscaled(x, q, bound);
+    };
+    let s = 2f64.powi(k);
+    let scaled = closest_below_unscaled(x * s, &q.map(|p| p * s), bound * s * s)?;
+    let (back, back2) = (2f64.powi(-k), 2f64.powi(-2 * k));
+    let d2 = scaled.d2 * back2;
+    (d2 <= bound).then_some(QuadPoint {
+        d2,
+        point: scaled.point * back,
+        ..scaled
+    })
+}
+
+/// The power of two to scale lengths of magnitude `extent` by so that products of four of them
+/// stay within f64's range, `None` when they do already (or the extent is 0 or not finite).
+pub(crate) fn scale_exponent(extent: f64) -> Option<i32> {
+    const LIMIT: f64 = 18_446_744_073_709_551_616.0; // 2^64
+    if !extent.is_finite() || extent == 0.0 || (1.0 / LIMIT..=LIMIT).contains(&extent) {
+        return None;
+    }
+    // −⌊log2 extent⌋, from the exponent bits (the extent is normal: at least 2^−1022 for any
+    // lattice spacing of at least 1e-100).
+    let exponent = ((extent.to_bits() >> 52) & 0x7ff) as i32 - 1023;
+    Some(-exponent)
+}
+
+/// A unit vector along `n`, or zero: [`DVec3::normalize_or_zero`], with `n` first scaled by a
+/// power of two (exactly) when its squared length would overflow or underflow (a face normal
+/// is a product of two lengths: 1e156 on a spacing of 1e78).
+#[inline]
+pub(crate) fn unit(n: DVec3) -> DVec3 {
+    match scale_exponent(n.abs().max_element()) {
+        Some(k) => (n * 2f64.powi(k)).normalize_or_zero(),
+        None => n.normalize_or_zero(),
+    }
+}
+
+/// [`closest_below`] without the scaling.
+fn closest_below_unscaled(x: DVec3, q: &[DVec3; 4], bound: f64) -> Option<QuadPoint> {
     let patch = Patch::new(q);
     let (lo, hi) = (DVec2::NEG_ONE, DVec2::ONE);
     let convex = patch.convex_for(x);
