@@ -58,7 +58,8 @@ pub struct LocateArgs {
     /// A point on a shared face has 2 rows, on an edge 4, at a node 8 (on an adaptive mesh, a
     /// hanging node's coarse cell and fine cells): the point index repeated, cells ascending in
     /// the input numbering, each row with its own xi. A point no cell holds keeps its one row
-    /// with cell -1. Not with --strategy noderad-seed (its loose Newton misses owners); --vtk
+    /// with cell -1. Not with --strategy noderad-seed (its loose Newton misses owners);
+    /// centroid and noderad are filters that may leave owners out (a warning says so). --vtk
     /// still shows one cell per point.
     #[arg(long)]
     all_owners: bool,
@@ -85,6 +86,27 @@ pub fn run(args: &LocateArgs) -> Result<()> {
         // the point at all).
         anyhow::bail!(
             "--all-owners cannot be used with --strategy noderad-seed: the seed's Newton stops at a residual of 0.1 and tests |xi| <= 1 without tolerance, so it misses cells sharing a face, edge or node (use --strategy noderad: the same filter with the exact Newton)"
+        );
+    }
+    if args.all_owners
+        && matches!(
+            args.search.strategy,
+            StrategyName::Centroid | StrategyName::Noderad
+        )
+        && !args.search.quiet
+    {
+        // Filters, not complete searches: a cell they never offer is never inverted, so a point
+        // on a face, edge or node may get fewer owners (an audit: centroid left out owners of
+        // every interior node of an undeformed 3 x 3 x 3 block).
+        eprintln!(
+            "cgcontact: warning: --strategy {} is a filter that may leave out cells holding a \
+             point (docs/baselines.md), so --all-owners may list fewer owners than there are; \
+             lattice, rtree and brute list every one",
+            if args.search.strategy == StrategyName::Centroid {
+                "centroid"
+            } else {
+                "noderad"
+            }
         );
     }
     if let Some(d) = args.gap {

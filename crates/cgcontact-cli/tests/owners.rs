@@ -525,3 +525,61 @@ fn help_describes_all_owners() {
     assert!(help.contains("one row per cell holding it"), "{help}");
     assert!(help.contains("Not with --strategy noderad-seed"), "{help}");
 }
+
+/// `centroid` and `noderad` are filters: a cell they never offer is never inverted, so
+/// `--all-owners` may list fewer owners than there are (an audit: on an undeformed 3 × 3 × 3
+/// block, `centroid` left out owners of every interior node). They used to do it without a word;
+/// `locate` now warns on stderr (not under `--quiet`), and the complete strategies do not.
+#[test]
+fn all_owners_with_a_filter_is_warned_of() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("scene");
+    let made = cgcontact(&[
+        "scene",
+        "block",
+        "--cells",
+        "3,3,3",
+        "--known",
+        "20",
+        "--out",
+        scene.to_str().unwrap(),
+    ]);
+    assert!(made.status.success(), "{made:?}");
+    let mesh = scene.join("mesh.vtu");
+    let points = scene.join("points.csv");
+    let out = dir.path().join("out.csv");
+    for (strategy, warned) in [
+        ("centroid", true),
+        ("noderad", true),
+        ("lattice", false),
+        ("rtree", false),
+        ("brute", false),
+    ] {
+        for quiet in [false, true] {
+            let mut args = vec![
+                "locate",
+                "--mesh",
+                mesh.to_str().unwrap(),
+                "--points",
+                points.to_str().unwrap(),
+                "--out",
+                out.to_str().unwrap(),
+                "--all-owners",
+                "--strategy",
+                strategy,
+            ];
+            if quiet {
+                args.push("--quiet");
+            }
+            let run = cgcontact(&args);
+            assert!(run.status.success(), "{strategy}: {run:?}");
+            let stderr = String::from_utf8(run.stderr).unwrap();
+            let said = stderr.contains("may list fewer owners");
+            assert_eq!(
+                said,
+                warned && !quiet,
+                "{strategy}, quiet {quiet}: {stderr}"
+            );
+        }
+    }
+}
