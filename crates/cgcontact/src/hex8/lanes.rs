@@ -4,7 +4,9 @@
 //!
 //! Every lane that leaves the common path (a singular Jacobian, a line search, an early or late
 //! `Outside`, a non-finite value, the iteration limit) is marked, and `locate/batched.rs` answers
-//! its point with the scalar search from scratch.
+//! its point with the scalar search from scratch. The early `Outside` here leaves out the
+//! rounding allowance on purpose: the scalar kernel, redoing the lane, applies it, so a point
+//! within the allowance is held alike by both paths.
 
 use glam::DVec3;
 

@@ -23,7 +23,8 @@ pub(crate) mod lanes;
 /// loops cannot drift apart: iterates are kept in [−`NEWTON_BOX`, `NEWTON_BOX`]³, a step larger
 /// than `LINE_SEARCH_ABOVE` that does not reduce the residual is backtracked, and an iterate
 /// moving by less than `EARLY_OUTSIDE_STEP` while more than `EARLY_OUTSIDE_MARGIN` past the inside
-/// limit is `Outside` at once.
+/// limit, widened by the rounding allowance, is `Outside` at once. (The lanes test the limit
+/// without the allowance and hand such a lane to the scalar kernel, which applies it.)
 pub(crate) const NEWTON_BOX: f64 = 4.0;
 pub(crate) const LINE_SEARCH_ABOVE: f64 = 1e-3;
 pub(crate) const EARLY_OUTSIDE_STEP: f64 = 1e-3;
@@ -367,6 +368,26 @@ macro_rules! stamp_hex8 {
                 true
             }
 
+            /// Whether `xi`, beyond `inside` on some axis, is beyond the rounding allowance too:
+            /// [`Self::within_allowance`]'s answer, the one the final inside test gives, so that
+            /// the early `Outside` never refuses a point that test would hold. The zonotope's
+            /// bounding box, |ξ_k| ≤ `inside`_k + Σ_j |J⁻¹_kj| `length`_j, is tried first: it
+            /// costs one Jacobian, and a point far outside fails it. (Without the allowance, a
+            /// node at 1.5e9 with h = 1e-3 lost 4 of its 7 owners: Newton stopped at
+            /// ξ ≈ −1.0125, 1e-2 beyond the face but within the allowance.)
+            #[inline]
+            fn beyond_allowance(&self, xi: $V, inside: $V, length: $V) -> bool {
+                let ([k0, k1, k2], det) =
+                    self.adjugate_at(xi.clamp(<$V>::splat(-1.0), <$V>::splat(1.0)));
+                // No allowance where the cell is not known to be valid (as in `within_allowance`).
+                if det.is_nan() || det <= 0.0 {
+                    return true;
+                }
+                let reach =
+                    <$V>::new(k0.abs().dot(length), k1.abs().dot(length), k2.abs().dot(length)) / det;
+                xi.abs().cmpgt(inside + reach).any() || !self.within_allowance(xi, inside, length)
+            }
+
             /// The rows of adj(J) at `xi` (the columns' cross products: row k of J⁻¹ is row k
             /// over det J) and det J.
             #[inline]
@@ -402,7 +423,8 @@ macro_rules! stamp_hex8 {
             /// [−4, 4]³ (the trilinear extrapolation far outside a cell is meaningless); a backtracking
             /// line search on |residual| for steps larger than 1e-3 (distorted cells), which costs
             /// nothing when the full step already reduces the residual; and an early `Outside` once the
-            /// iterate is converging (step < 1e-3) to a point clearly (1e-2) outside the cell.
+            /// iterate is converging (step < 1e-3) to a point clearly (1e-2) outside the cell and
+            /// its rounding allowance (`NewtonOptions::inside_length`).
             ///
             /// When the iteration limit is reached from `xi0`, Newton starts once more from the
             /// cell's centre (`iterations` then counts both runs). In a strongly sheared cell, some
@@ -549,7 +571,10 @@ macro_rules! stamp_hex8 {
                         return finish(Status::Singular, xi, iteration, rr);
                     }
                     let beyond = xi.abs().cmpgt(inside + EARLY_OUTSIDE_MARGIN).any();
-                    if moved < EARLY_OUTSIDE_STEP && beyond {
+                    if moved < EARLY_OUTSIDE_STEP
+                        && beyond
+                        && self.beyond_allowance(xi, inside + EARLY_OUTSIDE_MARGIN, inside_length)
+                    {
                         return finish(Status::Outside, xi, iteration, rr);
                     }
                 }

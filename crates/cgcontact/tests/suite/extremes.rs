@@ -1152,3 +1152,70 @@ fn newton_reaches_a_sheared_corner_from_every_start() {
     }
     println!("MEASURED newton_reaches_a_sheared_corner_from_every_start | most iterations {worst}");
 }
+
+/// Regression (an audit): `Hex8Map::invert`'s early `Outside` (an iterate moving by less than
+/// 1e-3 while 1e-2 beyond a face) ignored the rounding allowance. On a VTK-written adaptive mesh
+/// at 1.5e9 with h = 1e-3, a node of 7 cells was given 3 owners: the other 4 converged to
+/// ξ ≈ −1.0125, within the allowance, but Newton had already stopped. Here a uniform body at
+/// 1.5e9, h = 1e-3, sheared (x += 30 z, so z's rounding reaches ξ_x) and smoothly bent (so
+/// Newton takes more than one step): every node, edge, face and centre of its 27 cells must be
+/// owned by exactly the cells whose closed undeformed box holds it, by the lattice (scalar and
+/// batched) and by the brute-force oracle, in f64 and f32.
+#[test]
+fn the_early_outside_exit_keeps_owners_within_the_rounding_allowance() {
+    let h = DVec3::splat(1e-3);
+    let mut checked = 0;
+    for origin in [DVec3::splat(1.5e9), DVec3::new(-1e9, 1.5e9, -1.5e9)] {
+        let lattice = Lattice::new(origin, h, [3, 3, 3]).unwrap();
+        let mut body = Body::full(lattice);
+        body.update_displacements(|_, x, u| {
+            let r = (x - origin) / h;
+            let bend = DVec3::new(
+                (2.1 * r.y + 0.3 * r.z).sin(),
+                (1.7 * r.z).sin(),
+                (1.3 * r.x).sin(),
+            );
+            *u = DVec3::new(30.0 * (x.z - origin.z), 0.0, 0.0) + bend * (0.003 * h);
+        })
+        .unwrap();
+        body.validate().expect("no cell folds");
+        let mut samples = Vec::new();
+        let mut wanted = Vec::new();
+        for k in 0..=6u32 {
+            for j in 0..=6u32 {
+                for i in 0..=6u32 {
+                    let expected = owners_of_sample(&body, [i, j, k]);
+                    let (first, xi) = expected[0];
+                    samples.push(point_at(&body, first, xi));
+                    wanted.push(expected.iter().map(|(c, _)| *c).collect::<Vec<_>>());
+                }
+            }
+        }
+        for (x, want) in samples.iter().zip(&wanted) {
+            assert_eq!(
+                &crate::common::brute_owners(&body, *x),
+                want,
+                "origin {origin}: brute-force owners of {x}"
+            );
+        }
+        for (name, settings) in precisions() {
+            let locator = LatticeLocator::new(&body, settings).unwrap();
+            let batched = locator.locate_all(&samples);
+            for ((x, want), hit) in samples.iter().zip(&wanted).zip(batched) {
+                let owners = locator.locate_owners(*x).unwrap();
+                let got: Vec<CellId> = owners.iter().map(|o| o.cell).collect();
+                assert_eq!(&got, want, "origin {origin} {name}: owners of {x}");
+                let hit = hit.unwrap().expect("on the body");
+                let one = locator.locate(*x).unwrap().expect("on the body");
+                assert!(
+                    want.contains(&one.cell),
+                    "origin {origin} {name}: {x} in {}",
+                    one.cell
+                );
+                assert_eq!(hit, one, "origin {origin} {name}: batched against scalar");
+                checked += 1;
+            }
+        }
+    }
+    assert_eq!(checked, 2 * 2 * 343);
+}
