@@ -162,7 +162,13 @@ impl<'a> BodyRef<'a> {
     pub fn inside_tolerance(&self, settings: &Settings) -> InsideTolerance {
         // Bodies refuse non-finite displacements (every entry point), so the bound is finite: the
         // kernel's rounding grows with |u − T| (|u| with f64).
-        let u_max = self.frame(settings).reach();
+        let reach = self.frame(settings).reach();
+        // An adaptive body's seam (hanging nodes off their faces, in a file's rounding) widens
+        // it as it widens the adaptive locator's.
+        let u_max = match self {
+            Self::Uniform(_) => reach,
+            Self::Adaptive(body) => body.reach_with_seam(reach, settings),
+        };
         InsideTolerance::with_spacing(
             settings,
             self.lattice().origin(),

@@ -610,3 +610,42 @@ fn coarse_leaves_beside_deep_ones_keep_their_own_tolerance() {
         }
     }
 }
+
+/// A body whose hanging nodes lie off their faces by a file's rounding (float coordinates) has a
+/// seam (`AdaptiveBody::set_seam`), which the adaptive locator adds to its allowance so that a
+/// point at a hanging node keeps the coarse leaf as an owner. The baselines did not, so the
+/// brute-force oracle listed fewer owners than the locator. Every node's deformed position must
+/// get the same owners from both.
+#[test]
+fn the_oracle_takes_the_seam_as_the_locator_does() {
+    let mut body = common::adaptive::body(&BASE);
+    let hanging: Vec<usize> = body.hanging_nodes().collect();
+    assert!(!hanging.is_empty(), "a refinement with hanging nodes");
+    let h = body.spacing(0);
+    let off = 3e-8 * h;
+    let mut u = body.displacements().to_vec();
+    for (k, &node) in hanging.iter().enumerate() {
+        // Off the constraint by up to `off` per axis, in both directions.
+        let sign = if k % 2 == 0 { 1.0 } else { -1.0 };
+        u[node] += sign * off * DVec3::new(1.0, 0.5, -0.75);
+    }
+    body.set_displacements(&u).unwrap();
+    body.set_seam(off).unwrap();
+    let settings = Settings::default();
+    let adaptive = AdaptiveLocator::new(&body, settings).unwrap();
+    let brute = BruteForce::new(&body, settings).unwrap();
+    let mut several = 0;
+    for (node, &u) in u.iter().enumerate() {
+        let x = body.node_position(node).unwrap() + u;
+        let want = cells(&brute.locate_owners(x).unwrap());
+        let got = cells(&adaptive.locate_owners(x).unwrap());
+        assert_eq!(
+            got,
+            want,
+            "node {node} at {x} (hanging: {})",
+            body.is_hanging(node)
+        );
+        several += usize::from(want.len() > 1);
+    }
+    assert!(several > 100, "{several} nodes with several owners");
+}
