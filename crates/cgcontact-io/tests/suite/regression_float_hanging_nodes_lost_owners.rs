@@ -11,34 +11,16 @@
 //! ξ ∈ {−1, 0, 1}³, whose owners are the leaves whose closed box holds the point's lattice
 //! position (`owners_of`): every one of them, and no other, must be listed.
 
-use cgcontact::{AdaptiveBody, AdaptiveLocator, Lattice, Leaf, Locator, Settings};
+use cgcontact::{AdaptiveBody, AdaptiveLocator, Locator, Settings};
 use cgcontact_io::{HexMesh, MeshBody};
 use glam::DVec3;
 
 use crate::common::mesh_of;
-use crate::common::probes::{displaced_leaf_boxes, found, owners_of, probes};
+use crate::common::probes::{corner_refined_body, displaced_leaf_boxes, found, owners_of, probes};
 
-/// Base cells 3 × 2 × 2 of spacings floats cannot hold: the first refined three times toward
-/// its lowest corner (level jumps of 1 to 3 against its neighbours), the last once.
+/// Refined three levels in a corner: level jumps of 1 to 3.
 fn body() -> AdaptiveBody {
-    let origin = DVec3::new(0.1, -0.3, 0.7);
-    let h = DVec3::new(0.3, 0.1, 0.7);
-    let cells = [3, 2, 2];
-    let mut leaves = Vec::new();
-    let n = cells[0] * cells[1] * cells[2];
-    for c in 1..n - 1 {
-        leaves.push(Leaf::new(0, [c % 3, (c / 3) % 2, c / 6]));
-    }
-    let mut corner = Leaf::new(0, [0, 0, 0]);
-    for _ in 0..3 {
-        let children = corner.children();
-        leaves.extend_from_slice(&children[1..]);
-        corner = children[0];
-    }
-    leaves.push(corner);
-    leaves.extend(Leaf::new(0, [2, 1, 1]).children());
-    let lattice = Lattice::new(origin, h, cells).unwrap();
-    AdaptiveBody::from_leaves(lattice, leaves).unwrap()
+    corner_refined_body(3)
 }
 
 fn round(p: &DVec3) -> DVec3 {

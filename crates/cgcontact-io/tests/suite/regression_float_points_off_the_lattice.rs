@@ -10,14 +10,12 @@
 //! trilinear map at ξ ∈ {−1, 0, 1}³: nodes, edge and face centres, the centre), whose owners
 //! are the cells whose closed box holds the point's lattice position.
 
-use cgcontact::{
-    AdaptiveBody, AdaptiveLocator, CORNER_OFFSETS, Lattice, LatticeLocator, Leaf, Locator, Settings,
-};
+use cgcontact::{AdaptiveLocator, CORNER_OFFSETS, LatticeLocator, Locator, Settings};
 use cgcontact_io::{HexMesh, MeshBody};
 use glam::DVec3;
 
 use crate::common::mesh_of;
-use crate::common::probes::{displaced_leaf_boxes, found, owners_of, probes};
+use crate::common::probes::{corner_refined_body, displaced_leaf_boxes, found, owners_of, probes};
 
 /// The mesh as a file of float coordinates holds it: each coordinate rounded to f32.
 fn as_floats(mesh: &HexMesh) -> HexMesh {
@@ -97,26 +95,8 @@ fn points_where_a_float_file_has_them_keep_every_owner_in_a_uniform_mesh() {
 
 #[test]
 fn points_where_a_float_file_has_them_are_in_their_leaf_in_an_adaptive_mesh() {
-    // Base cells 3 × 2 × 2 of spacings floats cannot hold; the first refined twice toward its
-    // lowest corner (a jump of two levels), the last once.
-    let origin = DVec3::new(0.1, -0.3, 0.7);
-    let h = DVec3::new(0.3, 0.1, 0.7);
-    let cells = [3, 2, 2];
-    let mut leaves = Vec::new();
-    let n = cells[0] * cells[1] * cells[2];
-    for c in 1..n - 1 {
-        leaves.push(Leaf::new(0, [c % 3, (c / 3) % 2, c / 6]));
-    }
-    let mut corner = Leaf::new(0, [0, 0, 0]);
-    for _ in 0..2 {
-        let children = corner.children();
-        leaves.extend_from_slice(&children[1..]);
-        corner = children[0];
-    }
-    leaves.push(corner);
-    leaves.extend(Leaf::new(0, [2, 1, 1]).children());
-    let lattice = Lattice::new(origin, h, cells).unwrap();
-    let mut body = AdaptiveBody::from_leaves(lattice, leaves).unwrap();
+    // Refined twice toward a corner: a jump of two levels.
+    let mut body = corner_refined_body(2);
     let (low, size) = displaced_leaf_boxes(&mut body);
     let mesh = as_floats(&mesh_of(&body));
 

@@ -865,6 +865,24 @@ fn f32_rigid_translations_of_1e3_to_1e6_cells_known_cell_and_xi() {
     );
 }
 
+/// The 7³ points at the half-cell samples of a 3 × 3 × 3 body (nodes, edge and face centres,
+/// cell centres), each made from its first owner's map, and each one's owners in order.
+fn samples_and_owners(body: &Body) -> (Vec<DVec3>, Vec<Vec<CellId>>) {
+    let mut samples = Vec::new();
+    let mut wanted = Vec::new();
+    for k in 0..=6u32 {
+        for j in 0..=6u32 {
+            for i in 0..=6u32 {
+                let expected = owners_of_sample(body, [i, j, k]);
+                let (first, xi) = expected[0];
+                samples.push(point_at(body, first, xi));
+                wanted.push(expected.iter().map(|(c, _)| *c).collect());
+            }
+        }
+    }
+    (samples, wanted)
+}
+
 /// Points on every node, edge and face of lattices deformed by [`linear_maps`] (anisotropic and
 /// not, near the origin and far from it) have all their owners, in every precision and path. With
 /// an allowance of 2L / h_k per axis, a node of the 4 × 0.25 × 0.002 lattice at 1e5 sheared by
@@ -888,18 +906,7 @@ fn sheared_and_rotated_cells_keep_every_owner_of_nodes_edges_and_faces() {
                 let case = format!("{map_name}, h {h}, origin {origin}");
                 for (name, settings) in precisions() {
                     let locator = LatticeLocator::new(&body, settings).unwrap();
-                    let mut samples = Vec::new();
-                    let mut wanted = Vec::new();
-                    for k in 0..=6u32 {
-                        for j in 0..=6u32 {
-                            for i in 0..=6u32 {
-                                let expected = owners_of_sample(&body, [i, j, k]);
-                                let (first, xi) = expected[0];
-                                samples.push(point_at(&body, first, xi));
-                                wanted.push(expected.iter().map(|(c, _)| *c).collect::<Vec<_>>());
-                            }
-                        }
-                    }
+                    let (samples, wanted) = samples_and_owners(&body);
                     let batched = locator.locate_all(&samples);
                     // Warm starts: each owner, as the hint at its own ξ, answers itself.
                     let (mut warm_points, mut hints) = (Vec::new(), Vec::new());
@@ -1179,18 +1186,7 @@ fn the_early_outside_exit_keeps_owners_within_the_rounding_allowance() {
         })
         .unwrap();
         body.validate().expect("no cell folds");
-        let mut samples = Vec::new();
-        let mut wanted = Vec::new();
-        for k in 0..=6u32 {
-            for j in 0..=6u32 {
-                for i in 0..=6u32 {
-                    let expected = owners_of_sample(&body, [i, j, k]);
-                    let (first, xi) = expected[0];
-                    samples.push(point_at(&body, first, xi));
-                    wanted.push(expected.iter().map(|(c, _)| *c).collect::<Vec<_>>());
-                }
-            }
-        }
+        let (samples, wanted) = samples_and_owners(&body);
         for (x, want) in samples.iter().zip(&wanted) {
             assert_eq!(
                 &crate::common::brute_owners(&body, *x),

@@ -4,7 +4,7 @@
 
 use std::collections::BTreeSet;
 
-use cgcontact::{AdaptiveBody, CORNER_OFFSETS};
+use cgcontact::{AdaptiveBody, CORNER_OFFSETS, Lattice, Leaf};
 use cgcontact_io::{CellMap, HexMesh};
 use glam::DVec3;
 
@@ -78,4 +78,28 @@ pub fn displaced_leaf_boxes(body: &mut AdaptiveBody) -> (Vec<[u32; 3]>, Vec<u32>
         .collect();
     let size = leaves.iter().map(|l| 1 << (finest - l.level)).collect();
     (low, size)
+}
+
+/// Base cells 3 × 2 × 2 of spacings floats cannot hold (0.3, 0.1, 0.7 from (0.1, −0.3, 0.7)):
+/// the first refined `depth` times toward its lowest corner (level jumps of 1 to `depth`
+/// against its neighbours), the last once.
+pub fn corner_refined_body(depth: u32) -> AdaptiveBody {
+    let origin = DVec3::new(0.1, -0.3, 0.7);
+    let h = DVec3::new(0.3, 0.1, 0.7);
+    let cells = [3, 2, 2];
+    let mut leaves = Vec::new();
+    let n = cells[0] * cells[1] * cells[2];
+    for c in 1..n - 1 {
+        leaves.push(Leaf::new(0, [c % 3, (c / 3) % 2, c / 6]));
+    }
+    let mut corner = Leaf::new(0, [0, 0, 0]);
+    for _ in 0..depth {
+        let children = corner.children();
+        leaves.extend_from_slice(&children[1..]);
+        corner = children[0];
+    }
+    leaves.push(corner);
+    leaves.extend(Leaf::new(0, [2, 1, 1]).children());
+    let lattice = Lattice::new(origin, h, cells).unwrap();
+    AdaptiveBody::from_leaves(lattice, leaves).unwrap()
 }
