@@ -28,6 +28,10 @@ pub(crate) mod lanes;
 pub(crate) const NEWTON_BOX: f64 = 4.0;
 pub(crate) const LINE_SEARCH_ABOVE: f64 = 1e-3;
 pub(crate) const EARLY_OUTSIDE_STEP: f64 = 1e-3;
+/// Iterates an early `Outside` may be held back by the rounding allowance before it is taken:
+/// Newton converging there needs a few; one that stalls there (with `max_iter` at `u32::MAX`, a
+/// hostile-settings test ran for minutes) must still end.
+pub(crate) const EARLY_OUTSIDE_HOLDS: u32 = 8;
 pub(crate) const EARLY_OUTSIDE_MARGIN: f64 = 1e-2;
 
 /// Sign of each corner's local coordinate, VTK order: corner `c` sits at `CORNER_XI[c]`.
@@ -510,6 +514,10 @@ macro_rules! stamp_hex8 {
                     (x - fx, jac)
                 };
                 let (mut r, mut jac) = evaluate(xi);
+                // Iterates held back from the early `Outside` by the rounding allowance: at most
+                // `EARLY_OUTSIDE_HOLDS`, so that a run that stalls there (it never reaches the
+                // convergence test) still ends, whatever `max_iter` says.
+                let mut held = 0u32;
                 let mut rr = r.dot(r);
                 let finish = |status, xi: $V, iterations, rr: $S| Inversion {
                     status,
@@ -571,11 +579,13 @@ macro_rules! stamp_hex8 {
                         return finish(Status::Singular, xi, iteration, rr);
                     }
                     let beyond = xi.abs().cmpgt(inside + EARLY_OUTSIDE_MARGIN).any();
-                    if moved < EARLY_OUTSIDE_STEP
-                        && beyond
-                        && self.beyond_allowance(xi, inside + EARLY_OUTSIDE_MARGIN, inside_length)
-                    {
-                        return finish(Status::Outside, xi, iteration, rr);
+                    if moved < EARLY_OUTSIDE_STEP && beyond {
+                        if held >= EARLY_OUTSIDE_HOLDS
+                            || self.beyond_allowance(xi, inside + EARLY_OUTSIDE_MARGIN, inside_length)
+                        {
+                            return finish(Status::Outside, xi, iteration, rr);
+                        }
+                        held += 1;
                     }
                 }
                 finish(Status::NotConverged, xi, options.max_iter, rr)
