@@ -162,19 +162,19 @@ impl<'a> BodyRef<'a> {
     pub fn inside_tolerance(&self, settings: &Settings) -> InsideTolerance {
         // Bodies refuse non-finite displacements (every entry point), so the bound is finite: the
         // kernel's rounding grows with |u − T| (|u| with f64).
-        let reach = self.frame(settings).reach();
-        // An adaptive body's seam (hanging nodes off their faces, in a file's rounding) widens
-        // it as it widens the adaptive locator's.
-        let u_max = match self {
-            Self::Uniform(_) => reach,
-            Self::Adaptive(body) => body.reach_with_seam(reach, settings),
-        };
-        InsideTolerance::with_spacing(
+        let u_max = self.frame(settings).reach();
+        let inside = InsideTolerance::with_spacing(
             settings,
             self.lattice().origin(),
             self.finest_spacing(),
             u_max,
-        )
+        );
+        // An adaptive body's seam (hanging nodes off their faces, in a file's rounding) widens
+        // it as it widens the adaptive locator's.
+        match self {
+            Self::Uniform(_) => inside,
+            Self::Adaptive(body) => inside.with_added_length(body.seam()),
+        }
     }
 }
 

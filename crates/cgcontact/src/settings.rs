@@ -340,6 +340,15 @@ impl InsideTolerance {
         }
     }
 
+    /// These constants with `length` (per component) added to the rounding length
+    /// ([`InsideTolerance::length`]): an adaptive body's seam ([`crate::AdaptiveBody::seam`]),
+    /// how far its hanging nodes may lie off the faces they hang on.
+    #[must_use]
+    pub fn with_added_length(mut self, length: DVec3) -> Self {
+        self.kernel += length.abs();
+        self
+    }
+
     /// The allowance in ξ units, the same on every axis: the setting plus the kernel's rounding.
     #[inline]
     #[must_use]

@@ -77,10 +77,11 @@ impl<'a> AdaptiveLocator<'a> {
             &settings,
             lattice.origin(),
             h_finest,
-            // The kernel rounds u − T (|u| with f64); the hanging nodes lie off their faces by
-            // up to the body's seam.
-            body.reach_with_seam(frame.reach(), &settings),
-        );
+            // The kernel rounds u − T (|u| with f64).
+            frame.reach(),
+        )
+        // The hanging nodes lie off their faces by up to the body's seam.
+        .with_added_length(body.seam());
         Ok(Self {
             body,
             settings,

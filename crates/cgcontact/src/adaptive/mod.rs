@@ -587,15 +587,6 @@ impl AdaptiveBody {
         self.seam
     }
 
-    /// What the kernel's displacement reach `reach` ([`crate::InsideTolerance::with_spacing`]'s
-    /// `u_max`) becomes with the seam: the inside tolerance's rounding length is 4 ε_kernel
-    /// `u_max` per component, so the seam enters it as seam / (4 ε_kernel). Public so that the
-    /// baselines (the brute-force oracle among them) hold the same points as the locator.
-    #[must_use]
-    pub fn reach_with_seam(&self, reach: DVec3, settings: &Settings) -> DVec3 {
-        reach.abs() + self.seam / (4.0 * settings.epsilon())
-    }
-
     /// Whether `node` is hanging.
     #[must_use]
     pub fn is_hanging(&self, node: usize) -> bool {

@@ -289,8 +289,9 @@ impl<'l, L: Surface> GapFinder<'l, L> {
             settings,
             surface.lattice().origin(),
             finest,
-            frame.reach().abs() + surface.seam() / (4.0 * settings.epsilon()),
-        );
+            frame.reach(),
+        )
+        .with_added_length(surface.seam());
         Ok(Self {
             surface,
             distance,
