@@ -471,11 +471,18 @@ pub fn run(args: &SceneArgs) -> Result<()> {
     // the indentation are computed from squares.
     let (h, size) = (knobs.h * args.scale, knobs.block * args.scale);
     let far = (size.abs() + knobs.offset.abs()).max_element();
-    if h.min_element() < MIN_LENGTH || far > MAX_LENGTH {
+    // Each bound names the flags that set its length (the spacing's are not --offset's).
+    if h.min_element() < MIN_LENGTH {
         bail!(
-            "the scene's spacing {:e} and farthest coordinate {far:e} (from --h, --scale and \
-             --offset) must lie between {MIN_LENGTH:e} and {MAX_LENGTH:e}",
+            "the scene's spacing {:e} (from --h and --scale) is below {MIN_LENGTH:e}: use a \
+             larger --h or --scale",
             h.min_element()
+        );
+    }
+    if far > MAX_LENGTH {
+        bail!(
+            "the scene's farthest coordinate {far:e} (from --h, --cells, --scale and --offset) \
+             is beyond {MAX_LENGTH:e}: use a smaller --scale, --h or --offset"
         );
     }
     // `block` has no contact points: with no known points either, points.csv would hold a header

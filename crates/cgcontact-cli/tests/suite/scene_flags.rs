@@ -276,3 +276,28 @@ fn a_scene_without_any_point_warns() {
     assert_eq!(code, Some(0), "{stderr}");
     assert!(!stderr.contains("warning"), "{stderr}");
 }
+
+/// Regression: `--scale 1e-300` was refused as "the scene's spacing 1.25e-301 and farthest
+/// coordinate 1e-299 (from --h, --scale and --offset) must lie between …", which blamed an
+/// --offset never given and did not say which of the two lengths was out of range. Each bound now
+/// names its own length and the flags that set it.
+#[test]
+fn a_spacing_or_extent_out_of_range_names_its_own_length() {
+    refused(
+        &[
+            (
+                &["block", "--scale", "1e-300"],
+                &["spacing 1.25e-301", "--h", "--scale", "below"],
+            ),
+            (&["block", "--h", "1e-120"], &["spacing 1e-120", "below"]),
+        ],
+        &["--offset", "farthest"],
+    );
+    refused(
+        &[(
+            &["block", "--scale", "1e300"],
+            &["farthest coordinate", "--scale", "beyond"],
+        )],
+        &["spacing 1.25e299"],
+    );
+}
