@@ -42,7 +42,7 @@ use scenes::scenes;
 #[derive(Args, Debug)]
 #[command(after_help = "Example:
   cgcontact tradeoff                 # the full report into docs/ (about 4 minutes on 2 cores)
-  cgcontact tradeoff --quick --out /tmp/report
+  cgcontact tradeoff --quick         # tiny scenes, into tradeoff-quick/ (never docs/)
   cgcontact tradeoff --gslib benches/gslib/run-2026-11-24.log   # with gslib's line
 
 Writes DIR/tradeoff.md (the table, the machine, the command), DIR/tradeoff.svg (throughput
@@ -50,9 +50,10 @@ against ξ error, one mark per configuration) and DIR/scale.svg (points/s agains
 4.2 M cells, random and lattice order). A block between the markers
 <!-- reading --> and <!-- /reading --> of an existing DIR/tradeoff.md is kept.")]
 pub struct TradeoffArgs {
-    /// Folder for tradeoff.md, tradeoff.svg and scale.svg.
-    #[arg(long, value_name = "DIR", default_value = "docs")]
-    out: PathBuf,
+    /// Folder for tradeoff.md, tradeoff.svg and scale.svg [default: docs, or tradeoff-quick with
+    /// --quick, so that a quick run never replaces the full report].
+    #[arg(long, value_name = "DIR")]
+    out: Option<PathBuf>,
     /// Tiny scenes and subsamples: finishes in seconds (CI checks that the report still builds).
     #[arg(long)]
     quick: bool,
@@ -66,7 +67,22 @@ pub struct TradeoffArgs {
     gslib: Option<PathBuf>,
 }
 
+impl TradeoffArgs {
+    /// The folder written: `--out`, else `docs` (the full report) or `tradeoff-quick`.
+    fn out(&self) -> PathBuf {
+        self.out
+            .clone()
+            .unwrap_or_else(|| PathBuf::from(Self::default_out(self.quick)))
+    }
+
+    /// The folder written without `--out`.
+    fn default_out(quick: bool) -> &'static str {
+        if quick { "tradeoff-quick" } else { "docs" }
+    }
+}
+
 pub fn run(args: &TradeoffArgs) -> Result<()> {
+    let out = args.out();
     let threads = match args.threads {
         // As for the other commands: more threads than 4 per core only add switching (and
         // `--threads 100000` tried to start them all).
@@ -82,9 +98,9 @@ pub fn run(args: &TradeoffArgs) -> Result<()> {
     let (one, all) = (pool(1)?, pool(threads)?);
     // Read before the long measurements, so that a bad log fails at once.
     let gslib = args.gslib.as_deref().map(Gslib::read).transpose()?;
-    let _made = crate::output::prepare_folder("--out", &args.out)?;
+    let _made = crate::output::prepare_folder("--out", &out)?;
     // Each file's name free for a file, before minutes of measurements.
-    let files = ["tradeoff.md", "tradeoff.svg", "scale.svg"].map(|f| ("--out", args.out.join(f)));
+    let files = ["tradeoff.md", "tradeoff.svg", "scale.svg"].map(|f| ("--out", out.join(f)));
     // None of them the --gslib log: it was read above, but the report would replace it.
     let inputs: Vec<(&str, &Path)> = args
         .gslib
@@ -111,10 +127,10 @@ pub fn run(args: &TradeoffArgs) -> Result<()> {
     let scale = measure_scale(args.quick, &one, |m| bar.set_message(m))?;
     bar.finish_and_clear();
 
-    scale_plot(&args.out.join("scale.svg"), &scale, gslib.as_ref())?;
-    let svg = args.out.join("tradeoff.svg");
+    scale_plot(&out.join("scale.svg"), &scale, gslib.as_ref())?;
+    let svg = out.join("tradeoff.svg");
     let plotted = plot(&svg, &rows)?;
-    let md = args.out.join("tradeoff.md");
+    let md = out.join("tradeoff.md");
     let reading = std::fs::read_to_string(&md)
         .ok()
         .and_then(|text| kept_reading(&text));
@@ -137,7 +153,7 @@ pub fn run(args: &TradeoffArgs) -> Result<()> {
         started.elapsed().as_secs_f64(),
         md.display(),
         svg.display(),
-        args.out.join("scale.svg").display()
+        out.join("scale.svg").display()
     )?;
     Ok(())
 }

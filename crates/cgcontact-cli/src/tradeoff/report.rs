@@ -117,10 +117,18 @@ fn targets(rows: &[Row], threads: usize) -> String {
             big.points_run,
             rate(big.pps_one)
         ));
-        line(format!(
-            "{threads} threads vs 1: **{:.2}×** (target ≥ 1.8× on 2 threads).",
-            big.pps_all / big.pps_one
-        ));
+        if threads > 1 {
+            line(format!(
+                "{threads} threads vs 1: **{:.2}×** (target ≥ 1.8× on 2 threads).",
+                big.pps_all / big.pps_one
+            ));
+        } else {
+            line(
+                "Threads: not measured, the \"all threads\" column ran on 1 thread \
+                 (target ≥ 1.8× on 2 threads; run with --threads 2 or more)."
+                    .to_string(),
+            );
+        }
         if let Some(f32_row) = find(rows, "block-big", ConfigId::LatticeF32) {
             line(format!(
                 "f32 vs f64, 1 thread: **{:.2}×** ({} points/s; target ≥ 1.5×).",
@@ -206,8 +214,10 @@ pub(super) fn report(
     if args.threads.is_some() {
         let _ = write!(command, " --threads {threads}");
     }
-    if args.out != Path::new("docs") {
-        let _ = write!(command, " --out {}", args.out.display());
+    if let Some(out) = args.out.as_deref()
+        && out != Path::new(TradeoffArgs::default_out(args.quick))
+    {
+        let _ = write!(command, " --out {}", out.display());
     }
     if let Some(log) = &args.gslib {
         let _ = write!(command, " --gslib {}", log.display());

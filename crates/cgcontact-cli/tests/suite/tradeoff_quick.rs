@@ -237,3 +237,36 @@ fn tradeoff_threads_are_capped_as_elsewhere() {
         "the report names the threads asked for"
     );
 }
+
+/// Regression: `tradeoff --quick` without `--out` wrote into `docs/`, so that a quick run in the
+/// repository replaced the published full report with tiny-scene timings; and `--threads 1`
+/// reported "1 threads vs 1: 1.00×" against the 2-thread target. A quick run now writes into
+/// `tradeoff-quick/` unless told otherwise, and one thread is said to measure no thread ratio.
+#[test]
+fn a_quick_run_leaves_docs_alone_and_one_thread_claims_no_ratio() {
+    let dir = tempfile::tempdir().expect("temporary folder");
+    let docs = dir.path().join("docs");
+    std::fs::create_dir(&docs).expect("docs/");
+    std::fs::write(docs.join("tradeoff.md"), "the full report\n").expect("a report");
+    let output = Command::new(env!("CARGO_BIN_EXE_cgcontact"))
+        .args(["tradeoff", "--quick", "--threads", "1"])
+        .current_dir(dir.path())
+        .output()
+        .expect("the binary runs");
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success(), "{stderr}");
+    assert_eq!(
+        std::fs::read_to_string(docs.join("tradeoff.md")).expect("docs/tradeoff.md"),
+        "the full report\n",
+        "docs/ untouched"
+    );
+    assert_eq!(std::fs::read_dir(&docs).expect("docs/").count(), 1);
+    let md = std::fs::read_to_string(dir.path().join("tradeoff-quick/tradeoff.md"))
+        .expect("tradeoff-quick/tradeoff.md");
+    assert!(
+        md.contains("tradeoff --quick --threads 1`"),
+        "the command as run"
+    );
+    assert!(!md.contains("threads vs 1"), "a ratio of one thread to one");
+    assert!(md.contains("Threads: not measured"), "{md}");
+}
