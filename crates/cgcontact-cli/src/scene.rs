@@ -650,9 +650,9 @@ fn write_known(
                 "{},{},{},{},{}",
                 contact + row,
                 cell,
-                k.xi.x,
-                k.xi.y,
-                k.xi.z
+                cgcontact_io::Num(k.xi.x),
+                cgcontact_io::Num(k.xi.y),
+                cgcontact_io::Num(k.xi.z)
             )?;
         }
         Ok(())

@@ -72,9 +72,9 @@ pub use atomic::{
 };
 pub use caller_body::{AnyBody, CallerBody, Kept, KeptBuffers, UpdateError};
 pub use csv_io::{
-    GAP_HEADER, RESULTS_HEADER, ResultRow, parse_points, parse_results, read_points, read_results,
-    unended_points_file, write_owner_rows, write_points, write_results, write_results_counted,
-    write_results_to,
+    GAP_HEADER, Num, RESULTS_HEADER, ResultRow, parse_points, parse_results, read_points,
+    read_results, unended_points_file, write_owner_rows, write_points, write_results,
+    write_results_counted, write_results_to,
 };
 pub use error::{ErrorKind, IoError};
 pub use input::{

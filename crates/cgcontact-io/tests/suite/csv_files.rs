@@ -3,7 +3,7 @@
 use cgcontact::glam::DVec3;
 use cgcontact::{Body, Lattice, LatticeLocator, Locator, Settings};
 use cgcontact_io::{
-    CellMap, ErrorKind, RESULTS_HEADER, parse_points, read_points, read_results, write_points,
+    CellMap, ErrorKind, Num, RESULTS_HEADER, parse_points, read_points, read_results, write_points,
     write_results,
 };
 
@@ -266,6 +266,60 @@ fn utf16_files_are_named_as_such() {
         assert!(
             message.contains("mesh.vtu") && message.contains("UTF-16"),
             "{message}"
+        );
+    }
+}
+
+/// Regression: numbers were written in plain decimals whatever their size: `locate --gap` on a
+/// body of spacing 1e-80 wrote its closest points in about 90 characters each, 5e-324 took 327
+/// and 1e300 took 301. Beyond [1e-4, 1e16) they are now written in exponent form, still the
+/// shortest digits that read back bitwise; within it, as before.
+#[test]
+fn numbers_are_short_and_read_back_bitwise() {
+    for (x, text) in [
+        (5e-324, "5e-324"),
+        (1e300, "1e300"),
+        (-1.25e-81, "-1.25e-81"),
+        (1e16, "1e16"),
+        (9.9e-5, "9.9e-5"),
+        (1e-4, "0.0001"),
+        (0.1, "0.1"),
+        (9_999_999_999_999_998.0, "9999999999999998"),
+        (0.0, "0"),
+        (-0.0, "-0"),
+        (f64::INFINITY, "inf"),
+        (f64::NAN, "NaN"),
+    ] {
+        assert_eq!(Num(x).to_string(), text);
+    }
+    // Every bit pattern class: subnormal, tiny, huge, in range; written and read back bitwise.
+    let mut seed = 0x2545_f491_4f6c_dd1du64;
+    let mut longest = 0;
+    let mut xs = Vec::new();
+    for _ in 0..20_000 {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        let x = f64::from_bits(seed);
+        if x.is_finite() {
+            xs.push(x);
+            longest = longest.max(Num(x).to_string().len());
+        }
+    }
+    assert!(longest <= 24, "{longest} characters");
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("points.csv");
+    let pts: Vec<DVec3> = xs
+        .chunks_exact(3)
+        .map(|c| DVec3::new(c[0], c[1], c[2]))
+        .collect();
+    write_points(&path, &pts).unwrap();
+    let back = read_points(&path).unwrap();
+    assert_eq!(back.len(), pts.len());
+    for (a, b) in back.iter().zip(&pts) {
+        assert_eq!(
+            a.to_array().map(f64::to_bits),
+            b.to_array().map(f64::to_bits)
         );
     }
 }
