@@ -220,6 +220,8 @@ fn parse_vtk(bytes: &[u8]) -> Result<Vtk, ErrorKind> {
         // First what vtkio would skip or misread (an appended array without an offset among
         // them), on the tags as the file has them.
         check_xml_arrays(bytes)?;
+        let kept = without_empty_pieces(bytes)?;
+        let bytes = kept.as_deref().unwrap_or(bytes);
         let decompressed = lzma_arrays::decompress(bytes)?;
         let bytes = decompressed.as_deref().unwrap_or(bytes);
         // vtkio cannot read raw (unencoded) appended data, ParaView's default; re-encode it as base64
@@ -526,6 +528,9 @@ fn parse_legacy_whole(bytes: &[u8]) -> Result<Vtk, ErrorKind> {
         // finish: a walk of the sections against their headers says which one is at fault.
         Err(error) => Err(match legacy_sections::fault(bytes) {
             Some(fault) => ErrorKind::Vtk(format!("legacy VTK: {fault}")),
+            // VTK writes an empty grid as `POINTS 0 float` and no cell section at all, which the
+            // parser reads as a file cut short.
+            None if declares_no_points(bytes) => ErrorKind::NoCells,
             None => match error {
                 nom::Err::Incomplete(_) => ErrorKind::Vtk(
                     "legacy VTK: the file ends before its data does (truncated?)".to_owned(),
@@ -552,6 +557,57 @@ fn parse_legacy_whole(bytes: &[u8]) -> Result<Vtk, ErrorKind> {
             },
         }),
     }
+}
+
+/// `xml` with each `<Piece>` of no cell blanked (its bytes made spaces, line ends kept, so that
+/// lines and bytes keep their numbers); `None` when every piece has cells; `Err(NoCells)` when
+/// none has. VTK writes an empty piece's compressed arrays with no block, which vtkio cannot read
+/// (it computes `blocks − 1`), and such a piece adds nothing to the mesh.
+fn without_empty_pieces(xml: &[u8]) -> Result<Option<Vec<u8>>, ErrorKind> {
+    let (mut at, mut pieces, mut empty) = (0, 0, Vec::new());
+    while let Some(start) = raw_appended::find(xml, b"<Piece", at) {
+        let Some(tag_end) = raw_appended::find(xml, b">", start) else {
+            break;
+        };
+        let tag = &xml[start..tag_end];
+        // The element's end: past `/>`, or past its `</Piece>`.
+        let end = if tag.ends_with(b"/") {
+            tag_end + 1
+        } else {
+            match raw_appended::find(xml, b"</Piece>", tag_end) {
+                Some(close) => close + b"</Piece>".len(),
+                None => break,
+            }
+        };
+        pieces += 1;
+        if raw_appended::attribute(tag, b"NumberOfCells").is_some_and(|v| v.trim_ascii() == b"0") {
+            empty.push(start..end);
+        }
+        at = end;
+    }
+    if empty.is_empty() {
+        return Ok(None);
+    }
+    if empty.len() == pieces {
+        return Err(ErrorKind::NoCells);
+    }
+    let mut blanked = xml.to_vec();
+    for range in empty {
+        for b in &mut blanked[range] {
+            if *b != b'\n' {
+                *b = b' ';
+            }
+        }
+    }
+    Ok(Some(blanked))
+}
+
+/// Whether a legacy file's `POINTS` line declares no point.
+fn declares_no_points(bytes: &[u8]) -> bool {
+    bytes.split(|&b| b == b'\n').any(|line| {
+        let mut words = line.trim_ascii().split(|b| b.is_ascii_whitespace());
+        words.next() == Some(b"POINTS".as_slice()) && words.next() == Some(b"0".as_slice())
+    })
 }
 
 /// A legacy file whose data set's own field data (a `FIELD` block right after the `DATASET`

@@ -5,7 +5,8 @@
 //! arrays fill exactly (a last block of 0 bytes). The same body in each: anisotropic
 //! cells 1e3 from the origin, a
 //! quarter of the cells missing, nodes and cells shuffled. Points made by VTK's side at known (cell, ξ)
-//! must be located in that cell (the file's numbering) at that ξ.
+//! must be located in that cell (the file's numbering) at that ξ. And empty grids in every
+//! flavour, and a piece of no cell beside one with a cell.
 
 use std::path::{Path, PathBuf};
 
@@ -221,4 +222,42 @@ fn lzma_files_read_as_the_uncompressed_one() {
             .unwrap_or_else(|e| panic!("{file}: {e}"));
         assert!(mesh == uncompressed, "{file}");
     }
+}
+
+/// Regression: an empty grid as VTK writes it was refused as malformed: "compressed array
+/// `Points`: its header says 0 blocks of 32768 bytes" (VTK's header of an empty compressed array,
+/// which vtkio cannot read), or for a legacy file, whose `POINTS 0 float` VTK follows by no cell
+/// section, "line 12: the file ends before its data does". Every flavour now says the mesh has
+/// no cells. A file of two pieces whose second is empty was refused the same way; the empty
+/// piece is now skipped and the other read.
+#[test]
+fn empty_grids_have_no_cells_and_an_empty_piece_is_skipped() {
+    use cgcontact_io::ErrorKind;
+    for file in [
+        "empty-xml-ascii.vtu",
+        "empty-xml-binary.vtu",
+        "empty-xml-appended.vtu",
+        "empty-legacy-ascii.vtk",
+        "empty-legacy-binary.vtk",
+    ] {
+        let error = read_mesh(folder().join(file), &DisplacementArray::Default)
+            .err()
+            .unwrap_or_else(|| panic!("{file} was read"));
+        assert!(
+            matches!(error.kind(), ErrorKind::NoCells),
+            "{file}: {error}"
+        );
+        assert!(error.to_string().contains("no cells"), "{file}: {error}");
+    }
+    let file = "one-cell-and-an-empty-piece.vtu";
+    let mesh = read_mesh(folder().join(file), &DisplacementArray::Default)
+        .unwrap_or_else(|e| panic!("{file}: {e}"));
+    assert_eq!(mesh.cells.len(), 1);
+    let locator = LatticeLocator::new(&mesh.body, Settings::default()).unwrap();
+    let hit = locator
+        .locate(DVec3::new(0.75, 0.5, 0.25))
+        .unwrap()
+        .unwrap();
+    assert_eq!(mesh.input_cell(hit.cell), Some(0));
+    assert_eq!(hit.xi, DVec3::new(0.5, 0.0, -0.5));
 }
