@@ -282,10 +282,9 @@ pub enum ErrorKind {
     /// the digits the file holds).
     #[error(
         "{error}; the coordinates are {rounding}: near {magnitude:.3e} they are known only to about \
-         {resolution:.1e}, {} % of the smallest cell edge {edge:.3e}: too coarse to place cells this \
-         small this far from the origin (keep more digits, as binary data do, or move the mesh \
-         nearer the origin)",
-        percent(*resolution / *edge)
+         {resolution:.1e}, {}: too coarse to place cells this small this far from the origin \
+         (keep more digits, as binary data do, or move the mesh nearer the origin)",
+        share_of_edge(*resolution, *edge)
     )]
     Imprecise {
         /// What the lattice detection refused.
@@ -296,7 +295,8 @@ pub enum ErrorKind {
         magnitude: f64,
         /// Half a unit in the last place there.
         resolution: f64,
-        /// The smallest cell edge.
+        /// The smallest cell edge; 0 when every edge rounded to 0 (no corner of any cell apart
+        /// from its corner 0 along its axis).
         edge: f64,
     },
     /// Two input cells cover the same region (an adaptive mesh's leaves must tile without overlap).
@@ -332,6 +332,18 @@ pub enum ErrorKind {
 }
 
 /// `share` in percent: whole from 10 % up, with two decimals below.
+/// The coordinates' `resolution` as a share of the smallest cell `edge` (0: none left).
+fn share_of_edge(resolution: f64, edge: f64) -> String {
+    if edge > 0.0 {
+        format!(
+            "{} % of the smallest cell edge {edge:.3e}",
+            percent(resolution / edge)
+        )
+    } else {
+        "and every cell edge rounded to 0".to_owned()
+    }
+}
+
 fn percent(share: f64) -> String {
     let p = 100.0 * share;
     if p >= 10.0 {

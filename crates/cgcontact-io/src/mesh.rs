@@ -541,7 +541,10 @@ impl HexMesh {
             .filter(|&e| e > 0.0)
             .fold(f64::INFINITY, f64::min);
         let resolution = rounding.resolution(magnitude);
-        if !(resolution >= 1e-3 * edge && edge.is_finite()) {
+        // No edge left at all (a float file far out along every axis): every corner rounded onto
+        // its cell's corner 0, the rounding's doing as surely as where some edges are left.
+        let edge = if edge.is_finite() { edge } else { 0.0 };
+        if !(resolution > 0.0 && resolution >= 1e-3 * edge) {
             return error;
         }
         ErrorKind::Imprecise {

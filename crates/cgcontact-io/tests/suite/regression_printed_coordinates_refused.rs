@@ -177,6 +177,14 @@ fn cells_the_coordinates_cannot_place_are_refused_saying_why() {
             f32_mesh(&block(far * 0.1, DVec3::splat(1e-2), 3, false).0),
             "32-bit floats",
         ),
+        // Every edge of every cell rounded to 0: floats 1e9 from the origin along every axis,
+        // which are 64 apart, and cells of 1 (no edge left to compare the rounding with, such a
+        // file was refused as flat without a word on the rounding).
+        (
+            f32_mesh(&block(DVec3::splat(1e9), DVec3::ONE, 3, false).0),
+            "32-bit floats: near 1.000e9 they are known only to about 6.0e1, and every cell edge \
+             rounded to 0",
+        ),
     ];
     for (mesh, words) in cases {
         match mesh.to_body() {
