@@ -160,10 +160,8 @@ impl PyBody {
                 Body::full(lattice)
             }
             Some(active) => {
-                let flags = arrays::flags(active, "active", counts)?;
-                let ids = flags.iter().enumerate().filter(|(_, f)| **f);
-                Body::from_cells(lattice, ids.map(|(c, _)| CellId(c as u32)))
-                    .map_err(value_error)?
+                let cells = arrays::flags(active, "active", counts)?;
+                Body::from_cells(lattice, cells.into_iter().map(CellId)).map_err(value_error)?
             }
         };
         Ok(Self::new_state(BodyState::lattice(body)))
