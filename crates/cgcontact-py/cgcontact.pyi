@@ -88,11 +88,12 @@ class Locator:
         max_iter: Optional[int] = None,
         threads: Optional[int] = None,
     ) -> "Locator":
-        """`tol`: Newton step tolerance in xi units (default 1e-10 in f64, 1e-5 in f32; above
-        1e-3 a UserWarning, as `cgcontact --tol` warns: answers can be off by about tol^2 and
-        points near faces put in the wrong cell); `max_iter`: Newton iterations per candidate
-        cell; `threads`: a pool of its own, 1 to 1024 (None: every core). `max_iter`, `threads`
-        and `Body`'s `counts` refuse booleans (TypeError)."""
+        """`precision` "f32" on a body whose finest spacing lies outside [1e-11, 1e11] raises
+        ValueError (use "f64"). `tol`: Newton step tolerance in xi units (default 1e-10 in f64,
+        1e-5 in f32; above 1e-3 a UserWarning, as `cgcontact --tol` warns: answers can be off by
+        about tol^2 and points near faces put in the wrong cell); `max_iter`: Newton iterations per
+        candidate cell; `threads`: a pool of its own, 1 to 1024 (None: every core). `max_iter`,
+        `threads` and `Body`'s `counts` refuse booleans (TypeError)."""
     @property
     def strategy(self) -> _Strategy: ...
     def locate(

@@ -64,7 +64,8 @@ fn refused(what: &str, points: &[DVec3], row: usize) -> PyErr {
 ///
 /// `Locator(body, strategy="lattice", precision="f64", tol=None, max_iter=None, threads=None)`:
 /// `strategy` is one of "lattice" (this library's), "centroid", "noderad", "noderad-seed",
-/// "rtree" or "brute" (the command line's baselines); `precision` "f64" or "f32"; `tol` the
+/// "rtree" or "brute" (the command line's baselines); `precision` "f64" or "f32" ("f32" on a body
+/// whose finest spacing lies outside [1e-11, 1e11] raises ValueError: use "f64"); `tol` the
 /// Newton step tolerance in xi units (default 1e-10 in f64, 1e-5 in f32; above 1e-3 a
 /// UserWarning, as the command line warns for `--tol`); `max_iter` the Newton iteration limit
 /// per candidate cell; `threads` the worker threads of a pool of its own, 1 to 1024 (None:
@@ -208,7 +209,11 @@ impl PyLocator {
         if let Some(max_iter) = max_iter {
             settings.max_iter = max_iter;
         }
-        settings.validate().map_err(value_error)?;
+        // The spacing too, as `cgc_locator_new` checks it: the library checks it only when a
+        // query builds its search, so f32 on cells it cannot resolve was taken here and every
+        // query then refused.
+        let spacing = PyBody::read(&body.state).body.finest_spacing();
+        settings.validate_for(spacing).map_err(value_error)?;
         if let Some(tol) = tol
             && tol > LOOSE_TOL
         {

@@ -1331,6 +1331,18 @@ def test_gap_sign_follows_locate_in_each_precision():
         assert (cell >= 0).sum() >= least, precision
 
 
+def test_f32_on_cells_too_small_for_f32_is_refused_by_the_locator():
+    """The library checks that the f32 kernel resolves the body's cells only when a query builds
+    its search: `Locator(body, precision="f32")` on cells of 1e-13 was taken, and every query
+    then raised. It is refused where the precision is given, as the C API refuses it."""
+    body = cgcontact.Body((0, 0, 0), (1e-13, 1e-13, 1e-13), (2, 2, 2))
+    with pytest.raises(ValueError, match="f32 kernel cannot resolve cells of spacing"):
+        cgcontact.Locator(body, precision="f32")
+    cell, xi = cgcontact.Locator(body).locate([[0.5e-13, 1.5e-13, 0.5e-13]])
+    np.testing.assert_array_equal(cell, [2])
+    np.testing.assert_allclose(xi, [[0, 0, 0]], atol=1e-9)
+
+
 def test_active_flags_of_a_large_lattice_take_no_python_object_per_cell():
     """The flags were read as a Python list of one bool per lattice cell: 8 bytes a cell on top
     of the flags' one (1.7 s and 576 MB for a 400^3 lattice of 8 cells, whose flags take 64 MB),
