@@ -5,8 +5,9 @@ Find the hexahedron of a deformed body holding each point and its local coordina
 body's deformed boundary surface. Queries release the GIL; C-contiguous, aligned float64 (n, 3)
 arrays are read in place (do not write to them from another thread while a call runs), anything
 else array-like is converted once; an empty list is no points. Complex, boolean, text, date and
-time arrays, object arrays holding text, booleans or complex numbers, and masked arrays with
-masked values, raise ValueError rather than being cast. Errors name the argument at fault.
+time arrays, object arrays holding text, booleans, complex numbers, None or numpy dates and times,
+and masked arrays with masked values, raise ValueError rather than being cast. Errors name the
+argument at fault.
 """
 
 import os

@@ -194,8 +194,10 @@ fn refuse_unreal(given: &Bound<'_, PyAny>, what: &str, expected: &str) -> PyResu
 
 /// The first element of the object array `given` (its index and itself) that numpy's numeric
 /// conversion would take without a word but that is no real number: text (parsed: "3" becomes
-/// 3), a boolean (read as 0 or 1) or a complex number. Other objects (None, a dict) numpy
-/// refuses itself, naming the argument through [`naming`]; numbers of any real kind pass.
+/// 3), a boolean (read as 0 or 1), a complex number, None (read as NaN, which a point's error
+/// then showed as a NaN the caller never wrote) or a numpy date or time (read as a count of its
+/// unit since 1970). Other objects (a dict, a `datetime.date`) numpy refuses itself, naming the
+/// argument through [`naming`]; numbers of any real kind pass.
 fn unreal_element<'py>(
     given: &Bound<'py, PyAny>,
 ) -> PyResult<Option<(Vec<usize>, Bound<'py, PyAny>)>> {
@@ -210,6 +212,9 @@ fn unreal_element<'py>(
             py.get_type::<PyBytes>().into_any(),
             py.get_type::<PyBool>().into_any(),
             numpy.getattr("bool_")?,
+            py.None().into_bound(py).get_type().into_any(),
+            numpy.getattr("datetime64")?,
+            numpy.getattr("timedelta64")?,
         ],
     )?;
     for (k, element) in given.getattr("flat")?.try_iter()?.enumerate() {

@@ -1331,6 +1331,24 @@ def test_gap_sign_follows_locate_in_each_precision():
         assert (cell >= 0).sum() >= least, precision
 
 
+def test_object_arrays_of_none_or_numpy_dates_are_refused_not_cast():
+    """numpy reads None in an object array as NaN, so that a point's error showed a NaN the caller
+    never wrote, and a numpy date or time as a count of its unit since 1970: a date became a
+    coordinate of 18,262 (days to 2020-01-01) and the point was silently found in no cell."""
+    points, _, _ = cell_points()
+    locator = cgcontact.Locator(cgcontact.Body(ORIGIN, SPACING, COUNTS))
+    for element, shown in [(None, "NoneType None"),
+                           (np.datetime64("2020-01-01"), "datetime64"),
+                           (np.timedelta64(1, "D"), "timedelta64")]:
+        given = points.astype(object)
+        given[1, 2] = element
+        for query in [locator.locate, locator.locate_owners, lambda p: locator.gap(p, 0.1)]:
+            with pytest.raises(ValueError, match="must hold real numbers, got dtype object "
+                                                 "holding .* at \\[1, 2\\]") as caught:
+                query(given)
+            assert shown in str(caught.value), str(caught.value)
+
+
 def test_f32_on_cells_too_small_for_f32_is_refused_by_the_locator():
     """The library checks that the f32 kernel resolves the body's cells only when a query builds
     its search: `Locator(body, precision="f32")` on cells of 1e-13 was taken, and every query
