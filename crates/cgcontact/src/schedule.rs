@@ -372,12 +372,50 @@ impl<T: Copy + Send> Answers<T> for Scatter<'_, T> {
             for (a, &place) in answers.iter_mut().zip(places) {
                 *a = self.out[place as usize];
             }
+        } else {
+            // The places the answers will be stored at, asked for while the chunk is answered:
+            // on a large batch each is a cache miss, which the store would otherwise wait for.
+            for &place in places {
+                if let Some(slot) = self.out.get(place as usize) {
+                    prefetch(slot);
+                }
+            }
         }
         chunk(points, answers);
         for (a, &place) in answers.iter().zip(places) {
             self.out[place as usize] = *a;
         }
     }
+}
+
+/// Asks the processor to bring the cache lines of `slot` (one or two: a value may straddle a
+/// line's end) into its caches, ahead of a store there. A hint: nothing else changes.
+///
+/// Measured on the `scale` bench's 4,194,304-cell block, 1 M random points, one thread, against
+/// the 16,000-cell block (`profile_locate 7 ratio`, the ratio's median; an Intel Xeon VM, two
+/// runs of each build alternated): `locate_all_into` 0.458 and 0.454 without it, 0.534 and
+/// 0.542 with it; in f32 0.944 against 1.108. `locate_all_unordered_into`, which stores in
+/// order, moved within 2 % (0.697 and 0.688 against 0.700 and 0.707). Prefetching only the first
+/// line of each value measured no gain (0.487).
+#[inline(always)]
+fn prefetch<T>(slot: &T) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
+        let first: *const i8 = std::ptr::from_ref(slot).cast();
+        let last = first.wrapping_add(size_of::<T>().saturating_sub(1));
+        // SAFETY: `_mm_prefetch` needs SSE, which every x86_64 processor has (it is in the
+        // x86_64 target's baseline features, so this code only runs where it holds), and it is
+        // a hint: it reads and writes nothing in Rust's memory model and never faults, whatever
+        // the address. Both addresses here lie within `slot` anyway.
+        #[allow(unsafe_code)]
+        unsafe {
+            _mm_prefetch::<_MM_HINT_T0>(first);
+            _mm_prefetch::<_MM_HINT_T0>(last);
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = slot;
 }
 
 /// Answers in the order they come: into the piece's `out` from `next` on, their points' indices
