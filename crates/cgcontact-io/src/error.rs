@@ -331,7 +331,6 @@ pub enum ErrorKind {
     },
 }
 
-/// `share` in percent: whole from 10 % up, with two decimals below.
 /// The coordinates' `resolution` as a share of the smallest cell `edge` (0: none left).
 fn share_of_edge(resolution: f64, edge: f64) -> String {
     if edge > 0.0 {
@@ -344,6 +343,7 @@ fn share_of_edge(resolution: f64, edge: f64) -> String {
     }
 }
 
+/// `share` in percent: whole from 10 % up, with two decimals below.
 fn percent(share: f64) -> String {
     let p = 100.0 * share;
     if p >= 10.0 {
