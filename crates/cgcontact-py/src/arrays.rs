@@ -4,7 +4,11 @@
 use std::borrow::Cow;
 
 use cgcontact::glam::DVec3;
-use numpy::{PyArray, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
+use numpy::ndarray::Dimension;
+use numpy::{
+    Element, PyArray, PyArray2, PyArrayMethods, PyReadonlyArray, PyReadonlyArray1,
+    PyReadonlyArray2, PyUntypedArrayMethods,
+};
 use pyo3::conversion::FromPyObjectOwned;
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
@@ -99,6 +103,22 @@ fn as_array<'py>(obj: &Bound<'py, PyAny>, what: &str) -> PyResult<Bound<'py, PyA
 /// (`1e300`, where `Display` writes 301 digits).
 pub fn show(v: DVec3) -> String {
     format!("[{:?}, {:?}, {:?}]", v.x, v.y, v.z)
+}
+
+/// `array`, the argument `what`, borrowed for reading, or an error when a call running in another
+/// thread is writing to it (an `out` array of a query that released the GIL): numpy's
+/// `extract` of a read-only array unwraps that borrow, and the panic reached Python as a
+/// `PanicException`, which `except Exception` does not catch.
+fn readonly<'py, T: Element, D: Dimension>(
+    array: &Bound<'py, PyArray<T, D>>,
+    what: &str,
+) -> PyResult<PyReadonlyArray<'py, T, D>> {
+    array.try_readonly().map_err(|_| {
+        PyValueError::new_err(format!(
+            "{what}: another call is writing to this array (an out array of a query running in \
+             another thread); give each call arrays of its own"
+        ))
+    })
 }
 
 /// An `(n, 3)` float64 array borrowed from Python (read-only for as long as this lives).
@@ -239,10 +259,11 @@ fn unreal_element<'py>(
 /// row; the flag returned says whether it was one.
 pub fn rows<'py>(obj: &Bound<'py, PyAny>, what: &str, single: bool) -> PyResult<(Rows<'py>, bool)> {
     refuse_masked(obj, what)?;
-    if let Ok(array) = obj.extract::<PyReadonlyArray2<'py, f64>>()
+    if let Ok(array) = obj.cast::<PyArray2<f64>>()
         && array.is_c_contiguous()
-        && aligned(&array)
+        && aligned(array)
     {
+        let array = readonly(array, what)?;
         return check(Rows { array }, what).map(|r| (r, false));
     }
     let given = as_array(obj, what)?;
@@ -265,14 +286,14 @@ pub fn rows<'py>(obj: &Bound<'py, PyAny>, what: &str, single: bool) -> PyResult<
     } else {
         converted
     };
-    let array = converted
-        .extract::<PyReadonlyArray2<'py, f64>>()
-        .map_err(|_| {
-            PyValueError::new_err(format!(
-                "{what} must have shape (n, 3), got {}",
-                shape_of(&converted)
-            ))
-        })?;
+    let array = converted.cast::<PyArray2<f64>>().map_err(|_| {
+        PyValueError::new_err(format!(
+            "{what} must have shape (n, 3), got {}",
+            shape_of(&converted)
+        ))
+    })?;
+    // The same array as `obj` (or a view of it) when it needed no conversion.
+    let array = readonly(array, what)?;
     check(Rows { array }, what).map(|r| (r, was_single))
 }
 
@@ -332,7 +353,7 @@ pub fn hexes(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<[i64; 8]>> {
         )));
     }
     let array = converted
-        .extract::<PyReadonlyArray2<'_, i64>>()
+        .cast::<PyArray2<i64>>()
         .ok()
         .filter(|a| a.shape()[1] == 8)
         .ok_or_else(|| {
@@ -341,6 +362,7 @@ pub fn hexes(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<[i64; 8]>> {
                 shape_of(&converted)
             ))
         })?;
+    let array = readonly(array, what)?;
     let flat = array
         .as_slice()
         .map_err(|e| PyValueError::new_err(e.to_string()))?;

@@ -1380,3 +1380,38 @@ def test_active_flags_of_a_large_lattice_take_no_python_object_per_cell():
     points = np.array([[0.5, 0.5, 0.5], [1.5, 0.5, 0.5], [n - 0.5] * 3, [0.5, 1.5, 0.5]])
     cell, _ = cgcontact.Locator(body).locate(points)
     np.testing.assert_array_equal(cell, [0, 1, n**3 - 1, -1])
+
+
+def test_an_out_array_in_use_by_another_call_is_refused_as_input_not_a_panic():
+    """numpy's read-only borrow of an input unwrapped a conflict: an array another thread's query
+    was writing its answers to, given as points, nodes, displacements or hexes, raised pyo3's
+    PanicException (a BaseException, past `except Exception`) with a Rust backtrace."""
+    body = cgcontact.Body((0, 0, 0), (1, 1, 1), (20, 20, 20))
+    points = np.random.default_rng(5).uniform(0, 20, (100_000, 3))
+    cell, xi = np.zeros(len(points), np.int64), np.zeros((len(points), 3))
+    slow = cgcontact.Locator(body, strategy="centroid", threads=1)  # about 1 s here
+    busy = threading.Thread(target=slow.locate, args=(points,), kwargs={"out": (cell, xi)})
+    locator = cgcontact.Locator(body)
+    calls = [
+        ("points", lambda: locator.locate(xi)),
+        ("points", lambda: locator.gap(xi, 0.1)),
+        ("x", lambda: locator.locate_owners(xi[7])),  # a view, of shape (3,)
+        ("u", lambda: body.set_displacements(xi[:body.node_count])),
+        ("nodes", lambda: cgcontact.Body.from_hexes(xi, [list(range(8))])),
+        ("hexes", lambda: cgcontact.Body.from_hexes(points, cell.reshape(-1, 8))),
+    ]
+    busy.start()
+    time.sleep(0.3)
+    try:
+        for what, call in calls:
+            if not busy.is_alive():
+                pytest.skip("the first call ended before the others began")
+            try:
+                with pytest.raises(ValueError, match=f"^{what}: another call is writing to this "
+                                                     "array"):
+                    call()
+            except BaseException as e:  # PanicException derives from BaseException only
+                pytest.fail(f"{what}: {type(e).__name__}: {e}")
+    finally:
+        busy.join()
+    np.testing.assert_array_equal(cell, cgcontact.Locator(body).locate(points)[0])
