@@ -275,16 +275,7 @@ fn write_rows(
         match answer {
             Ok(Some(hit)) => {
                 let cell = cells.input_cell(hit.cell).map_or(-1, |c| c as i64);
-                writeln!(
-                    out,
-                    "{point},{cell},{},{},{},{},{},{}",
-                    Num(hit.xi.x),
-                    Num(hit.xi.y),
-                    Num(hit.xi.z),
-                    hit.iterations,
-                    Num(hit.residual),
-                    hit.inversions
-                )?;
+                hit_row(&mut out, point, cell, hit, "")?;
             }
             Ok(None) | Err(_) => {
                 let inversions = tried.and_then(|t| t.get(point)).copied().unwrap_or(0);
@@ -293,6 +284,27 @@ fn write_rows(
         }
     }
     Ok(())
+}
+
+/// One results row of a located point: `point,cell,xi,eta,zeta,iterations,residual,inversions`,
+/// then `tail` (the gap columns, each with its comma, or nothing).
+fn hit_row(
+    mut out: impl Write,
+    point: usize,
+    cell: i64,
+    hit: &Hit,
+    tail: &str,
+) -> std::io::Result<()> {
+    writeln!(
+        out,
+        "{point},{cell},{},{},{},{},{},{}{tail}",
+        Num(hit.xi.x),
+        Num(hit.xi.y),
+        Num(hit.xi.z),
+        hit.iterations,
+        Num(hit.residual),
+        hit.inversions
+    )
 }
 
 /// Read a results file (header first; the columns after `zeta` are optional).
@@ -572,17 +584,8 @@ pub fn write_owner_rows<'a>(
             );
             // The locator sorts by its own ids (lattice cells); the file names input cells.
             rows.sort_by_key(|&(cell, _)| cell);
-            for (cell, hit) in &rows {
-                writeln!(
-                    out,
-                    "{point},{cell},{},{},{},{},{},{}{gap}",
-                    Num(hit.xi.x),
-                    Num(hit.xi.y),
-                    Num(hit.xi.z),
-                    hit.iterations,
-                    Num(hit.residual),
-                    hit.inversions
-                )?;
+            for &(cell, hit) in &rows {
+                hit_row(&mut *out, point, cell, hit, &gap)?;
             }
         }
         Ok(())
