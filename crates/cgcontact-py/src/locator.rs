@@ -9,11 +9,12 @@ use cgcontact::glam::DVec3;
 use cgcontact::{AdaptiveLocator, Answer, GapAnswer, GapFinder, LatticeLocator, Locator, Settings};
 use cgcontact_baseline::Strategy;
 use cgcontact_io::{Kept, KeptBuffers};
+use numpy::ndarray::Dimension;
 use numpy::{
-    BorrowError, IntoPyArray, PyArray1, PyArray2, PyArrayMethods, PyUntypedArray,
+    BorrowError, Element, IntoPyArray, PyArray, PyArray1, PyArray2, PyArrayMethods, PyUntypedArray,
     PyUntypedArrayMethods,
 };
-use pyo3::exceptions::{PyUserWarning, PyValueError};
+use pyo3::exceptions::{PyMemoryError, PyUserWarning, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyTuple};
 use rayon::prelude::*;
@@ -119,10 +120,7 @@ impl PyLocator {
         let n = points.len();
         let (cells, xi) = match out {
             Some(out) => out_arrays(out, n)?,
-            None => (
-                PyArray1::<i64>::zeros(py, n, false),
-                PyArray2::<f64>::zeros(py, [n, 3], false),
-            ),
+            None => (zeros(py, vec![n])?, zeros(py, vec![n, 3])?),
         };
         {
             let mut cells_out = cells.try_readwrite().map_err(|e| out_borrow(e, "cell"))?;
@@ -303,9 +301,9 @@ impl PyLocator {
         let (order, cells, xi) = match out {
             Some(out) => unordered_arrays(out, n)?,
             None => (
-                PyArray1::<i64>::zeros(py, n, false),
-                PyArray1::<i64>::zeros(py, n, false),
-                PyArray2::<f64>::zeros(py, [n, 3], false),
+                zeros(py, vec![n])?,
+                zeros(py, vec![n])?,
+                zeros(py, vec![n, 3])?,
             ),
         };
         {
@@ -431,6 +429,8 @@ impl PyLocator {
                 // so that `gap` and `locate` agree on which points a cell holds.
                 let settings = self.settings;
                 let mut gaps = Vec::new();
+                gaps.try_reserve_exact(n)
+                    .map_err(|_| out_of_memory(n, size_of::<GapAnswer>()))?;
                 match &state.body {
                     AnyBody::Uniform(body) => {
                         let locator = LatticeLocator::new(body, settings).map_err(value_error)?;
@@ -448,7 +448,7 @@ impl PyLocator {
                 if let Some(row) = gaps.iter().position(Result::is_err) {
                     return Err(refused("points", points, row));
                 }
-                Ok(GapArrays::of(&gaps, state))
+                GapArrays::of(&gaps, state)
             })
         })?;
         let dict = PyDict::new(py);
@@ -467,6 +467,27 @@ impl PyLocator {
             self.settings.precision
         )
     }
+}
+
+/// A new array of zeros of `shape`, allocated by numpy: `PyArray::zeros` panics when numpy
+/// cannot allocate it (a `PanicException` where numpy raises `MemoryError`).
+fn zeros<'py, T: Element, D: Dimension>(
+    py: Python<'py>,
+    shape: Vec<usize>,
+) -> PyResult<Bound<'py, PyArray<T, D>>> {
+    let array = py
+        .import("numpy")?
+        .call_method1("zeros", (shape, numpy::dtype::<T>(py)))?;
+    Ok(array.cast_into::<PyArray<T, D>>()?)
+}
+
+/// The error for answers to `n` points, `bytes` a point, that cannot be allocated: a failed
+/// allocation in Rust aborts the interpreter.
+fn out_of_memory(n: usize, bytes: usize) -> PyErr {
+    PyMemoryError::new_err(format!(
+        "the answers to {n} points do not fit in memory ({bytes} bytes a point): give fewer points \
+         a call"
+    ))
 }
 
 /// Whether `number` may be a previous answer of the body in `state`: -1, or one of its cells (on a
@@ -706,15 +727,24 @@ struct GapArrays {
 }
 
 impl GapArrays {
-    fn of(gaps: &[GapAnswer], state: &BodyState) -> Self {
+    /// The arrays of `gaps`, or a `MemoryError` when they cannot be allocated.
+    fn of(gaps: &[GapAnswer], state: &BodyState) -> PyResult<Self> {
         let n = gaps.len();
         let mut out = Self {
-            gap: Vec::with_capacity(n),
-            closest: Vec::with_capacity(3 * n),
-            normal: Vec::with_capacity(3 * n),
-            face_cell: Vec::with_capacity(n),
-            face: Vec::with_capacity(n),
+            gap: Vec::new(),
+            closest: Vec::new(),
+            normal: Vec::new(),
+            face_cell: Vec::new(),
+            face: Vec::new(),
         };
+        let reserved = out.gap.try_reserve_exact(n).is_ok()
+            && out.closest.try_reserve_exact(3 * n).is_ok()
+            && out.normal.try_reserve_exact(3 * n).is_ok()
+            && out.face_cell.try_reserve_exact(n).is_ok()
+            && out.face.try_reserve_exact(n).is_ok();
+        if !reserved {
+            return Err(out_of_memory(n, 68));
+        }
         for answer in gaps {
             let (gap, closest, normal, cell, face) = match answer {
                 Ok(Some(contact)) => (
@@ -732,6 +762,6 @@ impl GapArrays {
             out.face_cell.push(cell);
             out.face.push(face);
         }
-        out
+        Ok(out)
     }
 }

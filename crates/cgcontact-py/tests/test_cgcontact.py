@@ -11,6 +11,7 @@ import json
 import os
 import pathlib
 import subprocess
+import sys
 import threading
 import time
 import tracemalloc
@@ -1415,3 +1416,35 @@ def test_an_out_array_in_use_by_another_call_is_refused_as_input_not_a_panic():
     finally:
         busy.join()
     np.testing.assert_array_equal(cell, cgcontact.Locator(body).locate(points)[0])
+
+
+ANSWERS_BEYOND_MEMORY = """
+import resource
+import numpy as np
+import cgcontact
+locator = cgcontact.Locator(cgcontact.Body((0, 0, 0), (1, 1, 1), (2, 2, 2)))
+points = np.full((4_000_000, 3), 0.5)
+locator.locate(points[:10])
+# Room for what runs now, not for 4 M answers (96 MB of xi, 352 MB of gaps).
+size = int(open("/proc/self/statm").read().split()[0]) * resource.getpagesize()
+resource.setrlimit(resource.RLIMIT_AS, (size + 48 * 2**20, resource.RLIM_INFINITY))
+for call in [locator.locate, locator.locate_unordered, lambda p: locator.gap(p, 0.1)]:
+    try:
+        call(points)
+        print("answered")
+    except MemoryError:
+        print("MemoryError")
+print(locator.locate(points[:2])[0])
+"""
+
+
+def test_answers_beyond_memory_are_a_memory_error_not_a_panic_or_an_abort():
+    """The answer arrays of `locate` were allocated by rust-numpy, which panics when numpy cannot
+    allocate them (a PanicException), and `gap`'s by Rust, which aborts the interpreter."""
+    if not pathlib.Path("/proc/self/statm").exists():
+        pytest.skip("not Linux: the address space limit is set from /proc/self/statm")
+    run = subprocess.run([sys.executable, "-c", ANSWERS_BEYOND_MEMORY], capture_output=True,
+                         text=True, timeout=60)
+    assert run.returncode == 0, run.stderr[-2000:]
+    assert run.stdout.split("\n")[:3] == ["MemoryError"] * 3, run.stdout + run.stderr[-2000:]
+    assert "[0 0]" in run.stdout
