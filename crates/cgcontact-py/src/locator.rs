@@ -151,6 +151,9 @@ impl PyLocator {
                                 cells_slice[row]
                             )));
                         }
+                        if locator.sorts_batch(points) {
+                            reserve_sorted(kept, points.len(), false)?;
+                        }
                         let whole = &mut kept.answers;
                         locate_into(locator, state, points, cells_slice, xi_slice, warm, whole)
                             .map_err(|row| refused("points", points, row))
@@ -318,6 +321,9 @@ impl PyLocator {
             py.detach(|| {
                 self.kept.with(|kept| {
                     self.with(|locator, state| {
+                        if locator.sorts_batch(points) {
+                            reserve_sorted(kept, points.len(), true)?;
+                        }
                         let out = (order_slice, cells_slice, xi_slice);
                         locate_unordered_into(locator, state, points, out, kept)
                             .map_err(|row| refused("points", points, row))
@@ -488,6 +494,26 @@ fn out_of_memory(n: usize, bytes: usize) -> PyErr {
         "the answers to {n} points do not fit in memory ({bytes} bytes a point): give fewer points \
          a call"
     ))
+}
+
+/// Room for a batch of `n` points that the library sorts by cell, or a `MemoryError`: the
+/// locator's kept answers (and, `unordered`, their order) reserved, and the sort's own buffers
+/// (40 bytes a point, allocated by the library) probed, since a failed allocation in Rust aborts
+/// the interpreter.
+fn reserve_sorted(kept: &mut Kept, n: usize, unordered: bool) -> PyResult<()> {
+    let answers = n.saturating_sub(kept.answers.len());
+    kept.answers
+        .try_reserve_exact(answers)
+        .map_err(|_| out_of_memory(n, size_of::<Answer>()))?;
+    if unordered {
+        let order = n.saturating_sub(kept.order.len());
+        kept.order
+            .try_reserve_exact(order)
+            .map_err(|_| out_of_memory(n, size_of::<usize>()))?;
+    }
+    let mut sort = Vec::<[u64; 6]>::new();
+    sort.try_reserve_exact(n)
+        .map_err(|_| out_of_memory(n, size_of::<[u64; 6]>()))
 }
 
 /// Whether `number` may be a previous answer of the body in `state`: -1, or one of its cells (on a

@@ -1448,3 +1448,40 @@ def test_answers_beyond_memory_are_a_memory_error_not_a_panic_or_an_abort():
     assert run.returncode == 0, run.stderr[-2000:]
     assert run.stdout.split("\n")[:3] == ["MemoryError"] * 3, run.stdout + run.stderr[-2000:]
     assert "[0 0]" in run.stdout
+
+
+SORTED_BATCH_BEYOND_MEMORY = """
+import resource
+import numpy as np
+import cgcontact
+locator = cgcontact.Locator(cgcontact.Body((0, 0, 0), (1, 1, 1), (80, 80, 80)))
+points = np.random.default_rng(3).uniform(0, 80, (2_000_000, 3))
+out = (np.zeros(len(points), np.int64), np.zeros((len(points), 3)))
+unordered = (np.zeros(len(points), np.int64), *out)
+locator.locate(points[:20_000])
+# Room for what runs now, not for the 56 bytes a point of a sorted batch's kept answers.
+size = int(open("/proc/self/statm").read().split()[0]) * resource.getpagesize()
+resource.setrlimit(resource.RLIMIT_AS, (size + 40 * 2**20, resource.RLIM_INFINITY))
+for call in [lambda: locator.locate(points, out=out),
+             lambda: locator.relocate(points, out=out),
+             lambda: locator.locate_unordered(points, out=unordered)]:
+    try:
+        call()
+        print("answered")
+    except MemoryError:
+        print("MemoryError")
+print(locator.locate(points[:2])[0] >= 0)
+"""
+
+
+def test_a_sorted_batch_beyond_memory_is_a_memory_error_not_an_abort():
+    """A batch the library sorts by cell (a large body, points out of order) is answered whole
+    into buffers the locator keeps, 56 bytes a point, which Rust allocated: when they did not fit,
+    the interpreter aborted."""
+    if not pathlib.Path("/proc/self/statm").exists():
+        pytest.skip("not Linux: the address space limit is set from /proc/self/statm")
+    run = subprocess.run([sys.executable, "-c", SORTED_BATCH_BEYOND_MEMORY],
+                         capture_output=True, text=True, timeout=60)
+    assert run.returncode == 0, run.stderr[-2000:]
+    assert run.stdout.split("\n")[:3] == ["MemoryError"] * 3, run.stdout + run.stderr[-2000:]
+    assert "[ True  True]" in run.stdout
