@@ -77,9 +77,10 @@ fn set_displacements(state: &mut BodyState, u: &[DVec3], fill: bool) -> Result<(
         })
 }
 
-/// An error, before the allocation, when a body of `nodes` nodes with every cell active cannot be
-/// allocated: its displacements and this binding's copy take 48 bytes a node, and a failed
-/// allocation would abort the interpreter (as the C API checks, `cgc_body_from_lattice`).
+/// An error, before the allocation, when a body of `nodes` nodes (every lattice node, or at most 8
+/// a cell of the active ones) cannot be allocated: its displacements and this binding's copy take
+/// 48 bytes a node, and a failed allocation would abort the interpreter (as the C API checks,
+/// `cgc_body_from_lattice`).
 fn probe_memory(nodes: usize) -> PyResult<()> {
     let mut probe = Vec::<[DVec3; 2]>::new();
     probe.try_reserve_exact(nodes).map_err(|_| {
@@ -161,6 +162,7 @@ impl PyBody {
             }
             Some(active) => {
                 let cells = arrays::flags(active, "active", counts)?;
+                probe_memory(lattice.node_count().min(cells.len().saturating_mul(8)))?;
                 Body::from_cells(lattice, cells.into_iter().map(CellId)).map_err(value_error)?
             }
         };

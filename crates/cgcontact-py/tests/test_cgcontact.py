@@ -1485,3 +1485,34 @@ def test_a_sorted_batch_beyond_memory_is_a_memory_error_not_an_abort():
     assert run.returncode == 0, run.stderr[-2000:]
     assert run.stdout.split("\n")[:3] == ["MemoryError"] * 3, run.stdout + run.stderr[-2000:]
     assert "[ True  True]" in run.stdout
+
+
+DENSE_FLAGS_BEYOND_MEMORY = """
+import resource
+import numpy as np
+import cgcontact
+active = np.ones((200, 200, 200), dtype=bool)
+size = int(open("/proc/self/statm").read().split()[0]) * resource.getpagesize()
+# Room to read the flags (about 72 MB), not for the body's 390 MB.
+resource.setrlimit(resource.RLIMIT_AS, (size + 150 * 2**20, resource.RLIM_INFINITY))
+try:
+    cgcontact.Body((0, 0, 0), (1, 1, 1), (200, 200, 200), active)
+    print("built")
+except MemoryError as e:
+    print("MemoryError", e)
+print(cgcontact.Body((0, 0, 0), (1, 1, 1), (2, 2, 2), [1] * 8).cell_count)
+"""
+
+
+def test_active_flags_of_a_body_beyond_memory_are_a_memory_error_not_an_abort():
+    """`Body(..., active=None)` probes for its 48 bytes a node before allocating them, but with
+    flags given it did not: every cell of a 200^3 lattice active under a 390 MB shortfall aborted
+    the interpreter."""
+    if not pathlib.Path("/proc/self/statm").exists():
+        pytest.skip("not Linux: the address space limit is set from /proc/self/statm")
+    run = subprocess.run([sys.executable, "-c", DENSE_FLAGS_BEYOND_MEMORY], capture_output=True,
+                         text=True, timeout=60)
+    assert run.returncode == 0, run.stderr[-2000:]
+    assert run.stdout.startswith("MemoryError a body of 8120601 lattice nodes does not fit"), (
+        run.stdout + run.stderr[-2000:])
+    assert run.stdout.split("\n")[1] == "8"
