@@ -542,8 +542,17 @@ impl HexMesh {
             .fold(f64::INFINITY, f64::min);
         let resolution = rounding.resolution(magnitude);
         // No edge left at all (a float file far out along every axis): every corner rounded onto
-        // its cell's corner 0, the rounding's doing as surely as where some edges are left.
-        let edge = if edge.is_finite() { edge } else { 0.0 };
+        // its cell's corner 0, the rounding's doing as surely as where some edges are left, if
+        // those corners are other nodes than corner 0; a cell that names one node for all its
+        // corners is flat by its connectivity, whatever the digits.
+        let distinct = |c: &[u32; 8]| STEP.iter().any(|&s| c[s] != c[0]);
+        let edge = if edge.is_finite() {
+            edge
+        } else if self.cells.iter().any(distinct) {
+            0.0
+        } else {
+            return error;
+        };
         if !(resolution > 0.0 && resolution >= 1e-3 * edge) {
             return error;
         }

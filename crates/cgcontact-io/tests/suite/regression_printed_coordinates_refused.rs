@@ -186,6 +186,16 @@ fn cells_the_coordinates_cannot_place_are_refused_saying_why() {
              rounded to 0",
         ),
     ];
+    // A cell naming one node for all its corners, 0.4 from the origin: flat by its connectivity,
+    // not its digits, and not said to be the rounding's doing.
+    let one_node = HexMesh {
+        points: vec![DVec3::new(0.4, 0.2, 0.3)],
+        cells: vec![[0; 8]],
+        displacement: None,
+    };
+    let message = one_node.to_body().err().unwrap().to_string();
+    assert!(message.contains("the cell is flat"), "{message}");
+    assert!(!message.contains("rounded"), "{message}");
     for (mesh, words) in cases {
         match mesh.to_body() {
             Err(ErrorKind::Imprecise { error, .. }) => {
