@@ -445,6 +445,18 @@ def test_boolean_and_text_arrays_are_refused_not_cast():
                                       locator.locate(given.astype(float))[0])
 
 
+def assert_object_element_refused(locator, points, element, shown):
+    """`points` as an object array with `element` at [1, 2]: every query refuses it, naming it
+    as `shown`."""
+    given = points.astype(object)
+    given[1, 2] = element
+    for query in [locator.locate, locator.locate_owners, lambda p: locator.gap(p, 0.1)]:
+        with pytest.raises(ValueError, match="must hold real numbers, got dtype object "
+                                             "holding .* at \\[1, 2\\]") as caught:
+            query(given)
+        assert shown in str(caught.value), str(caught.value)
+
+
 def test_object_arrays_of_text_booleans_or_complex_are_refused_not_cast():
     """numpy parses the text "3" in an object array (a table read without converting a column)
     as 3.0, reads True as 1 and keeps a complex number's real part: refused as arrays of those
@@ -455,13 +467,7 @@ def test_object_arrays_of_text_booleans_or_complex_are_refused_not_cast():
     for element, shown in [("0.5", "str '0.5'"), (b"0.5", "bytes b'0.5'"), (True, "bool True"),
                            (np.True_, "True"), (0.5 + 0j, "complex (0.5+0j)"),
                            (np.complex128(0.5), "(0.5")]:
-        given = points.astype(object)
-        given[1, 2] = element
-        for query in [locator.locate, locator.locate_owners, lambda p: locator.gap(p, 0.1)]:
-            with pytest.raises(ValueError, match="must hold real numbers, got dtype object "
-                                                 "holding .* at \\[1, 2\\]") as caught:
-                query(given)
-            assert shown in str(caught.value), str(caught.value)
+        assert_object_element_refused(locator, points, element, shown)
     u = np.zeros((body.node_count, 3), dtype=object)
     u[4, 0] = "0"
     with pytest.raises(ValueError, match=r"u must hold real numbers, got dtype object holding "
@@ -1341,13 +1347,7 @@ def test_object_arrays_of_none_or_numpy_dates_are_refused_not_cast():
     for element, shown in [(None, "NoneType None"),
                            (np.datetime64("2020-01-01"), "datetime64"),
                            (np.timedelta64(1, "D"), "timedelta64")]:
-        given = points.astype(object)
-        given[1, 2] = element
-        for query in [locator.locate, locator.locate_owners, lambda p: locator.gap(p, 0.1)]:
-            with pytest.raises(ValueError, match="must hold real numbers, got dtype object "
-                                                 "holding .* at \\[1, 2\\]") as caught:
-                query(given)
-            assert shown in str(caught.value), str(caught.value)
+        assert_object_element_refused(locator, points, element, shown)
 
 
 def test_f32_on_cells_too_small_for_f32_is_refused_by_the_locator():
