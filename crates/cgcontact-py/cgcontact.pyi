@@ -94,7 +94,8 @@ class Locator:
         1e-5 in f32; above 1e-3 a UserWarning, as `cgcontact --tol` warns: answers can be off by
         about tol^2 and points near faces put in the wrong cell); `max_iter`: Newton iterations per
         candidate cell; `threads`: a pool of its own, 1 to 1024 (None: every core). `max_iter`,
-        `threads` and `Body`'s `counts` refuse booleans (TypeError)."""
+        `threads`, `tol`, `gap`'s `dist` and `Body`'s `origin`, `spacing` and `counts` refuse
+        booleans (TypeError)."""
     @property
     def strategy(self) -> _Strategy: ...
     def locate(

@@ -40,10 +40,11 @@ pub fn argument<'py, T: FromPyObjectOwned<'py>>(
     })
 }
 
-/// [`argument`] for a count (`counts`, `max_iter`, `threads`), refusing `True` and `False`, alone
-/// or in a list or tuple, as a `TypeError`: Python takes a boolean for the int 1 or 0, but no
-/// count is meant by it (as booleans are refused for coordinates and node numbers).
-pub fn count<'py, T: FromPyObjectOwned<'py>>(
+/// [`argument`] for a number or numbers (`counts`, `max_iter`, `threads`, `origin`, `spacing`,
+/// `tol`, `dist`), refusing `True` and `False`, alone or in a list or tuple, as a `TypeError`:
+/// Python takes a boolean for the number 1 or 0, but no count, coordinate or length is meant by
+/// it (as booleans are refused in arrays of points and node numbers).
+pub fn not_boolean<'py, T: FromPyObjectOwned<'py>>(
     obj: &Bound<'py, PyAny>,
     what: &str,
     expected: &str,

@@ -140,9 +140,9 @@ impl PyBody {
         active: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         let three = "3 numbers (x, y, z)";
-        let origin = DVec3::from_array(arrays::argument(origin, "origin", three)?);
-        let h = DVec3::from_array(arrays::argument(spacing, "spacing", three)?);
-        let counts: [u32; 3] = arrays::count(
+        let origin = DVec3::from_array(arrays::not_boolean(origin, "origin", three)?);
+        let h = DVec3::from_array(arrays::not_boolean(spacing, "spacing", three)?);
+        let counts: [u32; 3] = arrays::not_boolean(
             counts,
             "counts",
             "3 whole numbers of cells (x, y, z), each from 1 to 2^32 - 1",

@@ -184,15 +184,18 @@ impl PyLocator {
         body: &PyBody,
         strategy: &str,
         precision: &str,
-        tol: Option<f64>,
+        tol: Option<&Bound<'_, PyAny>>,
         max_iter: Option<&Bound<'_, PyAny>>,
         threads: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
+        let tol = tol
+            .map(|t| arrays::not_boolean::<f64>(t, "tol", "a number"))
+            .transpose()?;
         let max_iter = max_iter
-            .map(|m| arrays::count::<u32>(m, "max_iter", "a whole number from 1 to 2^32 - 1"))
+            .map(|m| arrays::not_boolean::<u32>(m, "max_iter", "a whole number from 1 to 2^32 - 1"))
             .transpose()?;
         let threads = threads
-            .map(|t| arrays::count::<usize>(t, "threads", "a whole number at least 1"))
+            .map(|t| arrays::not_boolean::<usize>(t, "threads", "a whole number at least 1"))
             .transpose()?;
         let strategy = parse_strategy(strategy)?;
         let mut settings = match precision {
@@ -415,8 +418,9 @@ impl PyLocator {
         &self,
         py: Python<'py>,
         points: &Bound<'py, PyAny>,
-        dist: f64,
+        dist: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyDict>> {
+        let dist: f64 = arrays::not_boolean(dist, "dist", "a number")?;
         if !(dist.is_finite() && dist >= 0.0) {
             return Err(PyValueError::new_err(format!(
                 "dist {dist}: the search distance must be a finite number at least 0"

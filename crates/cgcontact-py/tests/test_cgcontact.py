@@ -1516,3 +1516,30 @@ def test_active_flags_of_a_body_beyond_memory_are_a_memory_error_not_an_abort():
     assert run.stdout.startswith("MemoryError a body of 8120601 lattice nodes does not fit"), (
         run.stdout + run.stderr[-2000:])
     assert run.stdout.split("\n")[1] == "8"
+
+
+def test_booleans_and_huge_integers_are_refused_as_numbers_naming_the_argument():
+    """`Body((True, 0, 0), ...)` took True as an origin of 1.0, and `Locator(body, tol=True)` and
+    `gap(points, True)` took it as 1: booleans were refused for counts and in arrays of points,
+    but not there. And `tol=10**400` or `gap(points, 10**400)` raised "OverflowError: int too
+    large to convert to float", naming no argument. Both are refused now, naming it."""
+    points, _, _ = cell_points()
+    body = cgcontact.Body(ORIGIN, SPACING, COUNTS)
+    for call, what in [
+        (lambda: cgcontact.Body((True, 0, 0), SPACING, COUNTS), "origin"),
+        (lambda: cgcontact.Body(ORIGIN, [1, False, 1], COUNTS), "spacing"),
+        (lambda: cgcontact.Locator(body, tol=True), "tol"),
+        (lambda: cgcontact.Locator(body).gap(points, True), "dist"),
+    ]:
+        with pytest.raises(TypeError, match=f"{what} must be .*, got .*(True|False)"):
+            call()
+    for call, what in [
+        (lambda: cgcontact.Locator(body, tol=10**400), "tol"),
+        (lambda: cgcontact.Locator(body).gap(points, 10**400), "dist"),
+    ]:
+        with pytest.raises(ValueError, match=f"{what} must be a number, got 1000"):
+            call()
+    # Numbers of any real kind still are numbers.
+    cgcontact.Body(np.array(ORIGIN), tuple(np.float32(h) for h in SPACING), COUNTS)
+    cgcontact.Locator(body, tol=np.float64(1e-9)).gap(points, np.float32(0.5))
+    cgcontact.Locator(body).gap(points, 2)
