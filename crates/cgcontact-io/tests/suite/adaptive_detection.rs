@@ -9,36 +9,12 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use crate::common::mesh_of;
-
-/// Base cells `cells`; the first base cell refined to `depth` levels toward its lowest corner (a
-/// jump of `depth` levels against its neighbours), the last one once.
-fn leaves(cells: [u32; 3], depth: u8) -> Vec<Leaf> {
-    let mut out = Vec::new();
-    let n = cells[0] * cells[1] * cells[2];
-    for c in 1..n - 1 {
-        out.push(Leaf::new(
-            0,
-            [
-                c % cells[0],
-                (c / cells[0]) % cells[1],
-                c / (cells[0] * cells[1]),
-            ],
-        ));
-    }
-    let mut corner = Leaf::new(0, [0, 0, 0]);
-    for _ in 0..depth {
-        let children = corner.children();
-        out.extend_from_slice(&children[1..]);
-        corner = children[0];
-    }
-    out.push(corner);
-    out.extend(Leaf::new(0, cells.map(|v| v - 1)).children());
-    out
-}
+use crate::common::probes::corner_refined_leaves;
 
 fn body(origin: DVec3, h: DVec3, cells: [u32; 3], depth: u8, seed: u64) -> AdaptiveBody {
     let lattice = Lattice::new(origin, h, cells).unwrap();
-    let mut body = AdaptiveBody::from_leaves(lattice, leaves(cells, depth)).unwrap();
+    let mut body =
+        AdaptiveBody::from_leaves(lattice, corner_refined_leaves(cells, depth.into())).unwrap();
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let fine = body.spacing(body.finest_level());
     body.update_independent(|_, x, u| {

@@ -64,13 +64,7 @@ fn adaptive_strategy() -> impl Strategy<Value = AdaptiveBody> {
             let mut leaves: Vec<Leaf> = (1..lattice.cell_count() as u32)
                 .map(|c| Leaf::new(0, lattice.cell_ijk(CellId(c)).unwrap()))
                 .collect();
-            let mut corner = Leaf::new(0, [0, 0, 0]);
-            for _ in 0..depth {
-                let children = corner.children();
-                leaves.extend_from_slice(&children[1..]);
-                corner = children[0];
-            }
-            leaves.push(corner);
+            common::probes::refine_corner(&mut leaves, depth.into());
             let mut body = AdaptiveBody::from_leaves(lattice, leaves).unwrap();
             let fine = body.spacing(depth);
             body.update_independent(|n, _, u| {

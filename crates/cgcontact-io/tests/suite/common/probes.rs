@@ -84,14 +84,34 @@ pub fn displaced_leaf_boxes(body: &mut AdaptiveBody) -> (Vec<[u32; 3]>, Vec<u32>
 /// the first refined `depth` times toward its lowest corner (level jumps of 1 to `depth`
 /// against its neighbours), the last once.
 pub fn corner_refined_body(depth: u32) -> AdaptiveBody {
-    let origin = DVec3::new(0.1, -0.3, 0.7);
-    let h = DVec3::new(0.3, 0.1, 0.7);
     let cells = [3, 2, 2];
-    let mut leaves = Vec::new();
+    let lattice = Lattice::new(DVec3::new(0.1, -0.3, 0.7), DVec3::new(0.3, 0.1, 0.7), cells);
+    AdaptiveBody::from_leaves(lattice.unwrap(), corner_refined_leaves(cells, depth)).unwrap()
+}
+
+/// The leaves of base cells `cells`: the first base cell refined to `depth` levels toward its
+/// lowest corner ([`refine_corner`]), the last one once, the others not.
+pub fn corner_refined_leaves(cells: [u32; 3], depth: u32) -> Vec<Leaf> {
     let n = cells[0] * cells[1] * cells[2];
-    for c in 1..n - 1 {
-        leaves.push(Leaf::new(0, [c % 3, (c / 3) % 2, c / 6]));
-    }
+    let mut leaves: Vec<Leaf> = (1..n - 1)
+        .map(|c| {
+            let ijk = [
+                c % cells[0],
+                (c / cells[0]) % cells[1],
+                c / (cells[0] * cells[1]),
+            ];
+            Leaf::new(0, ijk)
+        })
+        .collect();
+    refine_corner(&mut leaves, depth);
+    leaves.extend(Leaf::new(0, cells.map(|v| v - 1)).children());
+    leaves
+}
+
+/// Base cell (0, 0, 0) halved `depth` times toward its lowest corner, appended to `leaves`: the
+/// 7 upper children of each level, then the last lowest child (a jump of `depth` levels against
+/// the cell's neighbours).
+pub fn refine_corner(leaves: &mut Vec<Leaf>, depth: u32) {
     let mut corner = Leaf::new(0, [0, 0, 0]);
     for _ in 0..depth {
         let children = corner.children();
@@ -99,7 +119,4 @@ pub fn corner_refined_body(depth: u32) -> AdaptiveBody {
         corner = children[0];
     }
     leaves.push(corner);
-    leaves.extend(Leaf::new(0, [2, 1, 1]).children());
-    let lattice = Lattice::new(origin, h, cells).unwrap();
-    AdaptiveBody::from_leaves(lattice, leaves).unwrap()
 }
