@@ -163,7 +163,9 @@ def read_mesh(
 ) -> Body:
     """Reads a VTK mesh (.vtk or .vtu) as `cgcontact locate --mesh` does. `displacement`: the
     point-data array ("displacement": used if present; another name: required; None: read
-    undeformed). Cells are numbered by their place in the file."""
+    undeformed). Cells are numbered by their place in the file. A file the operating system
+    refuses raises the OSError of its errno (FileNotFoundError, PermissionError,
+    IsADirectoryError...); a file that is not a usable mesh, a ValueError."""
 
 def _data_address(points: npt.ArrayLike) -> int:
     """The address of the first value the bindings read for `points` (a test probe)."""

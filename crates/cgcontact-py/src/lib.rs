@@ -13,8 +13,8 @@ mod locator;
 
 use std::ffi::CString;
 
-use cgcontact_io::{DEFAULT_DISPLACEMENT, DisplacementArray, MeshBody, read_hex_mesh};
-use pyo3::exceptions::{PyUserWarning, PyValueError};
+use cgcontact_io::{DEFAULT_DISPLACEMENT, DisplacementArray, ErrorKind, MeshBody, read_hex_mesh};
+use pyo3::exceptions::{PyIsADirectoryError, PyOSError, PyUserWarning, PyValueError};
 use pyo3::prelude::*;
 
 use crate::body::{PyBody, value_error};
@@ -26,7 +26,9 @@ use crate::locator::PyLocator;
 /// the file has one (else the body is undeformed); another name must be in the file; None reads
 /// the mesh undeformed. Cells are numbered by their place in the file and `set_displacements`
 /// takes one row per node of the file. An adaptive mesh whose hanging nodes break their
-/// constraint gives a warning, or a ValueError with `strict`.
+/// constraint gives a warning, or a ValueError with `strict`. A file the operating system
+/// refuses (missing, unreadable, a folder) raises the OSError of its errno (FileNotFoundError,
+/// PermissionError, IsADirectoryError...); a file that is not a usable mesh, a ValueError.
 #[pyfunction]
 #[pyo3(
     signature = (path, displacement = Some(DEFAULT_DISPLACEMENT.to_owned()), strict = false),
@@ -50,7 +52,7 @@ fn read_mesh(
             let found = mesh.to_body().map_err(|e| e.in_file(&path))?;
             Ok::<_, cgcontact_io::IoError>((mesh, found))
         })
-        .map_err(value_error)?;
+        .map_err(read_error)?;
     // The command line's message and per-axis tolerance, word for word.
     if let MeshBody::Adaptive(adaptive) = &found
         && let Some(message) = adaptive.constraint_problem(&path)
@@ -62,6 +64,29 @@ fn read_mesh(
         PyErr::warn(py, &py.get_type::<PyUserWarning>(), &message, 1)?;
     }
     Ok(PyBody::from_mesh(&mesh, found))
+}
+
+/// A mesh that cannot be read: an OSError where the operating system refused the file (Python
+/// picks its subclass from the errno: FileNotFoundError, PermissionError, IsADirectoryError...,
+/// with `errno`, `strerror` and `filename` set), else a ValueError with the command line's message.
+fn read_error(e: cgcontact_io::IoError) -> PyErr {
+    if let ErrorKind::Io(io) = e.kind()
+        && let Some(errno) = io.raw_os_error()
+    {
+        let words = std::io::Error::from_raw_os_error(errno).to_string();
+        let words = words
+            .strip_suffix(&format!(" (os error {errno})"))
+            .unwrap_or(&words)
+            .to_owned();
+        return PyOSError::new_err((errno, words, e.path().as_os_str().to_os_string()));
+    }
+    // A folder is refused before the system is asked to read it; Python's `open` says EISDIR.
+    if e.path().is_dir() {
+        const EISDIR: i32 = 21;
+        let path = e.path().as_os_str().to_os_string();
+        return PyIsADirectoryError::new_err((EISDIR, "Is a directory", path));
+    }
+    value_error(e)
 }
 
 /// The address of the first value the bindings read for `points`: the array's own buffer when
