@@ -198,6 +198,12 @@ cgc_error cgc_body_from_lattice(const double *origin,
 // a coarser neighbour's edge or face (hanging nodes) are nodes of the mesh too. Cells and nodes
 // may come in any order.
 //
+// Nodes are matched to the lattice within 1e-9 of the spacing plus their coordinates' rounding.
+// Where they lie off it by more than f64 rounding (coordinates that were 32-bit floats, or
+// decimal prints of few digits), each node stays where it is given: the deformed node `n` is
+// `nodes[n]` plus its displacement, before and after any `cgc_body_set_displacements`, as
+// `cgcontact locate` places a mesh file's nodes.
+//
 // Every coordinate must be finite, at nodes that no cell uses too (`CGC_ERROR_NON_FINITE` names
 // the first such node, 0-based).
 //
