@@ -155,11 +155,28 @@ static void fail_cgc(cgc_error code, const char *what) {
 /* Octave prefixes the message with the function's name; MATLAB shows it beside. */
 #define FAIL(id, ...) mexErrMsgIdAndTxt("cgcontact:" id, __VA_ARGS__)
 
+/* An array's size, for a message: "3 x 900", every dimension of an N-d one ("3 x 1 x 2", which
+ * mxGetM and mxGetN would give as 3 x 2, a size that is not refused). Written to `text`, which
+ * is returned. */
+static const char *dims(const mxArray *a, char *text, size_t size) {
+    const mwSize *d = mxGetDimensions(a);
+    size_t used = 0;
+    text[0] = 0;
+    for (mwSize k = 0; k < mxGetNumberOfDimensions(a) && used < size; k++) {
+        int w = snprintf(text + used, size - used, k ? " x %.0f" : "%.0f", (double)d[k]);
+        if (w < 0) break;
+        used += (size_t)w;
+    }
+    return text;
+}
+
 /* How an array was given, for a message: "sparse complex double 3 x 900" (a class name alone
  * would say "double" for a complex or sparse one). Written to `text`, which is returned. */
 static const char *given(const mxArray *a, char *text, size_t size) {
-    snprintf(text, size, "%s%s%s %d x %d", mxIsSparse(a) ? "sparse " : "",
-             mxIsComplex(a) ? "complex " : "", mxGetClassName(a), (int)mxGetM(a), (int)mxGetN(a));
+    char size_text[64];
+    snprintf(text, size, "%s%s%s %s", mxIsSparse(a) ? "sparse " : "",
+             mxIsComplex(a) ? "complex " : "", mxGetClassName(a),
+             dims(a, size_text, sizeof size_text));
     return text;
 }
 
@@ -170,7 +187,7 @@ static size_t matrix(const mxArray *a, const char *name, size_t rows, const char
         FAIL("badInput", "%s must be a real, full double matrix (%s), got %s", name, shape,
              given(a, got, sizeof got));
     if (mxGetNumberOfDimensions(a) != 2 || (rows && mxGetM(a) != rows && !mxIsEmpty(a)))
-        FAIL("badSize", "%s must be %s, got %d x %d", name, shape, (int)mxGetM(a), (int)mxGetN(a));
+        FAIL("badSize", "%s must be %s, got %s", name, shape, dims(a, got, sizeof got));
     return mxIsEmpty(a) ? 0 : mxGetN(a);
 }
 
@@ -212,8 +229,12 @@ static void settings_from(const mxArray *options, cgc_settings *s, uint32_t *fil
     for (int k = 0; k < 3; k++) {
         f = mxGetField(options, 0, numbers[k]);
         if (!f) continue;
-        if (!mxIsDouble(f) || mxIsComplex(f) || mxGetNumberOfElements(f) != 1)
-            FAIL("badInput", "Options.%s must be a real scalar", numbers[k]);
+        /* Any real class: struct('threads', int32(2)) is as much a number as 2. */
+        if (!mxIsNumeric(f) || mxIsComplex(f) || mxIsSparse(f) || mxGetNumberOfElements(f) != 1) {
+            char got[96];
+            FAIL("badInput", "Options.%s must be a real numeric scalar, got %s", numbers[k],
+                 given(f, got, sizeof got));
+        }
         double v = mxGetScalar(f);
         if (k == 0) {
             s->newton_tol = v;
@@ -306,15 +327,14 @@ static void locate(entry *e, const mxArray *points, const mxArray *e0, const mxA
                  given(e0, got, sizeof got));
         if (mxGetNumberOfDimensions(e0) != 2 || mxGetNumberOfElements(e0) != n ||
             (n > 0 && mxGetM(e0) != 1 && mxGetN(e0) != 1))
-            FAIL("badSize", "E0 must be a vector of %d elements (XYZ's points), got %d x %d", (int)n,
-                 (int)mxGetM(e0), (int)mxGetN(e0));
+            FAIL("badSize", "E0 must be a vector of %d elements (XYZ's points), got %s", (int)n,
+                 dims(e0, got, sizeof got));
         if (!mxIsDouble(posl0) || mxIsComplex(posl0) || mxIsSparse(posl0))
             FAIL("badInput", "PosL0 must be a real, full double matrix (the last PosL), got %s",
                  given(posl0, got, sizeof got));
         if (mxGetNumberOfDimensions(posl0) != 2 || mxGetNumberOfElements(posl0) != 3 * n ||
             (n > 0 && mxGetM(posl0) != 3))
-            FAIL("badSize", "PosL0 must be 3 x %d, got %d x %d", (int)n, (int)mxGetM(posl0),
-                 (int)mxGetN(posl0));
+            FAIL("badSize", "PosL0 must be 3 x %d, got %s", (int)n, dims(posl0, got, sizeof got));
         const double *hint = mxGetPr(e0);
         for (size_t i = 0; i < n; i++)
             if (!(hint[i] >= 0 && hint[i] <= (double)e->n_elements && hint[i] == floor(hint[i])))

@@ -496,6 +496,18 @@ expect_error('cgcontact:badSize', @() cgcontact_whereami(XYZ, N0, T, {}), 'U = {
 expect_error('cgcontact:usage', @() cgcontact_whereami('locate_every_point_please', H, XYZ), 'a long command');
 expect_error('cgcontact:badInput', @() cgcontact_whereami('query_seconds', H, XYZ, 'abc'), 'Repeats as text');
 expect_error('cgcontact:badInput', @() cgcontact_whereami('query_seconds', H, XYZ, 2.5), 'Repeats 2.5');
+% An N-d array's size was given as mxGetM x mxGetN: a 3 x 1 x 2 XYZ was refused as "3 x 2".
+X3 = reshape(XYZ(:, 1:2), 3, 1, 2);
+expect_error('cgcontact:badSize', @() cgcontact_whereami('locate', H, X3), 'locate with a 3 x 1 x 2 XYZ', 'got double 3 x 1 x 2');
+expect_error('cgcontact:badSize', @() cgcontact_whereami(X3, N0, T, U), 'one-shot with a 3 x 1 x 2 XYZ', 'got 3 x 1 x 2');
+expect_error('cgcontact:badSize', @() cgcontact_whereami('relocate', H, XYZ(:, 1:2), [1 1], zeros(3, 1, 2)), ...
+             'relocate with a 3 x 1 x 2 PosL0', 'got 3 x 1 x 2');
+% Numeric options of an integer class were refused as "not a real scalar": they are numbers.
+[Ed, Pd] = cgcontact_whereami(XYZ, N0, T, U, struct('threads', 1, 'max_iter', 40));
+[Ei, Pi] = cgcontact_whereami(XYZ, N0, T, U, struct('threads', int32(1), 'max_iter', uint8(40)));
+check(isequal(Ed, Ei) && isequaln(Pd, Pi), 'Options of integer classes answer as doubles');
+expect_error('cgcontact:badInput', @() cgcontact_whereami(XYZ, N0, T, U, struct('threads', true)), ...
+             'Options.threads logical', 'got logical 1 x 1');
 % Outputs a command does not give, refused before it runs: asked for an output, 'free' and
 % 'update' did their work, then failed with Octave's "element number 1 undefined in return list".
 [Ekept, ~] = cgcontact_whereami('locate', H, XYZ);
