@@ -7,7 +7,7 @@ use cgcontact::glam::DVec3;
 use cgcontact::{Body, CellId, Lattice};
 use cgcontact_io::{HexMesh, UpdateError};
 
-use crate::error::{CgcError, Failure, guard};
+use crate::error::{CgcError, Failure, guard, shown};
 use crate::raw;
 
 /// Displacements given node by node: x, y, z of node 0, then of node 1, ... (an n × 3 row-major
@@ -90,7 +90,10 @@ fn set_caller_displacements(state: &mut BodyState, u: &[f64], layout: u32) -> Re
     state.set_displacements(at, fill).map_err(|e| match e {
         UpdateError::NonFinite { node, value } => Failure::new(
             CgcError::NonFinite,
-            format!("the displacement of node {node} (0-based) is not finite: {value}"),
+            format!(
+                "the displacement of node {node} (0-based) is not finite: {}",
+                shown(value)
+            ),
         ),
         UpdateError::Disagree {
             first,
@@ -100,7 +103,9 @@ fn set_caller_displacements(state: &mut BodyState, u: &[f64], layout: u32) -> Re
         } => Failure::new(
             CgcError::NotLattice,
             format!(
-                "nodes {first} and {node} (0-based) coincide but their displacements differ: {first_value} and {value}"
+                "nodes {first} and {node} (0-based) coincide but their displacements differ: {} and {}",
+                shown(first_value),
+                shown(value)
             ),
         ),
         UpdateError::TooLarge { node, value, limit } => Failure::new(
@@ -121,7 +126,8 @@ fn set_caller_displacements(state: &mut BodyState, u: &[f64], layout: u32) -> Re
         } => Failure::new(
             CgcError::HangingConstraint,
             format!(
-                "displacements: {violating} of {hanging} hanging nodes break their constraint by more than {tol:.1e}; the worst, node {node} (0-based) at {at}, by {by:.3e}: the deformed mesh would gap or overlap there (give each hanging node the trilinear interpolation of the coarse cell it hangs on, or pass CGC_FILL_HANGING)"
+                "displacements: {violating} of {hanging} hanging nodes break their constraint by more than {tol:.1e}; the worst, node {node} (0-based) at {}, by {by:.3e}: the deformed mesh would gap or overlap there (give each hanging node the trilinear interpolation of the coarse cell it hangs on, or pass CGC_FILL_HANGING)",
+                shown(at)
             ),
         ),
         UpdateError::Library(e) => Failure::from(e),
@@ -186,7 +192,11 @@ pub unsafe extern "C" fn cgc_body_from_lattice(
         if !(origin.is_finite() && h.is_finite()) {
             return Err(Failure::new(
                 CgcError::NonFinite,
-                format!("the lattice's origin {origin} or spacing {h} is not finite"),
+                format!(
+                    "the lattice's origin {} or spacing {} is not finite",
+                    shown(origin),
+                    shown(h)
+                ),
             ));
         }
         let lattice = Lattice::new(origin, h, [counts[0], counts[1], counts[2]])?;
@@ -335,7 +345,7 @@ pub unsafe extern "C" fn cgc_body_from_mesh(
                 CgcError::NonFinite,
                 format!(
                     "the coordinates of node {node} (0-based) are not finite: {}",
-                    points[node]
+                    shown(points[node])
                 ),
             ));
         }

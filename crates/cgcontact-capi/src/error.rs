@@ -6,6 +6,8 @@ use std::cell::RefCell;
 use std::ffi::{CString, c_char};
 use std::panic::{AssertUnwindSafe, catch_unwind};
 
+use cgcontact::glam::DVec3;
+
 /// What a call returns: `CGC_ERROR_OK` (0) on success, else why it failed. The message of the last
 /// failure on the calling thread is `cgc_last_error()`.
 #[repr(C)]
@@ -78,6 +80,22 @@ impl From<cgcontact_io::ErrorKind> for Failure {
         };
         Self::new(code, e.to_string())
     }
+}
+
+/// A number for a message: as `{}` writes it, but with an exponent far from 1 (1e300, not the 301
+/// digits `{}` gives; 1e-300, not 300 zeros), where Rust's `{:?}` would switch to one.
+pub(crate) fn number(v: f64) -> String {
+    if v.is_finite() && v != 0.0 && !(1e-5..1e16).contains(&v.abs()) {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
+    }
+}
+
+/// A vector for a message, each component as [`number`] writes it: "[1e300, NaN, 0.5]".
+pub(crate) fn shown(v: DVec3) -> String {
+    let [x, y, z] = v.to_array().map(number);
+    format!("[{x}, {y}, {z}]")
 }
 
 thread_local! {

@@ -189,8 +189,9 @@ pub unsafe extern "C" fn cgc_gap(
             return Err(Failure::new(
                 CgcError::InvalidArgument,
                 format!(
-                    "distance is {distance}; the gap search distance must be finite, at least 0 \
+                    "distance is {}; the gap search distance must be finite, at least 0 \
                      and at most {:e}",
+                    crate::error::number(distance),
                     cgcontact::MAX_DISPLACEMENT
                 ),
             ));

@@ -617,7 +617,7 @@ pub(crate) fn first_non_finite(points: &[DVec3], first: usize) -> Result<(), Fai
             CgcError::NonFinitePoint,
             format!(
                 "point {i} (0-based) has a NaN or infinite coordinate: {}",
-                points[i]
+                crate::error::shown(points[i])
             ),
         )),
     }

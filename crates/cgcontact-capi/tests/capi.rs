@@ -630,6 +630,80 @@ fn non_finite_points_are_answered_and_reported() {
     assert_eq!(&cells[..3], &[i64::from(known[0].0), -1, -1]);
 }
 
+/// Values far from 1 in a message are written with an exponent: `{}` wrote a point at 1e300 with
+/// its 301 digits, and a distance of 1e200 with 201, burying what the message says.
+#[test]
+fn values_far_from_one_are_written_short_in_messages() {
+    let short = |what: &str, expected: &str| {
+        let message = last_error();
+        assert!(
+            message.contains(expected) && message.len() < 300,
+            "{what}: expected {expected} in a short message, got {} bytes: {message}",
+            message.len()
+        );
+    };
+    let body = block();
+    let handles = lattice_handles(&body);
+    let (code, ..) = locate(handles.locator, &[1e300, f64::NAN, 1e-300]);
+    assert_eq!(code, CgcError::NonFinitePoint);
+    short("a point", "[1e300, NaN, 1e-300]");
+    let (mut gap, point) = (0.0, [0.0; 3]);
+    // SAFETY: one point and one gap; the other outputs are skipped.
+    let code = unsafe {
+        cgc_gap(
+            handles.locator,
+            point.as_ptr(),
+            1,
+            1e200,
+            &mut gap,
+            ptr::null_mut(),
+            ptr::null_mut(),
+            ptr::null_mut(),
+            ptr::null_mut(),
+        )
+    };
+    assert_eq!(code, CgcError::InvalidArgument);
+    short("a gap distance", "distance is 1e200;");
+    let mut n = 0;
+    // SAFETY: the handle is live; one writable count.
+    assert_eq!(
+        unsafe { cgc_body_node_count(handles.body, &mut n) },
+        CgcError::Ok
+    );
+    let mut u = vec![0.0; 3 * n];
+    u[3..6].copy_from_slice(&[-1e300, f64::INFINITY, 0.0]);
+    // SAFETY: `u` holds 3 n values.
+    let code =
+        unsafe { cgc_body_set_displacements(handles.body, u.as_ptr(), n, CGC_LAYOUT_NODE_MAJOR) };
+    assert_eq!(code, CgcError::NonFinite);
+    short("a displacement", "[-1e300, inf, 0]");
+    let (origin, h, counts) = ([1e300, f64::NAN, 0.0], [1.0; 3], [1u32; 3]);
+    let mut b = ptr::null_mut();
+    // SAFETY: three values each; `b` is writable.
+    let code = unsafe {
+        cgc_body_from_lattice(
+            origin.as_ptr(),
+            h.as_ptr(),
+            counts.as_ptr(),
+            ptr::null(),
+            0,
+            &mut b,
+        )
+    };
+    assert_eq!(code, CgcError::NonFinite);
+    short("an origin", "[1e300, NaN, 0]");
+    let nodes: Vec<f64> = (0..8)
+        .flat_map(|c| [c & 1, (c >> 1) & 1, c >> 2].map(f64::from))
+        .chain([2e300, f64::NAN, 0.5])
+        .collect();
+    let topology = [0i64, 1, 3, 2, 4, 5, 7, 6];
+    // SAFETY: the arrays hold 3 × 9 and 8 values.
+    let code = unsafe { cgc_body_from_mesh(nodes.as_ptr(), 9, topology.as_ptr(), 1, 0, &mut b) };
+    assert_eq!(code, CgcError::NonFinite);
+    short("a node", "[2e300, NaN, 0.5]");
+    assert!(b.is_null());
+}
+
 #[test]
 fn meshes_that_are_not_lattices_are_refused() {
     let mesh = HexMesh::from_body(&block());
