@@ -150,13 +150,22 @@ fn coordinate(text: &str) -> Result<f64, &'static str> {
 /// (case and padding aside) are read by name; a header that names no axis out of its column
 /// (`x,y,z`, `a,b,c`, `x,y,depth`) is read by position. A header that names an axis out of its
 /// column without naming all three once (`y,x,depth`, `x,x,z`) is an error: read by position,
-/// it would swap coordinates without a word.
+/// it would swap coordinates without a word. A name may be quoted, after spaces too (`"x", "z",
+/// "y"`: the CSV reader unquotes a field only when the quote is its first byte) and in single
+/// quotes: read as unnamed, such a header's columns were taken by position.
 fn header_axes(header: &csv::StringRecord) -> Result<[usize; 3], String> {
-    let axis = |field: &str| match field.trim().to_ascii_lowercase().as_str() {
-        "x" => Some(0),
-        "y" => Some(1),
-        "z" => Some(2),
-        _ => None,
+    let axis = |field: &str| {
+        let name = field.trim();
+        let name = ['"', '\'']
+            .iter()
+            .find_map(|&q| name.strip_prefix(q)?.strip_suffix(q))
+            .unwrap_or(name);
+        match name.trim().to_ascii_lowercase().as_str() {
+            "x" => Some(0),
+            "y" => Some(1),
+            "z" => Some(2),
+            _ => None,
+        }
     };
     let named: Vec<Option<usize>> = header.iter().map(axis).collect();
     let mut seen = [false; 3];
