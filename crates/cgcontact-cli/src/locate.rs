@@ -69,8 +69,10 @@ pub struct LocateArgs {
     /// Appends the columns gap,cx,cy,cz,nx,ny,nz,face_cell,face to every results row: the signed
     /// distance (negative inside the body), the closest surface point, the unit outward normal
     /// there, and the face holding it (its cell, in the input numbering, and its VTK local face
-    /// 0-5). They are empty where the surface is farther than D. Measured in f64 whatever
-    /// --precision says, exact (every face, edge and corner within D).
+    /// 0-5). They are empty where the surface is farther than D. Exact (every face, edge and
+    /// corner within D): the closest point and normal in f64 whatever --precision says, the sign
+    /// (inside or not) by the lattice locator with this run's --precision, --tol and --max-iter,
+    /// whatever --strategy says.
     #[arg(long, value_name = "D", allow_negative_numbers = true)]
     gap: Option<f64>,
     #[command(flatten)]
