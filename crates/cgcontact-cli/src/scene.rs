@@ -38,7 +38,8 @@ pub enum SceneName {
     SphereFine,
     /// The seed's coarse mesh: the same with h = 0.5 mm.
     SphereCoarse,
-    /// An indented block of --cells cells (default 40 × 80 × 40 = 128,000) of spacing --h, known points only.
+    /// An indented block of --cells cells (default 40 × 80 × 40 = 128,000) of spacing --h (default
+    /// 0.125), known points only.
     Block,
     /// The seed's fine block refined by halving under the sphere: --levels levels (default 2) within
     /// --refine-radius (default the sphere's radius, 1 mm) of the contact patch, 2:1 balanced unless
@@ -98,7 +99,8 @@ pub struct SceneArgs {
         value_parser = number
     )]
     h: Option<Vec<f64>>,
-    /// Largest sink of the indented top face, in units of h (up to several h).
+    /// Largest sink of the indented top face, in units of h (up to several h) [default: 0.45,
+    /// 0.225 for `sphere-coarse`: the seed's 0.1125 mm].
     #[arg(long, value_name = "H", allow_negative_numbers = true)]
     sink: Option<f64>,
     /// Random nodal jitter in units of h (kept to det J > 0 unless --allow-inverted).
