@@ -46,7 +46,8 @@ class Body:
     def from_hexes(nodes: npt.ArrayLike, hexes: npt.ArrayLike) -> "Body":
         """A body from undeformed nodes (n, 3) and hexahedra (m, 8) of 0-based node numbers in
         VTK order (whole numbers: 2.5 or NaN raise ValueError); the lattice is detected. Cells
-        are numbered by their row in `hexes`."""
+        are numbered by their row in `hexes`. Nodes off the lattice by their coordinates'
+        rounding (32-bit floats) stay where given, before and after `set_displacements`."""
     def set_displacements(self, u: npt.ArrayLike, fill_hanging: bool = False) -> None:
         """Sets every displacement in place: one row (ux, uy, uz) per node (`node_count`). On an
         adaptive body a hanging node's row must be its constraint's value unless `fill_hanging`.

@@ -30,57 +30,11 @@ pub(crate) use cgcontact_io::{AnyBody, CallerBody as BodyState};
 /// `cgc_body_free`.
 pub struct CgcBody {
     pub(crate) state: Arc<RwLock<BodyState>>,
-    /// How far the caller's nodes lie from their lattice positions, in the body's slot order, as
-    /// `cgcontact_io` keeps them for a mesh whose coordinates are off the lattice by more than f64
-    /// rounding (float coordinates, short decimal prints): added to every update, so that a
-    /// deformed node is the caller's node plus its displacement, as `cgcontact locate` has it.
-    /// `None` when every node lies at its lattice position to f64 rounding.
-    offsets: Option<Vec<DVec3>>,
 }
 
-/// The body's displacements, in its slot order.
-fn displacements(body: &AnyBody) -> &[DVec3] {
-    match body {
-        AnyBody::Uniform(body) => body.displacements(),
-        AnyBody::Adaptive(body) => body.displacements(),
-    }
-}
-
-/// Sets the body's displacements (slot order) as they are, without the caller's numbering.
-fn set_slots(body: &mut AnyBody, u: &[DVec3]) -> Result<(), cgcontact::Error> {
-    match body {
-        AnyBody::Uniform(body) => body.set_displacements(u),
-        AnyBody::Adaptive(body) => body.set_displacements(u),
-    }
-}
-
-/// Sets every displacement of `state` from the caller's `3 n` values `u` in `layout`, each body
-/// node moved by its `offsets` too (see [`CgcBody`]), or changes nothing and says why.
-fn set_displacements(
-    state: &mut BodyState,
-    u: &[f64],
-    layout: u32,
-    offsets: Option<&[DVec3]>,
-) -> Result<(), Failure> {
-    // The checks (hanging nodes against their constraints among them) are on the caller's
-    // values; the offsets are the nodes' own, added after them, and taken back on an error.
-    let before = offsets.map(|_| displacements(&state.body).to_vec());
-    set_caller_displacements(state, u, layout)?;
-    if let (Some(offsets), Some(before)) = (offsets, before) {
-        let moved: Vec<DVec3> = (displacements(&state.body).iter())
-            .zip(offsets)
-            .map(|(u, o)| *u + *o)
-            .collect();
-        if let Err(e) = set_slots(&mut state.body, &moved) {
-            set_slots(&mut state.body, &before)?;
-            return Err(Failure::from(e));
-        }
-    }
-    Ok(())
-}
-
-/// [`set_displacements`] without the offsets.
-fn set_caller_displacements(state: &mut BodyState, u: &[f64], layout: u32) -> Result<(), Failure> {
+/// Sets every displacement of `state` from the caller's `3 n` values `u` in `layout`, or changes
+/// nothing and says why.
+fn set_displacements(state: &mut BodyState, u: &[f64], layout: u32) -> Result<(), Failure> {
     let n = state.node_count();
     let at = |node: usize| match layout & !CGC_FILL_HANGING {
         CGC_LAYOUT_NODE_MAJOR => DVec3::new(u[3 * node], u[3 * node + 1], u[3 * node + 2]),
@@ -136,15 +90,8 @@ fn set_caller_displacements(state: &mut BodyState, u: &[f64], layout: u32) -> Re
 
 impl CgcBody {
     fn new(state: BodyState) -> Self {
-        // A new body is undeformed: whatever displacements it holds are its nodes' offsets.
-        let offsets = displacements(&state.body);
-        let offsets = offsets
-            .iter()
-            .any(|o| *o != DVec3::ZERO)
-            .then(|| offsets.to_vec());
         Self {
             state: Arc::new(RwLock::new(state)),
-            offsets,
         }
     }
 
@@ -405,7 +352,7 @@ pub unsafe extern "C" fn cgc_body_set_displacements(
         }
         // SAFETY: the caller guarantees 3 n_nodes readable doubles.
         let u = unsafe { raw::slice(u, n_nodes.saturating_mul(3), "u") }?;
-        set_displacements(&mut state, u, layout, body.offsets.as_deref())
+        set_displacements(&mut state, u, layout)
     })
 }
 

@@ -46,6 +46,11 @@ pub struct AdaptiveMesh {
     /// The smallest of `constraint_tolerance_by_axis` (the shortest axis's), for messages that
     /// give one number.
     pub constraint_tolerance: f64,
+    /// How far each node of the body (slot order) lies from its lattice position, where some
+    /// node lies off it by more than f64 rounding, as [`crate::LatticeMesh::node_offsets`]: the
+    /// body's displacements include them. `None` where every node is at its lattice position to
+    /// f64 rounding.
+    pub node_offsets: Option<Vec<DVec3>>,
 }
 
 /// A mesh read from a file: a uniform lattice body or an adaptive one.
@@ -447,7 +452,7 @@ impl HexMesh {
             constraint_tolerance += DVec3::splat(slack * body.max_displacement().max_element());
         }
         let constraints = body.check_constraints_per_axis(constraint_tolerance);
-        self.add_lattice_offsets(&mut body, used, &q)?;
+        let node_offsets = self.add_lattice_offsets(&mut body, used, &q)?;
         // The file's mesh is conforming only to its rounding: a hanging node's coordinates (each
         // within `tol` of its lattice position, or it was refused) and displacement (within
         // `constraint_tolerance` of its constraint where it holds) put it off the coarse face
@@ -469,6 +474,7 @@ impl HexMesh {
             cells,
             point_count: self.points.len(),
             has_displacement: self.displacement.is_some(),
+            node_offsets,
         })
     }
 
@@ -483,13 +489,14 @@ impl HexMesh {
     /// lies off the coarse face by its coordinates' rounding (6e-8 of a cell for floats at a
     /// spacing of 0.1): the file's own mesh is conforming only to that rounding. Interpolating
     /// its offset instead kept the mesh conforming but moved the fine leaves off the file's, and
-    /// a tenth of the points made on their faces were in no leaf.
+    /// a tenth of the points made on their faces were in no leaf. Returns the offsets added
+    /// (slot order), `None` when every one is within f64 rounding and none was added.
     fn add_lattice_offsets(
         &self,
         body: &mut AdaptiveBody,
         used: &BitVec,
         q: &[[u32; 3]],
-    ) -> Result<(), ErrorKind> {
+    ) -> Result<Option<Vec<DVec3>>, ErrorKind> {
         let mut offsets = vec![DVec3::ZERO; body.node_count()];
         let mut set: BitVec = BitVec::repeat(false, offsets.len());
         for n in used.iter_ones() {
@@ -506,13 +513,13 @@ impl HexMesh {
         let lattice = body.lattice();
         let magnitude = lattice.origin().abs().max(lattice.upper().abs());
         if !offsets.iter().any(|&o| beyond_rounding(o, magnitude)) {
-            return Ok(());
+            return Ok(None);
         }
         let sum: Vec<DVec3> = (body.displacements().iter())
             .zip(&offsets)
             .map(|(u, o)| *u + *o)
             .collect();
         body.set_displacements(&sum)?;
-        Ok(())
+        Ok(Some(offsets))
     }
 }

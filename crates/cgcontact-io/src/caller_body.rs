@@ -153,6 +153,13 @@ pub struct CallerBody {
     hanging: FlatConstraints,
     /// The displacements in slot order, reused by every update.
     scratch: Vec<DVec3>,
+    /// How far the mesh's nodes lie from their lattice positions (slot order), added to every
+    /// update so that a deformed node is the caller's node plus its displacement: `None` where
+    /// every node is at its lattice position to f64 rounding ([`crate::LatticeMesh::node_offsets`]).
+    offsets: Option<Vec<DVec3>>,
+    /// The displacements before an update that fills hanging nodes on a body with `offsets`,
+    /// taken back if the offsets cannot be added; reused.
+    previous: Vec<DVec3>,
 }
 
 impl CallerBody {
@@ -173,6 +180,8 @@ impl CallerBody {
                 cells: lattice.cell_count(),
             },
             body: AnyBody::Uniform(body),
+            offsets: None,
+            previous: Vec::new(),
         }
     }
 
@@ -184,16 +193,24 @@ impl CallerBody {
         match found {
             MeshBody::Uniform(found) => {
                 let sources = NodeSources::uniform(mesh, &found.body, &found.cells);
-                Self::of_mesh(mesh, sources, found.cells, AnyBody::Uniform(found.body))
+                let body = AnyBody::Uniform(found.body);
+                Self::of_mesh(mesh, sources, found.cells, body, found.node_offsets)
             }
             MeshBody::Adaptive(found) => {
                 let sources = NodeSources::adaptive(mesh, &found.body);
-                Self::of_mesh(mesh, sources, found.cells, AnyBody::Adaptive(found.body))
+                let body = AnyBody::Adaptive(found.body);
+                Self::of_mesh(mesh, sources, found.cells, body, found.node_offsets)
             }
         }
     }
 
-    fn of_mesh(mesh: &HexMesh, sources: NodeSources, cells: CellMap, body: AnyBody) -> Self {
+    fn of_mesh(
+        mesh: &HexMesh,
+        sources: NodeSources,
+        cells: CellMap,
+        body: AnyBody,
+        offsets: Option<Vec<DVec3>>,
+    ) -> Self {
         let NodeSources {
             source_of_slot,
             duplicates,
@@ -209,6 +226,8 @@ impl CallerBody {
             },
             cells: CellNumbering::Mesh(cells),
             body,
+            offsets,
+            previous: Vec::new(),
         }
     }
 
@@ -263,6 +282,11 @@ impl CallerBody {
     /// its constraint's value (to 1e-9 of the finest spacing plus the rounding of the largest
     /// displacement), unless `fill`: then the hanging nodes are set to their constraints' values
     /// and the values given there are not used.
+    ///
+    /// A mesh's nodes stay where the mesh has them: where they lie off their lattice positions
+    /// by more than f64 rounding (32-bit float coordinates, short decimal prints), each body
+    /// node's offset is added to the value given (after the checks above, which are on the
+    /// values given), as when the mesh was read.
     pub fn set_displacements(
         &mut self,
         at: impl Fn(usize) -> DVec3,
@@ -309,19 +333,50 @@ impl CallerBody {
             }
         }
         let source = self.source_of_slot.as_deref();
-        let caller_nodes = |e| in_caller_nodes(e, &self.scratch, source);
+        let caller_nodes = |e, u: &[DVec3]| in_caller_nodes(e, u, source);
+        let offsets = self.offsets.as_deref();
+        let add = |u: &mut [DVec3], offsets: &[DVec3]| {
+            for (u, o) in u.iter_mut().zip(offsets) {
+                *u += *o;
+            }
+        };
         match &mut self.body {
-            AnyBody::Uniform(body) => body.set_displacements(&self.scratch).map_err(caller_nodes),
+            AnyBody::Uniform(body) => {
+                if let Some(offsets) = offsets {
+                    add(&mut self.scratch, offsets);
+                }
+                (body.set_displacements(&self.scratch)).map_err(|e| caller_nodes(e, &self.scratch))
+            }
             AnyBody::Adaptive(body) => {
                 if !fill {
                     check_hanging(body, &self.hanging, &self.scratch, source)?;
+                    if let Some(offsets) = offsets {
+                        add(&mut self.scratch, offsets);
+                    }
+                    return (body.set_displacements(&self.scratch))
+                        .map_err(|e| caller_nodes(e, &self.scratch));
                 }
-                body.set_displacements(&self.scratch)
-                    .map_err(caller_nodes)?;
-                if fill {
+                let Some(offsets) = offsets else {
+                    body.set_displacements(&self.scratch)
+                        .map_err(|e| caller_nodes(e, &self.scratch))?;
                     body.fill_hanging();
-                }
-                Ok(())
+                    return Ok(());
+                };
+                // The hanging nodes' values are their constraints' on the values given; then
+                // every node's offset, a hanging node's own included, is added. Should that
+                // fail, the body takes its previous displacements back.
+                self.previous.clear();
+                self.previous.extend_from_slice(body.displacements());
+                body.set_displacements(&self.scratch)
+                    .map_err(|e| caller_nodes(e, &self.scratch))?;
+                body.fill_hanging();
+                self.scratch.copy_from_slice(body.displacements());
+                add(&mut self.scratch, offsets);
+                body.set_displacements(&self.scratch).map_err(|e| {
+                    body.set_displacements(&self.previous)
+                        .expect("the body's previous displacements are valid");
+                    caller_nodes(e, &self.scratch)
+                })
             }
         }
     }

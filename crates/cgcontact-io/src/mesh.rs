@@ -372,6 +372,12 @@ pub struct LatticeMesh {
     pub point_count: usize,
     /// Whether the input carried a displacement array (otherwise the body is undeformed).
     pub has_displacement: bool,
+    /// How far each node of the body (slot order) lies from its lattice position, where some
+    /// node lies off it by more than f64 rounding (32-bit float coordinates, short decimal
+    /// prints): the body's displacements include them, so that its nodes are the input's. `None`
+    /// where every node is at its lattice position to f64 rounding. An update of the
+    /// displacements adds them again ([`crate::CallerBody::set_displacements`]).
+    pub node_offsets: Option<Vec<DVec3>>,
 }
 
 impl LatticeMesh {
@@ -459,12 +465,14 @@ impl HexMesh {
             None => None,
         };
         // The nodes where the file has them: the lattice positions are only where they round to.
-        match (u, self.lattice_offsets(&body, &used, &node_ijk)) {
+        let node_offsets = self.lattice_offsets(&body, &used, &node_ijk);
+        match (u, &node_offsets) {
             (Some(u), Some(offsets)) => {
-                let sum: Vec<DVec3> = u.iter().zip(&offsets).map(|(u, o)| *u + *o).collect();
+                let sum: Vec<DVec3> = u.iter().zip(offsets).map(|(u, o)| *u + *o).collect();
                 body.set_displacements(&sum)?;
             }
-            (Some(values), None) | (None, Some(values)) => body.set_displacements(&values)?,
+            (Some(values), None) => body.set_displacements(&values)?,
+            (None, Some(values)) => body.set_displacements(values)?,
             (None, None) => {}
         }
         Ok(LatticeMesh {
@@ -472,6 +480,7 @@ impl HexMesh {
             cells,
             point_count: self.points.len(),
             has_displacement: self.displacement.is_some(),
+            node_offsets,
         })
     }
 

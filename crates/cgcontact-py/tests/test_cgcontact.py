@@ -209,6 +209,40 @@ def lattice_hexes():
     return nodes, np.array(hexes)
 
 
+def test_float_rounded_nodes_stay_where_given_after_an_update():
+    """Nodes stored as 32-bit floats lie off the lattice by more than f64 rounding: the body keeps
+    them where the caller has them, as `cgcontact locate` does a file's. An update of the
+    displacements dropped those offsets: after `set_displacements(zeros)` the nodes sat at their
+    lattice positions, and each point's xi moved by a few 1e-8 (a point on a face where the
+    caller's nodes put it could leave its cell)."""
+    h, n = 0.1, 3  # (on 2 cells f32's rounding of 0, 0.1 and 0.2 is a lattice itself)
+    k, j, i = np.meshgrid(*[np.arange(n + 1)] * 3, indexing="ij")
+    nodes = (np.column_stack([i.ravel(), j.ravel(), k.ravel()]) * h).astype(np.float32)
+    nodes = nodes.astype(np.float64)
+    node = lambda i, j, k: i + (n + 1) * (j + (n + 1) * k)
+    hexes = [[node(i, j, k), node(i + 1, j, k), node(i + 1, j + 1, k), node(i, j + 1, k),
+              node(i, j, k + 1), node(i + 1, j, k + 1), node(i + 1, j + 1, k + 1),
+              node(i, j + 1, k + 1)]
+             for k in range(n) for j in range(n) for i in range(n)]
+    body = cgcontact.Body.from_hexes(nodes, np.array(hexes))
+    rng = np.random.default_rng(5)
+    points = rng.uniform(0.01, 0.29, (200, 3))
+    points[::2, 2] = nodes[node(0, 0, 1), 2]  # on the faces between the first two layers
+    locator = cgcontact.Locator(body)
+    cells, xi = locator.locate(points)
+    assert (cells >= 0).all()
+    body.set_displacements(np.zeros((len(nodes), 3)))
+    after = locator.locate(points)
+    np.testing.assert_array_equal(after[0], cells)
+    np.testing.assert_allclose(after[1], xi, rtol=0, atol=1e-12)
+    # A translation moves the caller's nodes, not the lattice's.
+    t = np.array([0.0, 0.0, 0.25])
+    body.set_displacements(np.tile(t, (len(nodes), 1)))
+    moved = locator.locate(points + t)
+    np.testing.assert_array_equal(moved[0], cells)
+    np.testing.assert_allclose(moved[1], xi, rtol=0, atol=1e-12)
+
+
 def cell_points():
     """A point in each lattice cell at a known xi, and the cells and xi."""
     nx, ny, nz = COUNTS
