@@ -152,7 +152,8 @@ fn coordinate(text: &str) -> Result<f64, &'static str> {
 /// column without naming all three once (`y,x,depth`, `x,x,z`) is an error: read by position,
 /// it would swap coordinates without a word. A name may be quoted, after spaces too (`"x", "z",
 /// "y"`: the CSV reader unquotes a field only when the quote is its first byte) and in single
-/// quotes: read as unnamed, such a header's columns were taken by position.
+/// quotes: read as unnamed, such a header's columns were taken by position. A name may carry a
+/// unit or qualifier beyond a separator (`x_mm`, `X [m]`, `pos_x`).
 fn header_axes(header: &csv::StringRecord) -> Result<[usize; 3], String> {
     let axis = |field: &str| {
         let name = field.trim();
@@ -160,11 +161,30 @@ fn header_axes(header: &csv::StringRecord) -> Result<[usize; 3], String> {
             .iter()
             .find_map(|&q| name.strip_prefix(q)?.strip_suffix(q))
             .unwrap_or(name);
-        match name.trim().to_ascii_lowercase().as_str() {
-            "x" => Some(0),
-            "y" => Some(1),
-            "z" => Some(2),
+        let name = name.trim().as_bytes();
+        let axis_of = |c: u8| match c.to_ascii_lowercase() {
+            b'x' => Some(0),
+            b'y' => Some(1),
+            b'z' => Some(2),
             _ => None,
+        };
+        // The name alone, or the name and a unit or qualifier after a separator (`x_mm`,
+        // `X [m]`, `y(mm)`, `z/m`), or a qualifier and the name (`pos_x`, `coord.y`): read
+        // by position, `x_mm,z_mm,y_mm` swapped y and z without a word. A name whose two ends
+        // name different axes (`x_y`) names none.
+        let decorated = |c: &u8| !c.is_ascii_alphanumeric();
+        let first = match name {
+            [c] => axis_of(*c),
+            [c, next, ..] if decorated(next) => axis_of(*c),
+            _ => None,
+        };
+        let last = match name {
+            [.., before, c] if decorated(before) => axis_of(*c),
+            _ => None,
+        };
+        match (first, last) {
+            (Some(a), Some(b)) if a != b => None,
+            (a, b) => a.or(b),
         }
     };
     let named: Vec<Option<usize>> = header.iter().map(axis).collect();

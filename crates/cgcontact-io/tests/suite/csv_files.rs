@@ -79,6 +79,38 @@ fn a_quoted_header_after_spaces_is_followed_by_name() {
     assert!(message.contains("out of their columns"), "{message}");
 }
 
+/// A header naming its axes with units (`x_mm,z_mm,y_mm`) or qualifiers (`pos_x`) named no
+/// axis, so it was read by position: y and z swapped without a word. Such names are now the
+/// axis they carry; a name carrying two (`x_y`) or none (`max`, `xi`, `depth`) names none.
+#[test]
+fn axis_names_with_units_or_qualifiers_are_followed() {
+    let expected = vec![DVec3::new(1.0, 2.0, 3.0), DVec3::new(-0.5, 7.0, 4e6)];
+    for header in [
+        "x_mm,z_mm,y_mm",
+        "X [m], Z [m], Y [m]",
+        "\"x (mm)\",\"z (mm)\",\"y (mm)\"",
+        "pos_x,pos_z,pos_y",
+        "coord.X,coord.Z,coord.Y",
+        "x/m,z-m,y:m",
+    ] {
+        let read = points(&format!("{header}\n1,3,2\n-0.5,4e6,7\n")).unwrap();
+        assert_eq!(read, expected, "{header}");
+    }
+    // Names in their columns, or naming no axis, are read by position as before.
+    for header in [
+        "x_mm,y_mm,z_mm",
+        "max,xi,depth",
+        "x_y,b,c",
+        "Points:0,Points:1,Points:2",
+    ] {
+        let read = points(&format!("{header}\n1,2,3\n-0.5,7,4e6\n")).unwrap();
+        assert_eq!(read, expected, "{header}");
+    }
+    // One axis out of its column, the others unnamed: refused, not swapped.
+    let message = message_of("y_mm,x_mm,depth\n1,2,3\n");
+    assert!(message.contains("out of their columns"), "{message}");
+}
+
 /// `1e400` was read as an infinite point (Rust's parser rounds a finite number beyond f64's
 /// range to infinity) and answered "not finite", as if the file held `inf`. It is the file's
 /// value the program cannot hold: an error naming the line and the field. Spelled infinities
