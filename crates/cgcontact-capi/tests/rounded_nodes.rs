@@ -9,7 +9,7 @@ use std::ffi::CStr;
 use std::ptr;
 
 use cgcontact::glam::DVec3;
-use cgcontact::{AdaptiveBody, CellId, Lattice, Leaf};
+use cgcontact::{AdaptiveBody, CORNER_OFFSETS, CellId, Lattice, Leaf};
 use cgcontact_capi::*;
 
 fn last_error() -> String {
@@ -144,16 +144,6 @@ fn assert_stays_on_its_face(handles: &Handles, p: DVec3, cell: i64, xi_x: f64) {
 /// x = 0.3 of cell (2, 1, 0) is on the surface. Nodes as 32-bit floats (0.3 is 1.2e-8 above).
 #[test]
 fn a_uniform_mesh_of_float_coordinates_keeps_its_nodes_where_given() {
-    const CORNERS: [[usize; 3]; 8] = [
-        [0, 0, 0],
-        [1, 0, 0],
-        [1, 1, 0],
-        [0, 1, 0],
-        [0, 0, 1],
-        [1, 0, 1],
-        [1, 1, 1],
-        [0, 1, 1],
-    ];
     let (nx, ny) = (10, 2);
     let node = |i: usize, j: usize, k: usize| i + (nx + 1) * (j + (ny + 1) * k);
     let mut nodes = vec![DVec3::ZERO; (nx + 1) * (ny + 1) * 2];
@@ -171,7 +161,10 @@ fn a_uniform_mesh_of_float_coordinates_keeps_its_nodes_where_given() {
             if j == 1 && i >= 3 {
                 continue;
             }
-            topology.extend(CORNERS.map(|[a, b, c]| node(i + a, j + b, c) as i64));
+            topology.extend(
+                CORNER_OFFSETS
+                    .map(|[a, b, c]| node(i + a as usize, j + b as usize, c as usize) as i64),
+            );
         }
     }
     let cell = topology.len() as i64 / 8 - 1; // (2, 1, 0), the last one
