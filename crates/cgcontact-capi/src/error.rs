@@ -82,14 +82,11 @@ impl From<cgcontact_io::ErrorKind> for Failure {
     }
 }
 
-/// A number for a message: as `{}` writes it, but with an exponent far from 1 (1e300, not the 301
-/// digits `{}` gives; 1e-300, not 300 zeros), where Rust's `{:?}` would switch to one.
+/// A number for a message, as the CSV files write it ([`cgcontact_io::Num`]): as `{}` writes it,
+/// but with an exponent outside [1e-4, 1e16) (1e300, not the 301 digits `{}` gives; 1e-300, not
+/// 300 zeros).
 pub(crate) fn number(v: f64) -> String {
-    if v.is_finite() && v != 0.0 && !(1e-5..1e16).contains(&v.abs()) {
-        format!("{v:e}")
-    } else {
-        format!("{v}")
-    }
+    cgcontact_io::Num(v).to_string()
 }
 
 /// A vector for a message, each component as [`number`] writes it: "[1e300, NaN, 0.5]".
