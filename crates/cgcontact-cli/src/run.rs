@@ -81,7 +81,7 @@ pub struct SearchArgs {
     #[arg(long, short)]
     pub quiet: bool,
     /// Time the query N more times after the first (a warm-up), reusing the answer buffer as a
-    /// solver loop does, and report the minimum and the median.
+    /// solver loop does, and report the minimum and the median (N at most 1,000,000).
     #[arg(
         long,
         value_name = "N",
@@ -91,11 +91,22 @@ pub struct SearchArgs {
     pub repeat: u32,
 }
 
+/// The most `--repeat` takes.
+pub const MAX_REPEAT: u32 = 1_000_000;
+
 impl SearchArgs {
     /// Check every flag before any file is read: the settings (an error when out of range, a
     /// warning when `--tol` is loose enough to give wrong answers) and the thread count.
     pub fn check(&self) -> Result<rayon::ThreadPool> {
         self.settings()?;
+        if self.repeat > MAX_REPEAT {
+            // Each repeat's time is kept for the median: u32::MAX of them asked for 34 GB at
+            // once, and the allocation's failure aborted the program.
+            bail!(
+                "--repeat {}: at most {MAX_REPEAT} (each repeat's time is kept for the median)",
+                self.repeat
+            );
+        }
         if let Some(tol) = self.tol
             && tol > LOOSE_TOL
             && !self.quiet
@@ -465,13 +476,7 @@ pub fn search_listing_owners(
         for part in points.chunks(chunk) {
             locator.locate_all_into(part, &mut buffer);
             answers.extend_from_slice(&buffer);
-            if let Some(bar) = &progress {
-                bar.inc(part.len() as u64);
-                // Shown only once the work has lasted about a second.
-                if query.elapsed().as_secs_f64() > 1.0 && bar.is_hidden() {
-                    bar.set_draw_target(ProgressDrawTarget::stderr());
-                }
-            }
+            advance(progress.as_ref(), part.len(), query);
         }
     });
     let query_seconds = query.elapsed().as_secs_f64();
@@ -479,13 +484,21 @@ pub fn search_listing_owners(
         bar.finish_and_clear();
     }
     // `--repeat N`: the same query again on warm caches, into a reused buffer.
+    let total = u64::from(args.repeat).saturating_mul(points.len() as u64);
+    let progress = progress_bar(total, args.quiet || args.json, "timing");
+    let timing = Instant::now();
     let mut repeats: Vec<f64> = (0..args.repeat)
         .map(|_| {
             let start = Instant::now();
             pool.install(|| locator.locate_all_into(points, &mut buffer));
-            start.elapsed().as_secs_f64()
+            let seconds = start.elapsed().as_secs_f64();
+            advance(progress.as_ref(), points.len(), timing);
+            seconds
         })
         .collect();
+    if let Some(bar) = progress {
+        bar.finish_and_clear();
+    }
     repeats.sort_unstable_by(f64::total_cmp);
     let (query_seconds_min, query_seconds_median) = match repeats.len() {
         0 => (None, None),
@@ -634,12 +647,7 @@ fn list_owners(
                 lists.hits.extend_from_slice(owners);
                 lists.ends.push(lists.hits.len());
             }
-            if let Some(bar) = &progress {
-                bar.inc(part.len() as u64);
-                if start.elapsed().as_secs_f64() > 1.0 && bar.is_hidden() {
-                    bar.set_draw_target(ProgressDrawTarget::stderr());
-                }
-            }
+            advance(progress.as_ref(), part.len(), start);
         }
     });
     if let Some(bar) = progress {
@@ -697,6 +705,16 @@ pub fn spinning<T>(what: &str, quiet: bool, work: impl FnOnce() -> T) -> T {
     });
     spinner.finish_and_clear();
     value
+}
+
+/// `points` more done on `bar`, shown once the work begun at `since` has lasted about a second.
+fn advance(bar: Option<&ProgressBar>, points: usize, since: Instant) {
+    if let Some(bar) = bar {
+        bar.inc(points as u64);
+        if since.elapsed().as_secs_f64() > 1.0 && bar.is_hidden() {
+            bar.set_draw_target(ProgressDrawTarget::stderr());
+        }
+    }
 }
 
 /// A progress bar on stderr for the step `what` ("locating"), hidden until shown (by the caller,

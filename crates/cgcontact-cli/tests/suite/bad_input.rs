@@ -313,6 +313,9 @@ fn bad_flag_values_checked_by_the_tool_are_one_line_errors() {
         (&["--gap", "1e300"], "--gap 1e300"),
         (&["--gap=-1"], "--gap -1"),
         (&["--gap", "nan"], "--gap NaN"),
+        // Each repeat's time is kept: 4e9 of them asked for 34 GB at once, and the failed
+        // allocation aborted the program (no message, SIGABRT).
+        (&["--repeat", "4000000000"], "--repeat 4000000000: at most"),
     ] {
         assert_one_line_error(
             &format!("{flags:?}"),
