@@ -134,7 +134,10 @@ fn read_checked(
     let file = std::fs::File::open(path).map_err(io)?;
     let meta = file.metadata().map_err(io)?;
     if meta.is_dir() {
-        return Err(ErrorKind::Format("is a folder, not a file".to_owned()).in_file(path));
+        // The system's kind, so that callers can tell it (Python raises IsADirectoryError).
+        let folder =
+            std::io::Error::new(std::io::ErrorKind::IsADirectory, "is a folder, not a file");
+        return Err(io(folder));
     }
     if meta.is_file() && meta.len() > limit {
         return Err(too_big(meta.len()));

@@ -70,20 +70,22 @@ fn read_mesh(
 /// picks its subclass from the errno: FileNotFoundError, PermissionError, IsADirectoryError...,
 /// with `errno`, `strerror` and `filename` set), else a ValueError with the command line's message.
 fn read_error(e: cgcontact_io::IoError) -> PyErr {
-    if let ErrorKind::Io(io) = e.kind()
-        && let Some(errno) = io.raw_os_error()
-    {
+    let ErrorKind::Io(io) = e.kind() else {
+        return value_error(e);
+    };
+    let path = e.path().as_os_str().to_os_string();
+    if let Some(errno) = io.raw_os_error() {
         let words = std::io::Error::from_raw_os_error(errno).to_string();
         let words = words
             .strip_suffix(&format!(" (os error {errno})"))
             .unwrap_or(&words)
             .to_owned();
-        return PyOSError::new_err((errno, words, e.path().as_os_str().to_os_string()));
+        return PyOSError::new_err((errno, words, path));
     }
-    // A folder is refused before the system is asked to read it; Python's `open` says EISDIR.
-    if e.path().is_dir() {
+    // A folder is refused by the reader before the system is asked to read it; Python's `open`
+    // says EISDIR (21 on Linux, macOS and Windows' C runtime).
+    if io.kind() == std::io::ErrorKind::IsADirectory {
         const EISDIR: i32 = 21;
-        let path = e.path().as_os_str().to_os_string();
         return PyIsADirectoryError::new_err((EISDIR, "Is a directory", path));
     }
     value_error(e)
