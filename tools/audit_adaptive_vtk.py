@@ -233,6 +233,7 @@ def check(seed, n, L, origin, h, count=400, legacy=False, binary=True, **kw):
             rows.setdefault(int(row["point"]), []).append(row)
     hf = np.array(h) / (1 << L)
     scale = max(abs(np.array(origin)).max(), (np.array(n) * np.array(h)).max())
+    umax = np.abs(np.array(list(u.values()))).max(axis=0)
     ok = True
     bad = 0
     for p, (li, xi, pos8) in enumerate(known):
@@ -258,7 +259,6 @@ def check(seed, n, L, origin, h, count=400, legacy=False, binary=True, **kw):
         # carries (docs/numerics.md, "Inside": L_j = 4 eps max(|x_j|, |origin_j|) + 4 eps u_max_j,
         # twice over for the deformed leaf's Jacobian) is the locator's documented allowance.
         x = pts[p]
-        umax = np.abs(np.array(list(u.values()))).max(axis=0)
         allowance = 2 * (4 * EPS * np.maximum(np.abs(x), np.abs(np.array(origin))) + 4 * EPS * umax)
         for c2 in set(cells) - expect:
             l, i, j, k = leaves[order[c2]]
