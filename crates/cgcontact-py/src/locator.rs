@@ -376,32 +376,45 @@ impl PyLocator {
         let (rows, single) = arrays::rows(x, "x", true)?;
         let vectors = rows.vectors()?;
         let points: &[DVec3] = &vectors;
-        let owners = py
-            .detach(|| {
-                self.with(|locator, state| {
-                    points
-                        .par_iter()
-                        .enumerate()
-                        .map(|(row, &x)| {
-                            let owners = locator.locate_owners(x).map_err(|_| row)?;
-                            Ok(owners
-                                .iter()
-                                .map(|hit| (state.cells.number(hit.cell), hit.xi.to_array().into()))
-                                .collect::<Vec<(i64, (f64, f64, f64))>>())
-                        })
-                        .collect::<Result<Vec<_>, usize>>()
-                })
-            })?
-            .map_err(|row| refused("x", points, row))?;
+        // A list per point, reserved here: a failed allocation in Rust aborts the interpreter.
+        // Each list's first owner is probed for too (most points have one).
+        type Owner = (i64, (f64, f64, f64));
+        let n = points.len();
+        let mut owners: Vec<Result<Vec<Owner>, ()>> = Vec::new();
+        owners
+            .try_reserve_exact(n)
+            .map_err(|_| out_of_memory(n, size_of::<Vec<Owner>>() + size_of::<Owner>()))?;
+        Vec::<Owner>::new()
+            .try_reserve_exact(n)
+            .map_err(|_| out_of_memory(n, size_of::<Vec<Owner>>() + size_of::<Owner>()))?;
+        py.detach(|| {
+            self.with(|locator, state| {
+                points
+                    .par_iter()
+                    .map(|&x| {
+                        let owners = locator.locate_owners(x).map_err(|_| ())?;
+                        Ok(owners
+                            .iter()
+                            .map(|hit| (state.cells.number(hit.cell), hit.xi.to_array().into()))
+                            .collect())
+                    })
+                    .collect_into_vec(&mut owners)
+            })
+        })?;
+        let owners = match owners.iter().position(Result::is_err) {
+            Some(row) => return Err(refused("x", points, row)),
+            None => owners.into_iter().flatten(),
+        };
         if single {
             let one = owners.into_iter().next().unwrap_or_default();
             return PyList::new(py, one);
         }
-        let lists = owners
-            .into_iter()
-            .map(|o| PyList::new(py, o))
-            .collect::<PyResult<Vec<_>>>()?;
-        PyList::new(py, lists)
+        // Appended one by one, so that Python's own allocations raise its MemoryError.
+        let lists = PyList::empty(py);
+        for o in owners {
+            lists.append(PyList::new(py, o)?)?;
+        }
+        Ok(lists)
     }
 
     /// Signed gaps of `points` (n, 3) to the body's deformed boundary surface, searched within

@@ -1507,6 +1507,38 @@ def test_answers_beyond_memory_are_a_memory_error_not_a_panic_or_an_abort():
     assert "[0 0]" in run.stdout
 
 
+OWNERS_BEYOND_MEMORY = """
+import resource
+import numpy as np
+import cgcontact
+locator = cgcontact.Locator(cgcontact.Body((0, 0, 0), (1, 1, 1), (2, 2, 2)))
+points = np.full((4_000_000, 3), 0.5)
+locator.locate_owners(points[:10])
+# Room for what runs now, not for a list of owners per point (96 MB of them in Rust alone).
+size = int(open("/proc/self/statm").read().split()[0]) * resource.getpagesize()
+resource.setrlimit(resource.RLIMIT_AS, (size + 48 * 2**20, resource.RLIM_INFINITY))
+try:
+    locator.locate_owners(points)
+    print("answered")
+except MemoryError:
+    print("MemoryError")
+print(locator.locate_owners(points[:1]))
+"""
+
+
+def test_owners_beyond_memory_are_a_memory_error_not_an_abort():
+    """`locate_owners` collected a Rust list per point before making Python's: when they did not
+    fit, the interpreter aborted."""
+    if not pathlib.Path("/proc/self/statm").exists():
+        pytest.skip("not Linux: the address space limit is set from /proc/self/statm")
+    run = subprocess.run([sys.executable, "-c", OWNERS_BEYOND_MEMORY], capture_output=True,
+                         text=True, timeout=60)
+    assert run.returncode == 0, run.stderr[-2000:]
+    lines = run.stdout.split("\n")
+    assert lines[0] == "MemoryError", run.stdout + run.stderr[-2000:]
+    assert lines[1].startswith("[[(0, (0.0, 0.0, 0.0))"), run.stdout
+
+
 SORTED_BATCH_BEYOND_MEMORY = """
 import resource
 import numpy as np
