@@ -363,6 +363,11 @@ pub struct Config {
     /// widens by it, so that it holds every face within that distance of its points (default 0:
     /// the halo of point location only).
     pub gap_distance: f64,
+    /// An adaptive body's seam (`AdaptiveBody::seam`: how far its hanging nodes may lie off the
+    /// leaves they hang on, as a file's rounding leaves them), given to every rank's local body,
+    /// so that the ranks hold the points the serial locator holds (default 0; a uniform body
+    /// has none).
+    pub seam: DVec3,
 }
 
 impl Default for Config {
@@ -371,6 +376,7 @@ impl Default for Config {
             settings: Settings::default(),
             block: 8,
             gap_distance: 0.0,
+            seam: DVec3::ZERO,
         }
     }
 }
@@ -789,7 +795,12 @@ impl DistributedBody {
         let built = if kept.is_empty() && halo.is_empty() {
             Ok(None)
         } else {
-            R::local(&lattice, local_cells, &extremes).map(Some)
+            R::local(&lattice, local_cells, &extremes).and_then(|mut body| {
+                if let LocalBody::Adaptive { body, .. } = &mut body {
+                    body.set_seam(config.seam)?;
+                }
+                Ok(Some(body))
+            })
         };
         drop(halo);
         let failed = if built.is_err() {

@@ -442,6 +442,12 @@ fn locate(world: &SimpleCommunicator, args: &LocateArgs) -> Result<(), Failure> 
         settings: Settings::default(),
         block,
         gap_distance: args.gap.unwrap_or(0.0),
+        // A file printed with few digits leaves its hanging nodes off their coarse faces: the
+        // reader's seam, which the serial locator's allowance takes.
+        seam: match &mesh {
+            MeshBody::Uniform(_) => DVec3::ZERO,
+            MeshBody::Adaptive(mesh) => mesh.body.seam(),
+        },
     };
     world.barrier();
     let distributed = match &mine {
