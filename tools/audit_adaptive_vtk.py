@@ -11,7 +11,9 @@ map of the file's values, to 1e-8 of a cell plus the coordinates' rounding) and 
 [-1, 1]^3, the known leaf's xi is the known one, and, in binary files, the owners are exactly the
 leaves whose undeformed closed box holds the point, or misses it by no more than the rounding
 allowance of docs/numerics.md (a point a few ulps off a face far from the origin). With AUDIT_PY=1 the Python module (built
-with maturin) answers the same points bitwise as the CLI.
+with maturin) answers the same points bitwise as the CLI; with AUDIT_MPI=path/to/cgcontact-mpi,
+`mpirun` on 2 and 3 ranks (slabs, morton, random partitions) writes the CLI's results file byte for
+byte, with and without --gap.
 
 Usage: CGCONTACT_BIN=target/release/cgcontact python3 tools/audit_adaptive_vtk.py FIRST END
 (seeds FIRST..END; needs the `vtk` and `numpy` packages; AUDIT_L=0 makes uniform meshes).
@@ -319,6 +321,31 @@ def check(seed, n, L, origin, h, count=400, legacy=False, binary=True, **kw):
                 ok = False
                 if bad <= 5:
                     print("PY", tag, "point", p, "cli", c, x, "py", cell[p], xi[p].tolist())
+    # MPI: `cgcontact-mpi locate` under mpirun, 2 and 3 ranks, each partition, writes the CLI's
+    # results file byte for byte (one owner per point, and the gap columns).
+    if os.environ.get("AUDIT_MPI"):
+        for extra in ([], ["--gap", repr(float(max(h)))]):
+            r1, out1 = run(wd, mesh, pts, extra)
+            if r1.returncode != 0:
+                bad += 1
+                ok = False
+                print("MPI", tag, "the CLI failed:", r1.stderr[-300:])
+                continue
+            with open(out1, "rb") as f:
+                want_bytes = f.read()
+            for ranks, partition in ((2, "slabs"), (3, "morton"), (3, "random")):
+                outm = os.path.join(wd, "mpi.csv")
+                if os.path.exists(outm):
+                    os.remove(outm)
+                root = ["--allow-run-as-root"] if os.geteuid() == 0 else []
+                rm = subprocess.run(["mpirun", "--oversubscribe", *root, "-np", str(ranks), os.environ["AUDIT_MPI"], "locate",
+                                     "--mesh", mesh, "--points", os.path.join(wd, "points.csv"), "--out", outm,
+                                     "--partition", partition, "-q", *extra], capture_output=True, text=True)
+                same = rm.returncode == 0 and os.path.exists(outm) and open(outm, "rb").read() == want_bytes
+                if not same:
+                    bad += 1
+                    ok = False
+                    print("MPI", tag, ranks, "ranks", partition, extra, "rc", rm.returncode, rm.stderr[-300:])
     if r.stderr.strip():
         print("  stderr:", r.stderr.strip()[:300])
     print("ok " if ok else "BAD", tag, "points", count, "bad", bad, {k: summary.get(k) for k in ("located", "not_found", "warnings") if k in summary})
