@@ -13,7 +13,8 @@ leaves whose undeformed closed box holds the point, or misses it by no more than
 allowance of docs/numerics.md (a point a few ulps off a face far from the origin). With AUDIT_PY=1 the Python module (built
 with maturin) answers the same points bitwise as the CLI; with AUDIT_MPI=path/to/cgcontact-mpi,
 `mpirun` on 2 and 3 ranks (slabs, morton, random partitions) writes the CLI's results file byte for
-byte, with and without --gap.
+byte, with and without --gap; with AUDIT_STRATEGIES=1, `--strategy rtree` and `brute` list the
+same owners with the same xi (to 1e-9).
 
 Usage: CGCONTACT_BIN=target/release/cgcontact python3 tools/audit_adaptive_vtk.py FIRST END
 (seeds FIRST..END; needs the `vtk` and `numpy` packages; AUDIT_L=0 makes uniform meshes).
@@ -321,6 +322,25 @@ def check(seed, n, L, origin, h, count=400, legacy=False, binary=True, **kw):
                 ok = False
                 if bad <= 5:
                     print("PY", tag, "point", p, "cli", c, x, "py", cell[p], xi[p].tolist())
+    # The R-tree and brute force (the test oracle) list the same owners of every point as the
+    # lattice search, each with its xi to 1e-9.
+    if os.environ.get("AUDIT_STRATEGIES"):
+        lattice = {(p, int(g["cell"])): [float(g[k]) for k in ("xi", "eta", "zeta")] for p, got in rows.items() for g in got}
+        for strategy in ("rtree", "brute"):
+            rs, outs = run(wd, mesh, pts, ["--all-owners", "--strategy", strategy])
+            other = {}
+            if rs.returncode == 0:
+                with open(outs) as f:
+                    for g in csv.DictReader(f):
+                        if int(g["cell"]) >= 0:
+                            other[(int(g["point"]), int(g["cell"]))] = [float(g[k]) for k in ("xi", "eta", "zeta")]
+            mine = {k: v for k, v in lattice.items() if k[1] >= 0}
+            differ = set(mine) ^ set(other)
+            far = [k for k in set(mine) & set(other) if max(abs(a - b) for a, b in zip(mine[k], other[k])) > 1e-9]
+            if rs.returncode != 0 or differ or far:
+                bad += 1
+                ok = False
+                print("STRATEGY", strategy, tag, "rc", rs.returncode, "owners only one side", sorted(differ)[:5], "xi apart", far[:5], rs.stderr[-200:])
     # MPI: `cgcontact-mpi locate` under mpirun, 2 and 3 ranks, each partition, writes the CLI's
     # results file byte for byte (one owner per point, and the gap columns).
     if os.environ.get("AUDIT_MPI"):
