@@ -11,7 +11,8 @@ map of the file's values, to 1e-8 of a cell plus the coordinates' rounding) and 
 [-1, 1]^3, the known leaf's xi is the known one, and, in binary files, the owners are exactly the
 leaves whose undeformed closed box holds the point, or misses it by no more than the rounding
 allowance of docs/numerics.md (a point a few ulps off a face far from the origin). With AUDIT_PY=1 the Python module (built
-with maturin) answers the same points bitwise as the CLI; with AUDIT_MPI=path/to/cgcontact-mpi,
+with maturin) answers the same points bitwise as the CLI (one owner, every owner, and the gap
+columns); with AUDIT_MPI=path/to/cgcontact-mpi,
 `mpirun` on 2 and 3 ranks (slabs, morton, random partitions) writes the CLI's results file byte for
 byte, with and without --gap; with AUDIT_STRATEGIES=1, `--strategy rtree` and `brute` list the
 same owners with the same xi (to 1e-9).
@@ -322,6 +323,35 @@ def check(seed, n, L, origin, h, count=400, legacy=False, binary=True, **kw):
                 ok = False
                 if bad <= 5:
                     print("PY", tag, "point", p, "cli", c, x, "py", cell[p], xi[p].tolist())
+        bits = lambda v: np.float64(v).tobytes()
+        locator = cgcontact.Locator(body)
+        # Every owner: `--all-owners`'s rows.
+        for p, owners in enumerate(locator.locate_owners(np.ascontiguousarray(pts))):
+            want = [(int(g["cell"]), [float(g[k]) for k in ("xi", "eta", "zeta")]) for g in rows.get(p, []) if int(g["cell"]) >= 0]
+            if len(owners) != len(want) or any(c != wc or any(bits(a) != bits(b) for a, b in zip(x, wx)) for (c, x), (wc, wx) in zip(owners, want)):
+                bad += 1
+                ok = False
+                if bad <= 5:
+                    print("PY OWNERS", tag, "point", p, "cli", want, "py", owners)
+        # The gap columns of `--gap D`: bitwise, empty where Python has NaN and -1.
+        dist = float(max(h))
+        rg, outg = run(wd, mesh, pts, ["--gap", repr(dist)])
+        gaps = locator.gap(np.ascontiguousarray(pts), dist)
+        with open(outg) as f:
+            for row in csv.DictReader(f):
+                p = int(row["point"])
+                if row["gap"] == "":
+                    same = np.isnan(gaps["gap"][p]) and gaps["face_cell"][p] == -1
+                else:
+                    got = [gaps["gap"][p], *gaps["closest"][p], *gaps["normal"][p]]
+                    want = [float(row[k]) for k in ("gap", "cx", "cy", "cz", "nx", "ny", "nz")]
+                    same = all(bits(a) == bits(b) for a, b in zip(got, want)) and \
+                        (int(row["face_cell"]), int(row["face"])) == (gaps["face_cell"][p], gaps["face"][p])
+                if not same:
+                    bad += 1
+                    ok = False
+                    if bad <= 5:
+                        print("PY GAP", tag, "point", p, "cli", dict(row), "py", {k: v[p] for k, v in gaps.items()})
     # The R-tree and brute force (the test oracle) list the same owners of every point as the
     # lattice search, each with its xi to 1e-9.
     if os.environ.get("AUDIT_STRATEGIES"):
