@@ -393,10 +393,13 @@ impl PyLocator {
                     .par_iter()
                     .map(|&x| {
                         let owners = locator.locate_owners(x).map_err(|_| ())?;
-                        Ok(owners
+                        let mut owners: Vec<Owner> = owners
                             .iter()
                             .map(|hit| (state.cells.number(hit.cell), hit.xi.to_array().into()))
-                            .collect())
+                            .collect();
+                        // Ascending in the caller's numbering, which need not be the body's.
+                        owners.sort_unstable_by_key(|owner| owner.0);
+                        Ok(owners)
                     })
                     .collect_into_vec(&mut owners)
             })

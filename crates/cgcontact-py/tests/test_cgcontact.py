@@ -324,6 +324,20 @@ def test_a_point_on_a_node_has_eight_owners():
     assert cgcontact.Locator(body).locate_owners(node - 100) == []
 
 
+def test_owners_come_in_ascending_order_of_the_callers_cells():
+    """`locate_owners` sorted the owners by the body's own cell order, then renumbered them as the
+    caller's: with the hexahedra given in reverse, a node's owners came in descending order."""
+    nodes, hexes = lattice_hexes()
+    body = cgcontact.Body.from_hexes(nodes, hexes[::-1])
+    node = np.array(ORIGIN) + np.array(SPACING) * (1, 1, 1)
+    owners = cgcontact.Locator(body).locate_owners(node)
+    cells = [c for c, _ in owners]
+    assert cells == sorted(cells) and len(cells) == 8, cells
+    for points in [np.array([node]), np.array([node, node + np.array(SPACING) * (1, 0, 0)])]:
+        for listed in cgcontact.Locator(body).locate_owners(points):
+            assert [c for c, _ in listed] == sorted(c for c, _ in listed)
+
+
 def test_precision_threads_and_inputs_converted_answer_alike():
     points, cells, xi = cell_points()
     body = cgcontact.Body(ORIGIN, SPACING, COUNTS)
