@@ -15,7 +15,8 @@ with maturin) answers the same points bitwise as the CLI (one owner, every owner
 columns); with AUDIT_MPI=path/to/cgcontact-mpi,
 `mpirun` on 2 and 3 ranks (slabs, morton, random partitions) writes the CLI's results file byte for
 byte, with and without --gap; with AUDIT_STRATEGIES=1, `--strategy rtree` and `brute` list the
-same owners with the same xi (to 1e-9).
+same owners with the same xi (to 1e-9); with AUDIT_CAPI=path/to/libcgcontact_capi.so, the C API
+(the Octave MEX's path) answers `locate` and the gap columns bit for bit as the CLI (binary files).
 
 Usage: CGCONTACT_BIN=target/release/cgcontact python3 tools/audit_adaptive_vtk.py FIRST END
 (seeds FIRST..END; needs the `vtk` and `numpy` packages; AUDIT_L=0 makes uniform meshes).
@@ -352,6 +353,53 @@ def check(seed, n, L, origin, h, count=400, legacy=False, binary=True, **kw):
                     ok = False
                     if bad <= 5:
                         print("PY GAP", tag, "point", p, "cli", dict(row), "py", {k: v[p] for k, v in gaps.items()})
+    # The C API (the Octave MEX's path) on the same arrays: bitwise the CLI's one-owner answers
+    # and gap columns (binary files, as for Python).
+    if binary and os.environ.get("AUDIT_CAPI"):
+        import ctypes
+        lib = ctypes.CDLL(os.environ["AUDIT_CAPI"])
+        dp, i64p = ctypes.POINTER(ctypes.c_double), ctypes.POINTER(ctypes.c_int64)
+        arr = lambda a, t: np.ascontiguousarray(a, dtype=t)
+        ptr = lambda a, t: a.ctypes.data_as(t)
+        nodes, cells, disp, q = arr(fp, np.float64), arr(hexes, np.int64), arr(fu, np.float64), arr(pts, np.float64)
+        body, loc = ctypes.c_void_p(), ctypes.c_void_p()
+        lib.cgc_last_error.restype = ctypes.c_char_p
+        calls = [lib.cgc_body_from_mesh(ptr(nodes, dp), ctypes.c_size_t(len(nodes)), ptr(cells, i64p), ctypes.c_size_t(len(cells)), ctypes.c_int64(0), ctypes.byref(body))]
+        calls.append(lib.cgc_body_set_displacements(body, ptr(disp, dp), ctypes.c_size_t(len(disp)), ctypes.c_uint32(0)))
+        calls.append(lib.cgc_locator_new(body, None, ctypes.byref(loc)))
+        n = len(q)
+        ccell, cxi = np.zeros(n, np.int64), np.zeros((n, 3))
+        calls.append(lib.cgc_locate(loc, ptr(q, dp), ctypes.c_size_t(n), ptr(ccell, i64p), ptr(cxi, dp), None))
+        dist = float(max(h))
+        g, cl, nm = np.zeros(n), np.zeros((n, 3)), np.zeros((n, 3))
+        fc, fa = np.zeros(n, np.int64), np.zeros(n, np.int32)
+        calls.append(lib.cgc_gap(loc, ptr(q, dp), ctypes.c_size_t(n), ctypes.c_double(dist), ptr(g, dp), ptr(cl, dp), ptr(nm, dp),
+                                 ptr(fc, i64p), fa.ctypes.data_as(ctypes.POINTER(ctypes.c_int32))))
+        if any(calls):
+            bad += 1
+            ok = False
+            print("CAPI", tag, "calls returned", calls, lib.cgc_last_error())
+        else:
+            bits = lambda v: np.float64(v).tobytes()
+            r1, out1 = run(wd, mesh, pts)
+            rg, outg = run(wd, mesh, pts, ["--gap", repr(dist)])
+            with open(out1) as f1, open(outg) as fg:
+                for row, grow in zip(csv.DictReader(f1), csv.DictReader(fg)):
+                    p = int(row["point"])
+                    same = int(row["cell"]) == ccell[p] and all(bits(float(row[k])) == bits(v) for k, v in zip(("xi", "eta", "zeta"), cxi[p]))
+                    if grow["gap"] == "":
+                        same &= bool(np.isnan(g[p])) and fc[p] == -1
+                    else:
+                        want = [float(grow[k]) for k in ("gap", "cx", "cy", "cz", "nx", "ny", "nz")]
+                        same &= all(bits(a) == bits(b) for a, b in zip([g[p], *cl[p], *nm[p]], want))
+                        same &= (int(grow["face_cell"]), int(grow["face"])) == (fc[p], fa[p])
+                    if not same:
+                        bad += 1
+                        ok = False
+                        if bad <= 5:
+                            print("CAPI", tag, "point", p, "cli", dict(row), dict(grow), "capi", ccell[p], cxi[p], g[p], fc[p], fa[p])
+        lib.cgc_locator_free(loc)
+        lib.cgc_body_free(body)
     # The R-tree and brute force (the test oracle) list the same owners of every point as the
     # lattice search, each with its xi to 1e-9.
     if os.environ.get("AUDIT_STRATEGIES"):
