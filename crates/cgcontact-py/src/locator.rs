@@ -380,13 +380,10 @@ impl PyLocator {
         // Each list's first owner is probed for too (most points have one).
         type Owner = (i64, (f64, f64, f64));
         let n = points.len();
+        let too_many = |_| out_of_memory(n, size_of::<Vec<Owner>>() + size_of::<Owner>());
         let mut owners: Vec<Result<Vec<Owner>, ()>> = Vec::new();
-        owners
-            .try_reserve_exact(n)
-            .map_err(|_| out_of_memory(n, size_of::<Vec<Owner>>() + size_of::<Owner>()))?;
-        Vec::<Owner>::new()
-            .try_reserve_exact(n)
-            .map_err(|_| out_of_memory(n, size_of::<Vec<Owner>>() + size_of::<Owner>()))?;
+        owners.try_reserve_exact(n).map_err(too_many)?;
+        Vec::<Owner>::new().try_reserve_exact(n).map_err(too_many)?;
         py.detach(|| {
             self.with(|locator, state| {
                 points
