@@ -162,7 +162,7 @@ def read_mesh(
     displacement: Optional[str] = "displacement",
     strict: bool = False,
 ) -> Body:
-    """Reads a VTK mesh (.vtk or .vtu) as `cgcontact locate --mesh` does. `displacement`: the
+    """Reads a VTK mesh (.vtk, .vtu or .pvtu) as `cgcontact locate --mesh` does. `displacement`: the
     point-data array ("displacement": used if present; another name: required; None: read
     undeformed). Cells are numbered by their place in the file. A file the operating system
     refuses raises the OSError of its errno (FileNotFoundError, PermissionError,

@@ -34,7 +34,7 @@ interface, or at a hanging node) gets one row per cell holding it: the same poin
 cells ascending, each row with its own xi; a point no cell holds keeps its one row with cell -1:
   cgcontact locate --mesh block.vtu --points contact.csv --out owners.csv --all-owners")]
 pub struct LocateArgs {
-    /// The mesh (.vtk or .vtu).
+    /// The mesh (.vtk, .vtu, or .pvtu and its pieces).
     #[arg(long, value_name = "FILE")]
     mesh: PathBuf,
     /// The points (CSV x,y,z).

@@ -58,6 +58,34 @@ pub enum ErrorKind {
     /// The VTK parser rejected the file (truncated, malformed, or a feature it does not support).
     #[error("malformed VTK file: {}", crate::one_line(.0))]
     Vtk(String),
+    /// A piece file of a parallel file (`.pvtu`): its index among the parallel file's pieces, its
+    /// path, and what went wrong in it (its lines are the piece file's own; cell and node numbers
+    /// count across the pieces, as VTK's reader numbers them).
+    #[error("piece {piece} ({}): {error}", file.display())]
+    Piece {
+        /// The piece's index in the parallel file's list.
+        piece: usize,
+        /// The piece file, as resolved from the parallel file's folder.
+        file: PathBuf,
+        /// What went wrong.
+        error: Box<ErrorKind>,
+    },
+    /// Two copies of a cell, one of them flagged a ghost by the file's `vtkGhostType` cell array.
+    #[error(
+        "{error}: cell {ghost} is a ghost cell (its vtkGhostType flags it a copy of a cell that \
+         another piece owns), and every cell of a mesh is read as one of its cells; write the \
+         file without ghost levels (a parallel writer's GhostLevel 0)"
+    )]
+    GhostCell {
+        /// The copy flagged a ghost.
+        ghost: usize,
+        /// The error that refuses the copy.
+        error: Box<ErrorKind>,
+    },
+    /// A parallel file (`.pvtu`) that cannot be read as one: pieces nested in a piece, or bytes
+    /// that name files but come from no file.
+    #[error("{0}")]
+    Parallel(String),
     /// The data set is not an unstructured grid.
     #[error("the data set is a {0}, expected an unstructured grid")]
     NotUnstructuredGrid(&'static str),

@@ -1,10 +1,12 @@
 //! Reading VTK unstructured grids of hexahedra (legacy `.vtk` ASCII/binary, XML `.vtu`) with vtkio.
 
 use std::panic::{AssertUnwindSafe, catch_unwind};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use glam::DVec3;
-use vtkio::model::{Attribute, CellType, DataSet, UnstructuredGridPiece, VertexNumbers, Vtk};
+use vtkio::model::{
+    Attribute, CellType, DataSet, Piece, UnstructuredGridPiece, VertexNumbers, Vtk,
+};
 
 use crate::{
     ErrorKind, HexMesh, IoError, LatticeMesh, MeshBody, block_headers, legacy_sections,
@@ -43,8 +45,9 @@ pub fn read_mesh(
     displacement: &DisplacementArray,
 ) -> Result<LatticeMesh, IoError> {
     let path = path.as_ref();
-    let mesh = read_hex_mesh(path, displacement)?;
-    mesh.to_lattice().map_err(|e| e.in_file(path))
+    let (mesh, ghosts) = read_hex_mesh_and_ghosts(path, displacement)?;
+    mesh.to_lattice()
+        .map_err(|e| ghosts.explain(e).in_file(path))
 }
 
 /// Read a VTK mesh file and recognise it as a uniform or an adaptive body (see
@@ -54,8 +57,8 @@ pub fn read_body(
     displacement: &DisplacementArray,
 ) -> Result<MeshBody, IoError> {
     let path = path.as_ref();
-    let mesh = read_hex_mesh(path, displacement)?;
-    mesh.to_body().map_err(|e| e.in_file(path))
+    let (mesh, ghosts) = read_hex_mesh_and_ghosts(path, displacement)?;
+    mesh.to_body().map_err(|e| ghosts.explain(e).in_file(path))
 }
 
 /// Read a VTK mesh file as an explicit hexahedral mesh, without lattice detection.
@@ -63,9 +66,46 @@ pub fn read_hex_mesh(
     path: impl AsRef<Path>,
     displacement: &DisplacementArray,
 ) -> Result<HexMesh, IoError> {
+    read_hex_mesh_and_ghosts(path, displacement).map(|(mesh, _)| mesh)
+}
+
+/// [`read_hex_mesh`], and the cells the file flags as ghosts.
+fn read_hex_mesh_and_ghosts(
+    path: impl AsRef<Path>,
+    displacement: &DisplacementArray,
+) -> Result<(HexMesh, Ghosts), IoError> {
     let path = path.as_ref();
     let bytes = crate::input::read_input(path, crate::input::Expect::Vtk)?;
     parse_hex_mesh_impl(&bytes, Some(path), displacement).map_err(|e| e.in_file(path))
+}
+
+/// The cells a file's `vtkGhostType` cell array flags as duplicates (bit 1, `DUPLICATECELL`: a copy
+/// of a cell another piece owns, as VTK writes a parallel file's ghost levels), ascending.
+///
+/// They are read as cells like any other. A ghost is then usually a second copy of a cell, which a
+/// mesh may not hold: the error that refuses it says why the copy is there.
+#[derive(Debug, Default)]
+struct Ghosts(Vec<usize>);
+
+impl Ghosts {
+    /// `error`, with a word on ghost cells where it names one as a copy of another cell.
+    fn explain(&self, error: ErrorKind) -> ErrorKind {
+        let (first, second) = match &error {
+            ErrorKind::DuplicateCell { first, second, .. }
+            | ErrorKind::OverlappingCells { first, second } => (*first, *second),
+            _ => return error,
+        };
+        match [first, second]
+            .into_iter()
+            .find(|c| self.0.binary_search(c).is_ok())
+        {
+            Some(ghost) => ErrorKind::GhostCell {
+                ghost,
+                error: Box::new(error),
+            },
+            None => error,
+        }
+    }
 }
 
 /// Parse a VTK mesh held in memory (legacy or XML, told from the content).
@@ -73,14 +113,14 @@ pub fn parse_hex_mesh(
     bytes: &[u8],
     displacement: &DisplacementArray,
 ) -> Result<HexMesh, ErrorKind> {
-    parse_hex_mesh_impl(bytes, None, displacement)
+    parse_hex_mesh_impl(bytes, None, displacement).map(|(mesh, _)| mesh)
 }
 
 fn parse_hex_mesh_impl(
     bytes: &[u8],
     source: Option<&Path>,
     displacement: &DisplacementArray,
-) -> Result<HexMesh, ErrorKind> {
+) -> Result<(HexMesh, Ghosts), ErrorKind> {
     // Every pass over an XML file reads it in the one spelling `xml_normal` gives it.
     let normal = if is_xml(bytes) {
         xml_normal::normalize(bytes)?
@@ -101,6 +141,7 @@ fn is_xml(bytes: &[u8]) -> bool {
 
 /// A point-data array an XML file declares: its name, and its `NumberOfComponents` as written
 /// (`None` when absent: VTK then reads one component).
+#[derive(Clone)]
 struct DeclaredArray {
     name: String,
     components: Option<String>,
@@ -720,7 +761,7 @@ fn hex_mesh_from_vtk(
     source: Option<&Path>,
     displacement: &DisplacementArray,
     declared: Option<&[Vec<DeclaredArray>]>,
-) -> Result<HexMesh, ErrorKind> {
+) -> Result<(HexMesh, Ghosts), ErrorKind> {
     let pieces = match vtk.data {
         DataSet::UnstructuredGrid { pieces, .. } => pieces,
         DataSet::ImageData { .. } => {
@@ -748,29 +789,68 @@ fn hex_mesh_from_vtk(
     // The first piece with the displacement and the first without it: a file with both is refused.
     let (mut with, mut without) = (None, None);
     let mut available = Vec::new();
+    let mut ghosts = Ghosts::default();
+    // A parallel file's pieces are files of their own, each read and checked as a serial file is;
+    // a serial file's pieces are inline. Either way, one list of pieces in order.
+    let mut loaded = Vec::with_capacity(pieces.len());
     for (index, piece) in pieces.into_iter().enumerate() {
-        let piece = guarded("piece", || {
-            piece
-                .into_loaded_piece_data(source)
-                .map_err(|e| vtk_error("piece")(e.into()))
-        })?;
+        match piece {
+            Piece::Source(name, _) => {
+                let file = piece_path(&name, source)?;
+                let in_piece = |error| ErrorKind::Piece {
+                    piece: index,
+                    file: file.clone(),
+                    error: Box::new(error),
+                };
+                let (pieces, declared) = read_source_piece(&file).map_err(in_piece)?;
+                for (piece, declared) in pieces.into_iter().zip(declared) {
+                    loaded.push(LoadedPiece {
+                        piece,
+                        declared: Some(declared),
+                        file: Some((index, file.clone())),
+                    });
+                }
+            }
+            inline => loaded.push(LoadedPiece {
+                piece: guarded("piece", || {
+                    inline
+                        .into_loaded_piece_data(None)
+                        .map_err(|e| vtk_error("piece")(e.into()))
+                })?,
+                declared: declared.and_then(|d| d.get(index)).map(|d| d.to_vec()),
+                file: None,
+            }),
+        }
+    }
+    for (index, loaded) in loaded.into_iter().enumerate() {
+        let in_piece = |error| match &loaded.file {
+            Some((piece, file)) => ErrorKind::Piece {
+                piece: *piece,
+                file: file.clone(),
+                error: Box::new(error),
+            },
+            None => error,
+        };
+        let label = match &loaded.file {
+            Some((piece, file)) => format!("piece {piece} ({})", file.display()),
+            None => format!("piece {index}"),
+        };
+        let piece = &loaded.piece;
         let first_node = mesh.points.len();
         let first_cell = mesh.cells.len();
-        let points = piece_points(&piece)?;
+        let points = piece_points(piece).map_err(in_piece)?;
         mesh.points.extend_from_slice(&points);
-        append_cells(
-            &piece,
-            first_node,
-            first_cell,
-            points.len(),
-            &mut mesh.cells,
-        )?;
+        append_cells(piece, first_node, first_cell, points.len(), &mut mesh.cells)
+            .map_err(in_piece)?;
+        ghosts.0.extend(ghost_cells(piece).map(|c| first_cell + c));
         if let Some(u) = &mut u {
-            let legacy = declared.is_none();
-            match piece_displacement(&piece, displacement, points.len(), legacy, &mut available)? {
+            let legacy = declared.is_none() && loaded.file.is_none();
+            match piece_displacement(piece, displacement, points.len(), legacy, &mut available)
+                .map_err(in_piece)?
+            {
                 Some(values) => {
                     found_any = true;
-                    with.get_or_insert(index);
+                    with.get_or_insert(label);
                     u.extend(values);
                 }
                 None => {
@@ -778,25 +858,24 @@ fn hex_mesh_from_vtk(
                         DisplacementArray::Named(name) => name.as_str(),
                         _ => DEFAULT_DISPLACEMENT,
                     };
-                    let in_file = declared
-                        .and_then(|d| d.get(index))
+                    let in_file = (loaded.declared.as_ref())
                         .and_then(|arrays| arrays.iter().find(|a| a.name == wanted));
                     if let Some(array) = in_file {
                         // vtkio drops an array whose values are not its tuples × components: with
                         // other than 3 components, that is the first thing to name.
                         let message = match array.components.as_deref() {
                             Some("3") => format!(
-                                "piece {index} declares it, but its data cannot be decoded (a \
+                                "{label} declares it, but its data cannot be decoded (a \
                                  length that does not match the node count, corrupt base64 or \
                                  compressed data, or an empty appended block)"
                             ),
                             Some(c) => format!(
-                                "piece {index} declares it with NumberOfComponents=\"{}\", and \
+                                "{label} declares it with NumberOfComponents=\"{}\", and \
                                  a displacement has 3 components per node",
                                 crate::excerpt(c.as_bytes(), 20).trim_matches('`')
                             ),
                             None => format!(
-                                "piece {index} declares it without NumberOfComponents (1 \
+                                "{label} declares it without NumberOfComponents (1 \
                                  component per node, as VTK reads it), and a displacement has \
                                  3 components per node"
                             ),
@@ -806,7 +885,7 @@ fn hex_mesh_from_vtk(
                             message,
                         });
                     }
-                    without.get_or_insert(index);
+                    without.get_or_insert(label);
                     u.extend(std::iter::repeat_n(DVec3::ZERO, points.len()));
                 }
             }
@@ -820,7 +899,7 @@ fn hex_mesh_from_vtk(
                 _ => DEFAULT_DISPLACEMENT.to_owned(),
             },
             message: format!(
-                "piece {without} has no such point array, but piece {with} has one: every piece \
+                "{without} has no such point array, but {with} has one: every piece \
                  must carry the displacement of its nodes"
             ),
         });
@@ -861,7 +940,111 @@ fn hex_mesh_from_vtk(
             value: u[node].to_array(),
         });
     }
-    Ok(mesh)
+    Ok((mesh, ghosts))
+}
+
+/// One piece of a mesh file: inline in it, or read from a parallel file's piece file.
+struct LoadedPiece {
+    piece: UnstructuredGridPiece,
+    /// The point-data arrays its XML declares (`None` in a legacy file).
+    declared: Option<Vec<DeclaredArray>>,
+    /// For a parallel file's piece: its index there and its file.
+    file: Option<(usize, PathBuf)>,
+}
+
+/// The file of a parallel file's piece `name`: relative to the parallel file's folder unless it
+/// is absolute, as VTK's reader resolves it.
+fn piece_path(name: &str, source: Option<&Path>) -> Result<PathBuf, ErrorKind> {
+    let Some(source) = source else {
+        return Err(ErrorKind::Parallel(
+            "a parallel file (PUnstructuredGrid) names its pieces' files relative to its own \
+             folder: read it from its path, not from memory"
+                .to_owned(),
+        ));
+    };
+    let name = Path::new(name);
+    Ok(if name.has_root() {
+        name.to_path_buf()
+    } else {
+        source.parent().unwrap_or(Path::new("")).join(name)
+    })
+}
+
+/// The inline pieces of a parallel file's piece `file`, with the point-data arrays each declares,
+/// read and checked as a mesh file of its own is: within the input size limit, and only an XML
+/// unstructured grid with its data inline or appended (a piece is no parallel file). A piece of
+/// no cell gives no piece.
+fn read_source_piece(
+    file: &Path,
+) -> Result<(Vec<UnstructuredGridPiece>, Vec<Vec<DeclaredArray>>), ErrorKind> {
+    let bytes =
+        crate::input::read_input(file, crate::input::Expect::Vtk).map_err(IoError::into_kind)?;
+    if !is_xml(&bytes) {
+        return Err(ErrorKind::Parallel(
+            "a legacy VTK file: the pieces of a parallel file are XML unstructured grids (.vtu)"
+                .to_owned(),
+        ));
+    }
+    let normal = xml_normal::normalize(&bytes)?;
+    let bytes = normal.as_deref().unwrap_or(&bytes);
+    let vtk = match parse_vtk(bytes) {
+        Err(ErrorKind::NoCells) => return Ok((Vec::new(), Vec::new())),
+        parsed => parsed?,
+    };
+    let declared = declared_point_arrays(bytes);
+    let DataSet::UnstructuredGrid { pieces, .. } = vtk.data else {
+        return Err(ErrorKind::Parallel(
+            "not an unstructured grid: the pieces of a parallel file of unstructured grids are \
+             unstructured grids (.vtu)"
+                .to_owned(),
+        ));
+    };
+    let mut inline = Vec::with_capacity(pieces.len());
+    for piece in pieces {
+        match piece {
+            Piece::Inline(piece) => inline.push(*piece),
+            _ => {
+                return Err(ErrorKind::Parallel(
+                    "a parallel file (PUnstructuredGrid) itself: the pieces of a parallel file \
+                     are serial .vtu files"
+                        .to_owned(),
+                ));
+            }
+        }
+    }
+    // `declared` lists every `<Piece>` of the text, the pieces of no cell too, which vtkio skips.
+    let declared = if declared.len() == inline.len() {
+        declared
+    } else {
+        inline.iter().map(|_| Vec::new()).collect()
+    };
+    Ok((inline, declared))
+}
+
+/// The cells of `piece` (0-based in it) that a `vtkGhostType` cell array flags as duplicates
+/// (bit 1), whether the array is a data array (XML, legacy `SCALARS`) or in a legacy `FIELD`.
+fn ghost_cells(piece: &UnstructuredGridPiece) -> impl Iterator<Item = usize> + '_ {
+    const NAME: &str = "vtkGhostType";
+    const DUPLICATE_CELL: u64 = 1;
+    let arrays = piece
+        .data
+        .cell
+        .iter()
+        .flat_map(|attribute| match attribute {
+            Attribute::DataArray(array) if array.name == NAME => vec![&array.data],
+            Attribute::Field { data_array, .. } => data_array
+                .iter()
+                .filter(|a| a.name == NAME)
+                .map(|a| &a.data)
+                .collect(),
+            Attribute::DataArray(_) => Vec::new(),
+        });
+    arrays
+        .take(1)
+        .flat_map(|data| data.cast_into::<f64>().unwrap_or_default())
+        .enumerate()
+        .filter(|&(_, flags)| flags >= 0.0 && (flags as u64) & DUPLICATE_CELL != 0)
+        .map(|(cell, _)| cell)
 }
 
 fn piece_points(piece: &UnstructuredGridPiece) -> Result<Vec<DVec3>, ErrorKind> {

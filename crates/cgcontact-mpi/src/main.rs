@@ -56,7 +56,7 @@ Rank 0 prints the summary (or --json) through mpirun, which does not report a fa
 it: Open MPI's mpirun exits 0 with its standard output on a full disk. The results file is
 written by rank 0 itself, atomically, and checked: keep what you need in --out.")]
 struct LocateArgs {
-    /// The mesh (.vtk or .vtu).
+    /// The mesh (.vtk, .vtu, or .pvtu and its pieces).
     #[arg(long, value_name = "FILE")]
     mesh: PathBuf,
     /// The points (CSV x,y,z).

@@ -1,0 +1,249 @@
+//! Parallel files (`.pvtu`) written by VTK 9.7.2 itself (fixtures/vtk-written-parallel, made by its
+//! make.py): a body split into 3 pieces by VTK's piece filter, in raw appended, inline binary and
+//! ascii pieces; the same with a ghost level; pieces of no cell; an adaptive body in 2 pieces. And
+//! hostile parallel files made here from them: each piece file is read as a mesh file of its own
+//! is (the size limit, the format sniffed from its first bytes, every check of a serial file), so
+//! a piece that is a device, a missing file, a legacy file or a parallel file itself is refused,
+//! naming the piece.
+
+use std::path::{Path, PathBuf};
+
+use cgcontact::glam::DVec3;
+use cgcontact::{AdaptiveLocator, LatticeLocator, Locator, Settings};
+use cgcontact_io::{DisplacementArray, MeshBody, parse_hex_mesh, read_body, read_mesh};
+
+fn folder() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/vtk-written-parallel")
+}
+
+/// `NAME.centres.csv`: every cell's centre, in the order VTK's own reader numbers the cells.
+fn centres(name: &str) -> Vec<DVec3> {
+    let text = std::fs::read_to_string(folder().join(format!("{name}.centres.csv"))).unwrap();
+    text.lines()
+        .skip(1)
+        .map(|line| {
+            let f: Vec<f64> = line.split(',').map(|v| v.parse().unwrap()).collect();
+            DVec3::new(f[1], f[2], f[3])
+        })
+        .collect()
+}
+
+/// The input cell holding each of `points` (undeformed mesh), and its ξ.
+fn located(path: &Path, points: &[DVec3]) -> Vec<(usize, DVec3)> {
+    let body = read_body(path, &DisplacementArray::Ignore)
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    points
+        .iter()
+        .map(|&x| match &body {
+            MeshBody::Uniform(mesh) => {
+                let hit = LatticeLocator::new(&mesh.body, Settings::default())
+                    .unwrap()
+                    .locate(x)
+                    .unwrap()
+                    .unwrap();
+                (mesh.input_cell(hit.cell).unwrap(), hit.xi)
+            }
+            MeshBody::Adaptive(mesh) => {
+                let hit = AdaptiveLocator::new(&mesh.body, Settings::default())
+                    .unwrap()
+                    .locate(x)
+                    .unwrap()
+                    .unwrap();
+                (mesh.cells.input_cell(hit.cell).unwrap(), hit.xi)
+            }
+        })
+        .collect()
+}
+
+#[test]
+fn pieces_are_numbered_as_vtk_numbers_them_and_make_the_whole_body() {
+    let whole = read_mesh(folder().join("whole.vtu"), &DisplacementArray::Default).unwrap();
+    for name in ["split-appended", "split-binary", "split-ascii"] {
+        let path = folder().join(format!("{name}.pvtu"));
+        let mesh =
+            read_mesh(&path, &DisplacementArray::Default).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert!(mesh.has_displacement, "{name}");
+        // The same lattice, cells and displacements as the body written in one file (the pieces'
+        // float points hold this lattice's values exactly; ascii prints the doubles in full).
+        let (body, reference) = (&mesh.body, &whole.body);
+        assert_eq!(body.lattice(), reference.lattice(), "{name}");
+        assert!(body.active_cells().eq(reference.active_cells()), "{name}");
+        assert!(body.nodes().eq(reference.nodes()), "{name}");
+        assert_eq!(body.displacements(), reference.displacements(), "{name}");
+        // Each cell where VTK's reader puts it: its centre is located in it, at ξ = 0.
+        let centres = centres(name);
+        assert_eq!(centres.len(), mesh.cells.len(), "{name}");
+        for (cell, (found, xi)) in located(&path, &centres).into_iter().enumerate() {
+            assert_eq!(found, cell, "{name}: centre {}", centres[cell]);
+            assert!(
+                xi.abs().max_element() < 1e-12,
+                "{name}: cell {cell}: ξ {xi}"
+            );
+        }
+    }
+}
+
+#[test]
+fn an_adaptive_body_in_pieces_is_the_one_in_one_file() {
+    let path = folder().join("adaptive.pvtu");
+    let (MeshBody::Adaptive(split), MeshBody::Adaptive(whole)) = (
+        read_body(&path, &DisplacementArray::Default).unwrap(),
+        read_body(
+            folder().join("adaptive-whole.vtu"),
+            &DisplacementArray::Default,
+        )
+        .unwrap(),
+    ) else {
+        panic!("not read as adaptive");
+    };
+    assert_eq!(split.body.cell_count(), 32);
+    assert_eq!(split.body.node_count(), whole.body.node_count());
+    assert_eq!(
+        split.body.hanging_nodes().count(),
+        whole.body.hanging_nodes().count()
+    );
+    assert!(split.constraints.holds());
+    let centres = centres("adaptive");
+    assert_eq!(centres.len(), 32);
+    for (cell, (found, xi)) in located(&path, &centres).into_iter().enumerate() {
+        assert_eq!(found, cell, "centre {}", centres[cell]);
+        assert!(xi.abs().max_element() < 1e-12, "cell {cell}: ξ {xi}");
+    }
+}
+
+#[test]
+fn pieces_of_no_cell_add_nothing() {
+    let path = folder().join("empty-pieces.pvtu");
+    let mesh = read_mesh(&path, &DisplacementArray::Default).unwrap();
+    assert_eq!(mesh.cells.len(), 2);
+    let centres = centres("empty-pieces");
+    for (cell, (found, _)) in located(&path, &centres).into_iter().enumerate() {
+        assert_eq!(found, cell);
+    }
+}
+
+#[test]
+fn ghost_copies_are_refused_saying_they_are_ghosts() {
+    let message = read_mesh(folder().join("ghosts.pvtu"), &DisplacementArray::Default)
+        .unwrap_err()
+        .to_string();
+    assert!(message.contains("are the same lattice cell"), "{message}");
+    assert!(message.contains("is a ghost cell"), "{message}");
+    assert!(message.contains("GhostLevel 0"), "{message}");
+    // A piece alone holds each cell once, its ghost layer included.
+    let piece = read_mesh(folder().join("ghosts_1.vtu"), &DisplacementArray::Default).unwrap();
+    let text = std::fs::read_to_string(folder().join("ghosts_1.vtu")).unwrap();
+    assert!(text.contains(&format!("NumberOfCells=\"{}\"", piece.cells.len())));
+}
+
+/// A copy of `split-appended` in a fresh folder, with piece `which` named `source` instead.
+fn with_piece(which: usize, source: &str) -> (tempfile::TempDir, PathBuf) {
+    let dir = tempfile::tempdir().unwrap();
+    for piece in 0..3 {
+        let name = format!("split-appended_{piece}.vtu");
+        std::fs::copy(folder().join(&name), dir.path().join(&name)).unwrap();
+    }
+    let text = std::fs::read_to_string(folder().join("split-appended.pvtu")).unwrap();
+    let wanted = format!("Source=\"split-appended_{which}.vtu\"");
+    assert!(text.contains(&wanted));
+    let path = dir.path().join("hostile.pvtu");
+    std::fs::write(
+        &path,
+        text.replace(&wanted, &format!("Source=\"{source}\"")),
+    )
+    .unwrap();
+    (dir, path)
+}
+
+fn refusal(path: &Path) -> String {
+    read_mesh(path, &DisplacementArray::Default)
+        .unwrap_err()
+        .to_string()
+}
+
+#[test]
+#[cfg(unix)]
+fn a_piece_that_is_a_device_is_refused_at_once() {
+    // vtkio read it whole, and the process aborted when memory ran out.
+    let (dir, path) = with_piece(1, "zero.vtu");
+    std::os::unix::fs::symlink("/dev/zero", dir.path().join("zero.vtu")).unwrap();
+    let message = refusal(&path);
+    assert!(message.contains("piece 1 ("), "{message}");
+    assert!(
+        message.contains("zero.vtu): unrecognised format"),
+        "{message}"
+    );
+}
+
+#[test]
+fn a_missing_piece_is_named() {
+    let (_dir, path) = with_piece(2, "gone.vtu");
+    let message = refusal(&path);
+    assert!(message.contains("piece 2 ("), "{message}");
+    assert!(message.contains("gone.vtu): "), "{message}");
+}
+
+#[test]
+fn a_parallel_file_as_a_piece_is_refused() {
+    // Itself, and another parallel file.
+    for source in ["hostile.pvtu", "other.pvtu"] {
+        let (dir, path) = with_piece(0, source);
+        std::fs::copy(&path, dir.path().join("other.pvtu")).unwrap();
+        let message = refusal(&path);
+        assert!(message.contains("piece 0 ("), "{message}");
+        assert!(
+            message.contains("the pieces of a parallel file are serial .vtu files"),
+            "{message}"
+        );
+    }
+}
+
+#[test]
+fn a_legacy_piece_is_refused() {
+    let (dir, path) = with_piece(1, "legacy.vtk");
+    std::fs::copy(
+        folder().join("../vtk-written/legacy-binary.vtk"),
+        dir.path().join("legacy.vtk"),
+    )
+    .unwrap();
+    let message = refusal(&path);
+    assert!(message.contains("piece 1 ("), "{message}");
+    assert!(message.contains("a legacy VTK file"), "{message}");
+}
+
+#[test]
+fn a_corrupt_piece_is_refused_as_its_own_file_would_be() {
+    // The one piece's displacement cut short by a value. vtkio drops such an array; read alone,
+    // the piece is refused for it, but through the parallel file vtkio read the piece by itself,
+    // and the mesh came out undeformed without a word.
+    let (dir, path) = with_piece(1, "split-appended_1.vtu");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let only_1: String = text
+        .lines()
+        .filter(|l| !l.contains("_0.vtu") && !l.contains("_2.vtu"))
+        .map(|l| format!("{l}\n"))
+        .collect();
+    std::fs::write(&path, only_1).unwrap();
+    let piece = dir.path().join("split-appended_1.vtu");
+    let ascii = std::fs::read_to_string(folder().join("split-ascii_1.vtu")).unwrap();
+    let start = ascii.find("Name=\"displacement\"").unwrap();
+    let values = start + ascii[start..].find('>').unwrap() + 1;
+    let cut = values + ascii[values..].find(char::is_numeric).unwrap();
+    let end = cut + ascii[cut..].find(char::is_whitespace).unwrap();
+    std::fs::write(&piece, format!("{}{}", &ascii[..cut], &ascii[end..])).unwrap();
+    let wanted = "declares it, but its data cannot be decoded";
+    let alone = refusal(&piece);
+    assert!(alone.contains(wanted), "{alone}");
+    let message = refusal(&path);
+    assert!(message.contains("piece 0 ("), "{message}");
+    assert!(message.contains(wanted), "{message}");
+}
+
+#[test]
+fn a_parallel_file_in_memory_is_refused() {
+    let bytes = std::fs::read(folder().join("split-appended.pvtu")).unwrap();
+    let message = parse_hex_mesh(&bytes, &DisplacementArray::Default)
+        .unwrap_err()
+        .to_string();
+    assert!(message.contains("read it from its path"), "{message}");
+}
