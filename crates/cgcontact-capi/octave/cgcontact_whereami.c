@@ -13,7 +13,7 @@
  *     PosL      3 x n   local coordinates in [-1, 1]^3 (NaN when none)
  *     Inverted  1 x k   1-based elements that U inverts (see 'inverted_cells'), ascending; only
  *                       computed when asked for
- *     Options   struct, any of: precision ('f64' or 'f32'), tol (Newton step), max_iter, threads,
+ *     Options   struct ([] for none), any of: precision ('f64' or 'f32'), tol (Newton step), max_iter, threads,
  *               fill_hanging (true: hanging nodes take their constraint's value, U's is ignored);
  *               any other field is an error (a misspelt option would be ignored otherwise)
  *
@@ -196,7 +196,8 @@ static size_t matrix(const mxArray *a, const char *name, size_t rows, const char
 static void settings_from(const mxArray *options, cgc_settings *s, uint32_t *fill) {
     cgc_settings_init(CGC_PRECISION_F64, s);
     *fill = 0;
-    if (!options || mxIsEmpty(options)) return;
+    /* [] (or an empty struct array) is no options; {} or '' is a mistake of type, not "none". */
+    if (!options || (mxIsEmpty(options) && (mxIsDouble(options) || mxIsStruct(options)))) return;
     if (!mxIsStruct(options) || mxGetNumberOfElements(options) != 1)
         FAIL("badInput", "Options must be a scalar struct");
     /* A misspelt field (Precision, maxiter, fillHanging) would be ignored without a word. */

@@ -493,6 +493,14 @@ expect_error('cgcontact:badInput', @() cgcontact_whereami(XYZ, N0, T, U, struct(
 expect_error('cgcontact:badInput', @() cgcontact_whereami(XYZ, N0, T, U, struct('fill_hanging', NaN)), 'Options.fill_hanging NaN');
 expect_error('cgcontact:badSize', @() cgcontact_whereami('update', H, []), 'update with U = []');
 expect_error('cgcontact:badSize', @() cgcontact_whereami(XYZ, N0, T, {}), 'U = {}');
+% Options as {} or '' were read as no options: a wrong type, as any other non-struct is.
+expect_error('cgcontact:badInput', @() cgcontact_whereami(XYZ, N0, T, U, {}), 'Options = {}');
+expect_error('cgcontact:badInput', @() cgcontact_whereami(XYZ, N0, T, U, ''), 'Options = empty text');
+expect_error('cgcontact:badInput', @() cgcontact_whereami('new', N0, T, {}), 'new with Options = {}');
+[Ee, Pe] = cgcontact_whereami(XYZ, N0, T, U, struct([]));
+[En, Pn] = cgcontact_whereami(XYZ, N0, T, U);
+check(isequal(Ee, En) && isequaln(Pe, Pn), 'Options = struct([]) answers as no options');
+
 expect_error('cgcontact:usage', @() cgcontact_whereami('locate_every_point_please', H, XYZ), 'a long command');
 expect_error('cgcontact:badInput', @() cgcontact_whereami('query_seconds', H, XYZ, 'abc'), 'Repeats as text');
 expect_error('cgcontact:badInput', @() cgcontact_whereami('query_seconds', H, XYZ, 2.5), 'Repeats 2.5');
