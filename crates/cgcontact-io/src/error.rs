@@ -87,7 +87,7 @@ pub enum ErrorKind {
     #[error("{0}")]
     Parallel(String),
     /// The data set is not an unstructured grid.
-    #[error("the data set is a {0}, expected an unstructured grid")]
+    #[error("the data set is {0}, expected an unstructured grid")]
     NotUnstructuredGrid(&'static str),
     /// The mesh has no cells.
     #[error("the mesh has no cells")]

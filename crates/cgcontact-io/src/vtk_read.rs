@@ -256,6 +256,11 @@ fn parse_vtk(bytes: &[u8]) -> Result<Vtk, ErrorKind> {
             }
         })
     } else if start.first() == Some(&b'<') {
+        // Another data set is named as such, before its arrays are checked as a grid's would be
+        // (a poly data file's empty `Verts` arrays read as a corrupt block header).
+        if let Some(other) = other_xml_data_set(bytes) {
+            return Err(ErrorKind::NotUnstructuredGrid(other));
+        }
         // vtkio is built without LZMA (its `xz2` feature is liblzma, in C): decompress LZMA arrays
         // first and hand it the file uncompressed (see `lzma_arrays`).
         // First what vtkio would skip or misread (an appended array without an offset among
@@ -318,6 +323,30 @@ fn parse_vtk(bytes: &[u8]) -> Result<Vtk, ErrorKind> {
             "neither a legacy VTK file (`# vtk DataFile ...`) nor an XML VTK file (`<VTKFile ...>`)".to_owned(),
         ))
     }
+}
+
+/// What an XML file holds when its `<VTKFile type>` names a data set of VTK's other than an
+/// unstructured grid (serial or parallel); `None` for an unstructured grid, or a type VTK does not
+/// write (vtkio's parser then names it).
+fn other_xml_data_set(xml: &[u8]) -> Option<&'static str> {
+    let start = raw_appended::find(xml, b"<VTKFile", 0)?;
+    let end = raw_appended::find(xml, b">", start)?;
+    let kind = raw_appended::attribute(&xml[start..end], b"type")?;
+    Some(match kind.as_slice() {
+        b"ImageData" | b"PImageData" => "image data (.vti)",
+        b"PolyData" | b"PPolyData" => "polygonal data (.vtp)",
+        b"StructuredGrid" | b"PStructuredGrid" => "a structured grid (.vts)",
+        b"RectilinearGrid" | b"PRectilinearGrid" => "a rectilinear grid (.vtr)",
+        b"vtkMultiBlockDataSet" => "a multiblock data set (.vtm; give the .vtu of its block)",
+        b"vtkPartitionedDataSet" | b"vtkPartitionedDataSetCollection" => {
+            "a partitioned data set (.vtpd, .vtpc; give the .vtu of its partition)"
+        }
+        b"vtkOverlappingAMR" | b"vtkNonOverlappingAMR" | b"vtkHierarchicalBoxDataSet" => {
+            "an AMR data set of image blocks (.vthb)"
+        }
+        b"HyperTreeGrid" => "a hyper tree grid (.htg)",
+        _ => return None,
+    })
 }
 
 /// The VTK XML types of a `<DataArray>`: what `type` may be.
@@ -770,15 +799,17 @@ fn hex_mesh_from_vtk(
             ));
         }
         DataSet::StructuredGrid { .. } => {
-            return Err(ErrorKind::NotUnstructuredGrid("structured grid"));
+            return Err(ErrorKind::NotUnstructuredGrid("a structured grid"));
         }
         DataSet::RectilinearGrid { .. } => {
-            return Err(ErrorKind::NotUnstructuredGrid("rectilinear grid"));
+            return Err(ErrorKind::NotUnstructuredGrid("a rectilinear grid"));
         }
         DataSet::PolyData { .. } => {
             return Err(ErrorKind::NotUnstructuredGrid("polygonal data (POLYDATA)"));
         }
-        DataSet::Field { .. } => return Err(ErrorKind::NotUnstructuredGrid("field (no geometry)")),
+        DataSet::Field { .. } => {
+            return Err(ErrorKind::NotUnstructuredGrid("a field (no geometry)"));
+        }
     };
     let mut mesh = HexMesh::default();
     let mut u: Option<Vec<DVec3>> = match displacement {

@@ -12,6 +12,7 @@ mod legacy_string_arrays;
 mod lzma_hostile;
 mod messages;
 mod node_sources;
+mod other_data_sets;
 mod parallel_files;
 mod parser_property;
 mod regression_appended_array_without_offset;
