@@ -297,6 +297,7 @@ pub unsafe extern "C" fn cgc_body_from_mesh(
             ));
         }
         let mesh = HexMesh {
+            ghosts: Vec::new(),
             points: points.to_vec(),
             cells: hexes,
             displacement: None,

@@ -13,7 +13,7 @@ use std::collections::HashMap;
 
 use bitvec::vec::BitVec;
 use cgcontact::adaptive::{ConstraintReport, MAX_LEVEL};
-use cgcontact::{AdaptiveBody, CORNER_OFFSETS, Lattice, Leaf};
+use cgcontact::{AdaptiveBody, CORNER_OFFSETS, CellId, Lattice, Leaf};
 use glam::DVec3;
 
 use crate::mesh::{
@@ -169,6 +169,51 @@ impl HexMesh {
         }
         let used = self.used_nodes()?;
         self.detect_rounded(&used, |rounding| self.adaptive_with(&used, rounding))
+    }
+
+    /// `leaves` (one per input cell) without the ghost copies ([`HexMesh::ghosts`]) of a leaf that
+    /// another input cell holds: a copy of a leaf not flagged, or a later copy when all are
+    /// flagged. With the input cell of each leaf kept (`None`: every one, in input order) and the
+    /// map of input cells to leaves, a dropped copy mapped to the leaf it copies.
+    fn without_ghost_copies(&self, leaves: Vec<Leaf>) -> (Vec<Leaf>, Option<Vec<u32>>, CellMap) {
+        if self.ghosts.is_empty() {
+            let cells = CellMap::identity(leaves.len());
+            return (leaves, None, cells);
+        }
+        let ghost = |c: usize| self.ghosts.binary_search(&(c as u32)).is_ok();
+        // The input cell each leaf is read as: the first copy not flagged, else the first copy.
+        let mut kept_as: HashMap<Leaf, u32> = HashMap::with_capacity(self.ghosts.len());
+        for (c, leaf) in leaves.iter().enumerate() {
+            if ghost(c) {
+                kept_as.entry(*leaf).or_insert(c as u32);
+            }
+        }
+        for (c, leaf) in leaves.iter().enumerate() {
+            if !ghost(c)
+                && let Some(at) = kept_as.get_mut(leaf)
+                && ghost(*at as usize)
+            {
+                *at = c as u32;
+            }
+        }
+        let keep = |c: usize| !ghost(c) || kept_as.get(&leaves[c]) == Some(&(c as u32));
+        let input_of_leaf: Vec<u32> = (0..leaves.len())
+            .filter(|&c| keep(c))
+            .map(|c| c as u32)
+            .collect();
+        let mut leaf_of_input = vec![CellId(u32::MAX); leaves.len()];
+        for (leaf, &c) in input_of_leaf.iter().enumerate() {
+            leaf_of_input[c as usize] = CellId(leaf as u32);
+        }
+        for c in 0..leaves.len() {
+            if !keep(c) {
+                leaf_of_input[c] = leaf_of_input[kept_as[&leaves[c]] as usize];
+            }
+        }
+        let kept: Vec<Leaf> = input_of_leaf.iter().map(|&c| leaves[c as usize]).collect();
+        let cells = CellMap::with_ghosts(leaf_of_input, kept.len(), &self.ghosts)
+            .expect("one copy of each leaf answers, the others are ghosts");
+        (kept, Some(input_of_leaf), cells)
     }
 
     /// [`HexMesh::to_adaptive`] for the coordinates' `rounding`.
@@ -414,10 +459,16 @@ impl HexMesh {
             }
             leaves.push(Leaf::new(level, low.map(|v| v / s)));
         }
+        // Ghost copies of a leaf are read as that leaf: the body keeps one of each.
+        let (leaves, input_of_leaf, cells) = self.without_ghost_copies(leaves);
         let mut body = AdaptiveBody::from_leaves(lattice, leaves).map_err(|e| match e {
             cgcontact::Error::OverlappingCells { cell, other } => ErrorKind::OverlappingCells {
-                first: other.index(),
-                second: cell.index(),
+                first: input_of_leaf
+                    .as_ref()
+                    .map_or(other.index(), |i| i[other.index()] as usize),
+                second: input_of_leaf
+                    .as_ref()
+                    .map_or(cell.index(), |i| i[cell.index()] as usize),
             },
             e => ErrorKind::Core(e),
         })?;
@@ -465,7 +516,6 @@ impl HexMesh {
         if beyond_rounding(seam, magnitude) {
             body.set_seam(seam.min(constraint_tolerance + 2.0 * tol))?;
         }
-        let cells = CellMap::identity(self.cells.len());
         Ok(AdaptiveMesh {
             constraints,
             constraint_tolerance_by_axis: constraint_tolerance,

@@ -186,8 +186,8 @@ impl CallerBody {
     }
 
     /// The body detected from `mesh` (`found` is `mesh.to_body()`), its cells and nodes numbered
-    /// as the mesh's; an adaptive body's leaf `c` is input cell `c`, its corners in the same (VTK)
-    /// order.
+    /// as the mesh's (an adaptive body's leaves through its cell map: input cell `c`, or the leaf
+    /// a ghost copy repeats, with its corners in the same, VTK, order).
     #[must_use]
     pub fn mesh(mesh: &HexMesh, found: MeshBody) -> Self {
         match found {
@@ -197,7 +197,7 @@ impl CallerBody {
                 Self::of_mesh(mesh, sources, found.cells, body, found.node_offsets)
             }
             MeshBody::Adaptive(found) => {
-                let sources = NodeSources::adaptive(mesh, &found.body);
+                let sources = NodeSources::adaptive(mesh, &found.body, &found.cells);
                 let body = AnyBody::Adaptive(found.body);
                 Self::of_mesh(mesh, sources, found.cells, body, found.node_offsets)
             }

@@ -70,11 +70,12 @@ pub enum ErrorKind {
         /// What went wrong.
         error: Box<ErrorKind>,
     },
-    /// Two copies of a cell, one of them flagged a ghost by the file's `vtkGhostType` cell array.
+    /// A cell flagged a ghost copy by the file's `vtkGhostType` cell array that overlaps a cell
+    /// without being its copy (a copy is read as the cell it copies).
     #[error(
         "{error}: cell {ghost} is a ghost cell (its vtkGhostType flags it a copy of a cell that \
-         another piece owns), and every cell of a mesh is read as one of its cells; write the \
-         file without ghost levels (a parallel writer's GhostLevel 0)"
+         another piece owns), but no copy of the cell there; write the file without ghost levels \
+         (a parallel writer's GhostLevel 0)"
     )]
     GhostCell {
         /// The copy flagged a ghost.

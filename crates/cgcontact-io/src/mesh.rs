@@ -153,6 +153,11 @@ pub struct HexMesh {
     pub cells: Vec<[u32; 8]>,
     /// One displacement per node, or `None` for an undeformed mesh.
     pub displacement: Option<Vec<DVec3>>,
+    /// The cells flagged as ghost copies (the `vtkGhostType` cell array's bit 1, `DUPLICATECELL`:
+    /// a copy of a cell that another piece of a parallel file owns), ascending. A ghost copy may
+    /// repeat a cell: it is then read as that cell, and answers name the copy not flagged. Empty
+    /// for a mesh without ghosts.
+    pub ghosts: Vec<u32>,
 }
 
 /// The map between the input mesh's cell order and lattice cells (both ways).
@@ -198,14 +203,28 @@ impl CellMap {
         lattice_of_input: Vec<CellId>,
         cell_count: usize,
     ) -> Result<Self, (usize, usize)> {
+        Self::with_ghosts(lattice_of_input, cell_count, &[])
+    }
+
+    /// [`CellMap::new`] where the input cells `ghosts` (ascending) are ghost copies: a lattice
+    /// cell may have several input cells when all but one are ghosts, and then answers as the one
+    /// that is not (as the first ghost when all are). Two copies not flagged are `Err`.
+    pub(crate) fn with_ghosts(
+        lattice_of_input: Vec<CellId>,
+        cell_count: usize,
+        ghosts: &[u32],
+    ) -> Result<Self, (usize, usize)> {
+        let ghost = |input: u32| ghosts.binary_search(&input).is_ok();
         let input_of_lattice = if cell_count <= 64 * lattice_of_input.len().max(1) {
             let mut table = vec![NO_CELL; cell_count];
             for (input, cell) in lattice_of_input.iter().enumerate() {
+                let input = input as u32;
                 let slot = &mut table[cell.index()];
-                if *slot != NO_CELL {
-                    return Err((*slot as usize, input));
+                if *slot == NO_CELL || (ghost(*slot) && !ghost(input)) {
+                    *slot = input;
+                } else if !ghost(input) {
+                    return Err((*slot as usize, input as usize));
                 }
-                *slot = input as u32;
             }
             InputOfLattice::Table(table)
         } else {
@@ -215,10 +234,20 @@ impl CellMap {
                 .map(|(input, cell)| (cell.0, input as u32))
                 .collect();
             pairs.sort_unstable();
-            if let Some(w) = pairs.windows(2).find(|w| w[0].0 == w[1].0) {
-                return Err((w[0].1 as usize, w[1].1 as usize));
+            let mut kept: Vec<(u32, u32)> = Vec::with_capacity(pairs.len());
+            for (cell, input) in pairs {
+                match kept.last_mut() {
+                    Some(last) if last.0 == cell => {
+                        if ghost(last.1) && !ghost(input) {
+                            last.1 = input;
+                        } else if !ghost(input) {
+                            return Err((last.1 as usize, input as usize));
+                        }
+                    }
+                    _ => kept.push((cell, input)),
+                }
             }
-            InputOfLattice::Sorted(pairs)
+            InputOfLattice::Sorted(kept)
         };
         Ok(Self {
             lattice_of_input,
@@ -429,6 +458,7 @@ impl HexMesh {
             points,
             cells,
             displacement: Some(body.displacements().to_vec()),
+            ghosts: Vec::new(),
         }
     }
 
@@ -748,11 +778,13 @@ impl HexMesh {
             debug_assert!((0..3).all(|a| base[a] < counts[a]));
             lattice_of_input.push(lattice.cell_id(base));
         }
-        CellMap::new(lattice_of_input, lattice.cell_count()).map_err(|(first, second)| {
-            // Both are the cell whose lowest corner is this lattice node.
-            let ijk = node_ijk[self.cells[second][0] as usize];
-            ErrorKind::DuplicateCell { first, second, ijk }
-        })
+        CellMap::with_ghosts(lattice_of_input, lattice.cell_count(), &self.ghosts).map_err(
+            |(first, second)| {
+                // Both are the cell whose lowest corner is this lattice node.
+                let ijk = node_ijk[self.cells[second][0] as usize];
+                ErrorKind::DuplicateCell { first, second, ijk }
+            },
+        )
     }
 
     /// How far each body node's input node lies from its lattice position (`None` when every
@@ -959,6 +991,7 @@ mod tests {
         let cube =
             |o: f64| CORNER_OFFSETS.map(|[a, b, c]| DVec3::new(a as f64, b as f64, c as f64) + o);
         let mesh = HexMesh {
+            ghosts: Vec::new(),
             points: [cube(0.0), cube(far)].concat(),
             cells: vec![[0, 1, 2, 3, 4, 5, 6, 7], [8, 9, 10, 11, 12, 13, 14, 15]],
             displacement: None,
@@ -979,6 +1012,7 @@ mod tests {
             Err(ErrorKind::NoCells)
         ));
         let mesh = HexMesh {
+            ghosts: Vec::new(),
             points: vec![DVec3::ZERO; 4],
             cells: vec![[0, 1, 2, 3, 4, 5, 6, 7]],
             displacement: None,

@@ -5,7 +5,7 @@
 //! file's copies of one node, so each body node (a *slot*) has a first file node, and every
 //! further copy is listed, for its displacement to be checked against the first one's.
 
-use cgcontact::{AdaptiveBody, Body, CellId};
+use cgcontact::{AdaptiveBody, Body};
 
 use crate::mesh::{CellMap, HexMesh};
 
@@ -49,17 +49,18 @@ impl NodeSources {
         Self::of(&slot_of_input, slot_nodes.len())
     }
 
-    /// For the adaptive `body` detected from `mesh`, whose leaf `c` is input cell `c` with its
-    /// corners in the same (VTK) order.
+    /// For the adaptive `body` detected from `mesh`, `cells` mapping each input cell to its leaf
+    /// (with its corners in the same, VTK, order).
     ///
     /// # Panics
-    /// When `body` has fewer leaves than `mesh` has cells.
+    /// When `body` and `cells` are not those detected from `mesh` (an input cell without a leaf).
     #[must_use]
-    pub fn adaptive(mesh: &HexMesh, body: &AdaptiveBody) -> Self {
+    pub fn adaptive(mesh: &HexMesh, body: &AdaptiveBody, cells: &CellMap) -> Self {
         let mut slot_of_input = vec![UNSET; mesh.points.len()];
         for (input, corners) in mesh.cells.iter().enumerate() {
-            let nodes = body
-                .cell_nodes(CellId(input as u32))
+            let nodes = cells
+                .lattice_cell(input)
+                .and_then(|leaf| body.cell_nodes(leaf))
                 .expect("a leaf per input cell");
             for (&node, slot) in corners.iter().zip(nodes) {
                 slot_of_input[node as usize] = slot;

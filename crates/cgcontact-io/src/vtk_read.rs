@@ -45,9 +45,9 @@ pub fn read_mesh(
     displacement: &DisplacementArray,
 ) -> Result<LatticeMesh, IoError> {
     let path = path.as_ref();
-    let (mesh, ghosts) = read_hex_mesh_and_ghosts(path, displacement)?;
+    let mesh = read_hex_mesh(path, displacement)?;
     mesh.to_lattice()
-        .map_err(|e| ghosts.explain(e).in_file(path))
+        .map_err(|e| explain_ghosts(&mesh, e).in_file(path))
 }
 
 /// Read a VTK mesh file and recognise it as a uniform or an adaptive body (see
@@ -57,8 +57,9 @@ pub fn read_body(
     displacement: &DisplacementArray,
 ) -> Result<MeshBody, IoError> {
     let path = path.as_ref();
-    let (mesh, ghosts) = read_hex_mesh_and_ghosts(path, displacement)?;
-    mesh.to_body().map_err(|e| ghosts.explain(e).in_file(path))
+    let mesh = read_hex_mesh(path, displacement)?;
+    mesh.to_body()
+        .map_err(|e| explain_ghosts(&mesh, e).in_file(path))
 }
 
 /// Read a VTK mesh file as an explicit hexahedral mesh, without lattice detection.
@@ -66,45 +67,28 @@ pub fn read_hex_mesh(
     path: impl AsRef<Path>,
     displacement: &DisplacementArray,
 ) -> Result<HexMesh, IoError> {
-    read_hex_mesh_and_ghosts(path, displacement).map(|(mesh, _)| mesh)
-}
-
-/// [`read_hex_mesh`], and the cells the file flags as ghosts.
-fn read_hex_mesh_and_ghosts(
-    path: impl AsRef<Path>,
-    displacement: &DisplacementArray,
-) -> Result<(HexMesh, Ghosts), IoError> {
     let path = path.as_ref();
     let bytes = crate::input::read_input(path, crate::input::Expect::Vtk)?;
     parse_hex_mesh_impl(&bytes, Some(path), displacement).map_err(|e| e.in_file(path))
 }
 
-/// The cells a file's `vtkGhostType` cell array flags as duplicates (bit 1, `DUPLICATECELL`: a copy
-/// of a cell another piece owns, as VTK writes a parallel file's ghost levels), ascending.
-///
-/// They are read as cells like any other. A ghost is then usually a second copy of a cell, which a
-/// mesh may not hold: the error that refuses it says why the copy is there.
-#[derive(Debug, Default)]
-struct Ghosts(Vec<usize>);
-
-impl Ghosts {
-    /// `error`, with a word on ghost cells where it names one as a copy of another cell.
-    fn explain(&self, error: ErrorKind) -> ErrorKind {
-        let (first, second) = match &error {
-            ErrorKind::DuplicateCell { first, second, .. }
-            | ErrorKind::OverlappingCells { first, second } => (*first, *second),
-            _ => return error,
-        };
-        match [first, second]
-            .into_iter()
-            .find(|c| self.0.binary_search(c).is_ok())
-        {
-            Some(ghost) => ErrorKind::GhostCell {
-                ghost,
-                error: Box::new(error),
-            },
-            None => error,
-        }
+/// `error`, with a word on ghost cells where it names a ghost copy of `mesh` as overlapping
+/// another cell (a copy of the same cell is read as that cell; this one is not the same).
+fn explain_ghosts(mesh: &HexMesh, error: ErrorKind) -> ErrorKind {
+    let (first, second) = match &error {
+        ErrorKind::DuplicateCell { first, second, .. }
+        | ErrorKind::OverlappingCells { first, second } => (*first, *second),
+        _ => return error,
+    };
+    match [first, second]
+        .into_iter()
+        .find(|&c| u32::try_from(c).is_ok_and(|c| mesh.ghosts.binary_search(&c).is_ok()))
+    {
+        Some(ghost) => ErrorKind::GhostCell {
+            ghost,
+            error: Box::new(error),
+        },
+        None => error,
     }
 }
 
@@ -113,14 +97,14 @@ pub fn parse_hex_mesh(
     bytes: &[u8],
     displacement: &DisplacementArray,
 ) -> Result<HexMesh, ErrorKind> {
-    parse_hex_mesh_impl(bytes, None, displacement).map(|(mesh, _)| mesh)
+    parse_hex_mesh_impl(bytes, None, displacement)
 }
 
 fn parse_hex_mesh_impl(
     bytes: &[u8],
     source: Option<&Path>,
     displacement: &DisplacementArray,
-) -> Result<(HexMesh, Ghosts), ErrorKind> {
+) -> Result<HexMesh, ErrorKind> {
     // Every pass over an XML file reads it in the one spelling `xml_normal` gives it.
     let normal = if is_xml(bytes) {
         xml_normal::normalize(bytes)?
@@ -790,7 +774,7 @@ fn hex_mesh_from_vtk(
     source: Option<&Path>,
     displacement: &DisplacementArray,
     declared: Option<&[Vec<DeclaredArray>]>,
-) -> Result<(HexMesh, Ghosts), ErrorKind> {
+) -> Result<HexMesh, ErrorKind> {
     let pieces = match vtk.data {
         DataSet::UnstructuredGrid { pieces, .. } => pieces,
         DataSet::ImageData { .. } => {
@@ -820,7 +804,6 @@ fn hex_mesh_from_vtk(
     // The first piece with the displacement and the first without it: a file with both is refused.
     let (mut with, mut without) = (None, None);
     let mut available = Vec::new();
-    let mut ghosts = Ghosts::default();
     // A parallel file's pieces are files of their own, each read and checked as a serial file is;
     // a serial file's pieces are inline. Either way, one list of pieces in order.
     let mut loaded = Vec::with_capacity(pieces.len());
@@ -873,7 +856,8 @@ fn hex_mesh_from_vtk(
         mesh.points.extend_from_slice(&points);
         append_cells(piece, first_node, first_cell, points.len(), &mut mesh.cells)
             .map_err(in_piece)?;
-        ghosts.0.extend(ghost_cells(piece).map(|c| first_cell + c));
+        mesh.ghosts
+            .extend(ghost_cells(piece).map(|c| (first_cell + c) as u32));
         if let Some(u) = &mut u {
             let legacy = declared.is_none() && loaded.file.is_none();
             match piece_displacement(piece, displacement, points.len(), legacy, &mut available)
@@ -971,7 +955,7 @@ fn hex_mesh_from_vtk(
             value: u[node].to_array(),
         });
     }
-    Ok((mesh, ghosts))
+    Ok(mesh)
 }
 
 /// One piece of a mesh file: inline in it, or read from a parallel file's piece file.

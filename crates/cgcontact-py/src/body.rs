@@ -203,6 +203,7 @@ impl PyBody {
             cells.push(cell);
         }
         let mesh = HexMesh {
+            ghosts: Vec::new(),
             points,
             cells,
             displacement: None,

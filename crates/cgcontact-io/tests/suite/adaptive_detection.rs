@@ -122,6 +122,7 @@ fn cells_and_nodes_in_any_order_make_the_same_body() {
         }
         cells.shuffle(&mut rng);
         let shuffled = HexMesh {
+            ghosts: Vec::new(),
             points,
             cells: cells.iter().map(|(_, c)| *c).collect(),
             displacement: Some(u),
@@ -294,6 +295,7 @@ fn float_coordinates_and_displacements_make_the_same_leaves() {
     let mesh = mesh_of(&body);
     let float = |v: &DVec3| v.as_vec3().as_dvec3();
     let rounded = HexMesh {
+        ghosts: Vec::new(),
         points: mesh.points.iter().map(float).collect(),
         cells: mesh.cells.clone(),
         displacement: mesh
@@ -323,6 +325,7 @@ fn a_cell_off_its_levels_lattice_is_reported_with_the_meshs_spacing() {
     let mut points = cube(DVec3::ZERO, 1.0);
     points.extend(cube(DVec3::new(1.25, 0.0, 0.0), 0.5));
     let mesh = HexMesh {
+        ghosts: Vec::new(),
         points,
         cells: vec![
             std::array::from_fn(|c| c as u32),
@@ -400,6 +403,7 @@ fn flat_rotated_and_too_deep_cells_are_named() {
 
     // A unit cube and one of edge 2^-21, one level deeper than MAX_LEVEL.
     let mut deep = HexMesh {
+        ghosts: Vec::new(),
         points: Vec::new(),
         cells: Vec::new(),
         displacement: None,
@@ -516,6 +520,7 @@ fn regression_an_oversized_cell_is_named_not_the_first() {
 #[test]
 fn a_finest_lattice_too_wide_names_the_limit() {
     let mut wide = HexMesh {
+        ghosts: Vec::new(),
         points: Vec::new(),
         cells: Vec::new(),
         displacement: None,

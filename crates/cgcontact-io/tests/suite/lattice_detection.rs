@@ -130,6 +130,7 @@ fn a_cell_spanning_two_lattice_cells_is_named() {
     };
     let cells = vec![hex(0, 1, 0), hex(1, 2, 0), hex(2, 3, 0), hex(0, 2, 1)];
     let mesh = HexMesh {
+        ghosts: Vec::new(),
         points,
         cells,
         displacement: None,
@@ -195,6 +196,7 @@ fn unmerge(mesh: &HexMesh) -> HexMesh {
         })
         .collect();
     HexMesh {
+        ghosts: Vec::new(),
         points,
         cells,
         displacement: Some(disp),
@@ -274,6 +276,7 @@ fn far_apart_cells_are_refused_not_allocated() {
     let mut points = unit(DVec3::ZERO);
     points.extend(unit(DVec3::splat(1e5)));
     let mesh = HexMesh {
+        ghosts: Vec::new(),
         points,
         cells: vec![[0, 1, 2, 3, 4, 5, 6, 7], [8, 9, 10, 11, 12, 13, 14, 15]],
         displacement: None,

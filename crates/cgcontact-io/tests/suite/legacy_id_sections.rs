@@ -504,6 +504,7 @@ fn every_cut_and_corrupt_id_byte_is_refused_or_reads_the_same_body() {
             let bytes = file(&format!("{name}-{flavour}.vtk"));
             let what = format!("{name}-{flavour}");
             let undeformed = HexMesh {
+                ghosts: Vec::new(),
                 displacement: None,
                 ..expected.clone()
             };

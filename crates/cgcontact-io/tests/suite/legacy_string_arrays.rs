@@ -302,6 +302,7 @@ fn every_cut_and_corrupt_string_byte_is_refused_or_reads_the_same_body() {
         // A file cut before its point data is a file without them: read undeformed.
         let point_data = position(&bytes, b"POINT_DATA");
         let undeformed = HexMesh {
+            ghosts: Vec::new(),
             displacement: None,
             ..expected.clone()
         };

@@ -105,7 +105,7 @@ fn adaptive_sources_lie_where_the_body_has_its_nodes() {
             let MeshBody::Adaptive(found) = mesh.to_body().unwrap() else {
                 panic!("{name}: an adaptive mesh");
             };
-            let sources = NodeSources::adaptive(&mesh, &found.body);
+            let sources = NodeSources::adaptive(&mesh, &found.body, &found.cells);
             assert_eq!(!sources.duplicates.is_empty(), copy, "{name}");
             check(&mesh, &sources, found.body.node_count(), |slot| {
                 found.body.node_position(slot).unwrap()

@@ -1,6 +1,7 @@
 //! Parallel files (`.pvtu`) written by VTK 9.7.2 itself (fixtures/vtk-written-parallel, made by its
 //! make.py): a body split into 3 pieces by VTK's piece filter, in raw appended, inline binary and
-//! ascii pieces; the same with a ghost level; pieces of no cell; an adaptive body in 2 pieces. And
+//! ascii pieces; the same with a ghost level; pieces of no cell; an adaptive body in 2 pieces, and
+//! with a ghost level. Ghost copies read as the cells they copy. And
 //! hostile parallel files made here from them: each piece file is read as a mesh file of its own
 //! is (the size limit, the format sniffed from its first bytes, every check of a serial file), so
 //! a piece that is a device, a missing file, a legacy file or a parallel file itself is refused,
@@ -10,7 +11,9 @@ use std::path::{Path, PathBuf};
 
 use cgcontact::glam::DVec3;
 use cgcontact::{AdaptiveLocator, LatticeLocator, Locator, Settings};
-use cgcontact_io::{DisplacementArray, MeshBody, parse_hex_mesh, read_body, read_mesh};
+use cgcontact_io::{
+    DisplacementArray, MeshBody, parse_hex_mesh, read_body, read_hex_mesh, read_mesh,
+};
 
 fn folder() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/vtk-written-parallel")
@@ -18,12 +21,34 @@ fn folder() -> PathBuf {
 
 /// `NAME.centres.csv`: every cell's centre, in the order VTK's own reader numbers the cells.
 fn centres(name: &str) -> Vec<DVec3> {
+    centres_and_ghosts(name)
+        .into_iter()
+        .map(|(x, _)| x)
+        .collect()
+}
+
+/// `NAME.centres.csv`: every cell's centre and whether VTK's reader flags it a ghost copy.
+fn centres_and_ghosts(name: &str) -> Vec<(DVec3, bool)> {
     let text = std::fs::read_to_string(folder().join(format!("{name}.centres.csv"))).unwrap();
     text.lines()
         .skip(1)
         .map(|line| {
             let f: Vec<f64> = line.split(',').map(|v| v.parse().unwrap()).collect();
-            DVec3::new(f[1], f[2], f[3])
+            (DVec3::new(f[1], f[2], f[3]), f[4] == 1.0)
+        })
+        .collect()
+}
+
+/// For each cell of `cells` (centre, ghost flag), the cell answers name: the first copy at its
+/// centre not flagged a ghost, else the first copy.
+fn answering(cells: &[(DVec3, bool)]) -> Vec<usize> {
+    cells
+        .iter()
+        .map(|(x, _)| {
+            let copies = || (0..cells.len()).filter(|&c| cells[c].0 == *x);
+            copies()
+                .find(|&c| !cells[c].1)
+                .unwrap_or_else(|| copies().next().unwrap())
         })
         .collect()
 }
@@ -123,17 +148,159 @@ fn pieces_of_no_cell_add_nothing() {
 }
 
 #[test]
-fn ghost_copies_are_refused_saying_they_are_ghosts() {
-    let message = read_mesh(folder().join("ghosts.pvtu"), &DisplacementArray::Default)
+fn ghost_copies_are_read_as_the_cells_they_copy() {
+    let whole = read_mesh(folder().join("whole.vtu"), &DisplacementArray::Default).unwrap();
+    let path = folder().join("ghosts.pvtu");
+    let cells = centres_and_ghosts("ghosts");
+    // The ghosts as VTK's reader flags them.
+    let flagged: Vec<u32> = (0..cells.len() as u32)
+        .filter(|&c| cells[c as usize].1)
+        .collect();
+    assert_eq!(
+        read_hex_mesh(&path, &DisplacementArray::Default)
+            .unwrap()
+            .ghosts,
+        flagged
+    );
+    assert!(flagged.len() > 100);
+    let mesh = read_mesh(&path, &DisplacementArray::Default).unwrap();
+    assert_eq!(mesh.cells.len(), cells.len());
+    assert_eq!(mesh.body.lattice(), whole.body.lattice());
+    assert!(mesh.body.active_cells().eq(whole.body.active_cells()));
+    assert_eq!(mesh.body.displacements(), whole.body.displacements());
+    let centres: Vec<DVec3> = cells.iter().map(|c| c.0).collect();
+    for (cell, ((found, xi), owner)) in located(&path, &centres)
+        .into_iter()
+        .zip(answering(&cells))
+        .enumerate()
+    {
+        assert_eq!(found, owner, "cell {cell} at {}", centres[cell]);
+        assert!(!cells[found].1, "cell {cell}: answered as a ghost");
+        assert!(xi.abs().max_element() < 1e-12, "cell {cell}: ξ {xi}");
+    }
+}
+
+#[test]
+fn ghost_copies_of_leaves_are_read_as_the_leaves_they_copy() {
+    let path = folder().join("adaptive-ghosts.pvtu");
+    let (MeshBody::Adaptive(split), MeshBody::Adaptive(whole)) = (
+        read_body(&path, &DisplacementArray::Default).unwrap(),
+        read_body(
+            folder().join("adaptive-whole.vtu"),
+            &DisplacementArray::Default,
+        )
+        .unwrap(),
+    ) else {
+        panic!("not read as adaptive");
+    };
+    let cells = centres_and_ghosts("adaptive-ghosts");
+    assert_eq!(cells.iter().filter(|c| c.1).count(), 32);
+    assert_eq!(split.cells.len(), 64);
+    assert_eq!(split.body.cell_count(), 32);
+    assert_eq!(split.body.node_count(), whole.body.node_count());
+    assert_eq!(split.body.displacements(), whole.body.displacements());
+    assert!(split.constraints.holds());
+    let centres: Vec<DVec3> = cells.iter().map(|c| c.0).collect();
+    for (cell, ((found, _), owner)) in located(&path, &centres)
+        .into_iter()
+        .zip(answering(&cells))
+        .enumerate()
+    {
+        assert_eq!(found, owner, "cell {cell} at {}", centres[cell]);
+    }
+}
+
+/// A legacy ASCII file of `cells` (each a cube: low corner and edge, nodes unmerged) with the
+/// cell array vtkGhostType holding `flags`.
+fn legacy_with_ghosts(cells: &[(DVec3, f64)], flags: &[u8]) -> String {
+    let mut text = format!(
+        "# vtk DataFile Version 4.2\nghosts\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS {} double\n",
+        8 * cells.len()
+    );
+    for (low, edge) in cells {
+        for (a, b, c) in [
+            (0., 0., 0.),
+            (1., 0., 0.),
+            (1., 1., 0.),
+            (0., 1., 0.),
+            (0., 0., 1.),
+            (1., 0., 1.),
+            (1., 1., 1.),
+            (0., 1., 1.),
+        ] {
+            let p = *low + *edge * DVec3::new(a, b, c);
+            text += &format!("{} {} {}\n", p.x, p.y, p.z);
+        }
+    }
+    text += &format!("CELLS {} {}\n", cells.len(), 9 * cells.len());
+    for c in 0..cells.len() {
+        text += "8";
+        for n in 0..8 {
+            text += &format!(" {}", 8 * c + n);
+        }
+        text += "\n";
+    }
+    text += &format!("CELL_TYPES {}\n", cells.len());
+    text += &"12\n".repeat(cells.len());
+    text += &format!(
+        "CELL_DATA {}\nSCALARS vtkGhostType unsigned_char 1\nLOOKUP_TABLE default\n",
+        cells.len()
+    );
+    for f in flags {
+        text += &format!("{f}\n");
+    }
+    text
+}
+
+#[test]
+fn a_ghost_that_is_not_a_copy_is_refused_saying_it_is_a_ghost() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("cells.vtk");
+    let unit = |x: f64| (DVec3::new(x, 0.0, 0.0), 1.0);
+    // Cell 2 is a flagged copy of cell 0 (bit 1 among others: 1 + 16), in a legacy file: read.
+    std::fs::write(
+        &path,
+        legacy_with_ghosts(&[unit(0.0), unit(1.0), unit(0.0)], &[0, 0, 17]),
+    )
+    .unwrap();
+    let mesh = read_mesh(&path, &DisplacementArray::Default).unwrap();
+    assert_eq!(
+        read_hex_mesh(&path, &DisplacementArray::Default)
+            .unwrap()
+            .ghosts,
+        [2]
+    );
+    assert_eq!(mesh.body.active_count(), 2);
+    assert_eq!(mesh.cells.lattice_cell(2), mesh.cells.lattice_cell(0));
+    assert_eq!(
+        mesh.input_cell(mesh.cells.lattice_cell(2).unwrap()),
+        Some(0)
+    );
+    // Not flagged (16 alone is not DUPLICATECELL): two cells at one place, as before.
+    std::fs::write(
+        &path,
+        legacy_with_ghosts(&[unit(0.0), unit(1.0), unit(0.0)], &[0, 0, 16]),
+    )
+    .unwrap();
+    let message = read_mesh(&path, &DisplacementArray::Default)
         .unwrap_err()
         .to_string();
-    assert!(message.contains("are the same lattice cell"), "{message}");
-    assert!(message.contains("is a ghost cell"), "{message}");
-    assert!(message.contains("GhostLevel 0"), "{message}");
-    // A piece alone holds each cell once, its ghost layer included.
-    let piece = read_mesh(folder().join("ghosts_1.vtu"), &DisplacementArray::Default).unwrap();
-    let text = std::fs::read_to_string(folder().join("ghosts_1.vtu")).unwrap();
-    assert!(text.contains(&format!("NumberOfCells=\"{}\"", piece.cells.len())));
+    assert!(
+        message.contains("cells 0 and 2 are the same lattice cell"),
+        "{message}"
+    );
+    assert!(!message.contains("ghost"), "{message}");
+    // A flagged cell that overlaps another without being its copy: an eighth of cell 0.
+    std::fs::write(
+        &path,
+        legacy_with_ghosts(&[unit(0.0), unit(1.0), (DVec3::ZERO, 0.5)], &[0, 0, 1]),
+    )
+    .unwrap();
+    let message = read_body(&path, &DisplacementArray::Default)
+        .unwrap_err()
+        .to_string();
+    assert!(message.contains("cells 0 and 2 overlap"), "{message}");
+    assert!(message.contains("cell 2 is a ghost cell"), "{message}");
 }
 
 /// A copy of `split-appended` in a fresh folder, with piece `which` named `source` instead.

@@ -36,6 +36,7 @@ fn hanging_nodes_of_a_float_file_keep_every_owner() {
     // Float coordinates, float displacements, both.
     for (points, displacements) in [(true, false), (false, true), (true, true)] {
         let mesh = HexMesh {
+            ghosts: Vec::new(),
             points: if points {
                 exact.points.iter().map(round).collect()
             } else {

@@ -21,6 +21,7 @@ use crate::common::probes::{corner_refined_body, displaced_leaf_boxes, found, ow
 fn as_floats(mesh: &HexMesh) -> HexMesh {
     let round = |p: &DVec3| DVec3::from_array(p.to_array().map(|c| f64::from(c as f32)));
     HexMesh {
+        ghosts: Vec::new(),
         points: mesh.points.iter().map(round).collect(),
         ..mesh.clone()
     }
@@ -59,6 +60,7 @@ fn uniform_mesh(displaced: bool) -> (HexMesh, Vec<[u32; 3]>) {
             .collect()
     });
     let mesh = HexMesh {
+        ghosts: Vec::new(),
         points,
         cells,
         displacement,

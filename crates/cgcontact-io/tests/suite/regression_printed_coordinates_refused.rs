@@ -22,6 +22,7 @@ use crate::common::probes::{displaced_leaf_boxes, found, owners_of, probes};
 fn printed(mesh: &HexMesh, digits: usize) -> HexMesh {
     let print = |c: f64| -> f64 { format!("{c:.*e}", digits - 1).parse().unwrap() };
     HexMesh {
+        ghosts: Vec::new(),
         points: (mesh.points.iter())
             .map(|p| DVec3::from_array(p.to_array().map(print)))
             .collect(),
@@ -55,6 +56,7 @@ fn block(origin: DVec3, h: DVec3, n: u32, displaced: bool) -> (HexMesh, Vec<[u32
             .collect()
     });
     let mesh = HexMesh {
+        ghosts: Vec::new(),
         points,
         cells,
         displacement,
@@ -150,6 +152,7 @@ fn a_node_off_by_more_than_the_print_is_still_named() {
 fn cells_the_coordinates_cannot_place_are_refused_saying_why() {
     let far = DVec3::new(2e6, -2e6, 3e5);
     let f32_mesh = |mesh: &HexMesh| HexMesh {
+        ghosts: Vec::new(),
         points: (mesh.points.iter())
             .map(|p| DVec3::from_array(p.to_array().map(|c| f64::from(c as f32))))
             .collect(),
@@ -189,6 +192,7 @@ fn cells_the_coordinates_cannot_place_are_refused_saying_why() {
     // A cell naming one node for all its corners, 0.4 from the origin: flat by its connectivity,
     // not its digits, and not said to be the rounding's doing.
     let one_node = HexMesh {
+        ghosts: Vec::new(),
         points: vec![DVec3::new(0.4, 0.2, 0.3)],
         cells: vec![[0; 8]],
         displacement: None,

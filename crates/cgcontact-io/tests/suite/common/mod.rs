@@ -81,6 +81,7 @@ pub fn shuffled(mesh: &HexMesh, seed: u64) -> (HexMesh, Vec<usize>) {
         .collect();
     (
         HexMesh {
+            ghosts: Vec::new(),
             points,
             cells,
             displacement,
@@ -362,6 +363,7 @@ pub fn expected_cells(body: &Body, perm: &[usize]) -> Vec<CellId> {
 /// The explicit mesh of an adaptive `body`: nodes in node order, cells in leaf order.
 pub fn mesh_of(body: &AdaptiveBody) -> HexMesh {
     HexMesh {
+        ghosts: Vec::new(),
         points: (0..body.node_count())
             .map(|n| body.node_position(n).unwrap())
             .collect(),
