@@ -16,7 +16,10 @@ columns); with AUDIT_MPI=path/to/cgcontact-mpi,
 `mpirun` on 2 and 3 ranks (slabs, morton, random partitions) writes the CLI's results file byte for
 byte, with and without --gap; with AUDIT_STRATEGIES=1, `--strategy rtree` and `brute` list the
 same owners with the same xi (to 1e-9); with AUDIT_CAPI=path/to/libcgcontact_capi.so, the C API
-(the Octave MEX's path) answers `locate` and the gap columns bit for bit as the CLI (binary files).
+(the Octave MEX's path) answers `locate` and the gap columns bit for bit as the CLI (binary files);
+with AUDIT_PVTU=1, the same mesh dealt into 2 to 4 pieces of a parallel file (.pvtu), with a ghost
+layer flagged in vtkGhostType on half the seeds, gives every owner of every point bit for bit as
+the serial file (XML seeds), and never names a ghost copy.
 
 Usage: CGCONTACT_BIN=target/release/cgcontact python3 tools/audit_adaptive_vtk.py FIRST END
 (seeds FIRST..END; needs the `vtk` and `numpy` packages; AUDIT_L=0 makes uniform meshes).
@@ -171,6 +174,74 @@ def write(path, leaves, key_list, X, u, L, rng, legacy=False, binary=True):
         u[key] = fu[index[key]]
     hexes = np.array([[index[key] for key in corner_keys(leaves[c], L)] for c in order], dtype=np.int64)
     return order, (fp, fu, hexes)
+
+
+def write_pvtu(wd, fp, fu, hexes, rng):
+    """The serial file's cells (`hexes` into nodes `fp`, displacements `fu`) as a parallel file of
+    2 to 4 pieces, its cells dealt at random, with a ghost layer on half the seeds. Returns its
+    path, the serial cell of each of its cells (VTK's numbering: across the pieces, in order) and
+    the set of its ghost copies."""
+    k = rng.randint(2, 4)
+    part = [rng.randrange(k) for _ in range(len(hexes))]
+    ghosts_on = rng.random() < 0.5
+    cells_of_node = {}
+    for c, h in enumerate(hexes):
+        for node in h:
+            cells_of_node.setdefault(int(node), set()).add(c)
+    piece_cells, ghost_cells, names = [], set(), []
+    for p in range(k):
+        own = [c for c in range(len(hexes)) if part[c] == p]
+        ghosts = sorted({d for c in own for node in hexes[c] for d in cells_of_node[int(node)] if part[d] != p}) if ghosts_on else []
+        cells = own + ghosts
+        rng.shuffle(cells)
+        nodes = sorted({int(node) for c in cells for node in hexes[c]})
+        rng.shuffle(nodes)
+        local = {node: i for i, node in enumerate(nodes)}
+        g = vtk.vtkUnstructuredGrid()
+        vp = vtk.vtkPoints()
+        vp.SetDataTypeToDouble()
+        vp.SetData(ns.numpy_to_vtk(np.ascontiguousarray(fp[nodes]) if nodes else np.zeros((0, 3)), deep=True))
+        g.SetPoints(vp)
+        flags = vtk.vtkUnsignedCharArray()
+        flags.SetName("vtkGhostType")
+        ghost_set = set(ghosts)
+        for c in cells:
+            ids = vtk.vtkIdList()
+            for node in hexes[c]:
+                ids.InsertNextId(local[int(node)])
+            g.InsertNextCell(vtk.VTK_HEXAHEDRON, ids)
+            flags.InsertNextValue(1 if c in ghost_set else 0)
+            if c in ghost_set:
+                ghost_cells.add(len(piece_cells))
+            piece_cells.append(c)
+        arr = ns.numpy_to_vtk(np.ascontiguousarray(fu[nodes]) if nodes else np.zeros((0, 3)), deep=True)
+        arr.SetName("displacement")
+        g.GetPointData().AddArray(arr)
+        if ghosts_on:
+            g.GetCellData().AddArray(flags)
+        w = vtk.vtkXMLUnstructuredGridWriter()
+        mode = rng.random()
+        if mode < 0.2:
+            w.SetDataModeToAscii()
+        elif mode < 0.6:
+            w.SetDataModeToAppended()
+        name = f"piece_{p}.vtu"
+        w.SetFileName(os.path.join(wd, name))
+        w.SetInputData(g)
+        assert w.Write() == 1
+        names.append(name)
+    path = os.path.join(wd, "mesh.pvtu")
+    with open(path, "w") as f:
+        f.write('<?xml version="1.0"?>\n<VTKFile type="PUnstructuredGrid" version="0.1" byte_order="LittleEndian">\n')
+        f.write(f'  <PUnstructuredGrid GhostLevel="{int(ghosts_on)}">\n')
+        f.write('    <PPointData><PDataArray type="Float64" Name="displacement" NumberOfComponents="3"/></PPointData>\n')
+        if ghosts_on:
+            f.write('    <PCellData><PDataArray type="UInt8" Name="vtkGhostType"/></PCellData>\n')
+        f.write('    <PPoints><PDataArray type="Float64" Name="Points" NumberOfComponents="3"/></PPoints>\n')
+        for name in names:
+            f.write(f'    <Piece Source="{name}"/>\n')
+        f.write("  </PUnstructuredGrid>\n</VTKFile>\n")
+    return path, k, piece_cells, ghost_cells
 
 
 def points_for(leaves, L, X, u, rng, count):
@@ -419,6 +490,29 @@ def check(seed, n, L, origin, h, count=400, legacy=False, binary=True, **kw):
                 bad += 1
                 ok = False
                 print("STRATEGY", strategy, tag, "rc", rs.returncode, "owners only one side", sorted(differ)[:5], "xi apart", far[:5], rs.stderr[-200:])
+    # The same mesh as a parallel file: its cells dealt at random into 2 to 4 pieces (each with its
+    # own copy of the nodes it uses), with a ghost layer on some seeds (the cells sharing a node
+    # with a piece's own, flagged in vtkGhostType), each piece written by VTK's XML writer, the
+    # .pvtu written here. Every owner of every point (cells mapped back to the serial file's) is
+    # the serial file's, bit for bit, and no answer names a ghost copy.
+    if not legacy and os.environ.get("AUDIT_PVTU"):
+        pv, pieces, piece_cells, ghost_cells = write_pvtu(wd, fp, fu, hexes, rng)
+        rp, outp = run(wd, pv, pts, ["--all-owners"])
+        serial = {p: sorted((int(g["cell"]), g["xi"], g["eta"], g["zeta"]) for g in got) for p, got in rows.items()}
+        mapped, ghost_named = {}, 0
+        if rp.returncode == 0:
+            with open(outp) as f:
+                for g in csv.DictReader(f):
+                    c = int(g["cell"])
+                    ghost_named += c in ghost_cells
+                    mapped.setdefault(int(g["point"]), []).append((piece_cells[c] if c >= 0 else -1, g["xi"], g["eta"], g["zeta"]))
+        mapped = {p: sorted(v) for p, v in mapped.items()}
+        if rp.returncode != 0 or mapped != serial or ghost_named:
+            bad += 1
+            ok = False
+            differ = [p for p in serial if serial[p] != mapped.get(p)]
+            print("PVTU", tag, "pieces", pieces, "ghosts", len(ghost_cells), "rc", rp.returncode,
+                  "points differ", differ[:5], "ghost answers", ghost_named, rp.stderr[-300:])
     # MPI: `cgcontact-mpi locate` under mpirun, 2 and 3 ranks, each partition, writes the CLI's
     # results file byte for byte (one owner per point, and the gap columns).
     if os.environ.get("AUDIT_MPI"):
