@@ -19,7 +19,8 @@ same owners with the same xi (to 1e-9); with AUDIT_CAPI=path/to/libcgcontact_cap
 (the Octave MEX's path) answers `locate` and the gap columns bit for bit as the CLI (binary files);
 with AUDIT_PVTU=1, the same mesh dealt into 2 to 4 pieces of a parallel file (.pvtu), with a ghost
 layer flagged in vtkGhostType on half the seeds, gives every owner of every point bit for bit as
-the serial file (XML seeds), and never names a ghost copy.
+the serial file (XML seeds), and never names a ghost copy (with AUDIT_MPI too, mpirun on 3 ranks
+writes the CLI's results file of the parallel file, with --gap, byte for byte).
 
 Usage: CGCONTACT_BIN=target/release/cgcontact python3 tools/audit_adaptive_vtk.py FIRST END
 (seeds FIRST..END; needs the `vtk` and `numpy` packages; AUDIT_L=0 makes uniform meshes).
@@ -513,6 +514,23 @@ def check(seed, n, L, origin, h, count=400, legacy=False, binary=True, **kw):
             differ = [p for p in serial if serial[p] != mapped.get(p)]
             print("PVTU", tag, "pieces", pieces, "ghosts", len(ghost_cells), "rc", rp.returncode,
                   "points differ", differ[:5], "ghost answers", ghost_named, rp.stderr[-300:])
+        # With AUDIT_MPI, mpirun on the parallel file writes its CLI results file byte for byte.
+        if os.environ.get("AUDIT_MPI") and rp.returncode == 0:
+            gap = ["--gap", repr(float(max(h)))]
+            rq, outq = run(wd, pv, pts, gap)
+            with open(outq, "rb") as f:
+                want_bytes = f.read()
+            outm = os.path.join(wd, "mpi-pvtu.csv")
+            if os.path.exists(outm):
+                os.remove(outm)
+            root = ["--allow-run-as-root"] if os.geteuid() == 0 else []
+            rm = subprocess.run(["mpirun", "--oversubscribe", *root, "-np", "3", os.environ["AUDIT_MPI"], "locate",
+                                 "--mesh", pv, "--points", os.path.join(wd, "points.csv"), "--out", outm,
+                                 "-q", *gap], capture_output=True, text=True)
+            if not (rm.returncode == 0 and os.path.exists(outm) and open(outm, "rb").read() == want_bytes):
+                bad += 1
+                ok = False
+                print("PVTU MPI", tag, "rc", rm.returncode, rm.stderr[-300:])
     # MPI: `cgcontact-mpi locate` under mpirun, 2 and 3 ranks, each partition, writes the CLI's
     # results file byte for byte (one owner per point, and the gap columns).
     if os.environ.get("AUDIT_MPI"):

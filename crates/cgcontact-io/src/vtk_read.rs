@@ -856,8 +856,9 @@ fn hex_mesh_from_vtk(
         mesh.points.extend_from_slice(&points);
         append_cells(piece, first_node, first_cell, points.len(), &mut mesh.cells)
             .map_err(in_piece)?;
+        let ghosts = ghost_cells(piece, mesh.cells.len() - first_cell).map_err(in_piece)?;
         mesh.ghosts
-            .extend(ghost_cells(piece).map(|c| (first_cell + c) as u32));
+            .extend(ghosts.into_iter().map(|c| (first_cell + c) as u32));
         if let Some(u) = &mut u {
             let legacy = declared.is_none() && loaded.file.is_none();
             match piece_displacement(piece, displacement, points.len(), legacy, &mut available)
@@ -1037,29 +1038,39 @@ fn read_source_piece(
 }
 
 /// The cells of `piece` (0-based in it) that a `vtkGhostType` cell array flags as duplicates
-/// (bit 1), whether the array is a data array (XML, legacy `SCALARS`) or in a legacy `FIELD`.
-fn ghost_cells(piece: &UnstructuredGridPiece) -> impl Iterator<Item = usize> + '_ {
+/// (bit 1), whether the array is a data array (XML, legacy `SCALARS`) or in a legacy `FIELD`; an
+/// array of another length than the piece's `cells` is an error (its flags would fall on the
+/// next piece's cells).
+fn ghost_cells(piece: &UnstructuredGridPiece, cells: usize) -> Result<Vec<usize>, ErrorKind> {
     const NAME: &str = "vtkGhostType";
     const DUPLICATE_CELL: u64 = 1;
-    let arrays = piece
+    let array = piece
         .data
         .cell
         .iter()
-        .flat_map(|attribute| match attribute {
-            Attribute::DataArray(array) if array.name == NAME => vec![&array.data],
-            Attribute::Field { data_array, .. } => data_array
-                .iter()
-                .filter(|a| a.name == NAME)
-                .map(|a| &a.data)
-                .collect(),
-            Attribute::DataArray(_) => Vec::new(),
+        .find_map(|attribute| match attribute {
+            Attribute::DataArray(array) if array.name == NAME => Some(&array.data),
+            Attribute::Field { data_array, .. } => {
+                data_array.iter().find(|a| a.name == NAME).map(|a| &a.data)
+            }
+            Attribute::DataArray(_) => None,
         });
-    arrays
-        .take(1)
-        .flat_map(|data| data.cast_into::<f64>().unwrap_or_default())
+    let Some(array) = array else {
+        return Ok(Vec::new());
+    };
+    let flags = array.cast_into::<f64>().unwrap_or_default();
+    if flags.len() != cells {
+        return Err(ErrorKind::Topology(format!(
+            "the cell array {NAME} holds {} values for {cells} cells",
+            flags.len()
+        )));
+    }
+    Ok(flags
+        .iter()
         .enumerate()
-        .filter(|&(_, flags)| flags >= 0.0 && (flags as u64) & DUPLICATE_CELL != 0)
+        .filter(|&(_, &f)| f >= 0.0 && (f as u64) & DUPLICATE_CELL != 0)
         .map(|(cell, _)| cell)
+        .collect())
 }
 
 fn piece_points(piece: &UnstructuredGridPiece) -> Result<Vec<DVec3>, ErrorKind> {

@@ -290,6 +290,20 @@ fn a_ghost_that_is_not_a_copy_is_refused_saying_it_is_a_ghost() {
         "{message}"
     );
     assert!(!message.contains("ghost"), "{message}");
+    // A flag array of another length than the cells, in a legacy FIELD (vtkio reads it as it
+    // is): an error, not flags on the next piece's cells.
+    let field = legacy_with_ghosts(&[unit(0.0), unit(1.0)], &[]).replace(
+        "SCALARS vtkGhostType unsigned_char 1\nLOOKUP_TABLE default\n",
+        "FIELD FieldData 1\nvtkGhostType 1 3 unsigned_char\n0 0 1\n",
+    );
+    std::fs::write(&path, field).unwrap();
+    let message = read_mesh(&path, &DisplacementArray::Default)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        message.contains("vtkGhostType holds 3 values for 2 cells"),
+        "{message}"
+    );
     // A flagged cell that overlaps another without being its copy: an eighth of cell 0.
     std::fs::write(
         &path,
