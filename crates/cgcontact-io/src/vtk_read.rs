@@ -807,6 +807,10 @@ fn hex_mesh_from_vtk(
     // A parallel file's pieces are files of their own, each read and checked as a serial file is;
     // a serial file's pieces are inline. Either way, one list of pieces in order.
     let mut loaded = Vec::with_capacity(pieces.len());
+    // Each piece file's identity (its canonical path) and the piece that first named it: a file
+    // named twice would hold every one of its cells twice, and read again and again it could
+    // exhaust memory before any check (a short parallel file naming one large piece many times).
+    let mut files = std::collections::HashMap::new();
     for (index, piece) in pieces.into_iter().enumerate() {
         match piece {
             Piece::Source(name, _) => {
@@ -816,6 +820,14 @@ fn hex_mesh_from_vtk(
                     file: file.clone(),
                     error: Box::new(error),
                 };
+                if let Ok(canonical) = std::fs::canonicalize(&file)
+                    && let Some(first) = files.insert(canonical, index)
+                {
+                    return Err(in_piece(ErrorKind::Parallel(format!(
+                        "the file of piece {first} again: each piece file holds cells of its \
+                         own, and would hold them twice"
+                    ))));
+                }
                 let (pieces, declared) = read_source_piece(&file).map_err(in_piece)?;
                 for (piece, declared) in pieces.into_iter().zip(declared) {
                     loaded.push(LoadedPiece {

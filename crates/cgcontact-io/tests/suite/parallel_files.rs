@@ -380,6 +380,22 @@ fn a_parallel_file_as_a_piece_is_refused() {
 }
 
 #[test]
+fn a_piece_file_named_twice_is_refused_before_it_is_read_again() {
+    // Through another spelling of the same file, and a link to it.
+    let (_dir, path) = with_piece(2, "./split-appended_0.vtu");
+    let message = refusal(&path);
+    assert!(message.contains("piece 2 ("), "{message}");
+    assert!(message.contains("the file of piece 0 again"), "{message}");
+    #[cfg(unix)]
+    {
+        let (dir, path) = with_piece(2, "link.vtu");
+        std::os::unix::fs::symlink("split-appended_1.vtu", dir.path().join("link.vtu")).unwrap();
+        let message = refusal(&path);
+        assert!(message.contains("the file of piece 1 again"), "{message}");
+    }
+}
+
+#[test]
 fn a_legacy_piece_is_refused() {
     let (dir, path) = with_piece(1, "legacy.vtk");
     std::fs::copy(
