@@ -218,6 +218,7 @@ impl HexMesh {
 
     /// [`HexMesh::to_adaptive`] for the coordinates' `rounding`.
     fn adaptive_with(&self, used: &BitVec, rounding: Rounding) -> Result<AdaptiveMesh, ErrorKind> {
+        self.check_ghosts()?;
         if let Some(u) = &self.displacement
             && u.len() != self.points.len()
         {

@@ -462,6 +462,20 @@ impl HexMesh {
         }
     }
 
+    /// [`HexMesh::ghosts`] as the detection reads them: ascending, distinct, each a cell.
+    pub(crate) fn check_ghosts(&self) -> Result<(), ErrorKind> {
+        let ascending = self.ghosts.windows(2).all(|w| w[0] < w[1]);
+        match self.ghosts.last() {
+            Some(&last) if !ascending || last as usize >= self.cells.len() => {
+                Err(ErrorKind::Mismatch(format!(
+                    "ghosts must be distinct cells in ascending order, of the {} cells",
+                    self.cells.len()
+                )))
+            }
+            _ => Ok(()),
+        }
+    }
+
     /// Recognise the mesh as a lattice body: detect origin, spacing and counts from the nodes of the
     /// cells, check that every cell is one lattice cube with corners in VTK order, and build the
     /// body with its active cells and displacements.
@@ -472,6 +486,7 @@ impl HexMesh {
         if self.cells.is_empty() {
             return Err(ErrorKind::NoCells);
         }
+        self.check_ghosts()?;
         if let Some(u) = &self.displacement
             && u.len() != self.points.len()
         {

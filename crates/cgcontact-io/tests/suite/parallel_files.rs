@@ -253,6 +253,32 @@ fn legacy_with_ghosts(cells: &[(DVec3, f64)], flags: &[u8]) -> String {
 }
 
 #[test]
+fn ghosts_given_out_of_order_or_beyond_the_cells_are_refused() {
+    let mut mesh =
+        read_hex_mesh(folder().join("ghosts.pvtu"), &DisplacementArray::Default).unwrap();
+    assert!(mesh.to_body().is_ok());
+    let sorted = mesh.ghosts.clone();
+    mesh.ghosts.reverse();
+    for ghosts in [
+        mesh.ghosts.clone(),
+        vec![sorted[0], sorted[0]],
+        vec![mesh.cells.len() as u32],
+    ] {
+        mesh.ghosts = ghosts;
+        for message in [
+            mesh.to_lattice().unwrap_err(),
+            mesh.to_adaptive().unwrap_err(),
+        ] {
+            let message = message.to_string();
+            assert!(
+                message.contains("ghosts must be distinct cells in ascending order"),
+                "{message}"
+            );
+        }
+    }
+}
+
+#[test]
 fn a_ghost_that_is_not_a_copy_is_refused_saying_it_is_a_ghost() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("cells.vtk");
