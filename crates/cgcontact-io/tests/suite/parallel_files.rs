@@ -368,26 +368,26 @@ fn refusal(path: &Path) -> String {
         .to_string()
 }
 
+/// The refusal of the parallel file `path`, which must name its piece `piece` and say `wanted`.
+fn refused_naming(path: &Path, piece: usize, wanted: &str) {
+    let message = refusal(path);
+    assert!(message.contains(&format!("piece {piece} (")), "{message}");
+    assert!(message.contains(wanted), "{message}");
+}
+
 #[test]
 #[cfg(unix)]
 fn a_piece_that_is_a_device_is_refused_at_once() {
     // vtkio read it whole, and the process aborted when memory ran out.
     let (dir, path) = with_piece(1, "zero.vtu");
     std::os::unix::fs::symlink("/dev/zero", dir.path().join("zero.vtu")).unwrap();
-    let message = refusal(&path);
-    assert!(message.contains("piece 1 ("), "{message}");
-    assert!(
-        message.contains("zero.vtu): unrecognised format"),
-        "{message}"
-    );
+    refused_naming(&path, 1, "zero.vtu): unrecognised format");
 }
 
 #[test]
 fn a_missing_piece_is_named() {
     let (_dir, path) = with_piece(2, "gone.vtu");
-    let message = refusal(&path);
-    assert!(message.contains("piece 2 ("), "{message}");
-    assert!(message.contains("gone.vtu): "), "{message}");
+    refused_naming(&path, 2, "gone.vtu): ");
 }
 
 #[test]
@@ -396,11 +396,10 @@ fn a_parallel_file_as_a_piece_is_refused() {
     for source in ["hostile.pvtu", "other.pvtu"] {
         let (dir, path) = with_piece(0, source);
         std::fs::copy(&path, dir.path().join("other.pvtu")).unwrap();
-        let message = refusal(&path);
-        assert!(message.contains("piece 0 ("), "{message}");
-        assert!(
-            message.contains("the pieces of a parallel file are serial .vtu files"),
-            "{message}"
+        refused_naming(
+            &path,
+            0,
+            "the pieces of a parallel file are serial .vtu files",
         );
     }
 }
@@ -409,15 +408,12 @@ fn a_parallel_file_as_a_piece_is_refused() {
 fn a_piece_file_named_twice_is_refused_before_it_is_read_again() {
     // Through another spelling of the same file, and a link to it.
     let (_dir, path) = with_piece(2, "./split-appended_0.vtu");
-    let message = refusal(&path);
-    assert!(message.contains("piece 2 ("), "{message}");
-    assert!(message.contains("the file of piece 0 again"), "{message}");
+    refused_naming(&path, 2, "the file of piece 0 again");
     #[cfg(unix)]
     {
         let (dir, path) = with_piece(2, "link.vtu");
         std::os::unix::fs::symlink("split-appended_1.vtu", dir.path().join("link.vtu")).unwrap();
-        let message = refusal(&path);
-        assert!(message.contains("the file of piece 1 again"), "{message}");
+        refused_naming(&path, 2, "the file of piece 1 again");
     }
 }
 
@@ -429,9 +425,7 @@ fn a_legacy_piece_is_refused() {
         dir.path().join("legacy.vtk"),
     )
     .unwrap();
-    let message = refusal(&path);
-    assert!(message.contains("piece 1 ("), "{message}");
-    assert!(message.contains("a legacy VTK file"), "{message}");
+    refused_naming(&path, 1, "a legacy VTK file");
 }
 
 #[test]
@@ -457,9 +451,7 @@ fn a_corrupt_piece_is_refused_as_its_own_file_would_be() {
     let wanted = "declares it, but its data cannot be decoded";
     let alone = refusal(&piece);
     assert!(alone.contains(wanted), "{alone}");
-    let message = refusal(&path);
-    assert!(message.contains("piece 0 ("), "{message}");
-    assert!(message.contains(wanted), "{message}");
+    refused_naming(&path, 0, wanted);
 }
 
 #[test]
