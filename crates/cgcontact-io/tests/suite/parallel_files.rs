@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 use cgcontact::glam::DVec3;
 use cgcontact::{AdaptiveLocator, LatticeLocator, Locator, Settings};
 use cgcontact_io::{
-    DisplacementArray, MeshBody, parse_hex_mesh, read_body, read_hex_mesh, read_mesh,
+    AdaptiveMesh, DisplacementArray, MeshBody, parse_hex_mesh, read_body, read_hex_mesh, read_mesh,
 };
 
 fn folder() -> PathBuf {
@@ -108,19 +108,22 @@ fn pieces_are_numbered_as_vtk_numbers_them_and_make_the_whole_body() {
     }
 }
 
+/// The adaptive body of the parallel file `path`, and `adaptive-whole.vtu`'s.
+fn with_the_whole_adaptive_body(path: &Path) -> (AdaptiveMesh, AdaptiveMesh) {
+    let adaptive = |path: &Path| match read_body(path, &DisplacementArray::Default).unwrap() {
+        MeshBody::Adaptive(mesh) => mesh,
+        MeshBody::Uniform(_) => panic!("{}: not read as adaptive", path.display()),
+    };
+    (
+        adaptive(path),
+        adaptive(&folder().join("adaptive-whole.vtu")),
+    )
+}
+
 #[test]
 fn an_adaptive_body_in_pieces_is_the_one_in_one_file() {
     let path = folder().join("adaptive.pvtu");
-    let (MeshBody::Adaptive(split), MeshBody::Adaptive(whole)) = (
-        read_body(&path, &DisplacementArray::Default).unwrap(),
-        read_body(
-            folder().join("adaptive-whole.vtu"),
-            &DisplacementArray::Default,
-        )
-        .unwrap(),
-    ) else {
-        panic!("not read as adaptive");
-    };
+    let (split, whole) = with_the_whole_adaptive_body(&path);
     assert_eq!(split.body.cell_count(), 32);
     assert_eq!(split.body.node_count(), whole.body.node_count());
     assert_eq!(
@@ -183,16 +186,7 @@ fn ghost_copies_are_read_as_the_cells_they_copy() {
 #[test]
 fn ghost_copies_of_leaves_are_read_as_the_leaves_they_copy() {
     let path = folder().join("adaptive-ghosts.pvtu");
-    let (MeshBody::Adaptive(split), MeshBody::Adaptive(whole)) = (
-        read_body(&path, &DisplacementArray::Default).unwrap(),
-        read_body(
-            folder().join("adaptive-whole.vtu"),
-            &DisplacementArray::Default,
-        )
-        .unwrap(),
-    ) else {
-        panic!("not read as adaptive");
-    };
+    let (split, whole) = with_the_whole_adaptive_body(&path);
     let cells = centres_and_ghosts("adaptive-ghosts");
     assert_eq!(cells.iter().filter(|c| c.1).count(), 32);
     assert_eq!(split.cells.len(), 64);
