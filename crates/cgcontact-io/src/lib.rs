@@ -5,7 +5,7 @@
 //!
 //! | piece | what it does |
 //! |---|---|
-//! | [`read_mesh`] | a VTK unstructured grid of hexahedra (legacy `.vtk` ASCII/binary, XML `.vtu` ascii/base64/appended, raw or zlib/LZ4/LZMA-compressed) → [`LatticeMesh`]: the [`Body`](cgcontact::Body) plus the [`CellMap`] between the input's cell order and lattice cells |
+//! | [`read_mesh`] | a VTK unstructured grid of hexahedra (legacy `.vtk` ASCII/binary, XML `.vtu` ascii/base64/appended, raw or zlib/LZ4/LZMA-compressed, or a parallel `.pvtu` and its pieces) → [`LatticeMesh`]: the [`Body`](cgcontact::Body) plus the [`CellMap`] between the input's cell order and lattice cells |
 //! | [`HexMesh::to_lattice`] | lattice detection: origin, spacing per axis and counts from the nodes (to 1e-9 of the spacing), every cell checked to be one lattice cube in VTK corner order |
 //! | [`write_mesh`] | a body in any of the three flavours ([`MeshFormat`]); [`read_mesh`] reads it back exactly |
 //! | [`read_points`], [`write_results`], [`read_results`] | CSV points `x,y,z` and results `point,cell,xi,eta,zeta,...` |

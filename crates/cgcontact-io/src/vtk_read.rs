@@ -1,4 +1,4 @@
-//! Reading VTK unstructured grids of hexahedra (legacy `.vtk` ASCII/binary, XML `.vtu`) with vtkio.
+//! Reading VTK unstructured grids of hexahedra (legacy `.vtk` ASCII/binary, XML `.vtu`, parallel `.pvtu`) with vtkio.
 
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::{Path, PathBuf};
