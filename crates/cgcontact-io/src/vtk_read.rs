@@ -75,10 +75,10 @@ pub fn read_hex_mesh(
 /// `error`, with a word on ghost cells where it names a ghost copy of `mesh` as overlapping
 /// another cell (a copy of the same cell is read as that cell; this one is not the same).
 fn explain_ghosts(mesh: &HexMesh, error: ErrorKind) -> ErrorKind {
-    let (first, second) = match &error {
-        ErrorKind::DuplicateCell { first, second, .. }
-        | ErrorKind::OverlappingCells { first, second } => (*first, *second),
-        _ => return error,
+    // Two copies of one lattice cell are refused only when neither is a ghost
+    // (`CellMap::with_ghosts`): an overlap of leaves is what can name one.
+    let ErrorKind::OverlappingCells { first, second } = error else {
+        return error;
     };
     match [first, second]
         .into_iter()
@@ -131,7 +131,8 @@ struct DeclaredArray {
     components: Option<String>,
 }
 
-/// The point-data arrays each `<Piece>` of an XML file declares, read from the text.
+/// The point-data arrays each `<Piece>` of an XML file declares, read from the text (pieces of
+/// no cell left out, as vtkio never sees them).
 ///
 /// vtkio 0.7.0-rc2 drops a data array whose content fails to decode (a tuple short or long, bad
 /// base64, a zlib block of the wrong size, a payload that is not zlib) instead of reporting it:
@@ -146,7 +147,19 @@ fn declared_point_arrays(xml: &[u8]) -> Vec<Vec<DeclaredArray>> {
     let mut pieces = Vec::new();
     let mut at = 0;
     while let Some(start) = find(xml, b"<Piece", at) {
-        let piece_end = find(xml, b"</Piece", start).unwrap_or(xml.len());
+        let tag_end = find(xml, b">", start).unwrap_or(xml.len());
+        let piece_end = if xml[..tag_end].ends_with(b"/") {
+            tag_end
+        } else {
+            find(xml, b"</Piece", start).unwrap_or(xml.len())
+        };
+        at = piece_end.max(start + 1);
+        // A piece of no cell is blanked before vtkio reads the file (`without_empty_pieces`):
+        // left out here too, so that the lists stay in step with vtkio's pieces.
+        if attribute(&xml[start..tag_end], b"NumberOfCells").is_some_and(|v| v.trim_ascii() == b"0")
+        {
+            continue;
+        }
         let piece = &xml[start..piece_end];
         let mut names = Vec::new();
         if let Some(data) = find(piece, b"<PointData", 0) {
@@ -169,7 +182,6 @@ fn declared_point_arrays(xml: &[u8]) -> Vec<Vec<DeclaredArray>> {
             }
         }
         pieces.push(names);
-        at = piece_end.max(start + 1);
     }
     pieces
 }
@@ -829,10 +841,10 @@ fn hex_mesh_from_vtk(
                     ))));
                 }
                 let (pieces, declared) = read_source_piece(&file).map_err(in_piece)?;
-                for (piece, declared) in pieces.into_iter().zip(declared) {
+                for (at, piece) in pieces.into_iter().enumerate() {
                     loaded.push(LoadedPiece {
                         piece,
-                        declared: Some(declared),
+                        declared: declared.get(at).cloned(),
                         file: Some((index, file.clone())),
                     });
                 }
@@ -1040,12 +1052,6 @@ fn read_source_piece(
             }
         }
     }
-    // `declared` lists every `<Piece>` of the text, the pieces of no cell too, which vtkio skips.
-    let declared = if declared.len() == inline.len() {
-        declared
-    } else {
-        inline.iter().map(|_| Vec::new()).collect()
-    };
     Ok((inline, declared))
 }
 

@@ -69,6 +69,27 @@ fn ascii_array_one_tuple_short_or_long() {
 }
 
 #[test]
+fn a_short_array_after_a_piece_of_no_cell() {
+    // The piece of no cell is blanked before vtkio reads the file, and the arrays the text
+    // declares were looked up by vtkio's piece index: the empty piece's (none) stood for the
+    // corrupt one's, and the mesh read as undeformed.
+    let text = common::vtu_ascii(&mesh());
+    let range = displacement_content(&text);
+    let values: Vec<&str> = text[range.clone()].split_whitespace().collect();
+    let short = values[..values.len() - 3].join(" ");
+    let corrupt = format!("{}{short}{}", &text[..range.start], &text[range.end..]);
+    let empty = "<Piece NumberOfPoints=\"0\" NumberOfCells=\"0\">\n<PointData>\n</PointData>\n\
+        <Points>\n<DataArray type=\"Float64\" Name=\"Points\" NumberOfComponents=\"3\" \
+        format=\"ascii\">\n</DataArray>\n</Points>\n<Cells>\n<DataArray type=\"Int64\" \
+        Name=\"connectivity\" format=\"ascii\">\n</DataArray>\n<DataArray type=\"Int64\" \
+        Name=\"offsets\" format=\"ascii\">\n</DataArray>\n<DataArray type=\"UInt8\" \
+        Name=\"types\" format=\"ascii\">\n</DataArray>\n</Cells>\n</Piece>\n";
+    let at = corrupt.find("<Piece").unwrap();
+    let with_empty = format!("{}{empty}{}", &corrupt[..at], &corrupt[at..]);
+    refused(with_empty.as_bytes(), "short, after a piece of no cell");
+}
+
+#[test]
 fn base64_array_with_garbage_or_an_extra_pad() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("m.vtu");
