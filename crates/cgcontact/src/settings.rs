@@ -314,7 +314,8 @@ pub struct InsideTolerance {
     origin: DVec3,
     /// The spacing these constants were made with (the finest, on an adaptive body).
     h: DVec3,
-    /// 2 / its smallest component: the filters' ξ per unit length.
+    /// 4 / its smallest component: the filters' ξ per unit of rounding length (twice 2 / h:
+    /// the kernel accepts a point within L plus its second-order terms, at most L again).
     per_length: f64,
 }
 
@@ -336,7 +337,7 @@ impl InsideTolerance {
             kernel: 4.0 * settings.epsilon() * u_max.abs(),
             origin: origin.abs(),
             h,
-            per_length: 2.0 / h.min_element(),
+            per_length: 4.0 / h.min_element(),
         }
     }
 
@@ -408,9 +409,10 @@ impl InsideTolerance {
         self.undeformed(x, self.h)
     }
 
-    /// What the filters widen by for a point of rounding length `length`, ξ units: `t` plus the
-    /// largest L_j times the largest 2 / h_k, at least every component of
-    /// [`InsideTolerance::at`].
+    /// What the filters widen by for a point of rounding length `length`, ξ units: `t` plus
+    /// twice the largest L_j times the largest 2 / h_k (the kernel accepts a point within L_j
+    /// of a cell plus second-order terms of at most the largest L_j), at least every component
+    /// of [`InsideTolerance::at`].
     #[inline(always)]
     pub(crate) fn tau(&self, length: DVec3) -> f64 {
         self.xi + self.per_length * length.max_element()

@@ -343,7 +343,56 @@ macro_rules! stamp_hex8 {
             /// allowance where det J ≤ 0 there. Called only for a converged ξ beyond `inside`.
             #[cold]
             fn within_allowance(&self, xi: $V, inside: $V, length: $V) -> bool {
-                let ([k0, k1, k2], det) = self.adjugate_at(xi.clamp(<$V>::splat(-1.0), <$V>::splat(1.0)));
+                let (rows, det) = self.adjugate_at(xi.clamp(<$V>::splat(-1.0), <$V>::splat(1.0)));
+                Self::in_zonotope(xi, inside, length, rows, det)
+            }
+
+            /// [`Self::within_allowance`] for the ξ where Newton converged, whose `residual`
+            /// x − x(ξ) is known, with the allowance widened by what the first-order test leaves
+            /// out (a length per component):
+            /// - the residual itself: Newton may stop on a step down to the rounding noise of a
+            ///   large coordinate (`step_noise`), whose last step leaves the other components a
+            ///   little short of their own, far smaller rounding;
+            /// - the map's curvature over the allowance: ξ is moved back into the cell by J⁻¹ at
+            ///   the nearest point of the closed cell, while the map bends between there and ξ by
+            ///   up to `curvature`_j · |Δξ|∞², |Δξ| at most the first-order reach R (a bound on
+            ///   ξ's distance to the cell that the test accepts). Four times that: the bend, and
+            ///   J's change between the two points times their distance.
+            ///
+            /// Both are second order in the rounding: nothing near the origin, where L is a few
+            /// ε. Without them, far from the origin with a large coordinate rounding along one
+            /// axis, a point on a node of a deformed cell was refused: Newton stopped beyond the
+            /// node's corner of the box along J⁻¹'s column for that axis, but not exactly along
+            /// it, and the other axes' allowances, a few ε, could not make up the difference (a
+            /// cell of h = 1 translated by 1e12, lattice and brute force alike). The widening is
+            /// at most the largest first-order length L, so a point accepted lies within 2 L of
+            /// the cell (to first order), what the filters widen by
+            /// (`InsideTolerance::tau`), and a crushed cell's allowance at most doubles.
+            #[cold]
+            fn converged_within_allowance(&self, xi: $V, inside: $V, length: $V, residual: $V) -> bool {
+                let (rows, det) = self.adjugate_at(xi.clamp(<$V>::splat(-1.0), <$V>::splat(1.0)));
+                if det.is_nan() || det <= 0.0 {
+                    return false;
+                }
+                let first = length + residual.abs();
+                let reach = 2.0 * rows.iter().map(|row| row.abs().dot(first)).fold(0.0, <$S>::max) / det;
+                let a = &self.a;
+                let curvature = a[3].abs() + a[5].abs() + a[6].abs() + 4.0 * a[7].abs();
+                // An infinite reach (J nearly singular there) bends nothing.
+                let bend = if reach.is_finite() {
+                    curvature * (4.0 * reach * reach)
+                } else {
+                    <$V>::splat(0.0)
+                };
+                // At most the largest first-order length: the filters widen by twice that.
+                let widen = (residual.abs() + bend).min(<$V>::splat(length.max_element()));
+                Self::in_zonotope(xi, inside, length + widen, rows, det)
+            }
+
+            /// The zonotope test of [`Self::within_allowance`], given the rows of adj(J) and det J
+            /// at the nearest point of the closed cell.
+            #[inline]
+            fn in_zonotope(xi: $V, inside: $V, length: $V, [k0, k1, k2]: [$V; 3], det: $S) -> bool {
                 // NaN fails too: only a cell known to be valid there gets the allowance.
                 if det.is_nan() || det <= 0.0 {
                     return false;
@@ -550,7 +599,7 @@ macro_rules! stamp_hex8 {
                         let status = if !xi.is_finite() || !rr.is_finite() {
                             Status::Singular
                         } else if xi.abs().cmple(inside).all()
-                            || self.within_allowance(xi, inside, inside_length)
+                            || self.converged_within_allowance(xi, inside, inside_length, r)
                         {
                             Status::Inside
                         } else {
