@@ -19,7 +19,11 @@ use crate::error::{displacement_error, displacement_ok};
 use crate::hex8;
 use crate::idmap::IdMap;
 use crate::lattice::{CORNER_OFFSETS, CellId, Lattice};
+use crate::memory;
 use crate::settings::{InsideTolerance, Settings};
+
+/// What [`Error::OutOfMemory`] names for the buffers of a body's active cells.
+const ACTIVE_CELLS: &str = "the active cells";
 
 /// Slot value of a lattice node that belongs to no active cell.
 const NO_SLOT: u32 = u32::MAX;
@@ -92,7 +96,8 @@ pub struct Body {
 impl Body {
     /// An undeformed body: the lattice's cells where `active` is set.
     ///
-    /// Errors when the mask's length is not the lattice's cell count, or no cell is active.
+    /// Errors when the mask's length is not the lattice's cell count, or no cell is active, or
+    /// with [`Error::OutOfMemory`] when the body's buffers cannot be allocated.
     pub fn undeformed(lattice: Lattice, active: BitVec) -> Result<Self, Error> {
         if active.len() != lattice.cell_count() {
             return Err(Error::LengthMismatch {
@@ -101,19 +106,21 @@ impl Body {
                 got: active.len(),
             });
         }
-        let cells: Vec<u32> = active.iter_ones().map(|c| c as u32).collect();
+        let mut cells = memory::with_capacity(active.count_ones(), ACTIVE_CELLS)?;
+        cells.extend(active.iter_ones().map(|c| c as u32));
         Self::build(lattice, cells, Some(active))
     }
 
     /// An undeformed body of the given active cells (any order, repeats ignored), in memory that
     /// grows with the cells, not the lattice: a few cells on a huge lattice take kilobytes.
     ///
-    /// Errors when a cell lies outside the lattice, or there is none.
+    /// Errors when a cell lies outside the lattice, or there is none, or with
+    /// [`Error::OutOfMemory`] when the body's buffers cannot be allocated.
     pub fn from_cells(
         lattice: Lattice,
         cells: impl IntoIterator<Item = CellId>,
     ) -> Result<Self, Error> {
-        let mut ids: Vec<u32> = cells.into_iter().map(|c| c.0).collect();
+        let mut ids = memory::collected(cells.into_iter().map(|c| c.0), ACTIVE_CELLS)?;
         if let Some(&bad) = ids.iter().find(|&&c| c as usize >= lattice.cell_count()) {
             return Err(Error::CellOutOfRange {
                 cell: CellId(bad),
@@ -126,7 +133,7 @@ impl Body {
     }
 
     /// The body of the active cells `ids` (ascending, distinct, in range), `mask` their bit mask
-    /// when the caller has one.
+    /// when the caller has one. Every buffer is allocated fallibly ([`memory`]).
     fn build(lattice: Lattice, ids: Vec<u32>, mask: Option<BitVec>) -> Result<Self, Error> {
         if ids.is_empty() {
             return Err(Error::EmptyBody);
@@ -143,7 +150,7 @@ impl Body {
         let (slots, nodes) = if active_count == lattice.cell_count() {
             (Slots::Dense, lattice.node_count())
         } else if lattice.node_count() <= TABLE_NODES_PER_CELL * active_count {
-            let mut table = vec![NO_SLOT; lattice.node_count()];
+            let mut table = memory::filled(NO_SLOT, lattice.node_count(), "the node slot table")?;
             for &id in &ids {
                 for node in corners(id) {
                     table[node] = 0;
@@ -157,29 +164,31 @@ impl Body {
             slot_table = table;
             (Slots::Table, next as usize)
         } else {
-            let mut nodes: Vec<u32> = ids
-                .iter()
-                .flat_map(|&id| corners(id))
-                .map(|n| n as u32)
-                .collect();
+            let mut nodes = memory::with_capacity(8 * ids.len(), "the active cells' nodes")?;
+            nodes.extend(ids.iter().flat_map(|&id| corners(id)).map(|n| n as u32));
             nodes.sort_unstable();
             nodes.dedup();
-            let map = IdMap::new(nodes.iter().enumerate().map(|(s, &n)| (n, s as u32)));
+            let slots = nodes.iter().enumerate().map(|(s, &n)| (n, s as u32));
+            let map = IdMap::try_new(slots, "the node slot map")?;
             let count = nodes.len();
             (Slots::Sparse { nodes, map }, count)
         };
         let cells = if lattice.cell_count() <= 64 * active_count {
-            Cells::Mask(mask.unwrap_or_else(|| {
-                let mut bits = BitVec::repeat(false, lattice.cell_count());
-                for &id in &ids {
-                    bits.set(id as usize, true);
+            Cells::Mask(match mask {
+                Some(mask) => mask,
+                None => {
+                    let mut bits = memory::bits(false, lattice.cell_count(), ACTIVE_CELLS)?;
+                    for &id in &ids {
+                        bits.set(id as usize, true);
+                    }
+                    bits
                 }
-                bits
-            }))
+            })
         } else {
-            let set = IdMap::new(ids.iter().map(|&id| (id, 0)));
+            let set = IdMap::try_new(ids.iter().map(|&id| (id, 0)), ACTIVE_CELLS)?;
             Cells::Sparse { cells: ids, set }
         };
+        let u = memory::filled(DVec3::ZERO, nodes, "the displacements")?;
         Ok(Self {
             lattice,
             cells,
@@ -187,7 +196,7 @@ impl Body {
             dense: matches!(slots, Slots::Dense),
             slots,
             table: slot_table,
-            u: vec![DVec3::ZERO; nodes],
+            u,
             corner_offsets,
         })
     }
@@ -195,13 +204,20 @@ impl Body {
     /// A body with every lattice cell active.
     ///
     /// It holds 24 bytes per lattice node (the displacements) and a bit per cell, so a lattice
-    /// of 10^9 nodes takes 24 GB; where the allocation fails, the process aborts, as for any
-    /// `Vec`. A body of some cells of a large lattice ([`Body::from_cells`]) takes memory that
-    /// grows with its cells.
+    /// of 10^9 nodes takes 24 GB; where the allocation fails, this panics ([`Body::try_full`]
+    /// returns the error instead). A body of some cells of a large lattice
+    /// ([`Body::from_cells`]) takes memory that grows with its cells.
     pub fn full(lattice: Lattice) -> Self {
-        let active = BitVec::repeat(true, lattice.cell_count());
+        Self::try_full(lattice).unwrap_or_else(|e| panic!("{e}"))
+    }
+
+    /// [`Body::full`], or [`Error::OutOfMemory`] when its buffers cannot be allocated: for a
+    /// binding that must raise its out-of-memory error rather than abort the process. While it
+    /// builds, it holds 4 bytes per cell besides the body.
+    pub fn try_full(lattice: Lattice) -> Result<Self, Error> {
+        let active = memory::bits(true, lattice.cell_count(), ACTIVE_CELLS)?;
+        // A lattice has at least one cell and the mask fits it: only allocations can fail.
         Self::undeformed(lattice, active)
-            .expect("a lattice has at least one cell and the mask fits it")
     }
 
     /// A body with displacements given per node of an active cell, in ascending lattice node order

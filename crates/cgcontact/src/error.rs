@@ -82,6 +82,15 @@ pub enum Error {
         /// The lattice's cell count.
         cells: usize,
     },
+    /// Memory for a body's buffer could not be allocated (a binding raises its out-of-memory
+    /// error: a failed allocation in a plain `Vec` would abort the process).
+    #[error("{what}: {bytes} bytes cannot be allocated")]
+    OutOfMemory {
+        /// The buffer asked for.
+        what: &'static str,
+        /// Its size.
+        bytes: usize,
+    },
 }
 
 /// The largest displacement component a body accepts, in absolute value. Squared distances

@@ -1,6 +1,8 @@
 //! A small open-addressing hash map from `u32` ids (lattice nodes or cells) to `u32` values: the
 //! storage of sparse bodies, whose memory must grow with their active cells, not their lattice.
 
+use crate::{Error, memory};
+
 /// Key of an empty entry: never a lattice id (a lattice has fewer than 2^32 − 1 nodes).
 const EMPTY: u32 = u32::MAX;
 
@@ -15,12 +17,31 @@ pub(crate) struct IdMap {
 impl IdMap {
     /// A map holding `pairs` (distinct keys, none equal to `u32::MAX`).
     pub(crate) fn new(pairs: impl ExactSizeIterator<Item = (u32, u32)>) -> Self {
-        let capacity = (2 * pairs.len()).next_power_of_two().max(8);
-        let mut map = Self {
-            keys: vec![EMPTY; capacity],
-            values: vec![0; capacity],
-            mask: capacity - 1,
-        };
+        let capacity = Self::capacity(pairs.len());
+        Self::holding(vec![EMPTY; capacity], vec![0; capacity], pairs)
+    }
+
+    /// [`IdMap::new`], or [`Error::OutOfMemory`] naming `what` when its tables cannot be allocated.
+    pub(crate) fn try_new(
+        pairs: impl ExactSizeIterator<Item = (u32, u32)>,
+        what: &'static str,
+    ) -> Result<Self, Error> {
+        let capacity = Self::capacity(pairs.len());
+        let keys = memory::filled(EMPTY, capacity, what)?;
+        let values = memory::filled(0, capacity, what)?;
+        Ok(Self::holding(keys, values, pairs))
+    }
+
+    /// Entries for `len` keys: at most half full.
+    fn capacity(len: usize) -> usize {
+        (2 * len).next_power_of_two().max(8)
+    }
+
+    /// The map of `pairs` in the empty tables `keys` (all `EMPTY`) and `values`, of one
+    /// power-of-two length.
+    fn holding(keys: Vec<u32>, values: Vec<u32>, pairs: impl Iterator<Item = (u32, u32)>) -> Self {
+        let mask = keys.len() - 1;
+        let mut map = Self { keys, values, mask };
         for (key, value) in pairs {
             debug_assert_ne!(key, EMPTY);
             let mut i = map.home(key);

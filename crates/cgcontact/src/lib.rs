@@ -45,6 +45,7 @@ mod idmap;
 mod lanes;
 mod lattice;
 mod locate;
+mod memory;
 mod reach;
 mod schedule;
 mod settings;
