@@ -36,8 +36,8 @@ class Body:
         counts: Sequence[int],
         active: Optional[npt.ArrayLike] = None,
     ) -> "Body":
-        """A body on a lattice of `counts` cells per axis (MemoryError, before allocating,
-        when its 48 bytes a node cannot be had). `active`: one flag per lattice cell
+        """A body on a lattice of `counts` cells per axis (MemoryError when it does not fit in
+        memory: about 48 bytes a node). `active`: one flag per lattice cell
         (booleans, or 0s and 1s), x fastest (flat, or shape (nz, ny, nx)); None for every cell.
         Other shapes and values raise ValueError. Cells are numbered
         i + nx (j + ny k); `set_displacements` takes one row per lattice node,
@@ -47,7 +47,8 @@ class Body:
         """A body from undeformed nodes (n, 3) and hexahedra (m, 8) of 0-based node numbers in
         VTK order (whole numbers: 2.5 or NaN raise ValueError); the lattice is detected. Cells
         are numbered by their row in `hexes`. Nodes off the lattice by their coordinates'
-        rounding (32-bit floats) stay where given, before and after `set_displacements`."""
+        rounding (32-bit floats) stay where given, before and after `set_displacements`.
+        MemoryError when the body, or detecting its lattice, does not fit in memory."""
     def set_displacements(self, u: npt.ArrayLike, fill_hanging: bool = False) -> None:
         """Sets every displacement in place: one row (ux, uy, uz) per node (`node_count`). On an
         adaptive body a hanging node's row must be its constraint's value unless `fill_hanging`.

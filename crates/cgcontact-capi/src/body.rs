@@ -148,7 +148,11 @@ pub unsafe extern "C" fn cgc_body_from_lattice(
         }
         let lattice = Lattice::new(origin, h, [counts[0], counts[1], counts[2]])?;
         // A body takes about 48 bytes per node (its displacements and this API's copy): refuse
-        // what cannot be allocated as an error, before an allocation failure would abort.
+        // what cannot be allocated as an error, before an allocation failure would abort. The
+        // kernel's overcommit grants each allocation of the build alone, then kills the process
+        // that fills them: this asks for them together. The build's own allocations are fallible
+        // too (`cgcontact::Error::OutOfMemory`), for what this misses: a limit on the address
+        // space (RLIMIT_AS) that the build's peak, above these 48 bytes, exceeds.
         let mut probe = Vec::<[DVec3; 2]>::new();
         probe
             .try_reserve_exact(if active.is_null() {
@@ -173,7 +177,7 @@ pub unsafe extern "C" fn cgc_body_from_lattice(
             ));
         }
         let body = if active.is_null() {
-            Body::full(lattice)
+            Body::try_full(lattice)?
         } else {
             if active_len != lattice.cell_count() {
                 return Err(Failure::new(
@@ -190,7 +194,7 @@ pub unsafe extern "C" fn cgc_body_from_lattice(
             Body::from_cells(lattice, ids.map(|(c, _)| CellId(c as u32)))?
         };
         // SAFETY: the caller guarantees `out` is writable.
-        unsafe { raw::give(out, CgcBody::new(BodyState::lattice(body)), "out") }
+        unsafe { raw::give(out, CgcBody::new(BodyState::lattice(body)?), "out") }
     })
 }
 

@@ -163,15 +163,35 @@ pub struct CallerBody {
 }
 
 impl CallerBody {
-    /// A lattice body, its cells and nodes numbered as the lattice's.
-    #[must_use]
-    pub fn lattice(body: Body) -> Self {
+    /// A lattice body, its cells and nodes numbered as the lattice's, or
+    /// [`cgcontact::Error::OutOfMemory`] when its buffers (28 bytes a node of the body at most)
+    /// cannot be allocated: a binding raises its out-of-memory error where a failed allocation
+    /// would abort the process.
+    pub fn lattice(body: Body) -> Result<Self, cgcontact::Error> {
         let lattice = body.lattice();
+        let n = body.node_count();
+        let out_of_memory = |what, len: usize, bytes: usize| cgcontact::Error::OutOfMemory {
+            what,
+            bytes: len.saturating_mul(bytes),
+        };
+        let mut scratch = Vec::new();
+        scratch
+            .try_reserve_exact(n)
+            .map_err(|_| out_of_memory("the displacements' copy", n, size_of::<DVec3>()))?;
+        scratch.resize(n, DVec3::ZERO);
         // Lattice node indices fit u32 (`Lattice::new` refuses more nodes).
-        let source_of_slot = (body.node_count() != lattice.node_count())
-            .then(|| body.nodes().map(|n| n as u32).collect());
-        Self {
-            scratch: vec![DVec3::ZERO; body.node_count()],
+        let source_of_slot = if n == lattice.node_count() {
+            None
+        } else {
+            let mut sources = Vec::new();
+            sources
+                .try_reserve_exact(n)
+                .map_err(|_| out_of_memory("the nodes' numbers", n, size_of::<u32>()))?;
+            sources.extend(body.nodes().map(|n| n as u32));
+            Some(sources)
+        };
+        Ok(Self {
+            scratch,
             source_count: lattice.node_count(),
             source_of_slot,
             duplicates: Vec::new(),
@@ -182,7 +202,7 @@ impl CallerBody {
             body: AnyBody::Uniform(body),
             offsets: None,
             previous: Vec::new(),
-        }
+        })
     }
 
     /// The body detected from `mesh` (`found` is `mesh.to_body()`), its cells and nodes numbered

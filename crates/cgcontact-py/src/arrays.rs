@@ -10,7 +10,7 @@ use numpy::{
     PyReadonlyArray2, PyUntypedArrayMethods,
 };
 use pyo3::conversion::FromPyObjectOwned;
-use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::exceptions::{PyMemoryError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
 use pyo3::types::{PyBool, PyBytes, PyList, PyString, PyTuple, PyType};
@@ -329,10 +329,11 @@ fn same_values(converted: &Bound<'_, PyAny>, given: &Bound<'_, PyAny>) -> PyResu
         .extract()
 }
 
-/// `what` as an `(n, 8)` int64 array of hexahedra, copied. Values that are not whole numbers
-/// (2.5, NaN, or beyond int64) are refused: numpy's conversion would truncate or wrap them into
-/// other nodes' numbers.
-pub fn hexes(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<[i64; 8]>> {
+/// `what`, an `(m, 8)` array of hexahedra, as node numbers each below `nodes`, copied (once, into
+/// memory allocated fallibly: a failed allocation would abort the interpreter). Values that are
+/// not whole numbers (2.5, NaN, or beyond int64) are refused: numpy's conversion would truncate
+/// or wrap them into other nodes' numbers.
+pub fn hexes(obj: &Bound<'_, PyAny>, what: &str, nodes: usize) -> PyResult<Vec<[u32; 8]>> {
     refuse_masked(obj, what)?;
     let numpy = obj.py().import("numpy")?;
     let given = as_array(obj, what)?;
@@ -367,10 +368,26 @@ pub fn hexes(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<[i64; 8]>> {
     let flat = array
         .as_slice()
         .map_err(|e| PyValueError::new_err(e.to_string()))?;
-    Ok(flat
-        .chunks_exact(8)
-        .map(|c| std::array::from_fn(|k| c[k]))
-        .collect())
+    let rows = flat.len() / 8;
+    let mut cells = Vec::new();
+    cells.try_reserve_exact(rows).map_err(|_| {
+        PyMemoryError::new_err(format!("{what}: {rows} hexahedra do not fit in memory"))
+    })?;
+    for (c, corners) in flat.chunks_exact(8).enumerate() {
+        let mut cell = [0u32; 8];
+        for (k, &node) in corners.iter().enumerate() {
+            cell[k] = u32::try_from(node)
+                .ok()
+                .filter(|&i| (i as usize) < nodes)
+                .ok_or_else(|| {
+                    PyValueError::new_err(format!(
+                        "{what} row {c} corner {k}: node {node} is not one of the {nodes} nodes (numbered from 0)"
+                    ))
+                })?;
+        }
+        cells.push(cell);
+    }
+    Ok(cells)
 }
 
 /// `what`, one flag per lattice cell of `counts` ([nx, ny, nz]), as the numbers of the cells it
@@ -407,5 +424,14 @@ pub fn flags(obj: &Bound<'_, PyAny>, what: &str, counts: [u32; 3]) -> PyResult<V
     let cells = cells
         .as_slice()
         .map_err(|e| PyValueError::new_err(e.to_string()))?;
-    Ok(cells.to_vec())
+    // Copied fallibly: a failed allocation would abort the interpreter.
+    let mut flagged = Vec::new();
+    flagged.try_reserve_exact(cells.len()).map_err(|_| {
+        PyMemoryError::new_err(format!(
+            "{what}: the {} cells flagged do not fit in memory",
+            cells.len()
+        ))
+    })?;
+    flagged.extend_from_slice(cells);
+    Ok(flagged)
 }

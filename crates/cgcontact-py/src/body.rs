@@ -77,10 +77,24 @@ fn set_displacements(state: &mut BodyState, u: &[DVec3], fill: bool) -> Result<(
         })
 }
 
+/// A library error building a body as Python's: `MemoryError` where a buffer could not be
+/// allocated, else `ValueError`.
+fn build_error(e: cgcontact::Error) -> PyErr {
+    match e {
+        cgcontact::Error::OutOfMemory { .. } => {
+            PyMemoryError::new_err(format!("the body does not fit in memory: {e}"))
+        }
+        e => value_error(e),
+    }
+}
+
 /// An error, before the allocation, when a body of `nodes` nodes (every lattice node, or at most 8
 /// a cell of the active ones) cannot be allocated: its displacements and this binding's copy take
 /// 48 bytes a node, and a failed allocation would abort the interpreter (as the C API checks,
-/// `cgc_body_from_lattice`).
+/// `cgc_body_from_lattice`). The kernel's overcommit grants each allocation of the build alone,
+/// then kills the process that fills them: this asks for them together. The build's own
+/// allocations are fallible too ([`build_error`]), for what this misses: a limit on the address
+/// space (RLIMIT_AS) that the build's peak, above these 48 bytes, exceeds.
 fn probe_memory(nodes: usize) -> PyResult<()> {
     let mut probe = Vec::<[DVec3; 2]>::new();
     probe.try_reserve_exact(nodes).map_err(|_| {
@@ -97,8 +111,8 @@ fn probe_memory(nodes: usize) -> PyResult<()> {
 /// `set_displacements`.
 ///
 /// `Body(origin, spacing, counts, active=None)`: a body on a lattice, `origin` and `spacing` 3
-/// floats each, `counts` cells per axis (MemoryError, before allocating, when its 48 bytes a
-/// node cannot be had). `active` is None (every cell) or one flag per lattice cell (booleans,
+/// floats each, `counts` cells per axis (MemoryError when it does not fit in memory: about 48
+/// bytes a node). `active` is None (every cell) or one flag per lattice cell (booleans,
 /// or 0s and 1s), x fastest (a flat array, or one of shape (nz, ny, nx)); other shapes and
 /// values raise ValueError. The body starts undeformed; its cells are numbered as the
 /// lattice's, `i + nx (j + ny k)`, and `set_displacements` takes one row per lattice node,
@@ -158,21 +172,24 @@ impl PyBody {
         let body = match active {
             None => {
                 probe_memory(lattice.node_count())?;
-                Body::full(lattice)
+                Body::try_full(lattice).map_err(build_error)?
             }
             Some(active) => {
                 let cells = arrays::flags(active, "active", counts)?;
                 probe_memory(lattice.node_count().min(cells.len().saturating_mul(8)))?;
-                Body::from_cells(lattice, cells.into_iter().map(CellId)).map_err(value_error)?
+                Body::from_cells(lattice, cells.into_iter().map(CellId)).map_err(build_error)?
             }
         };
-        Ok(Self::new_state(BodyState::lattice(body)))
+        Ok(Self::new_state(
+            BodyState::lattice(body).map_err(build_error)?,
+        ))
     }
 
     /// A body from undeformed `nodes` (n, 3) and `hexes` (m, 8) of 0-based node numbers in VTK
     /// hexahedron order; the lattice (one level, or dyadic refinements with hanging nodes) is
     /// detected from the nodes. Cells are numbered by their row in `hexes`;
-    /// `set_displacements` takes one row per node.
+    /// `set_displacements` takes one row per node. `MemoryError` when the body, or detecting its
+    /// lattice, does not fit in memory.
     #[staticmethod]
     fn from_hexes(
         py: Python<'_>,
@@ -180,34 +197,35 @@ impl PyBody {
         hexes: &Bound<'_, PyAny>,
     ) -> PyResult<Self> {
         let (rows, _) = arrays::rows(nodes, "nodes", false)?;
-        let points = rows.vectors()?.into_owned();
-        arrays::finite(&points, "nodes")?;
-        let topology = arrays::hexes(hexes, "hexes")?;
-        if topology.is_empty() {
+        let vectors = rows.vectors()?;
+        arrays::finite(&vectors, "nodes")?;
+        let n = vectors.len();
+        let cells = arrays::hexes(hexes, "hexes", n)?;
+        if cells.is_empty() {
             return Err(PyValueError::new_err("hexes: the mesh has no cell"));
         }
-        let n = points.len();
-        let mut cells = Vec::with_capacity(topology.len());
-        for (c, corners) in topology.iter().enumerate() {
-            let mut cell = [0u32; 8];
-            for (k, &node) in corners.iter().enumerate() {
-                cell[k] = u32::try_from(node)
-                    .ok()
-                    .filter(|&i| (i as usize) < n)
-                    .ok_or_else(|| {
-                        PyValueError::new_err(format!(
-                            "hexes row {c} corner {k}: node {node} is not one of the {n} nodes (numbered from 0)"
-                        ))
-                    })?;
-            }
-            cells.push(cell);
-        }
+        let mut points = Vec::new();
+        points.try_reserve_exact(n).map_err(|_| {
+            PyMemoryError::new_err(format!("nodes: the {n} nodes do not fit in memory"))
+        })?;
+        points.extend_from_slice(&vectors);
         let mesh = HexMesh {
             ghosts: Vec::new(),
             points,
             cells,
             displacement: None,
         };
+        // Detection's allocations are not fallible: ask for all they may take first.
+        let bytes = mesh.build_bytes();
+        let mut probe = Vec::<u8>::new();
+        probe.try_reserve_exact(bytes).map_err(|_| {
+            PyMemoryError::new_err(format!(
+                "a mesh of {n} nodes and {} hexahedra does not fit in memory (detecting its \
+                 lattice takes up to {bytes} bytes)",
+                mesh.cells.len()
+            ))
+        })?;
+        drop(probe);
         let found = py.detach(|| mesh.to_body()).map_err(value_error)?;
         Ok(Self::from_mesh(&mesh, found))
     }

@@ -1646,3 +1646,59 @@ def test_booleans_and_huge_integers_are_refused_as_numbers_naming_the_argument()
     cgcontact.Body(np.array(ORIGIN), tuple(np.float32(h) for h in SPACING), COUNTS)
     cgcontact.Locator(body, tol=np.float64(1e-9)).gap(points, np.float32(0.5))
     cgcontact.Locator(body).gap(points, 2)
+
+
+
+BODIES_AT_THE_EDGE_OF_MEMORY = """
+import json, os, resource, sys
+import numpy as np
+import cgcontact
+mode, n = sys.argv[1], 40
+nodes_count = (n + 1) ** 3
+if mode == "hexes":
+    k, j, i = np.meshgrid(*[np.arange(n + 1)] * 3, indexing="ij")
+    nodes = np.column_stack([i.ravel(), j.ravel(), k.ravel()]).astype(float)
+    k, j, i = (a.ravel() for a in np.meshgrid(*[np.arange(n)] * 3, indexing="ij"))
+    corners = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (0, 0, 1), (1, 0, 1), (1, 1, 1), (0, 1, 1)]
+    hexes = np.column_stack([i + a + (n + 1) * (j + b + (n + 1) * (k + c)) for a, b, c in corners])
+outcomes = []
+# Room for 24 to 64 bytes a lattice node, or 24 to 320 a mesh node, above what the process holds:
+# a child process each, forked before any query starts rayon's threads.
+for room in range(96, 256, 2) if mode == "lattice" else range(24, 320, 8):
+    pid = os.fork()
+    if pid == 0:
+        size = int(open("/proc/self/statm").read().split()[0]) * resource.getpagesize()
+        limit = size + room * nodes_count // (4 if mode == "lattice" else 1)
+        resource.setrlimit(resource.RLIMIT_AS, (limit, resource.RLIM_INFINITY))
+        try:
+            if mode == "lattice":
+                cgcontact.Body((0, 0, 0), (1, 1, 1), (n, n, n))
+            else:
+                cgcontact.Body.from_hexes(nodes, hexes)
+        except MemoryError:
+            os._exit(3)
+        except BaseException:
+            os._exit(4)
+        os._exit(0)
+    status = os.waitpid(pid, 0)[1]
+    outcomes.append(-os.WTERMSIG(status) if os.WIFSIGNALED(status) else os.WEXITSTATUS(status))
+print(json.dumps(outcomes))
+"""
+
+
+@pytest.mark.parametrize("mode", ["lattice", "hexes"])
+def test_a_body_at_the_edge_of_memory_is_a_memory_error_not_an_abort(mode):
+    """`Body(origin, spacing, counts)` probed for 48 bytes a node, but its build takes more (4
+    bytes a cell while it builds, and freed memory the allocator may not reuse): with a little
+    less room than that, the interpreter aborted ("memory allocation of 1654104 bytes failed").
+    `Body.from_hexes` had no check at all. Built with room from too little to enough, each body
+    is built or raises MemoryError; none is killed by a signal."""
+    if not hasattr(os, "fork") or not pathlib.Path("/proc/self/statm").exists():
+        pytest.skip("not Linux: the address space limit is set from /proc/self/statm")
+    run = subprocess.run([sys.executable, "-c", BODIES_AT_THE_EDGE_OF_MEMORY, mode],
+                         capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stderr[-2000:]
+    outcomes = json.loads(run.stdout)
+    assert set(outcomes) <= {0, 3}, (outcomes, run.stderr[-2000:])
+    # The room given spans both outcomes.
+    assert outcomes[0] == 3 and outcomes[-1] == 0, outcomes
