@@ -2,6 +2,7 @@
 //! other array-like converted once by numpy.
 
 use std::borrow::Cow;
+use std::ops::Range;
 
 use cgcontact::glam::DVec3;
 use numpy::ndarray::Dimension;
@@ -128,6 +129,11 @@ pub struct Rows<'py> {
 }
 
 impl<'py> Rows<'py> {
+    /// The bytes of the array the rows are read from ([`extent`]).
+    pub fn extent(&self) -> Range<usize> {
+        extent(&self.array)
+    }
+
     /// The rows as vectors, in the array's own memory (`rows` gives C-contiguous, aligned arrays
     /// only); a copy if bytemuck would refuse the cast.
     pub fn vectors(&self) -> PyResult<Cow<'_, [DVec3]>> {
@@ -142,6 +148,35 @@ impl<'py> Rows<'py> {
             Err(_) => Cow::Owned(flat.chunks_exact(3).map(DVec3::from_slice).collect()),
         })
     }
+}
+
+/// The addresses of the bytes `array`'s elements lie in, from its lowest byte to one past its
+/// highest, whatever its strides (numpy's `may_share_memory` bounds); empty for an array of no
+/// element. Two arrays whose extents are disjoint share no memory, whatever Python objects own it:
+/// numpy's borrow flags, which rust-numpy checks, only see arrays of one base object, so a view of
+/// a `bytearray` and one of a `memoryview` of it pass them.
+pub fn extent<T: Element, D: Dimension>(array: &Bound<'_, PyArray<T, D>>) -> Range<usize> {
+    let start = array.data() as usize;
+    if array.is_empty() {
+        return start..start;
+    }
+    let (mut low, mut high) = (0isize, 0isize);
+    for (&n, &stride) in array.shape().iter().zip(array.strides()) {
+        // An array numpy made spans at most isize::MAX bytes.
+        let span = stride.saturating_mul(n as isize - 1);
+        if span < 0 {
+            low = low.saturating_add(span);
+        } else {
+            high = high.saturating_add(span);
+        }
+    }
+    let item = size_of::<T>() as isize;
+    start.saturating_add_signed(low)..start.saturating_add_signed(high.saturating_add(item))
+}
+
+/// Whether two extents share a byte (an empty one shares none).
+pub fn overlap(a: &Range<usize>, b: &Range<usize>) -> bool {
+    !a.is_empty() && !b.is_empty() && a.start < b.end && b.start < a.end
 }
 
 /// `obj` as a C-contiguous, aligned array of `dtype`: the same object when it already is one

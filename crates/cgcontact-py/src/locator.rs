@@ -2,6 +2,7 @@
 //! released.
 
 use std::ffi::CString;
+use std::ops::Range;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, RwLock};
 
@@ -122,6 +123,11 @@ impl PyLocator {
             Some(out) => out_arrays(out, n)?,
             None => (zeros(py, vec![n])?, zeros(py, vec![n, 3])?),
         };
+        let outs = [
+            ("cell", arrays::extent(&cells)),
+            ("xi", arrays::extent(&xi)),
+        ];
+        disjoint(&rows.extent(), &outs)?;
         {
             let mut cells_out = cells.try_readwrite().map_err(|e| out_borrow(e, "cell"))?;
             let mut xi_out = xi.try_readwrite().map_err(|e| out_borrow(e, "xi"))?;
@@ -312,6 +318,12 @@ impl PyLocator {
                 zeros(py, vec![n, 3])?,
             ),
         };
+        let outs = [
+            ("order", arrays::extent(&order)),
+            ("cell", arrays::extent(&cells)),
+            ("xi", arrays::extent(&xi)),
+        ];
+        disjoint(&rows.extent(), &outs)?;
         {
             let mut order_out = order.try_readwrite().map_err(|e| out_borrow(e, "order"))?;
             let mut cells_out = cells.try_readwrite().map_err(|e| out_borrow(e, "cell"))?;
@@ -745,9 +757,33 @@ fn describe_out(out: &Bound<'_, PyAny>) -> String {
     }
 }
 
+/// An error when an `out` array (`outs`: each one's name and [`arrays::extent`]) shares memory with
+/// the points read (`points`, their extent) or with another `out` array: the answers written
+/// would overwrite points not yet read, or each other. Checked on the addresses, before any
+/// array is borrowed for writing: numpy's borrow flags, which [`out_borrow`] reports, catch views
+/// of one Python object only, not a view of a `bytearray` and one of a `memoryview` of it.
+fn disjoint(points: &Range<usize>, outs: &[(&str, Range<usize>)]) -> PyResult<()> {
+    for (k, (name, out)) in outs.iter().enumerate() {
+        let shares = |with: &str| {
+            PyValueError::new_err(format!(
+                "out: the {name} array shares memory with {with}; give each out array memory of \
+                 its own"
+            ))
+        };
+        if arrays::overlap(points, out) {
+            return Err(shares("the points"));
+        }
+        if let Some((other, _)) = outs[..k].iter().find(|(_, o)| arrays::overlap(o, out)) {
+            return Err(shares(&format!("the {other} array")));
+        }
+    }
+    Ok(())
+}
+
 /// The error for an `out` array that cannot be written: read-only, sharing memory with the
 /// points (read in place) or with the other `out` array, or borrowed by a call running in
-/// another thread (numpy's borrow flags cannot tell these apart).
+/// another thread (numpy's borrow flags cannot tell these apart; [`disjoint`] has already
+/// refused arrays sharing memory).
 fn out_borrow(e: BorrowError, name: &str) -> PyErr {
     match e {
         BorrowError::NotWriteable => {

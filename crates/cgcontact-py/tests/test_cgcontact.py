@@ -1648,6 +1648,42 @@ def test_booleans_and_huge_integers_are_refused_as_numbers_naming_the_argument()
     cgcontact.Locator(body).gap(points, 2)
 
 
+def test_out_arrays_sharing_memory_through_other_objects_are_refused():
+    """rust-numpy's borrow flags see views of one base object only: an xi array viewing the
+    points' bytearray through a memoryview of it passed them, and answers written over points not
+    yet read gave 2795 wrong cells of 5000, without a word (and overwrote the points). The bytes
+    the arrays span are compared now, for the points and every pair of out arrays."""
+    locator = cgcontact.Locator(cgcontact.Body((-2, -2, -2), (1, 1, 1), (8, 8, 8)))
+    n, shift = 5000, 700
+    memory = bytearray((n + shift) * 24)
+    points = np.frombuffer(memory, np.float64).reshape(-1, 3)[:n]
+    points[:] = 0.05 + np.random.default_rng(2).random((n, 3)) * 3.9
+    given = points.copy()
+    xi = np.frombuffer(memoryview(memory), np.float64).reshape(-1, 3)[shift:shift + n]
+    cells = np.zeros(n, np.int64)
+    refusals = [
+        lambda: locator.locate(points, out=(cells, xi)),
+        lambda: locator.relocate(points, out=(cells, xi)),
+        lambda: locator.locate_unordered(points, out=(np.zeros(n, np.int64), cells, xi)),
+    ]
+    for call in refusals:
+        with pytest.raises(ValueError, match="out: the xi array shares memory with the points"):
+            call()
+    np.testing.assert_array_equal(points, given)
+    # Out arrays over one buffer, each through a memoryview of its own.
+    buffer = bytearray(8 * 4 * n)
+    ints = [np.frombuffer(memoryview(buffer), np.int64) for _ in range(2)]
+    floats = np.frombuffer(memoryview(buffer), np.float64)
+    with pytest.raises(ValueError, match="out: the xi array shares memory with the cell array"):
+        locator.locate(given, out=(ints[0][:n], floats[n // 2:n // 2 + 3 * n].reshape(n, 3)))
+    with pytest.raises(ValueError, match="out: the cell array shares memory with the order array"):
+        locator.locate_unordered(given, out=(ints[0][:n], ints[1][1:n + 1], np.zeros((n, 3))))
+    # Side by side in one buffer, they share no byte and are written.
+    expected_cells, expected_xi = locator.locate(given)
+    got_cells, got_xi = locator.locate(given, out=(ints[0][:n], floats[n:].reshape(n, 3)))
+    np.testing.assert_array_equal(got_cells, expected_cells)
+    np.testing.assert_array_equal(got_xi, expected_xi)
+
 
 BODIES_AT_THE_EDGE_OF_MEMORY = """
 import json, os, resource, sys
