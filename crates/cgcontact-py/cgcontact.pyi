@@ -97,7 +97,7 @@ class Locator:
         about tol^2 and points near faces put in the wrong cell); `max_iter`: Newton iterations per
         candidate cell; `threads`: a pool of its own, 1 to 1024 (None: every core). `max_iter`,
         `threads`, `tol`, `gap`'s `dist` and `Body`'s `origin`, `spacing` and `counts` refuse
-        booleans (TypeError)."""
+        booleans, Python's or numpy's (`numpy.True_`, boolean arrays) (TypeError)."""
     @property
     def strategy(self) -> _Strategy: ...
     def locate(

@@ -8,7 +8,7 @@ use cgcontact::glam::DVec3;
 use numpy::ndarray::Dimension;
 use numpy::{
     Element, PyArray, PyArray2, PyArrayMethods, PyReadonlyArray, PyReadonlyArray1,
-    PyReadonlyArray2, PyUntypedArrayMethods,
+    PyReadonlyArray2, PyUntypedArray, PyUntypedArrayMethods,
 };
 use pyo3::conversion::FromPyObjectOwned;
 use pyo3::exceptions::{PyMemoryError, PyTypeError, PyValueError};
@@ -42,20 +42,35 @@ pub fn argument<'py, T: FromPyObjectOwned<'py>>(
 }
 
 /// [`argument`] for a number or numbers (`counts`, `max_iter`, `threads`, `origin`, `spacing`,
-/// `tol`, `dist`), refusing `True` and `False`, alone or in a list or tuple, as a `TypeError`:
-/// Python takes a boolean for the number 1 or 0, but no count, coordinate or length is meant by
-/// it (as booleans are refused in arrays of points and node numbers).
+/// `tol`, `dist`), refusing booleans as a `TypeError`: `True` and `False`, numpy's `True_` and
+/// `False_`, and numpy arrays of booleans, alone or in a list, tuple or object array. Python and
+/// numpy take a boolean for the number 1 or 0, but no count, coordinate or length is meant by it
+/// (as booleans are refused in arrays of points and node numbers).
 pub fn not_boolean<'py, T: FromPyObjectOwned<'py>>(
     obj: &Bound<'py, PyAny>,
     what: &str,
     expected: &str,
 ) -> PyResult<T> {
-    let boolean = |o: &Bound<'py, PyAny>| o.is_instance_of::<PyBool>();
-    let holds = if obj.is_instance_of::<PyList>() || obj.is_instance_of::<PyTuple>() {
-        obj.try_iter()?
-            .any(|element| element.is_ok_and(|e| boolean(&e)))
+    let elements = if obj.is_instance_of::<PyList>() || obj.is_instance_of::<PyTuple>() {
+        Some(obj.try_iter()?)
+    } else if dtype_kind(obj)?.as_deref() == Some("O") {
+        // `flat`: an object array of any shape, 0-d included, element by element.
+        Some(obj.getattr("flat")?.try_iter()?)
     } else {
-        boolean(obj)
+        None
+    };
+    let holds = match elements {
+        Some(elements) => {
+            let mut found = false;
+            for element in elements {
+                if boolean(&element?)? {
+                    found = true;
+                    break;
+                }
+            }
+            found
+        }
+        None => boolean(obj)?,
     };
     if holds {
         let given = obj
@@ -67,6 +82,25 @@ pub fn not_boolean<'py, T: FromPyObjectOwned<'py>>(
         )));
     }
     argument(obj, what, expected)
+}
+
+/// Whether `obj` is a boolean: Python's (`True`), numpy's (`numpy.True_`, whose dtype is
+/// boolean, but which is no `bool`) or a numpy array of them.
+fn boolean(obj: &Bound<'_, PyAny>) -> PyResult<bool> {
+    Ok(obj.is_instance_of::<PyBool>() || dtype_kind(obj)?.as_deref() == Some("b"))
+}
+
+/// The kind of `obj`'s numpy dtype (`"b"` boolean, `"O"` object...) when `obj` is a numpy array
+/// or scalar, else `None`.
+fn dtype_kind(obj: &Bound<'_, PyAny>) -> PyResult<Option<String>> {
+    static GENERIC: PyOnceLock<Py<PyType>> = PyOnceLock::new();
+    let py = obj.py();
+    let numpy = obj.is_instance_of::<PyUntypedArray>()
+        || obj.is_instance(GENERIC.import(py, "numpy", "generic")?)?;
+    if !numpy {
+        return Ok(None);
+    }
+    Ok(Some(obj.getattr("dtype")?.getattr("kind")?.extract()?))
 }
 
 /// `text` cut to about 80 characters, for an error message.

@@ -1685,6 +1685,27 @@ def test_out_arrays_sharing_memory_through_other_objects_are_refused():
     np.testing.assert_array_equal(got_xi, expected_xi)
 
 
+def test_numpy_booleans_are_refused_as_numbers():
+    """Python's `True` was refused as an origin, a spacing, `tol` or `dist`, but `numpy.True_`,
+    a boolean array and an object array holding `numpy.True_` were taken as 1.0."""
+    points, _, _ = cell_points()
+    body = cgcontact.Body(ORIGIN, SPACING, COUNTS)
+    for call, what in [
+        (lambda: cgcontact.Body((np.True_, 0, 0), SPACING, COUNTS), "origin"),
+        (lambda: cgcontact.Body(np.array([True, False, False]), SPACING, COUNTS), "origin"),
+        (lambda: cgcontact.Body(ORIGIN, np.ones(3, bool), COUNTS), "spacing"),
+        (lambda: cgcontact.Body(ORIGIN, np.array([1, np.True_, 1], object), COUNTS), "spacing"),
+        (lambda: cgcontact.Locator(body, tol=np.True_), "tol"),
+        (lambda: cgcontact.Locator(body, tol=np.array(True)), "tol"),
+        (lambda: cgcontact.Locator(body).gap(points, np.True_), "dist"),
+    ]:
+        with pytest.raises(TypeError, match=f"{what} must be .*, got "):
+            call()
+    # Numbers of numpy's real kinds still are numbers.
+    cgcontact.Body(np.array(ORIGIN), np.array(SPACING, np.float32), np.array(COUNTS))
+    cgcontact.Locator(body, tol=np.float64(1e-9), max_iter=np.int64(30)).gap(points, np.int8(1))
+
+
 BODIES_AT_THE_EDGE_OF_MEMORY = """
 import json, os, resource, sys
 import numpy as np
