@@ -6,8 +6,8 @@ body's deformed boundary surface. Queries release the GIL; C-contiguous, aligned
 arrays are read in place (do not write to them from another thread while a call runs), anything
 else array-like is converted once; an empty list is no points. Complex, boolean, text, date and
 time arrays, object arrays holding text, booleans, complex numbers, None or numpy dates and times,
-and masked arrays with masked values, raise ValueError rather than being cast. Errors name the
-argument at fault.
+and masked arrays with masked values, raise ValueError rather than being cast, as do Python ints
+beyond float64 (or, for `hexes`, int64). Errors name the argument at fault.
 """
 
 import os

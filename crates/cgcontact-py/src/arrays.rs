@@ -11,7 +11,7 @@ use numpy::{
     PyReadonlyArray2, PyUntypedArray, PyUntypedArrayMethods,
 };
 use pyo3::conversion::FromPyObjectOwned;
-use pyo3::exceptions::{PyMemoryError, PyTypeError, PyValueError};
+use pyo3::exceptions::{PyMemoryError, PyOverflowError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
 use pyo3::types::{PyBool, PyBytes, PyList, PyString, PyTuple, PyType};
@@ -112,13 +112,14 @@ fn clip(text: &str) -> String {
 }
 
 /// An error numpy raised reading the argument `what` (a ragged list, a string that is no
-/// number), naming it; its type is kept and any error but a `TypeError` or a `ValueError`
-/// (`MemoryError`, `KeyboardInterrupt`) passes unchanged.
+/// number), naming it; its type is kept, but for an `OverflowError` (a Python int too large for
+/// a float64 or an int64: `10**400`), which becomes a `ValueError` as any other value out of
+/// range. Any other error (`MemoryError`, `KeyboardInterrupt`) passes unchanged.
 fn naming(py: Python<'_>, e: PyErr, what: &str) -> PyErr {
     let message = format!("{what} cannot be read as a numeric array: {}", e.value(py));
     let named = if e.is_instance_of::<PyTypeError>(py) {
         PyTypeError::new_err(message)
-    } else if e.is_instance_of::<PyValueError>(py) {
+    } else if e.is_instance_of::<PyValueError>(py) || e.is_instance_of::<PyOverflowError>(py) {
         PyValueError::new_err(message)
     } else {
         return e;

@@ -1706,6 +1706,26 @@ def test_numpy_booleans_are_refused_as_numbers():
     cgcontact.Locator(body, tol=np.float64(1e-9), max_iter=np.int64(30)).gap(points, np.int8(1))
 
 
+def test_ints_beyond_float64_in_arrays_are_a_value_error_naming_the_argument():
+    """A Python int beyond float64 in points, u or nodes (or beyond int64 in hexes) raised
+    "OverflowError: int too large to convert to float", naming no argument: a ValueError naming
+    it now, as for any value out of range."""
+    body = cgcontact.Body(ORIGIN, SPACING, COUNTS)
+    locator = cgcontact.Locator(body)
+    huge = [[10**400, 0, 0]]
+    nodes, hexes = lattice_hexes()
+    for call, what in [
+        (lambda: locator.locate(huge), "points"),
+        (lambda: locator.gap(huge, 1.0), "points"),
+        (lambda: locator.locate_owners(huge[0]), "x"),
+        (lambda: body.set_displacements(huge * body.node_count), "u"),
+        (lambda: cgcontact.Body.from_hexes(huge + nodes[1:].tolist(), hexes), "nodes"),
+        (lambda: cgcontact.Body.from_hexes(nodes, [[10**400] + [0] * 7]), "hexes"),
+    ]:
+        with pytest.raises(ValueError, match=f"^{what} cannot be read as a numeric array: .*too"):
+            call()
+
+
 BODIES_AT_THE_EDGE_OF_MEMORY = """
 import json, os, resource, sys
 import numpy as np
