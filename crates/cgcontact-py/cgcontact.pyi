@@ -4,10 +4,11 @@ Find the hexahedron of a deformed body holding each point and its local coordina
 [-1, 1]^3 (VTK corner 0 at (-1, -1, -1)), every cell holding a point, and signed gaps to the
 body's deformed boundary surface. Queries release the GIL; C-contiguous, aligned float64 (n, 3)
 arrays are read in place (do not write to them from another thread while a call runs), anything
-else array-like is converted once; an empty list is no points. Complex, boolean, text, date and
-time arrays, object arrays holding text, booleans, complex numbers, None or numpy dates and times,
-and masked arrays with masked values, raise ValueError rather than being cast, as do Python ints
-beyond float64 (or, for `hexes`, int64). Errors name the argument at fault.
+else array-like is converted once; an empty list is no points. Complex, boolean (but for `Body`'s
+`active` flags), text, date and time arrays, object arrays holding text, booleans, complex
+numbers, None or numpy dates and times, and masked arrays with masked values, raise ValueError
+rather than being cast, as do Python ints beyond float64 (or, for `hexes`, int64). Errors name the
+argument at fault.
 """
 
 import os
@@ -39,9 +40,9 @@ class Body:
         """A body on a lattice of `counts` cells per axis (MemoryError when it does not fit in
         memory: about 48 bytes a node). `active`: one flag per lattice cell
         (booleans, or 0s and 1s), x fastest (flat, or shape (nz, ny, nx)); None for every cell.
-        Other shapes and values raise ValueError. Cells are numbered
-        i + nx (j + ny k); `set_displacements` takes one row per lattice node,
-        i + (nx + 1)(j + (ny + 1) k)."""
+        Other shapes and values, and complex, text, date and time arrays, raise ValueError.
+        Cells are numbered i + nx (j + ny k); `set_displacements` takes one row per lattice
+        node, i + (nx + 1)(j + (ny + 1) k)."""
     @staticmethod
     def from_hexes(nodes: npt.ArrayLike, hexes: npt.ArrayLike) -> "Body":
         """A body from undeformed nodes (n, 3) and hexahedra (m, 8) of 0-based node numbers in

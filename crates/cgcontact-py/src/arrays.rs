@@ -258,18 +258,24 @@ pub fn refuse_masked(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<()> {
 /// (whose imaginary part numpy's float conversion drops with only a warning), dates and times,
 /// booleans (numpy would read them as 0 and 1), and text (numpy would parse it: an unread file's
 /// columns), as an array of that dtype or as elements of an object array. `expected` says what
-/// the argument `what` must hold ("real numbers", "integers").
-fn refuse_unreal(given: &Bound<'_, PyAny>, what: &str, expected: &str) -> PyResult<()> {
+/// the argument `what` must hold ("real numbers", "integers"); with `flags` (`active`), booleans
+/// are what it holds, and pass.
+fn refuse_unreal(
+    given: &Bound<'_, PyAny>,
+    what: &str,
+    expected: &str,
+    flags: bool,
+) -> PyResult<()> {
     let dtype = given.getattr("dtype")?;
     let kind: String = dtype.getattr("kind")?.extract()?;
-    if matches!(kind.as_str(), "c" | "M" | "m" | "V" | "b" | "U" | "S") {
+    if matches!(kind.as_str(), "c" | "M" | "m" | "V" | "U" | "S") || (kind == "b" && !flags) {
         return Err(PyValueError::new_err(format!(
             "{what} must hold {expected}, got dtype {}",
             dtype.str()?
         )));
     }
     if kind == "O"
-        && let Some((index, element)) = unreal_element(given)?
+        && let Some((index, element)) = unreal_element(given, flags)?
     {
         let shown = element
             .repr()
@@ -288,26 +294,26 @@ fn refuse_unreal(given: &Bound<'_, PyAny>, what: &str, expected: &str) -> PyResu
 /// 3), a boolean (read as 0 or 1), a complex number, None (read as NaN, which a point's error
 /// then showed as a NaN the caller never wrote) or a numpy date or time (read as a count of its
 /// unit since 1970). Other objects (a dict, a `datetime.date`) numpy refuses itself, naming the
-/// argument through [`naming`]; numbers of any real kind pass.
+/// argument through [`naming`]; numbers of any real kind pass, and booleans with `flags`.
 fn unreal_element<'py>(
     given: &Bound<'py, PyAny>,
+    flags: bool,
 ) -> PyResult<Option<(Vec<usize>, Bound<'py, PyAny>)>> {
     let py = given.py();
     let numpy = py.import("numpy")?;
     let numbers = py.import("numbers")?;
     let (complex, real) = (numbers.getattr("Complex")?, numbers.getattr("Real")?);
-    let refused = PyTuple::new(
-        py,
-        [
-            py.get_type::<PyString>().into_any(),
-            py.get_type::<PyBytes>().into_any(),
-            py.get_type::<PyBool>().into_any(),
-            numpy.getattr("bool_")?,
-            py.None().into_bound(py).get_type().into_any(),
-            numpy.getattr("datetime64")?,
-            numpy.getattr("timedelta64")?,
-        ],
-    )?;
+    let mut refused = vec![
+        py.get_type::<PyString>().into_any(),
+        py.get_type::<PyBytes>().into_any(),
+        py.None().into_bound(py).get_type().into_any(),
+        numpy.getattr("datetime64")?,
+        numpy.getattr("timedelta64")?,
+    ];
+    if !flags {
+        refused.extend([py.get_type::<PyBool>().into_any(), numpy.getattr("bool_")?]);
+    }
+    let refused = PyTuple::new(py, refused)?;
     for (k, element) in given.getattr("flat")?.try_iter()?.enumerate() {
         let element = element?;
         if element.is_instance(&refused)?
@@ -349,7 +355,7 @@ pub fn rows<'py>(obj: &Bound<'py, PyAny>, what: &str, single: bool) -> PyResult<
             shape_of(&given)
         )));
     }
-    refuse_unreal(&given, what, "real numbers")?;
+    refuse_unreal(&given, what, "real numbers", false)?;
     let converted = contiguous(&given, "float64").map_err(|e| naming(obj.py(), e, what))?;
     let converted = if was_single || empty {
         let shape = PyTuple::new(obj.py(), [usize::from(was_single), 3])?;
@@ -408,7 +414,7 @@ pub fn hexes(obj: &Bound<'_, PyAny>, what: &str, nodes: usize) -> PyResult<Vec<[
     let numpy = obj.py().import("numpy")?;
     let given = as_array(obj, what)?;
     // Booleans would be nodes 0 and 1, text parsed: both pass the whole-number check below.
-    refuse_unreal(&given, what, "integers")?;
+    refuse_unreal(&given, what, "integers", false)?;
     // NaN and out-of-range floats are refused below; numpy's warning on casting them is noise.
     let kwargs = pyo3::types::PyDict::new(obj.py());
     kwargs.set_item("invalid", "ignore")?;
@@ -479,6 +485,9 @@ pub fn flags(obj: &Bound<'_, PyAny>, what: &str, counts: [u32; 3]) -> PyResult<V
             shape_of(&given)
         )));
     }
+    // Complex values (1+0j passes the check below), dates, times and text, as `points` refuses
+    // them.
+    refuse_unreal(&given, what, "booleans, or 0s and 1s", true)?;
     let converted = contiguous(&given, "bool_").map_err(|e| naming(obj.py(), e, what))?;
     if !same_values(&converted, &given)? {
         return Err(PyValueError::new_err(format!(

@@ -114,9 +114,9 @@ fn probe_memory(nodes: usize) -> PyResult<()> {
 /// floats each, `counts` cells per axis (MemoryError when it does not fit in memory: about 48
 /// bytes a node). `active` is None (every cell) or one flag per lattice cell (booleans,
 /// or 0s and 1s), x fastest (a flat array, or one of shape (nz, ny, nx)); other shapes and
-/// values raise ValueError. The body starts undeformed; its cells are numbered as the
-/// lattice's, `i + nx (j + ny k)`, and `set_displacements` takes one row per lattice node,
-/// `i + (nx + 1)(j + (ny + 1) k)`.
+/// values, and complex, text, date and time arrays, raise ValueError. The body starts
+/// undeformed; its cells are numbered as the lattice's, `i + nx (j + ny k)`, and
+/// `set_displacements` takes one row per lattice node, `i + (nx + 1)(j + (ny + 1) k)`.
 #[pyclass(name = "Body", module = "cgcontact", frozen)]
 pub struct PyBody {
     pub(crate) state: Arc<RwLock<BodyState>>,

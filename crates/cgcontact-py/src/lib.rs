@@ -108,10 +108,10 @@ fn _data_address(points: &Bound<'_, PyAny>) -> PyResult<usize> {
 /// body's deformed boundary surface. Queries release the GIL; C-contiguous, aligned float64
 /// (n, 3) arrays are read in place (do not write to them from another thread while a call
 /// runs), anything else array-like is converted once; an empty list is no points. Complex,
-/// boolean, text, date and time arrays, object arrays holding text, booleans, complex numbers,
-/// None or numpy dates and times, and masked arrays with masked values, raise ValueError rather
-/// than being cast, as do Python ints beyond float64 (or, for `hexes`, int64). Errors name the
-/// argument at fault.
+/// boolean (but for `Body`'s `active` flags), text, date and time arrays, object arrays holding
+/// text, booleans, complex numbers, None or numpy dates and times, and masked arrays with masked
+/// values, raise ValueError rather than being cast, as do Python ints beyond float64 (or, for
+/// `hexes`, int64). Errors name the argument at fault.
 ///
 /// `Body` holds a deformed body (`Body(origin, spacing, counts)`, `Body.from_hexes` or
 /// `read_mesh`); `Locator(body)` searches it. `cgcontact.pyi` gives every signature.

@@ -1726,6 +1726,26 @@ def test_ints_beyond_float64_in_arrays_are_a_value_error_naming_the_argument():
             call()
 
 
+def test_complex_and_time_flags_are_refused_not_cast():
+    """`active` went through numpy's cast to booleans, and a flag was any value equal to its
+    cast: `numpy.ones(8, complex)` and `numpy.ones(8, "timedelta64[s]")` made 8 active cells, where
+    points refuse such arrays. `active` refuses what points refuse, but booleans."""
+    lattice = ((0, 0, 0), (1, 1, 1), (2, 2, 2))
+    for flags, shown in [
+        (np.ones(8, complex), "complex128"),
+        (np.array([1 + 0j] * 8, object), "object holding complex"),
+        (np.ones(8, "timedelta64[s]"), "timedelta64"),
+        (np.ones(8, "datetime64[s]"), "datetime64"),
+        (np.array(["1"] * 8), "<U1"),
+    ]:
+        with pytest.raises(ValueError, match=f"active must hold booleans, or 0s and 1s, got dtype "
+                                             f"{shown}"):
+            cgcontact.Body(*lattice, active=flags)
+    for flags in [np.ones(8, bool), np.ones(8), np.ones(8, np.uint8), [True] * 8,
+                  np.array([True] * 8, object), np.array([1] * 8, object)]:
+        assert cgcontact.Body(*lattice, active=flags).cell_count == 8
+
+
 BODIES_AT_THE_EDGE_OF_MEMORY = """
 import json, os, resource, sys
 import numpy as np
