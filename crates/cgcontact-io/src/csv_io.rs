@@ -34,27 +34,51 @@ pub fn read_points(path: impl AsRef<Path>) -> Result<Vec<DVec3>, IoError> {
     read_with(path.as_ref(), points_from_bytes)
 }
 
+/// [`read_points`], and the warning [`unended_points_file`] gives, from one read of the file: a
+/// named pipe or a process substitution (`<(zcat points.csv.gz)`) can be read only once.
+///
+/// # Errors
+///
+/// As [`read_points`].
+pub fn read_points_with_warning(
+    path: impl AsRef<Path>,
+) -> Result<(Vec<DVec3>, Option<String>), IoError> {
+    let path = path.as_ref();
+    read_with(path, |bytes| {
+        let points = points_from_bytes(bytes)?;
+        Ok((points, unended_warning(path, bytes)))
+    })
+}
+
 /// A warning for a points file that ends in a value with no line end after it: a file cut inside
 /// its last number reads as another number (`0.0123456789` cut to `0.012`), and only the missing
-/// line end tells. `None` when the file ends in whitespace, is empty, is not a regular file (a
-/// pipe cannot be read again) or cannot be read.
+/// line end tells. `None` when the file ends in whitespace, is empty, is not a regular file or
+/// cannot be read. The file is opened again: a named pipe, which could not be read again (opening
+/// it waited for a writer for ever), is not opened; [`read_points_with_warning`] reads the points
+/// and gives the warning from one read.
 #[must_use]
 pub fn unended_points_file(path: impl AsRef<Path>) -> Option<String> {
     let path = path.as_ref();
-    let mut file = std::fs::File::open(path).ok()?;
-    let meta = file.metadata().ok()?;
+    // Told without opening the file: opening a named pipe waits for a writer.
+    let meta = std::fs::metadata(path).ok()?;
     let len = meta.len();
     if !meta.is_file() || len == 0 {
         return None;
     }
+    let mut file = std::fs::File::open(path).ok()?;
     let tail = len.min(64);
     file.seek(SeekFrom::Start(len - tail)).ok()?;
     let mut bytes = vec![0; tail as usize];
     file.read_exact(&mut bytes).ok()?;
-    if bytes.last()?.is_ascii_whitespace() {
+    unended_warning(path, &bytes)
+}
+
+/// The warning of [`unended_points_file`] for the file at `path` whose last bytes are `tail`.
+fn unended_warning(path: &Path, tail: &[u8]) -> Option<String> {
+    if tail.last()?.is_ascii_whitespace() {
         return None;
     }
-    let word = bytes
+    let word = tail
         .iter()
         .rposition(|&b| b.is_ascii_whitespace() || b == b',')
         .map_or(0, |i| i + 1);
@@ -62,7 +86,7 @@ pub fn unended_points_file(path: impl AsRef<Path>) -> Option<String> {
         "{}: the file ends in {} with no line end after it: if it was cut inside that value, \
          the last point is not the one written (add the line end if the file is whole)",
         path.display(),
-        crate::excerpt(&bytes[word..], 40)
+        crate::excerpt(&tail[word..], 40)
     ))
 }
 

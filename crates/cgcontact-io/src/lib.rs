@@ -6,9 +6,10 @@
 //! | piece | what it does |
 //! |---|---|
 //! | [`read_mesh`] | a VTK unstructured grid of hexahedra (legacy `.vtk` ASCII/binary, XML `.vtu` ascii/base64/appended, raw or zlib/LZ4/LZMA-compressed, or a parallel `.pvtu` and its pieces) → [`LatticeMesh`]: the [`Body`](cgcontact::Body) plus the [`CellMap`] between the input's cell order and lattice cells |
+//! | [`MeshFile`] | [`read_body`] in two steps: the file read once and parsed, a `.pvtu`'s piece files listed before any is read ([`MeshFile::piece_files`]), then the body and the names of its point arrays ([`MeshFile::into_body`]) |
 //! | [`HexMesh::to_lattice`] | lattice detection: origin, spacing per axis and counts from the nodes (to 1e-9 of the spacing), every cell checked to be one lattice cube in VTK corner order |
 //! | [`write_mesh`] | a body in any of the three flavours ([`MeshFormat`]); [`read_mesh`] reads it back exactly |
-//! | [`read_points`], [`write_results`], [`read_results`] | CSV points `x,y,z` and results `point,cell,xi,eta,zeta,...` |
+//! | [`read_points`], [`write_results`], [`read_results`] | CSV points `x,y,z` and results `point,cell,xi,eta,zeta,...` ([`read_points_with_warning`]: the points, and a warning for a file whose last line has no line end, from one read) |
 //! | [`write_deformed_vtu`], [`write_points_vtu`] | the deformed mesh (cells with `points_held`, `active`) and the located points (`cell`, `xi`) for ParaView |
 //! | [`read_text`] | any other text input (a benchmark's log, say): read whole within its own size limit, refused at its first NUL byte |
 //! | [`CallerBody`], [`NodeSources`] | a body as the C and Python bindings' callers hold it: cells and nodes in the caller's numbering, displacements set in place from the caller's nodes and checked first ([`UpdateError`], worded by each binding) |
@@ -73,8 +74,8 @@ pub use atomic::{
 pub use caller_body::{AnyBody, CallerBody, Kept, KeptBuffers, UpdateError};
 pub use csv_io::{
     GAP_HEADER, Num, RESULTS_HEADER, ResultRow, parse_points, parse_results, read_points,
-    read_results, unended_points_file, write_owner_rows, write_points, write_results,
-    write_results_counted, write_results_to,
+    read_points_with_warning, read_results, unended_points_file, write_owner_rows, write_points,
+    write_results, write_results_counted, write_results_to,
 };
 pub use error::{ErrorKind, IoError};
 pub use input::{
@@ -83,7 +84,8 @@ pub use input::{
 pub use mesh::{CellMap, CellNumbering, HexMesh, LATTICE_TOLERANCE, LatticeMesh};
 pub use node_sources::NodeSources;
 pub use vtk_read::{
-    DEFAULT_DISPLACEMENT, DisplacementArray, parse_hex_mesh, read_body, read_hex_mesh, read_mesh,
+    DEFAULT_DISPLACEMENT, DisplacementArray, MeshFile, MeshRead, parse_hex_mesh, read_body,
+    read_hex_mesh, read_mesh,
 };
 pub use vtk_write::{
     MeshFormat, write_adaptive_mesh, write_deformed_adaptive_vtu, write_deformed_vtu, write_mesh,

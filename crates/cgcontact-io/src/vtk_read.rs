@@ -56,10 +56,7 @@ pub fn read_body(
     path: impl AsRef<Path>,
     displacement: &DisplacementArray,
 ) -> Result<MeshBody, IoError> {
-    let path = path.as_ref();
-    let mesh = read_hex_mesh(path, displacement)?;
-    mesh.to_body()
-        .map_err(|e| explain_ghosts(&mesh, e).in_file(path))
+    Ok(MeshFile::read(path)?.into_body(displacement)?.body)
 }
 
 /// Read a VTK mesh file as an explicit hexahedral mesh, without lattice detection.
@@ -67,9 +64,122 @@ pub fn read_hex_mesh(
     path: impl AsRef<Path>,
     displacement: &DisplacementArray,
 ) -> Result<HexMesh, IoError> {
-    let path = path.as_ref();
-    let bytes = crate::input::read_input(path, crate::input::Expect::Vtk)?;
-    parse_hex_mesh_impl(&bytes, Some(path), displacement).map_err(|e| e.in_file(path))
+    MeshFile::read(path)?.into_hex_mesh(displacement)
+}
+
+/// A mesh file read whole and parsed, the files of a parallel file's pieces not yet read:
+/// [`read_body`] in two steps, for a caller that must know every file a mesh is read from before
+/// it reads them.
+///
+/// A program that writes files compares them with the inputs before any work; the pieces of a
+/// `.pvtu` are inputs too, known only once it is read ([`MeshFile::piece_files`]). And each file
+/// is read once: a named pipe or a process substitution (`<(zcat mesh.vtu.gz)`) can be read only
+/// once.
+///
+/// ```
+/// use cgcontact::{Body, Lattice};
+/// use cgcontact::glam::DVec3;
+/// use cgcontact_io::{DisplacementArray, MeshFile, MeshFormat, write_mesh};
+///
+/// let dir = tempfile::tempdir()?;
+/// let path = dir.path().join("block.vtu");
+/// write_mesh(&path, &Body::full(Lattice::new(DVec3::ZERO, DVec3::ONE, [2, 1, 1])?), MeshFormat::Xml)?;
+/// let file = MeshFile::read(&path)?;
+/// assert!(file.piece_files().is_empty()); // a serial file
+/// let read = file.into_body(&DisplacementArray::Default)?;
+/// assert_eq!(read.point_arrays, ["displacement"]);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+#[derive(Debug)]
+pub struct MeshFile {
+    path: PathBuf,
+    parsed: Parsed,
+    pieces: Vec<PathBuf>,
+}
+
+/// A mesh file read as a body by [`MeshFile::into_body`], and the names of its point arrays.
+#[derive(Clone, Debug)]
+pub struct MeshRead {
+    /// The body, as [`read_body`] reads it.
+    pub body: MeshBody,
+    /// The point-data number arrays of the file (of every piece of a parallel file), by name,
+    /// sorted, each once; legacy names with their `%XX` escapes decoded. String arrays and legacy
+    /// id sections are not listed. A caller can name them when the displacement asked for is not
+    /// among them, without reading the file again.
+    pub point_arrays: Vec<String>,
+}
+
+impl MeshFile {
+    /// Read the mesh file at `path` whole (within [`crate::max_input_bytes`]) and parse it; a
+    /// parallel file's pieces are listed, not read.
+    ///
+    /// # Errors
+    ///
+    /// [`IoError`] naming `path` when it cannot be read, is not a VTK file, or fails to parse.
+    pub fn read(path: impl AsRef<Path>) -> Result<Self, IoError> {
+        let path = path.as_ref();
+        let bytes = crate::input::read_input(path, crate::input::Expect::Vtk)?;
+        let parsed = parse_file(&bytes).map_err(|e| e.in_file(path))?;
+        let pieces = match &parsed.vtk.data {
+            DataSet::UnstructuredGrid { pieces, .. } => pieces
+                .iter()
+                .filter_map(|piece| match piece {
+                    Piece::Source(name, _) => Some(piece_path(name, Some(path))),
+                    _ => None,
+                })
+                .collect::<Result<_, _>>()
+                .map_err(|e| e.in_file(path))?,
+            _ => Vec::new(),
+        };
+        Ok(Self {
+            path: path.to_path_buf(),
+            parsed,
+            pieces,
+        })
+    }
+
+    /// The path the file was read from.
+    #[must_use]
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// The files of a parallel file's pieces, as the file names them, resolved from its folder
+    /// (in its order, each as often as it is named); empty for a serial file, whose pieces are
+    /// inline.
+    #[must_use]
+    pub fn piece_files(&self) -> &[PathBuf] {
+        &self.pieces
+    }
+
+    /// The mesh, its pieces' files read, without lattice detection ([`read_hex_mesh`]).
+    ///
+    /// # Errors
+    ///
+    /// [`IoError`] naming the file, and the piece at fault, when the mesh cannot be read.
+    pub fn into_hex_mesh(self, displacement: &DisplacementArray) -> Result<HexMesh, IoError> {
+        let path = self.path;
+        let (mesh, _) = hex_mesh_from_vtk(self.parsed, Some(&path), displacement)
+            .map_err(|e| e.in_file(&path))?;
+        Ok(mesh)
+    }
+
+    /// The mesh, its pieces' files read, recognised as a uniform or an adaptive body
+    /// ([`read_body`]), with the names of its point arrays.
+    ///
+    /// # Errors
+    ///
+    /// [`IoError`] naming the file, and the piece, cell or node at fault, when the mesh cannot
+    /// be read or is not a lattice body.
+    pub fn into_body(self, displacement: &DisplacementArray) -> Result<MeshRead, IoError> {
+        let path = self.path;
+        let (mesh, point_arrays) = hex_mesh_from_vtk(self.parsed, Some(&path), displacement)
+            .map_err(|e| e.in_file(&path))?;
+        let body = mesh
+            .to_body()
+            .map_err(|e| explain_ghosts(&mesh, e).in_file(&path))?;
+        Ok(MeshRead { body, point_arrays })
+    }
 }
 
 /// `error`, with a word on ghost cells where it names a ghost copy of `mesh` as overlapping
@@ -105,6 +215,20 @@ fn parse_hex_mesh_impl(
     source: Option<&Path>,
     displacement: &DisplacementArray,
 ) -> Result<HexMesh, ErrorKind> {
+    let parsed = parse_file(bytes)?;
+    hex_mesh_from_vtk(parsed, source, displacement).map(|(mesh, _)| mesh)
+}
+
+/// A mesh file as parsed, before its pieces are read.
+#[derive(Debug)]
+struct Parsed {
+    vtk: Vtk,
+    /// The point arrays each `<Piece>` of an XML file declares (`None` for a legacy file).
+    declared: Option<Vec<Vec<DeclaredArray>>>,
+}
+
+/// Parse the bytes of a mesh file.
+fn parse_file(bytes: &[u8]) -> Result<Parsed, ErrorKind> {
     // Every pass over an XML file reads it in the one spelling `xml_normal` gives it.
     let normal = if is_xml(bytes) {
         xml_normal::normalize(bytes)?
@@ -114,7 +238,7 @@ fn parse_hex_mesh_impl(
     let bytes = normal.as_deref().unwrap_or(bytes);
     let vtk = parse_vtk(bytes)?;
     let declared = is_xml(bytes).then(|| declared_point_arrays(bytes));
-    hex_mesh_from_vtk(vtk, source, displacement, declared.as_deref())
+    Ok(Parsed { vtk, declared })
 }
 
 /// Whether the bytes are an XML file (legacy ones start with `# vtk`).
@@ -125,7 +249,7 @@ fn is_xml(bytes: &[u8]) -> bool {
 
 /// A point-data array an XML file declares: its name, and its `NumberOfComponents` as written
 /// (`None` when absent: VTK then reads one component).
-#[derive(Clone)]
+#[derive(Clone, Debug)]
 struct DeclaredArray {
     name: String,
     components: Option<String>,
@@ -780,14 +904,15 @@ fn ascii_ends_in_a_value(bytes: &[u8]) -> Option<(usize, String)> {
     Some((line, crate::excerpt(&bytes[word..], 40)))
 }
 
-/// Extract points, hexahedra and the displacement array from a parsed file.
+/// Extract points, hexahedra and the displacement array from a parsed file, and the names of its
+/// point arrays (sorted, each once).
 fn hex_mesh_from_vtk(
-    vtk: Vtk,
+    parsed: Parsed,
     source: Option<&Path>,
     displacement: &DisplacementArray,
-    declared: Option<&[Vec<DeclaredArray>]>,
-) -> Result<HexMesh, ErrorKind> {
-    let pieces = match vtk.data {
+) -> Result<(HexMesh, Vec<String>), ErrorKind> {
+    let declared = parsed.declared.as_deref();
+    let pieces = match parsed.vtk.data {
         DataSet::UnstructuredGrid { pieces, .. } => pieces,
         DataSet::ImageData { .. } => {
             return Err(ErrorKind::NotUnstructuredGrid(
@@ -883,11 +1008,10 @@ fn hex_mesh_from_vtk(
         let ghosts = ghost_cells(piece, mesh.cells.len() - first_cell).map_err(in_piece)?;
         mesh.ghosts
             .extend(ghosts.into_iter().map(|c| (first_cell + c) as u32));
+        let legacy = declared.is_none() && loaded.file.is_none();
+        available.extend(point_array_names(piece, legacy));
         if let Some(u) = &mut u {
-            let legacy = declared.is_none() && loaded.file.is_none();
-            match piece_displacement(piece, displacement, points.len(), legacy, &mut available)
-                .map_err(in_piece)?
-            {
+            match piece_displacement(piece, displacement, points.len(), legacy).map_err(in_piece)? {
                 Some(values) => {
                     found_any = true;
                     with.get_or_insert(label);
@@ -944,11 +1068,11 @@ fn hex_mesh_from_vtk(
             ),
         });
     }
+    available.sort();
+    available.dedup();
     if let DisplacementArray::Named(name) = displacement
         && !found_any
     {
-        available.sort();
-        available.dedup();
         let available = if available.is_empty() {
             "none".to_owned()
         } else {
@@ -980,7 +1104,7 @@ fn hex_mesh_from_vtk(
             value: u[node].to_array(),
         });
     }
-    Ok(mesh)
+    Ok((mesh, available))
 }
 
 /// One piece of a mesh file: inline in it, or read from a parallel file's piece file.
@@ -1244,23 +1368,40 @@ fn append_cells(
     Ok(())
 }
 
+/// A point array's name as VTK's reader knows it: VTK's legacy writer stores a name with `%XX`
+/// for spaces and other bytes; its reader decodes them, and so do we, so that `my displacement`
+/// is found as VTK finds it.
+fn array_name(name: &str, legacy: bool) -> String {
+    if legacy {
+        decode_legacy_name(name)
+    } else {
+        name.to_owned()
+    }
+}
+
+/// The names of the point arrays of one piece (`legacy`: of a legacy file), in its order.
+fn point_array_names(piece: &UnstructuredGridPiece, legacy: bool) -> Vec<String> {
+    let mut names = Vec::new();
+    for attribute in &piece.data.point {
+        match attribute {
+            Attribute::DataArray(array) => names.push(array_name(&array.name, legacy)),
+            Attribute::Field { data_array, .. } => names.extend(
+                data_array
+                    .iter()
+                    .map(|array| array_name(&array.name, legacy)),
+            ),
+        }
+    }
+    names
+}
+
 /// The displacement array of one piece, if it has the one asked for.
 fn piece_displacement(
     piece: &UnstructuredGridPiece,
     which: &DisplacementArray,
     point_count: usize,
     legacy: bool,
-    available: &mut Vec<String>,
 ) -> Result<Option<Vec<DVec3>>, ErrorKind> {
-    // VTK's legacy writer stores a name with `%XX` for spaces and other bytes; its reader decodes
-    // them, and so do we, so that `my displacement` is found as VTK finds it.
-    let decoded = |name: &str| {
-        if legacy {
-            decode_legacy_name(name)
-        } else {
-            name.to_owned()
-        }
-    };
     let name = match which {
         DisplacementArray::Default => DEFAULT_DISPLACEMENT,
         DisplacementArray::Named(n) => n.as_str(),
@@ -1271,19 +1412,13 @@ fn piece_displacement(
     for attribute in &piece.data.point {
         match attribute {
             Attribute::DataArray(array) => {
-                let array_name = decoded(&array.name);
-                let matches = array_name == name;
-                available.push(array_name);
-                if matches {
+                if array_name(&array.name, legacy) == name {
                     found.push((array.elem.num_comp() as usize, &array.data));
                 }
             }
             Attribute::Field { data_array, .. } => {
                 for array in data_array {
-                    let array_name = decoded(&array.name);
-                    let matches = array_name == name;
-                    available.push(array_name);
-                    if matches {
+                    if array_name(&array.name, legacy) == name {
                         found.push((array.elem as usize, &array.data));
                     }
                 }

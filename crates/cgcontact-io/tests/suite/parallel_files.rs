@@ -12,7 +12,8 @@ use std::path::{Path, PathBuf};
 use cgcontact::glam::DVec3;
 use cgcontact::{AdaptiveLocator, LatticeLocator, Locator, Settings};
 use cgcontact_io::{
-    AdaptiveMesh, DisplacementArray, MeshBody, parse_hex_mesh, read_body, read_hex_mesh, read_mesh,
+    AdaptiveMesh, DisplacementArray, MeshBody, MeshFile, parse_hex_mesh, read_body, read_hex_mesh,
+    read_mesh,
 };
 
 fn folder() -> PathBuf {
@@ -446,6 +447,37 @@ fn a_corrupt_piece_is_refused_as_its_own_file_would_be() {
     let alone = refusal(&piece);
     assert!(alone.contains(wanted), "{alone}");
     refused_naming(&path, 0, wanted);
+}
+
+/// A parallel file's pieces' files are listed once it is read, before any is read: a caller
+/// that writes files compares them with every input first.
+#[test]
+fn piece_files_are_listed_before_they_are_read() {
+    let (dir, path) = with_piece(2, "gone.vtu");
+    let file = MeshFile::read(&path).unwrap();
+    let expected: Vec<PathBuf> = ["split-appended_0.vtu", "split-appended_1.vtu", "gone.vtu"]
+        .iter()
+        .map(|name| dir.path().join(name))
+        .collect();
+    assert_eq!(file.piece_files(), expected);
+    let message = file
+        .into_body(&DisplacementArray::Default)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        message.contains("piece 2 (") && message.contains("gone.vtu"),
+        "{message}"
+    );
+    // A serial file has none.
+    let serial = MeshFile::read(folder().join("whole.vtu")).unwrap();
+    assert!(serial.piece_files().is_empty());
+    assert_eq!(
+        serial
+            .into_body(&DisplacementArray::Default)
+            .unwrap()
+            .point_arrays,
+        ["displacement"]
+    );
 }
 
 #[test]
