@@ -6,8 +6,9 @@ use anyhow::Result;
 use cgcontact::{AdaptiveLocator, GapAnswer, GapFinder, LatticeLocator, Settings};
 use cgcontact_baseline::BodyRef;
 use cgcontact_io::{
-    DEFAULT_DISPLACEMENT, DisplacementArray, MeshBody, read_body, read_points, unended_points_file,
-    write_deformed_adaptive_vtu, write_deformed_vtu, write_points_vtu, write_results_counted,
+    DEFAULT_DISPLACEMENT, DisplacementArray, MeshBody, MeshFile, MeshRead,
+    read_points_with_warning, write_deformed_adaptive_vtu, write_deformed_vtu, write_points_vtu,
+    write_results_counted,
 };
 use clap::Args;
 use std::time::Instant;
@@ -152,11 +153,16 @@ pub fn run(args: &LocateArgs) -> Result<()> {
     }
     check_outputs(&inputs, &outputs)?;
     let quiet = args.search.quiet || args.search.json;
-    let mesh = reading(&args.mesh, quiet, || {
-        read_body(
-            &args.mesh,
-            &DisplacementArray::from_option(args.displacement.as_deref()),
-        )
+    // Each input is read once (a named pipe can be read only once): the mesh file here, its
+    // pieces' files next, the points after.
+    let file = reading(&args.mesh, quiet, || MeshFile::read(&args.mesh))?;
+    let MeshRead {
+        body: mesh,
+        point_arrays,
+    } = reading(&args.mesh, quiet, || {
+        file.into_body(&DisplacementArray::from_option(
+            args.displacement.as_deref(),
+        ))
     })?;
     if let MeshBody::Adaptive(adaptive) = &mesh
         && let Some(message) = adaptive.constraint_problem(&args.mesh)
@@ -171,17 +177,20 @@ pub fn run(args: &LocateArgs) -> Result<()> {
     if !mesh.has_displacement()
         && args.displacement.is_none()
         && !args.search.quiet
-        && let Some(arrays) = other_point_arrays(&args.mesh)
+        && !point_arrays.is_empty()
     {
         eprintln!(
             "cgcontact: warning: {}: no point array named `{DEFAULT_DISPLACEMENT}`, so the mesh \
-             is read undeformed; its point arrays: {arrays} (--displacement NAME reads one as the \
+             is read undeformed; its point arrays: {} (--displacement NAME reads one as the \
              displacement)",
-            args.mesh.display()
+            args.mesh.display(),
+            point_arrays.join(", ")
         );
     }
-    let points = reading(&args.points, quiet, || read_points(&args.points))?;
-    if let Some(warning) = unended_points_file(&args.points)
+    let (points, unended) = reading(&args.points, quiet, || {
+        read_points_with_warning(&args.points)
+    })?;
+    if let Some(warning) = unended
         && !args.search.quiet
     {
         eprintln!("cgcontact: warning: {warning}");
@@ -322,20 +331,5 @@ fn gap_summary(gaps: &[GapAnswer], distance: f64, seconds: f64) -> GapSummary {
         inside,
         penetration,
         seconds,
-    }
-}
-
-/// The point arrays of the mesh at `path`, comma separated, when it has any: read again asking
-/// for an array no file names, whose error lists them. Only for a mesh read without a
-/// displacement (a second read), to tell a user whose displacement array is named otherwise
-/// (`Displacement`, `U`) that the mesh was solved undeformed.
-fn other_point_arrays(path: &std::path::Path) -> Option<String> {
-    let none = DisplacementArray::Named("\0".to_owned());
-    let error = cgcontact_io::read_hex_mesh(path, &none).err()?;
-    match error.kind() {
-        cgcontact_io::ErrorKind::MissingDisplacement { available, .. } if available != "none" => {
-            Some(available.clone())
-        }
-        _ => None,
     }
 }

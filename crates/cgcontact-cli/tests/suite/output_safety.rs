@@ -540,6 +540,110 @@ fn an_interrupted_run_exits_130_and_leaves_its_output_as_it_was() {
     }
 }
 
+/// Runs `cgcontact args`, each `(file, pipe)` of `feeds` written into its named pipe by a `cat`
+/// of its own, and gives its output; panics if it has not ended within 30 seconds.
+#[cfg(target_os = "linux")]
+fn fed(args: &[&str], feeds: &[(&Path, &Path)]) -> Output {
+    let mut writers: Vec<_> = feeds
+        .iter()
+        .map(|(file, pipe)| {
+            assert!(Command::new("mkfifo").arg(pipe).status().unwrap().success());
+            Command::new("sh")
+                .args(["-c", "cat \"$1\" > \"$2\"", "sh", s(file), s(pipe)])
+                .spawn()
+                .unwrap()
+        })
+        .collect();
+    let mut run = Command::new(env!("CARGO_BIN_EXE_cgcontact"))
+        .args(args)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let start = std::time::Instant::now();
+    let ended = loop {
+        if run.try_wait().unwrap().is_some() {
+            break true;
+        }
+        if start.elapsed() > std::time::Duration::from_secs(30) {
+            run.kill().unwrap();
+            break false;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    };
+    let output = run.wait_with_output().unwrap();
+    for writer in &mut writers {
+        // A writer whose pipe was never opened waits for ever.
+        let _ = writer.kill();
+        writer.wait().unwrap();
+    }
+    assert!(
+        ended,
+        "cgcontact {args:?} still ran after 30 s: {}",
+        stderr(&output)
+    );
+    output
+}
+
+/// A named pipe as `--points` hung for ever: the points were read, then the file was opened
+/// again to look at its last line, which waits for a writer no one starts; and as `--mesh`
+/// without a displacement, the warning that lists its point arrays read the mesh a second time.
+/// Each input is now read once; the warnings come from that one read.
+#[cfg(target_os = "linux")]
+#[test]
+fn named_pipes_as_inputs_are_read_once() {
+    let (dir, mesh, points) = scene();
+    let pipe = dir.path().join("points.pipe");
+    let run = fed(
+        &["locate", "--mesh", s(&mesh), "--points", s(&pipe), "--json"],
+        &[(&points, &pipe)],
+    );
+    assert!(run.status.success(), "{}", stderr(&run));
+    let summary: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    assert_eq!(summary["points"], 50, "{summary}");
+    // A points file whose last line has no line end is still warned about.
+    let text = std::fs::read_to_string(&points).unwrap();
+    let unended = dir.path().join("unended.csv");
+    std::fs::write(&unended, text.trim_end()).unwrap();
+    let pipe = dir.path().join("unended.pipe");
+    let run = fed(
+        &["locate", "--mesh", s(&mesh), "--points", s(&pipe)],
+        &[(&unended, &pipe)],
+    );
+    assert!(run.status.success(), "{}", stderr(&run));
+    assert!(
+        stderr(&run).contains("unended.pipe: the file ends in"),
+        "{}",
+        stderr(&run)
+    );
+    // A mesh whose displacement is named otherwise, and the points, both through pipes.
+    let renamed = dir.path().join("u.vtu");
+    let text = std::fs::read_to_string(&mesh).unwrap();
+    std::fs::write(
+        &renamed,
+        text.replace("Name=\"displacement\"", "Name=\"U\""),
+    )
+    .unwrap();
+    let (mesh_pipe, points_pipe) = (dir.path().join("mesh.pipe"), dir.path().join("p.pipe"));
+    let run = fed(
+        &[
+            "locate",
+            "--mesh",
+            s(&mesh_pipe),
+            "--points",
+            s(&points_pipe),
+        ],
+        &[(&renamed, &mesh_pipe), (&points, &points_pipe)],
+    );
+    assert!(run.status.success(), "{}", stderr(&run));
+    assert!(
+        stderr(&run).contains("mesh.pipe: no point array named `displacement`")
+            && stderr(&run).contains("its point arrays: U"),
+        "{}",
+        stderr(&run)
+    );
+}
+
 /// A run that fails after its `--vtk` folder was made (reading the points) removes the folders
 /// it made, and only those; a run that writes keeps them.
 #[test]
