@@ -13,7 +13,7 @@ use cgcontact_io::{
 use clap::Args;
 use std::time::Instant;
 
-use crate::output::{check_outputs, prepare_folder, write_owner_rows};
+use crate::output::{check_outputs, check_pieces, prepare_folder, write_owner_rows};
 use crate::run::{
     ConstraintSummary, GapSummary, SearchArgs, Searched, StrategyName, reading,
     search_listing_owners,
@@ -154,8 +154,10 @@ pub fn run(args: &LocateArgs) -> Result<()> {
     check_outputs(&inputs, &outputs)?;
     let quiet = args.search.quiet || args.search.json;
     // Each input is read once (a named pipe can be read only once): the mesh file here, its
-    // pieces' files next, the points after.
+    // pieces' files below, the points after.
     let file = reading(&args.mesh, quiet, || MeshFile::read(&args.mesh))?;
+    // A parallel file's pieces are inputs too, known now: no output may replace one.
+    check_pieces(&args.mesh, file.piece_files(), &outputs)?;
     let MeshRead {
         body: mesh,
         point_arrays,

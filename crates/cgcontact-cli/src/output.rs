@@ -194,6 +194,28 @@ pub fn check_outputs(inputs: &[(&str, &Path)], outputs: &[(&str, PathBuf)]) -> R
     Ok(())
 }
 
+/// Check, once the mesh file `mesh` is read and before its pieces are, that no output is one of
+/// the files of its pieces (`pieces`, a parallel file's; none for a serial file): they are inputs
+/// as much as `--mesh` is, compared as [`check_outputs`] compares those.
+pub fn check_pieces(mesh: &Path, pieces: &[PathBuf], outputs: &[(&str, PathBuf)]) -> Result<()> {
+    for (flag, output) in outputs {
+        if let Some((piece, file)) = pieces
+            .iter()
+            .enumerate()
+            .find(|(_, file)| same_file(output, file))
+        {
+            bail!(
+                "{}: {flag} would overwrite {}, the file of piece {piece} of the input --mesh {} \
+                 (the same file); choose another output",
+                output.display(),
+                file.display(),
+                mesh.display()
+            );
+        }
+    }
+    Ok(())
+}
+
 /// Whether `path` can only name a folder: it ends with a separator, `.` or `..` (`Path` drops a
 /// trailing `.`: `new/.` has the file name `new`).
 fn names_a_folder(path: &Path) -> bool {

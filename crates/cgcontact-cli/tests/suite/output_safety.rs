@@ -95,6 +95,75 @@ fn out_through_a_symlink_or_a_hard_link_to_the_mesh_is_refused() {
     refused(&run, &["hard.csv", "--mesh"], &[(&mesh, &before)]);
 }
 
+/// A parallel file naming the pieces `sources` (relative to its folder), beside them in `dir`.
+fn parallel_file(dir: &Path, sources: &[&str]) -> PathBuf {
+    let pieces: String = sources
+        .iter()
+        .map(|source| format!("    <Piece Source=\"{source}\"/>\n"))
+        .collect();
+    let path = dir.join("p.pvtu");
+    std::fs::write(
+        &path,
+        format!(
+            "<?xml version=\"1.0\"?>\n\
+             <VTKFile type=\"PUnstructuredGrid\" version=\"0.1\" byte_order=\"LittleEndian\">\n\
+             <PUnstructuredGrid GhostLevel=\"0\">\n\
+             <PPointData>\n\
+             <PDataArray type=\"Float64\" Name=\"displacement\" NumberOfComponents=\"3\"/>\n\
+             </PPointData>\n\
+             <PPoints>\n\
+             <PDataArray type=\"Float64\" Name=\"Points\" NumberOfComponents=\"3\"/>\n\
+             </PPoints>\n\
+             {pieces}</PUnstructuredGrid>\n\
+             </VTKFile>\n"
+        ),
+    )
+    .unwrap();
+    path
+}
+
+/// The files of a parallel mesh's pieces are inputs as much as the mesh is: `--out p_0.vtu` with
+/// `--mesh p.pvtu` replaced the piece with the results (exit code 0, the mesh lost), and so did
+/// `--vtk DIR` when a piece was `DIR/mesh.vtu`, and an `--out` link to a piece. Now each is
+/// refused before the pieces are read or any work is done, naming the output and the piece.
+#[cfg(unix)]
+#[test]
+fn outputs_on_a_piece_of_a_parallel_mesh_are_refused() {
+    let (dir, mesh, points) = scene();
+    let before = std::fs::read(&mesh).unwrap();
+    let parallel = parallel_file(dir.path(), &["mesh.vtu"]);
+    let run = locate(&parallel, &points, &["--json"]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    let names = ["--out", "mesh.vtu", "piece 0", "--mesh", "p.pvtu"];
+    let run = locate(&parallel, &points, &["--out", s(&mesh)]);
+    refused(&run, &names, &[(&mesh, &before)]);
+    let link = dir.path().join("link.csv");
+    std::os::unix::fs::symlink(&mesh, &link).unwrap();
+    let run = locate(&parallel, &points, &["--out", s(&link)]);
+    refused(
+        &run,
+        &[&["link.csv"][..], &names].concat(),
+        &[(&mesh, &before)],
+    );
+    // A piece in the --vtk folder, the other outputs fine: nothing is written.
+    let out = dir.path().join("out");
+    std::fs::create_dir(&out).unwrap();
+    std::fs::copy(&mesh, out.join("mesh.vtu")).unwrap();
+    let parallel = parallel_file(dir.path(), &["out/mesh.vtu"]);
+    let results = dir.path().join("results.csv");
+    let run = locate(
+        &parallel,
+        &points,
+        &["--vtk", s(&out), "--out", s(&results)],
+    );
+    refused(
+        &run,
+        &["--vtk", "out/mesh.vtu", "piece 0", "p.pvtu"],
+        &[(&out.join("mesh.vtu"), &before)],
+    );
+    assert!(!results.exists() && !out.join("points.vtu").exists());
+}
+
 #[test]
 fn vtk_folder_holding_the_input_mesh_is_refused() {
     let (dir, mesh, points) = scene();
