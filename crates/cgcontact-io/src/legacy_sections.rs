@@ -98,6 +98,24 @@ impl Fault {
 pub(crate) struct Walk<'a> {
     pub(crate) unread: Vec<Unread<'a>>,
     pub(crate) fault: Option<Fault>,
+    /// The number arrays of point, cell and field data met, in file order: each `SCALARS`,
+    /// `VECTORS` and `NORMALS` section and each array of a `FIELD` block.
+    pub(crate) arrays: Vec<Array<'a>>,
+    /// Whether the file is binary (its third line `BINARY`), not ASCII.
+    pub(crate) binary: bool,
+}
+
+/// A number array of point, cell or field data, as its header declares it.
+#[derive(Clone, Copy)]
+pub(crate) struct Array<'a> {
+    /// Its name, as written (`%XX` escapes not decoded).
+    pub(crate) name: &'a str,
+    /// Its type word, as written, and the byte it starts at.
+    pub(crate) kind: &'a str,
+    pub(crate) kind_at: usize,
+    /// The `POINT_DATA n` or `CELL_DATA n` header of its section; `None` for the data set's own
+    /// field data (a `FIELD` block before any of them).
+    pub(crate) of: Option<Header<'a>>,
 }
 
 /// A `FIELD name n` block: its header, its arrays, and how many of them the walk has met.
@@ -127,6 +145,29 @@ struct Declared<'a> {
     after_unread: Option<After<'a>>,
     /// The `FIELD` block whose arrays come next, while some are left.
     field: Option<FieldBlock<'a>>,
+    /// The number arrays of point, cell and field data met so far (`Walk::arrays`).
+    arrays: Vec<Array<'a>>,
+}
+
+impl<'a> Declared<'a> {
+    /// Notes the number array `name` of type `kind` that `header` declares (both words of its
+    /// text) in the section open, and gives back its type.
+    fn met(
+        &mut self,
+        header: Header<'a>,
+        name: Option<&'a str>,
+        kind: Option<&'a str>,
+    ) -> Option<&'a str> {
+        if let (Some(name), Some(kind)) = (name, kind) {
+            self.arrays.push(Array {
+                name,
+                kind,
+                kind_at: header.at + (kind.as_ptr() as usize - header.text.as_ptr() as usize),
+                of: self.attributes,
+            });
+        }
+        kind
+    }
 }
 
 /// An unread array or section just measured, for the line after it.
@@ -189,13 +230,16 @@ pub(crate) fn walk(bytes: &[u8]) -> Option<Walk<'_>> {
     lines.next()?;
     let kind = lines.next()?.trim_ascii();
     let mut walk = Walk::default();
+    let mut declared = Declared::default();
     walk.fault = if kind.eq_ignore_ascii_case(b"ascii") {
-        ascii_walk(bytes, v5, &mut walk.unread)
+        ascii_walk(bytes, v5, &mut walk.unread, &mut declared)
     } else if kind.eq_ignore_ascii_case(b"binary") {
-        binary_walk(bytes, v5, &mut walk.unread)
+        binary_walk(bytes, v5, &mut walk.unread, &mut declared)
     } else {
         return None;
     };
+    walk.arrays = declared.arrays;
+    walk.binary = kind.eq_ignore_ascii_case(b"binary");
     Some(walk)
 }
 
@@ -291,9 +335,12 @@ fn section<'a>(
         which @ ("GLOBAL_IDS" | "PEDIGREE_IDS" | "EDGE_FLAGS") => {
             id_section(header, which, declared)?
         }
-        "VECTORS" | "NORMALS" => data(product(declared.tuples, 3), words.nth(1)),
+        "VECTORS" | "NORMALS" => {
+            let kind = declared.met(header, words.next(), words.next());
+            data(product(declared.tuples, 3), kind)
+        }
         "SCALARS" => {
-            let kind = words.nth(1);
+            let kind = declared.met(header, words.next(), words.next());
             let components = match words.next() {
                 None => 1,
                 Some(n) => match n.parse::<u64>() {
@@ -351,7 +398,7 @@ fn section<'a>(
                                 },
                             }
                         } else {
-                            data(values, Some(kind))
+                            data(values, declared.met(header, Some(keyword), Some(kind)))
                         }
                     }
                     _ => data(values, Some(kind)),
@@ -732,7 +779,12 @@ fn id_words(
 /// An ASCII file: the values of each section are counted against its header; the strings of a
 /// string array are the lines after its header, one each; the values of an id section are
 /// measured as words.
-fn ascii_walk<'a>(bytes: &'a [u8], v5: bool, unread: &mut Vec<Unread<'a>>) -> Option<Fault> {
+fn ascii_walk<'a>(
+    bytes: &'a [u8],
+    v5: bool,
+    unread: &mut Vec<Unread<'a>>,
+    declared: &mut Declared<'a>,
+) -> Option<Fault> {
     let number = |t: &str| t.parse::<f64>().is_ok() || t.eq_ignore_ascii_case("nan");
     // The open section: its header, the values it declares, those found, and where it ends.
     struct Open<'a> {
@@ -760,7 +812,6 @@ fn ascii_walk<'a>(bytes: &'a [u8], v5: bool, unread: &mut Vec<Unread<'a>>) -> Op
             ))
         })
     };
-    let mut declared = Declared::default();
     let mut current: Option<Open> = None;
     // Each line with its 1-based number and the byte it starts at.
     let mut lines = bytes
@@ -827,7 +878,7 @@ fn ascii_walk<'a>(bytes: &'a [u8], v5: bool, unread: &mut Vec<Unread<'a>>) -> Op
             at: at + (untrimmed.len() - untrimmed.trim_start().len()),
             text: line,
         };
-        current = match section(header, v5, &mut declared) {
+        current = match section(header, v5, declared) {
             Err(fault) => return Some(fault),
             Ok(Step::Data {
                 values: Count::Overflow(what),
@@ -920,7 +971,12 @@ fn type_size(kind: &str) -> Option<u64> {
 /// A binary file: each header's values are measured in bytes and skipped, and a section whose
 /// bytes run past the end of the file is named; a string array's strings are skipped by their
 /// lengths, an id section's variants as words.
-fn binary_walk<'a>(bytes: &'a [u8], v5: bool, unread: &mut Vec<Unread<'a>>) -> Option<Fault> {
+fn binary_walk<'a>(
+    bytes: &'a [u8],
+    v5: bool,
+    unread: &mut Vec<Unread<'a>>,
+    declared: &mut Declared<'a>,
+) -> Option<Fault> {
     let len = bytes.len();
     let line_end = |from: usize| {
         bytes[from..]
@@ -946,7 +1002,6 @@ fn binary_walk<'a>(bytes: &'a [u8], v5: bool, unread: &mut Vec<Unread<'a>>) -> O
     for _ in 0..3 {
         at = (line_end(at) + 1).min(len);
     }
-    let mut declared = Declared::default();
     // The block of values just measured, for the line after it: its header, its values, their
     // bytes each, and where they end.
     let mut after_values: Option<(Header, u64, u64, usize)> = None;
@@ -998,7 +1053,7 @@ fn binary_walk<'a>(bytes: &'a [u8], v5: bool, unread: &mut Vec<Unread<'a>>) -> O
             at = data;
             continue;
         }
-        match section(header, v5, &mut declared) {
+        match section(header, v5, declared) {
             Err(fault) => return Some(fault),
             Ok(Step::Unknown) => return None,
             Ok(Step::NoData) => {}

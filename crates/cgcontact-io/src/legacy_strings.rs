@@ -18,23 +18,20 @@
 
 use std::collections::BTreeMap;
 
-use crate::legacy_sections::{self, Header, Within};
+use crate::legacy_sections::{Header, Walk, Within};
 
-/// The file with its string arrays and id sections blanked out; `None` when it has none (or is no
-/// legacy file the walk reads); `Err` names one that is cut, holds other than what it declares or
+/// The file with its string arrays and id sections, as `walk` measured them, blanked out; `None`
+/// when it has none; `Err` names one that is cut, holds other than what it declares or
 /// whose lengths run past the end of the file, as `line N: what is wrong`, and a `POINT_DATA n`
 /// or `CELL_DATA n` that is not the file's node or cell count (which vtkio's parser never checks).
 ///
 /// A fault in another section ends the walk: string arrays and id sections after it are left,
 /// and vtkio's parser then refuses the file at that section or at one of them.
-pub(crate) fn blank(bytes: &[u8]) -> Result<Option<Vec<u8>>, String> {
-    let Some(walk) = legacy_sections::walk(bytes) else {
-        return Ok(None);
-    };
-    if let Some(fault) = walk.fault
+pub(crate) fn blank(bytes: &[u8], walk: &Walk) -> Result<Option<Vec<u8>>, String> {
+    if let Some(fault) = &walk.fault
         && (fault.in_unread || fault.unparsed_count)
     {
-        return Err(fault.message);
+        return Err(fault.message.clone());
     }
     if walk.unread.is_empty() {
         return Ok(None);
@@ -95,10 +92,11 @@ fn lower_count(bytes: &mut [u8], field: Header, arrays: u64) {
 #[cfg(test)]
 mod tests {
     use super::blank;
+    use crate::legacy_sections::walk;
 
     /// What `blank` makes of a file: the blanked text, `None` for none.
     fn blanked(file: &[u8]) -> Option<String> {
-        blank(file)
+        blank(file, &walk(file).unwrap())
             .unwrap()
             .map(|bytes| String::from_utf8_lossy(&bytes).into_owned())
     }

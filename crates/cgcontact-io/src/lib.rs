@@ -58,6 +58,7 @@ mod error;
 mod input;
 mod legacy_sections;
 mod legacy_strings;
+mod legacy_types;
 mod lzma_arrays;
 mod mesh;
 mod node_sources;

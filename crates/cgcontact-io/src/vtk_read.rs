@@ -1,5 +1,6 @@
 //! Reading VTK unstructured grids of hexahedra (legacy `.vtk` ASCII/binary, XML `.vtu`, parallel `.pvtu`) with vtkio.
 
+use std::borrow::Cow;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::{Path, PathBuf};
 
@@ -10,7 +11,7 @@ use vtkio::model::{
 
 use crate::{
     ErrorKind, HexMesh, IoError, LatticeMesh, MeshBody, block_headers, legacy_sections,
-    legacy_strings, lzma_arrays, raw_appended, xml_cells, xml_normal,
+    legacy_strings, legacy_types, lzma_arrays, raw_appended, xml_cells, xml_normal,
 };
 
 /// The point-data array used when the caller names none.
@@ -348,16 +349,23 @@ fn parse_vtk(bytes: &[u8]) -> Result<Vtk, ErrorKind> {
         // Legacy binary files are big-endian by definition of the format.
         guarded("legacy VTK", || {
             // vtkio's parser has no string type and knows no id sections (`GLOBAL_IDS`,
-            // `PEDIGREE_IDS`, `EDGE_FLAGS`): those are blanked out first.
-            let without_strings = legacy_strings::blank(bytes)
-                .map_err(|fault| ErrorKind::Vtk(format!("legacy VTK: {fault}")))?;
-            let blanked = blank_dataset_field(without_strings.as_deref().unwrap_or(bytes));
-            let vtk = parse_legacy_whole(
-                blanked
-                    .as_deref()
-                    .or(without_strings.as_deref())
-                    .unwrap_or(bytes),
-            )?;
+            // `PEDIGREE_IDS`, `EDGE_FLAGS`): those are blanked out first. Nor does it know the
+            // types `unsigned_short`, `signed_char`, `vtktypeint64` and `vtktypeuint64`: those
+            // are renamed as types it reads to the same values.
+            let walk = legacy_sections::walk(bytes);
+            let without_strings = match &walk {
+                Some(walk) => legacy_strings::blank(bytes, walk)
+                    .map_err(|fault| ErrorKind::Vtk(format!("legacy VTK: {fault}")))?,
+                None => None,
+            };
+            let mut text = without_strings.map_or(Cow::Borrowed(bytes), Cow::Owned);
+            let renamed = walk
+                .as_ref()
+                .map(|walk| legacy_types::rename(&mut text, &walk.arrays, walk.binary))
+                .unwrap_or_default();
+            let blanked = blank_dataset_field(&text);
+            let mut vtk = parse_legacy_whole(blanked.as_deref().unwrap_or(&text))?;
+            renamed.restore(&mut vtk);
             match ascii_ends_in_a_value(start) {
                 Some((line, excerpt)) => {
                     // Lines counted in the file: blank ones before `# vtk` too.

@@ -6,6 +6,7 @@ mod bad_input;
 mod common;
 mod csv_files;
 mod lattice_detection;
+mod legacy_array_types;
 mod legacy_dataset_field;
 mod legacy_id_sections;
 mod legacy_string_arrays;
