@@ -396,6 +396,10 @@ fn parse_vtk(bytes: &[u8]) -> Result<Vtk, ErrorKind> {
         check_xml_arrays(bytes)?;
         let kept = without_empty_pieces(bytes)?;
         let bytes = kept.as_deref().unwrap_or(bytes);
+        // vtkio refuses a polyhedron's face arrays, naming neither the cell nor its type: read
+        // without them, the cell is named as a cell of another type, as in a legacy file.
+        let without_faces = without_face_arrays(bytes);
+        let bytes = without_faces.as_deref().unwrap_or(bytes);
         let decompressed = lzma_arrays::decompress(bytes)?;
         let bytes = decompressed.as_deref().unwrap_or(bytes);
         // vtkio cannot read raw (unencoded) appended data, ParaView's default; re-encode it as base64
@@ -798,6 +802,66 @@ fn without_empty_pieces(xml: &[u8]) -> Result<Option<Vec<u8>>, ErrorKind> {
         }
     }
     Ok(Some(blanked))
+}
+
+/// The cell arrays that describe the faces of polyhedron cells (VTK_POLYHEDRON, type 42): VTK
+/// 9.4 and later write `face_connectivity`, `face_offsets`, `polyhedron_to_faces` and
+/// `polyhedron_offsets`, earlier versions `faces` and `faceoffsets`.
+const FACE_ARRAYS: [&[u8]; 6] = [
+    b"face_connectivity",
+    b"face_offsets",
+    b"polyhedron_to_faces",
+    b"polyhedron_offsets",
+    b"faces",
+    b"faceoffsets",
+];
+
+/// `xml` with the face arrays of polyhedron cells ([`FACE_ARRAYS`]) in its `<Cells>` elements
+/// blanked (their bytes made spaces, line ends kept); `None` when it has none.
+///
+/// vtkio reads `<Cells>` only as the three arrays `connectivity`, `offsets` and `types`, and
+/// refused a file with polyhedra with "Cells data arrays must contain three DataArrays", naming
+/// no cell. Without the face arrays it reads the cells, and the first polyhedron is named with
+/// its type, as any cell that is not a hexahedron is (a polyhedron's `connectivity` lists its
+/// nodes, as VTK writes it). Their appended blocks, if any, are left unread.
+fn without_face_arrays(xml: &[u8]) -> Option<Vec<u8>> {
+    use crate::raw_appended::{attribute, find};
+    // Raw appended bytes could contain anything: the pieces all come before them.
+    let end = find(xml, b"<AppendedData", 0).unwrap_or(xml.len());
+    let head = &xml[..end];
+    let mut faces = Vec::new();
+    let mut at = 0;
+    while let Some(cells) = find(head, b"<Cells", at) {
+        let cells_end = find(head, b"</Cells>", cells).unwrap_or(end);
+        at = cells_end.max(cells + 1);
+        let mut array_at = cells;
+        while let Some(start) = find(&head[..cells_end], b"<DataArray", array_at) {
+            let tag_end = find(head, b">", start).unwrap_or(cells_end);
+            let tag = &head[start..tag_end];
+            let array_end = if tag.ends_with(b"/") {
+                tag_end + 1
+            } else {
+                find(head, b"</DataArray>", tag_end)
+                    .map_or(cells_end, |e| e + b"</DataArray>".len())
+            };
+            array_at = array_end.max(start + 1);
+            if attribute(tag, b"Name").is_some_and(|name| FACE_ARRAYS.contains(&name.as_slice())) {
+                faces.push(start..array_end.min(cells_end));
+            }
+        }
+    }
+    if faces.is_empty() {
+        return None;
+    }
+    let mut blanked = xml.to_vec();
+    for range in faces {
+        for b in &mut blanked[range] {
+            if *b != b'\n' {
+                *b = b' ';
+            }
+        }
+    }
+    Some(blanked)
 }
 
 /// Whether a legacy file's `POINTS` line declares no point.

@@ -29,6 +29,7 @@ mod regression_legacy_names_percent_encoded;
 mod regression_legacy_point_data_count_parsed;
 mod regression_many_appended_arrays_quadratic;
 mod regression_many_pieces_quadratic;
+mod regression_polyhedron_named_no_cell;
 mod regression_printed_coordinates_refused;
 mod regression_xml_errors_named_no_array;
 mod regression_xml_faults_unnamed_in_any_encoding;
