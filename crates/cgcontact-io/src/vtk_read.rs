@@ -226,6 +226,8 @@ struct Parsed {
     vtk: Vtk,
     /// The point arrays each `<Piece>` of an XML file declares (`None` for a legacy file).
     declared: Option<Vec<Vec<DeclaredArray>>>,
+    /// The point arrays a parallel file declares for its pieces (`<PPointData>`), by name.
+    parallel_point_arrays: Vec<String>,
 }
 
 /// Parse the bytes of a mesh file.
@@ -239,7 +241,34 @@ fn parse_file(bytes: &[u8]) -> Result<Parsed, ErrorKind> {
     let bytes = normal.as_deref().unwrap_or(bytes);
     let vtk = parse_vtk(bytes)?;
     let declared = is_xml(bytes).then(|| declared_point_arrays(bytes));
-    Ok(Parsed { vtk, declared })
+    Ok(Parsed {
+        vtk,
+        declared,
+        parallel_point_arrays: parallel_point_arrays(bytes),
+    })
+}
+
+/// The names of the point arrays a parallel file declares for its pieces, in its `<PPointData>`
+/// (none for another file). vtkio 0.7.0-rc2 reads `<PPointData>` as holding `<DataArray>`
+/// elements, where VTK writes `<PDataArray>`, and so lists none.
+fn parallel_point_arrays(xml: &[u8]) -> Vec<String> {
+    use crate::raw_appended::{attribute, find};
+    let Some(start) = find(xml, b"<PPointData", 0) else {
+        return Vec::new();
+    };
+    let end = find(xml, b"</PPointData", start).unwrap_or(xml.len());
+    let mut names = Vec::new();
+    let mut at = start;
+    while let Some(tag) = find(&xml[..end], b"<PDataArray", at) {
+        let close = find(xml, b">", tag).unwrap_or(end);
+        if let Some(name) = attribute(&xml[tag..close], b"Name") {
+            // Names as vtkio reads a piece's: `xml_normal` leaves `&amp;` and its kind.
+            let name = String::from_utf8_lossy(&name).into_owned();
+            names.push(quick_xml::escape::unescape(&name).map_or(name.clone(), |n| n.into_owned()));
+        }
+        at = close;
+    }
+    names
 }
 
 /// Whether the bytes are an XML file (legacy ones start with `# vtk`).
@@ -1127,7 +1156,7 @@ fn hex_mesh_from_vtk(
             }
         }
     }
-    if let (Some(with), Some(without)) = (with, without) {
+    if let (Some(with), Some(without)) = (with, &without) {
         // Its nodes would be read as undeformed, while the other pieces' move.
         return Err(ErrorKind::BadDisplacement {
             name: match displacement {
@@ -1142,6 +1171,24 @@ fn hex_mesh_from_vtk(
     }
     available.sort();
     available.dedup();
+    // A parallel file that declares the displacement in its `<PPointData>`, read from pieces of
+    // which none carries it: its nodes would be read as undeformed.
+    if let (Some(without), false) = (&without, found_any) {
+        let wanted = match displacement {
+            DisplacementArray::Named(name) => name.as_str(),
+            _ => DEFAULT_DISPLACEMENT,
+        };
+        if parsed.parallel_point_arrays.iter().any(|a| a == wanted) {
+            return Err(ErrorKind::BadDisplacement {
+                name: wanted.to_owned(),
+                message: format!(
+                    "the parallel file declares it in its <PPointData>, but no piece has it \
+                     ({without} has no such point array, nor has any other): its nodes would \
+                     be read as undeformed"
+                ),
+            });
+        }
+    }
     if let DisplacementArray::Named(name) = displacement
         && !found_any
     {

@@ -449,6 +449,67 @@ fn a_corrupt_piece_is_refused_as_its_own_file_would_be() {
     refused_naming(&path, 0, wanted);
 }
 
+/// A copy of `split-ascii` in a fresh folder, its pieces `without` written without their point
+/// data.
+fn without_point_data(without: &[usize]) -> (tempfile::TempDir, PathBuf) {
+    let dir = tempfile::tempdir().unwrap();
+    for piece in 0..3 {
+        let name = format!("split-ascii_{piece}.vtu");
+        let mut text = std::fs::read_to_string(folder().join(&name)).unwrap();
+        if without.contains(&piece) {
+            let start = text.find("<PointData").unwrap();
+            let end = text.find("</PointData>").unwrap() + "</PointData>".len();
+            text.replace_range(start..end, "<PointData>\n      </PointData>");
+        }
+        std::fs::write(dir.path().join(&name), text).unwrap();
+    }
+    let path = dir.path().join("split-ascii.pvtu");
+    std::fs::copy(folder().join("split-ascii.pvtu"), &path).unwrap();
+    (dir, path)
+}
+
+/// The parallel file declares the displacement in its `<PPointData>`, and no piece carries it:
+/// the mesh was read as undeformed, only the summary saying "no displacement array". Now that is
+/// an error naming the parallel file and the array, as a piece without it beside one with it is.
+#[test]
+fn a_declared_displacement_that_no_piece_has_is_refused() {
+    let (_dir, path) = without_point_data(&[0, 1, 2]);
+    for asked in [
+        DisplacementArray::Default,
+        DisplacementArray::Named("displacement".to_owned()),
+    ] {
+        let error = read_mesh(&path, &asked).unwrap_err();
+        let message = error.to_string();
+        assert_eq!(error.path(), path, "{message}");
+        assert!(
+            message.contains("point data array `displacement`")
+                && message.contains("the parallel file declares it in its <PPointData>")
+                && message.contains("piece 0 (")
+                && message.contains("would be read as undeformed"),
+            "{message}"
+        );
+    }
+    // Asked to ignore it, the body is read undeformed.
+    let mesh = read_mesh(&path, &DisplacementArray::Ignore).unwrap();
+    assert!(!mesh.has_displacement);
+    // One piece without it, the others with it: named as before.
+    let (_dir, path) = without_point_data(&[1]);
+    let message = refusal(&path);
+    assert!(
+        message.contains("piece 1 (") && message.contains("has no such point array, but piece 0"),
+        "{message}"
+    );
+    // Not declared and in no piece: an undeformed mesh, as a serial file without it is.
+    let (dir, path) = without_point_data(&[0, 1, 2]);
+    let text = std::fs::read_to_string(&path).unwrap();
+    let start = text.find("<PPointData").unwrap();
+    let end = text.find("</PPointData>").unwrap() + "</PPointData>".len();
+    let undeclared = dir.path().join("undeclared.pvtu");
+    std::fs::write(&undeclared, format!("{}{}", &text[..start], &text[end..])).unwrap();
+    let mesh = read_mesh(&undeclared, &DisplacementArray::Default).unwrap();
+    assert!(!mesh.has_displacement);
+}
+
 /// A parallel file's pieces' files are listed once it is read, before any is read: a caller
 /// that writes files compares them with every input first.
 #[test]
