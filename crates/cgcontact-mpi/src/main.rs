@@ -15,7 +15,7 @@ use anyhow::{Context, Result, anyhow, bail};
 use cgcontact::glam::DVec3;
 use cgcontact::{CellId, Settings};
 use cgcontact_io::{
-    DisplacementArray, MeshBody, read_body, read_points, unended_points_file, write_owner_rows,
+    DisplacementArray, MeshBody, MeshFile, read_points, unended_points_file, write_owner_rows,
     write_results_counted,
 };
 use cgcontact_mpi::{
@@ -336,14 +336,18 @@ fn locate(world: &SimpleCommunicator, args: &LocateArgs) -> Result<(), Failure> 
             .context("cannot start the search threads"),
     )?;
     let read_start = Instant::now();
+    // The mesh file first, then (a parallel file's pieces known) the output checked against them,
+    // then the pieces read.
     let mesh = agree(
         world,
-        read_body(
-            &args.mesh,
-            &DisplacementArray::from_option(args.displacement.as_deref()),
-        )
-        .map_err(anyhow::Error::from)
-        .and_then(|mesh| check_constraints(args, rank, mesh)),
+        MeshFile::read(&args.mesh)
+            .map_err(anyhow::Error::from)
+            .and_then(|file| {
+                check_pieces(args, rank, file.piece_files())?;
+                let displacement = DisplacementArray::from_option(args.displacement.as_deref());
+                Ok(file.into_body(&displacement)?.body)
+            })
+            .and_then(|mesh| check_constraints(args, rank, mesh)),
     )?;
     let points = agree(
         world,
@@ -706,6 +710,28 @@ fn check_args(args: &LocateArgs, rank: i32, size: usize) -> Result<()> {
                 )
             })?;
         }
+    }
+    Ok(())
+}
+
+/// `--out` against the files of a parallel `--mesh`'s pieces, inputs too, as `cgcontact locate`
+/// checks them: known once the `.pvtu` is read, before any piece is. Only rank 0 writes, so only
+/// rank 0 checks.
+fn check_pieces(args: &LocateArgs, rank: i32, pieces: &[PathBuf]) -> Result<()> {
+    let Some(out) = args.out.as_ref().filter(|_| rank == 0) else {
+        return Ok(());
+    };
+    if let Some((piece, file)) = pieces
+        .iter()
+        .enumerate()
+        .find(|(_, file)| same_file(out, file))
+    {
+        bail!(
+            "--out {} is {}, the file of piece {piece} of the --mesh {}: it would be overwritten",
+            out.display(),
+            file.display(),
+            args.mesh.display()
+        );
     }
     Ok(())
 }

@@ -477,6 +477,52 @@ fn an_output_hard_linked_to_an_input_is_refused() {
     assert_eq!(std::fs::read_to_string(&points).unwrap(), text);
 }
 
+/// `--out` on a piece file of a parallel `--mesh` (directly, or through a symbolic link): refused
+/// with one message naming the piece, and the piece left as it was, as `cgcontact locate`
+/// refuses it. Before, the run replaced the piece with its results.
+#[test]
+fn an_output_on_a_piece_of_a_parallel_mesh_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let fixtures =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/vtk-written-parallel");
+    for name in [
+        "split-appended.pvtu",
+        "split-appended_0.vtu",
+        "split-appended_1.vtu",
+        "split-appended_2.vtu",
+    ] {
+        std::fs::copy(fixtures.join(name), d.join(name)).unwrap();
+    }
+    let points = d.join("points.csv");
+    std::fs::write(&points, "x,y,z\n0.1,0.2,0.3\n").unwrap();
+    let piece = d.join("split-appended_1.vtu");
+    let before = std::fs::read(&piece).unwrap();
+    let link = d.join("results.csv");
+    std::os::unix::fs::symlink(&piece, &link).unwrap();
+    for out in [&piece, &link] {
+        let result = mpirun(
+            2,
+            &[
+                "locate",
+                "--mesh",
+                d.join("split-appended.pvtu").to_str().unwrap(),
+                "--points",
+                points.to_str().unwrap(),
+                "--out",
+                out.to_str().unwrap(),
+            ],
+        );
+        let stderr = refused_with(&result, "would be overwritten");
+        assert!(stderr.contains("piece 1"), "{stderr}");
+        assert_eq!(
+            std::fs::read(&piece).unwrap(),
+            before,
+            "{out:?}: the piece was replaced"
+        );
+    }
+}
+
 /// `--out` in a folder rank 0 cannot write in (here /proc, where no file can be made, even by
 /// root): refused before any file is read, with one message naming the folder, as `cgcontact
 /// locate` refuses it. Before, every rank read the mesh (here a missing one, whose error came
