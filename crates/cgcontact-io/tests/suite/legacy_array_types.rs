@@ -10,28 +10,12 @@
 use std::path::PathBuf;
 
 use cgcontact::glam::DVec3;
-use cgcontact_io::{DisplacementArray, HexMesh, MeshFile, read_hex_mesh};
+use cgcontact_io::{DisplacementArray, MeshFile, read_hex_mesh};
 
-use crate::common::legacy_fixtures::{self, FLAVOURS, parse, position};
+use crate::common::legacy_fixtures::{self, FLAVOURS, assert_same, parse, position};
 
 fn folder() -> PathBuf {
     legacy_fixtures::folder("vtk-written-types")
-}
-
-/// `read` is `expected`, every coordinate and displacement bit for bit.
-fn assert_same(read: &HexMesh, expected: &HexMesh, what: &str) {
-    let bits = |v: &[DVec3]| {
-        v.iter()
-            .flat_map(|p| p.to_array().map(f64::to_bits))
-            .collect::<Vec<_>>()
-    };
-    assert_eq!(read.cells, expected.cells, "{what}");
-    assert_eq!(bits(&read.points), bits(&expected.points), "{what}");
-    assert_eq!(
-        read.displacement.as_deref().map(bits),
-        expected.displacement.as_deref().map(bits),
-        "{what}"
-    );
 }
 
 /// The headers of the arrays of the four types in `types-{flavour}.vtk`, in file order: the data

@@ -12,7 +12,9 @@ use std::path::PathBuf;
 use cgcontact::glam::DVec3;
 use cgcontact_io::{DisplacementArray, HexMesh, parse_hex_mesh, read_mesh};
 
-use crate::common::legacy_fixtures::{self, FLAVOURS, line_of, parse, position, replaced};
+use crate::common::legacy_fixtures::{
+    self, FLAVOURS, assert_same, line_of, parse, position, replaced,
+};
 
 fn folder() -> PathBuf {
     legacy_fixtures::folder("vtk-written-ids")
@@ -50,22 +52,6 @@ fn plain_alone(flavour: &str) -> HexMesh {
     assert_eq!(mesh.points.len(), 35, "{flavour}");
     assert_eq!(mesh.displacement, None, "{flavour}");
     mesh
-}
-
-/// `read` is `expected`, every coordinate and displacement bit for bit.
-fn assert_same(read: &HexMesh, expected: &HexMesh, what: &str) {
-    let bits = |v: &[DVec3]| {
-        v.iter()
-            .flat_map(|p| p.to_array().map(f64::to_bits))
-            .collect::<Vec<_>>()
-    };
-    assert_eq!(read.cells, expected.cells, "{what}");
-    assert_eq!(bits(&read.points), bits(&expected.points), "{what}");
-    assert_eq!(
-        read.displacement.as_deref().map(bits),
-        expected.displacement.as_deref().map(bits),
-        "{what}"
-    );
 }
 
 fn refused(bytes: &[u8], what: &str) -> String {

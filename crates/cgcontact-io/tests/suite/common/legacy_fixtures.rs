@@ -62,3 +62,19 @@ pub fn line_of(bytes: &[u8], text: &[u8]) -> usize {
         .filter(|&&b| b == b'\n')
         .count()
 }
+
+/// `read` is `expected`, every coordinate and displacement bit for bit.
+pub fn assert_same(read: &HexMesh, expected: &HexMesh, what: &str) {
+    let bits = |v: &[DVec3]| {
+        v.iter()
+            .flat_map(|p| p.to_array().map(f64::to_bits))
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(read.cells, expected.cells, "{what}");
+    assert_eq!(bits(&read.points), bits(&expected.points), "{what}");
+    assert_eq!(
+        read.displacement.as_deref().map(bits),
+        expected.displacement.as_deref().map(bits),
+        "{what}"
+    );
+}
