@@ -271,6 +271,12 @@ pub(crate) fn line_of(text: &[u8], at: usize) -> usize {
         .count()
 }
 
+/// The XML text before its `<AppendedData>` element (the whole text when it has none), where
+/// every piece and array is declared: raw appended bytes could contain anything.
+pub(crate) fn head(xml: &[u8]) -> &[u8] {
+    &xml[..find(xml, b"<AppendedData", 0).unwrap_or(xml.len())]
+}
+
 pub(crate) fn find(hay: &[u8], needle: &[u8], from: usize) -> Option<usize> {
     hay.get(from..)?
         .windows(needle.len())

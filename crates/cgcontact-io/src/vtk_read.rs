@@ -295,9 +295,7 @@ struct DeclaredArray {
 /// `vtkio::xml` should return its error rather than skip the array.)
 fn declared_point_arrays(xml: &[u8]) -> Vec<Vec<DeclaredArray>> {
     use crate::raw_appended::{attribute, find};
-    // Raw appended bytes could contain anything: the pieces all come before them.
-    let end = find(xml, b"<AppendedData", 0).unwrap_or(xml.len());
-    let xml = &xml[..end];
+    let xml = crate::raw_appended::head(xml);
     let mut pieces = Vec::new();
     let mut at = 0;
     while let Some(start) = find(xml, b"<Piece", at) {
@@ -524,10 +522,9 @@ const XML_NUMBER_TYPES: [&str; 10] = [
 /// whose messages `xml_place` locates.
 fn check_xml_arrays(xml: &[u8]) -> Result<(), ErrorKind> {
     use quick_xml::events::Event;
-    // Raw appended bytes could contain anything: the pieces all come before them.
-    let end = crate::raw_appended::find(xml, b"<AppendedData", 0).unwrap_or(xml.len());
-    let mut reader = quick_xml::Reader::from_reader(&xml[..end]);
-    let line = |at: u64| crate::raw_appended::line_of(&xml[..end], at as usize);
+    let head = crate::raw_appended::head(xml);
+    let mut reader = quick_xml::Reader::from_reader(head);
+    let line = |at: u64| crate::raw_appended::line_of(head, at as usize);
     let mut open: Vec<Vec<u8>> = Vec::new();
     loop {
         let at = reader.buffer_position();
@@ -550,7 +547,7 @@ fn check_xml_arrays(xml: &[u8]) -> Result<(), ErrorKind> {
             ))))
         };
         if name == b"DataArray" {
-            check_appended_offset(&tag, end < xml.len()).map_err(|what| {
+            check_appended_offset(&tag, head.len() < xml.len()).map_err(|what| {
                 ErrorKind::Vtk(crate::one_line(&format!("line {}: {what}", line(at))))
             })?;
         }
@@ -855,9 +852,8 @@ const FACE_ARRAYS: [&[u8]; 6] = [
 /// nodes, as VTK writes it). Their appended blocks, if any, are left unread.
 fn without_face_arrays(xml: &[u8]) -> Option<Vec<u8>> {
     use crate::raw_appended::{attribute, find};
-    // Raw appended bytes could contain anything: the pieces all come before them.
-    let end = find(xml, b"<AppendedData", 0).unwrap_or(xml.len());
-    let head = &xml[..end];
+    let head = crate::raw_appended::head(xml);
+    let end = head.len();
     let mut faces = Vec::new();
     let mut at = 0;
     while let Some(cells) = find(head, b"<Cells", at) {

@@ -342,9 +342,9 @@ pub(crate) fn points_size_fault(
     expected: usize,
     actual: usize,
 ) -> Option<String> {
-    let end = crate::raw_appended::find(xml, b"<AppendedData", 0).unwrap_or(xml.len());
-    let mut reader = quick_xml::Reader::from_reader(&xml[..end]);
-    let line = |at: u64| crate::raw_appended::line_of(&xml[..end], at as usize);
+    let head = crate::raw_appended::head(xml);
+    let mut reader = quick_xml::Reader::from_reader(head);
+    let line = |at: u64| crate::raw_appended::line_of(head, at as usize);
     let count = |text: &[u8]| {
         std::str::from_utf8(text)
             .ok()
