@@ -38,6 +38,20 @@ fn main() -> Result<(), cgcontact::Error> {
             log2_cells: log2.parse().expect("blocked=N with N a number"),
         };
     }
+    if has("input") {
+        settings.schedule = cgcontact::Schedule::Input;
+    }
+    // `adaptive-blocked=N`: that schedule for the adaptive body only, the uniform ones in
+    // their default one.
+    let mut adaptive_settings = settings;
+    if let Some(log2) = args
+        .iter()
+        .find_map(|a| a.strip_prefix("adaptive-blocked="))
+    {
+        adaptive_settings.schedule = cgcontact::Schedule::Blocked {
+            log2_cells: log2.parse().expect("adaptive-blocked=N with N a number"),
+        };
+    }
     // `big`: the `adaptive` bench's build scene (1.3 M nodes): a third of the base spacing.
     let (h, base) = if has("big") {
         (DVec3::splat(0.25 / 3.0), [60, 120, 60])
@@ -93,7 +107,7 @@ fn main() -> Result<(), cgcontact::Error> {
         let cells = block_cells_for(scene.body.cell_count(), DVec3::new(1.0, 2.0, 1.0));
         let cells = if levels == 0 { base } else { cells };
         let twin = uniform_twin(base, h, cells, &scene)?;
-        let adaptive = AdaptiveLocator::new(&scene.body, settings)?;
+        let adaptive = AdaptiveLocator::new(&scene.body, adaptive_settings)?;
         let uniform = LatticeLocator::new(&twin.body, settings)?;
         let xs: Vec<DVec3> = scene.known.iter().map(|k| k.x).collect();
         let ys: Vec<DVec3> = twin.known.iter().map(|k| k.x).collect();
@@ -152,7 +166,7 @@ fn main() -> Result<(), cgcontact::Error> {
         }
     } else {
         let xs: Vec<DVec3> = scene.known.iter().map(|k| k.x).collect();
-        run(&AdaptiveLocator::new(&scene.body, settings)?, &xs);
+        run(&AdaptiveLocator::new(&scene.body, adaptive_settings)?, &xs);
     }
     Ok(())
 }

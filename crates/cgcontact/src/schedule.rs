@@ -67,11 +67,12 @@ impl Schedule {
     /// order is 1.45× the sorted speed with no far jumps, and breaks even at about a fifth.
     pub const AUTO_FAR_SHARE: f64 = 0.125;
 
-    /// The block edge (log2, cells) to sort by for `points` points on a body of `bytes` of nodal
-    /// data, or `None` for the input order.
-    pub(crate) fn resolve(self, bytes: usize, points: usize) -> Option<u8> {
+    /// The block edge (log2, cells) to sort by for `points` points on a body of `layout`, or
+    /// `None` for the input order.
+    pub(crate) fn resolve(self, layout: &Layout<'_>, points: usize) -> Option<u8> {
         match self {
-            Schedule::Auto => (bytes > Self::AUTO_BYTES && points >= Self::AUTO_MIN_POINTS)
+            Schedule::Auto => ((layout.remembers || layout.bytes > Self::AUTO_BYTES)
+                && points >= Self::AUTO_MIN_POINTS)
                 .then_some(Self::AUTO_LOG2_CELLS),
             Schedule::Input => None,
             Schedule::Blocked { log2_cells } => Some(log2_cells),
@@ -94,13 +95,19 @@ const CHUNK: usize = 256;
 
 /// The blocks of a lattice: a point's block is the block of the cell its undeformed position
 /// falls in, clamped into the lattice (NaN to block 0): any block would do, the key only orders
-/// the work.
+/// the work. Blocks smaller than a cell of the lattice (on a refined lattice, an adaptive
+/// body's) are ordered cell by cell in lattice order, and in Morton order inside a cell, so
+/// that the blocks of any cell of any level come one after the other: its points are answered
+/// together, and the batched search finds that cell once for them all.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Blocks {
     origin: DVec3,
     /// 1 / (h · 2^log2).
     inv: DVec3,
     counts: [u32; 3],
+    /// Bits per axis of a block's index inside its cell of the unrefined lattice (Morton order
+    /// there), 0 when blocks are cells or larger.
+    sub: u32,
 }
 
 impl Blocks {
@@ -118,6 +125,8 @@ impl Blocks {
             inv: size.recip(),
             // At most 2^32 blocks in all.
             counts: count(log2).map(|n| n as u32),
+            // Below 32: with more bits, the blocks would be more than 2^32.
+            sub: u32::from(level.min(32).saturating_sub(log2)),
         }
     }
 
@@ -152,7 +161,7 @@ impl Blocks {
     }
 
     #[inline(always)]
-    fn key(&self, x: DVec3) -> usize {
+    pub(crate) fn key(&self, x: DVec3) -> usize {
         let t = (x - self.origin) * self.inv;
         // `max` maps negatives and NaN to 0, `as` saturates.
         // Axis by axis: `[0, 1, 2].map` compiled to an out-of-line call per point here, which
@@ -161,8 +170,31 @@ impl Blocks {
         let i = (t.x.max(0.0) as u32).min(nx - 1) as usize;
         let j = (t.y.max(0.0) as u32).min(ny - 1) as usize;
         let k = (t.z.max(0.0) as u32).min(nz - 1) as usize;
-        i + nx as usize * (j + ny as usize * k)
+        if self.sub == 0 {
+            return i + nx as usize * (j + ny as usize * k);
+        }
+        // The cell's index in lattice order (the block counts are the cells' times 2^sub),
+        // then the block's Morton index inside it.
+        let sub = self.sub;
+        let (cx, cy) = ((nx >> sub) as usize, (ny >> sub) as usize);
+        let cell = (i >> sub) + cx * ((j >> sub) + cy * (k >> sub));
+        let low = (1 << sub) - 1;
+        let morton = spread(i & low) | spread(j & low) << 1 | spread(k & low) << 2;
+        cell << (3 * sub) | morton
     }
+}
+
+/// The bits of `v` (below 2^21) spread to every third bit: bit b goes to bit 3b.
+#[inline(always)]
+fn spread(v: usize) -> usize {
+    let mut v = v as u64 & 0x1f_ffff;
+    v = (v | v << 32) & 0x001f_0000_0000_ffff;
+    v = (v | v << 16) & 0x001f_0000_ff00_00ff;
+    v = (v | v << 8) & 0x100f_00f0_0f00_f00f;
+    v = (v | v << 4) & 0x10c3_0c30_c30c_30c3;
+    v = (v | v << 2) & 0x1249_2492_4924_9249;
+    // Below 2^32 here: a block index (at most 2^32 blocks, so 3 · sub ≤ 32).
+    v as usize
 }
 
 /// What the schedule needs to know of a body: its lattice, refined `level` times (an adaptive
@@ -172,6 +204,10 @@ pub struct Layout<'a> {
     pub(crate) lattice: &'a Lattice,
     pub(crate) level: u8,
     pub(crate) bytes: usize,
+    /// Whether the chunks, told that their points are sorted, reuse the cells found for one
+    /// batch of points in the next (the adaptive locator's `locate_all_into`): the sort then
+    /// pays on bodies of any size.
+    pub(crate) remembers: bool,
 }
 
 /// A point partitioned into its bucket: its position, and its pair (block << 32 | input index
@@ -251,13 +287,27 @@ impl Scheduler {
         warm: bool,
         chunk: impl Fn(&[DVec3], &mut [T]) + Sync,
     ) {
+        self.run_told(layout, points, out, warm, |p, o, _| chunk(p, o));
+    }
+
+    /// [`Self::run`] with `chunk` told whether its points come sorted by block (its third
+    /// argument).
+    pub(crate) fn run_told<T: Copy + Send + Sync>(
+        &self,
+        layout: Layout<'_>,
+        points: &[DVec3],
+        out: &mut [T],
+        warm: bool,
+        chunk: impl Fn(&[DVec3], &mut [T], bool) + Sync,
+    ) {
         debug_assert_eq!(points.len(), out.len());
         let Some(blocks) = self.blocks(layout, points) else {
             out.par_chunks_mut(CHUNK)
                 .zip(points.par_chunks(CHUNK))
-                .for_each(|(out, points)| chunk(points, out));
+                .for_each(|(out, points)| chunk(points, out, false));
             return;
         };
+        let chunk = |p: &[DVec3], o: &mut [T]| chunk(p, o, true);
         let piece = piece_len(points.len());
         let pieces = out.par_chunks_mut(piece).map(|out| Scatter {
             answers: [out[0]; CHUNK],
@@ -280,6 +330,20 @@ impl Scheduler {
         empty: T,
         chunk: impl Fn(&[DVec3], &mut [T]) + Sync,
     ) {
+        self.run_unordered_told(layout, points, order, out, empty, |p, o, _| chunk(p, o));
+    }
+
+    /// [`Self::run_unordered`] with `chunk` told whether its points come sorted by block (its
+    /// third argument).
+    pub(crate) fn run_unordered_told<T: Copy + Send + Sync>(
+        &self,
+        layout: Layout<'_>,
+        points: &[DVec3],
+        order: &mut Vec<usize>,
+        out: &mut Vec<T>,
+        empty: T,
+        chunk: impl Fn(&[DVec3], &mut [T], bool) + Sync,
+    ) {
         if out.len() != points.len() {
             out.clear();
             out.resize(points.len(), empty);
@@ -289,9 +353,10 @@ impl Scheduler {
             order.par_iter_mut().enumerate().for_each(|(i, o)| *o = i);
             out.par_chunks_mut(CHUNK)
                 .zip(points.par_chunks(CHUNK))
-                .for_each(|(out, points)| chunk(points, out));
+                .for_each(|(out, points)| chunk(points, out, false));
             return;
         };
+        let chunk = |p: &[DVec3], o: &mut [T]| chunk(p, o, true);
         let piece = piece_len(points.len());
         let pieces = out
             .par_chunks_mut(piece)
@@ -316,7 +381,7 @@ impl Scheduler {
     /// The blocks to sort `points` by, or `None` to answer them in input order.
     fn blocks(&self, layout: Layout<'_>, points: &[DVec3]) -> Option<Blocks> {
         self.schedule
-            .resolve(layout.bytes, points.len())
+            .resolve(&layout, points.len())
             .filter(|_| points.len() > 1)
             .map(|log2| Blocks::new(layout.lattice, layout.level, log2))
             .filter(|blocks| self.schedule != Schedule::Auto || !blocks.coherent(points))
@@ -599,6 +664,7 @@ mod tests {
             lattice,
             level,
             bytes,
+            remembers: false,
         }
     }
 
@@ -818,6 +884,54 @@ mod tests {
         assert!(deep.len() as u64 <= MAX_BLOCKS && deep.len() as u64 > MAX_BLOCKS / 8);
     }
 
+    /// On a lattice refined twice, the keys of the blocks inside any cell of level 0, 1 or 2
+    /// are one run of consecutive keys, cells of level 0 in lattice order: a sort by key brings
+    /// every leaf's points together.
+    #[test]
+    fn refined_blocks_keep_every_cell_together() {
+        let lattice = lattice();
+        let blocks = Blocks::new(&lattice, 2, 0);
+        assert_eq!(blocks.sub, 2);
+        let [nx, ny, nz] = lattice.cells();
+        let quarter = lattice.h() / 4.0;
+        let key = |ijk: [u32; 3]| {
+            let centre = DVec3::from(ijk.map(|n| f64::from(n) + 0.5));
+            blocks.key(lattice.origin() + centre * quarter)
+        };
+        let mut seen = vec![false; blocks.len()];
+        for level in 0..=2u32 {
+            let width = 1 << (2 - level);
+            for (i, j, k) in (0..nz << level).flat_map(|k| {
+                (0..ny << level).flat_map(move |j| (0..nx << level).map(move |i| (i, j, k)))
+            }) {
+                let mut keys: Vec<usize> = (0..width * width * width)
+                    .map(|b| {
+                        let (a, c, d) = (b % width, b / width % width, b / width / width);
+                        key([i * width + a, j * width + c, k * width + d])
+                    })
+                    .collect();
+                keys.sort_unstable();
+                let first = keys[0];
+                assert!(
+                    keys.iter().enumerate().all(|(n, &key)| key == first + n),
+                    "level {level} cell {:?}: {keys:?}",
+                    (i, j, k)
+                );
+                if level == 0 {
+                    let cell = i + nx * (j + ny * k);
+                    assert_eq!(first, cell as usize * 64, "cell {:?}", (i, j, k));
+                }
+                if level == 2 {
+                    assert!(
+                        !std::mem::replace(&mut seen[first], true),
+                        "key {first} twice"
+                    );
+                }
+            }
+        }
+        assert!(seen.iter().all(|&s| s));
+    }
+
     /// Points in lattice order on a 64 × 64 × 64 lattice (one per cell, 2^18), then a share of
     /// them swapped with points anywhere (a fixed shuffle).
     fn lattice_ordered(swapped: f64) -> (Lattice, Vec<DVec3>) {
@@ -929,16 +1043,28 @@ mod tests {
     #[test]
     fn auto_sorts_only_large_bodies_and_batches() {
         let auto = Schedule::Auto;
-        assert_eq!(auto.resolve(Schedule::AUTO_BYTES, 1 << 20), None);
+        let lattice = lattice();
+        let resolve = |schedule: Schedule, bytes, remembers, points| {
+            let layout = Layout {
+                remembers,
+                ..layout(&lattice, 0, bytes)
+            };
+            schedule.resolve(&layout, points)
+        };
+        let (min, bytes) = (Schedule::AUTO_MIN_POINTS, Schedule::AUTO_BYTES);
+        assert_eq!(resolve(auto, bytes, false, 1 << 20), None);
         assert_eq!(
-            auto.resolve(Schedule::AUTO_BYTES + 1, Schedule::AUTO_MIN_POINTS),
+            resolve(auto, bytes + 1, false, min),
             Some(Schedule::AUTO_LOG2_CELLS)
         );
+        assert_eq!(resolve(auto, usize::MAX, false, min - 1), None);
+        // A body whose chunks remember their cells: any size, still not a small batch.
+        assert_eq!(resolve(auto, 0, true, min), Some(Schedule::AUTO_LOG2_CELLS));
+        assert_eq!(resolve(auto, usize::MAX, true, min - 1), None);
+        assert_eq!(resolve(Schedule::Input, usize::MAX, true, 1 << 20), None);
         assert_eq!(
-            auto.resolve(usize::MAX, Schedule::AUTO_MIN_POINTS - 1),
-            None
+            resolve(Schedule::Blocked { log2_cells: 4 }, 0, false, 2),
+            Some(4)
         );
-        assert_eq!(Schedule::Input.resolve(usize::MAX, 1 << 20), None);
-        assert_eq!(Schedule::Blocked { log2_cells: 4 }.resolve(0, 2), Some(4));
     }
 }

@@ -43,6 +43,18 @@ struct Found<D> {
 }
 
 impl<D: Wide> Found<D> {
+    /// The lanes holding a leaf whose half-open box holds `t` (base lattice coordinates): the
+    /// leaf [`Forest::leaf_at`] finds there, since the box's bounds are exact multiples of
+    /// 2^−level; NaN and points outside the lattice are held by none.
+    #[inline(always)]
+    fn holds(&self, t: V3<D>) -> u32 {
+        let low = self.ijk.scale(self.size);
+        let high = (self.ijk + V3::splat(DVec3::ONE)).scale(self.size);
+        let inside = low.x.le(t.x) & low.y.le(t.y) & low.z.le(t.z);
+        let inside = inside & t.x.lt(high.x) & t.y.lt(high.y) & t.z.lt(high.z);
+        D::bits(inside) & self.has
+    }
+
     fn none() -> Self {
         let zero = V3::splat(DVec3::ZERO);
         Self {
@@ -52,6 +64,30 @@ impl<D: Wide> Found<D> {
             size: D::splat(1.0),
             ijk: zero,
             nodes: [[0; 8]; MAX_W],
+        }
+    }
+}
+
+/// The leaves the previous batch of a chunk found in each lane, at x and at the guess, and their
+/// displacement maps: [`AdaptiveLocator::batch`]'s memory from one batch to the next.
+pub(super) struct Memo<V: Lanes> {
+    at_x: Found<V::Wide>,
+    x_maps: Maps<V>,
+    at_guess: Found<V::Wide>,
+    guess_maps: Maps<V>,
+}
+
+impl<V: Lanes> Memo<V> {
+    /// No leaf in any lane.
+    pub(super) fn new() -> Self {
+        let maps = Maps::<V> {
+            a: [V3::splat(DVec3::ZERO); 8],
+        };
+        Self {
+            at_x: Found::none(),
+            x_maps: maps,
+            at_guess: Found::none(),
+            guess_maps: maps,
         }
     }
 }
@@ -189,10 +225,16 @@ impl AdaptiveLocator<'_> {
 
     /// `search`'s common path for W points (`points` has W entries): the leaf at x, the guess,
     /// the leaf there and one inversion. A lane refused gets `admit`'s answer; one leaving the
-    /// common path, the scalar search's.
+    /// common path, the scalar search's. With `MEMO`, `memo` holds the leaves (and their maps)
+    /// the previous batch of the chunk found in each lane: a lane whose point lies in its box
+    /// takes them without a lookup, so points sorted by leaf find each leaf about once.
     #[inline(always)]
-    pub(super) fn batch<V: Lanes>(&self, points: &[DVec3], out: &mut [Answer])
-    where
+    pub(super) fn batch<V: Lanes, const MEMO: bool>(
+        &self,
+        points: &[DVec3],
+        out: &mut [Answer],
+        memo: &mut Memo<V>,
+    ) where
         V::Node: LaneNodes,
     {
         let lattice = self.body.lattice();
@@ -204,51 +246,76 @@ impl AdaptiveLocator<'_> {
         // Both lookups from one place in the code: x's leaves, then the guess's in the lanes
         // where it left them. Inlined at two places (and software-pipelined as the uniform
         // path is), the batch ran at 5.8-5.9 M points/s against 6.4 (`profile_adaptive`, f64).
-        let mut leaf = Found::none();
-        let mut maps = Maps::<V> {
-            a: [V3::splat(DVec3::ZERO); 8],
-        };
-        let (mut t, mut ask, mut take) = (t_x, admitted, 0);
+        let (mut t, mut take) = (t_x, admitted);
         let mut t_guess = t_x;
-        let mut second = false;
-        while ask != 0 {
-            self.leaves_at(&mut leaf, t, ask);
-            if second {
-                take &= !(ask & !leaf.has);
+        // Lanes whose guess left x's leaf: they take the guess's leaf (`memo.at_guess`).
+        let (mut moved, mut second) = (0, false);
+        loop {
+            // Without `MEMO`, the guess's leaves replace x's in their lanes, as one set.
+            let (found, maps) = if second && MEMO {
+                (&mut memo.at_guess, &mut memo.guess_maps)
             } else {
-                take = admitted & leaf.has;
+                (&mut memo.at_x, &mut memo.x_maps)
+            };
+            let asked = if second { moved } else { admitted };
+            let held = if MEMO { found.holds(t) } else { 0 };
+            let ask = asked & !held;
+            if ask != 0 {
+                self.leaves_at(found, t, ask);
+                *maps = self.maps_of::<V>(found);
             }
-            if take == 0 {
+            take &= !(asked & !found.has);
+            if second || take == 0 {
                 break;
             }
-            maps = self.maps_of::<V>(&leaf);
-            if second {
-                break;
-            }
-            second = true;
             // `guess`: ũ interpolated at x in x's leaf (`undeformed_xi`, clamped).
+            let leaf = &memo.at_x;
             let xi = ((t_x.scale(leaf.scale) - leaf.ijk).scale(two) - splat(DVec3::ONE))
                 .clamp(-1.0, 1.0);
             t_guess = t_x
                 - self
-                    .displacement_lanes::<V>(maps.map(V3::narrow(xi)).widen())
+                    .displacement_lanes::<V>(memo.x_maps.map(V3::narrow(xi)).widen())
                     .mul_each(self.inv_h);
             // The leaf at the guess: x's own where the guess lies in its half-open box (the leaf
             // `leaf_at` finds there: the box's bounds are exact multiples of 2^−level), else
             // looked up.
-            let low = leaf.ijk.scale(leaf.size);
-            let high = (leaf.ijk + splat(DVec3::ONE)).scale(leaf.size);
-            let kept = low.x.le(t_guess.x) & low.y.le(t_guess.y) & low.z.le(t_guess.z);
-            let kept = kept & t_guess.x.lt(high.x) & t_guess.y.lt(high.y) & t_guess.z.lt(high.z);
-            (t, ask) = (t_guess, take & !V::Wide::bits(kept));
+            moved = take & !leaf.holds(t_guess);
+            if moved == 0 {
+                break;
+            }
+            (t, second) = (t_guess, true);
+        }
+        // The leaf each lane inverts in: x's, or the guess's where the guess moved (without
+        // `MEMO`, already in x's set).
+        let x_leaf = &memo.at_x;
+        let (mut id, mut scale, mut size, mut ijk) =
+            (x_leaf.id, x_leaf.scale, x_leaf.size, x_leaf.ijk);
+        let mut maps = memo.x_maps;
+        if MEMO && moved != 0 {
+            let g = &memo.at_guess;
+            for (l, id) in id.iter_mut().enumerate().take(V::W) {
+                if moved & (1 << l) != 0 {
+                    *id = g.id[l];
+                }
+            }
+            let m = V::Wide::mask_from_bits(moved);
+            (scale, size) = (
+                V::Wide::select(m, g.scale, scale),
+                V::Wide::select(m, g.size, size),
+            );
+            ijk = V3::select(m, g.ijk, ijk);
+            let m = V::mask_from_bits(moved);
+            for (c, a) in maps.a.iter_mut().enumerate() {
+                *a = V3::select(m, memo.guess_maps.a[c], *a);
+            }
         }
         let mut found = 0;
         if take != 0 {
             // `visit`: the leaf's spacing h · 2^−level and lowest corner, the guess's ξ there.
-            let spacing = splat(lattice.h()).scale(leaf.size);
+            let spacing = splat(lattice.h()).scale(size);
             maps.add_lattice_lanes(V3::narrow(spacing.scale(V::Wide::splat(0.5))));
-            let x_local = self.point_lanes::<V>(x) - (splat(lattice.origin()) + spacing * leaf.ijk);
-            let xi0 = (t_guess.scale(leaf.scale) - leaf.ijk).scale(two) - splat(DVec3::ONE);
+            let x_local = self.point_lanes::<V>(x) - (splat(lattice.origin()) + spacing * ijk);
+            let xi0 = (t_guess.scale(scale) - ijk).scale(two) - splat(DVec3::ONE);
             let inside = V3::<V>::splat(DVec3::ONE + self.newton.inside_tol);
             let inverted = maps.invert(
                 V3::narrow(x_local),
@@ -257,14 +324,14 @@ impl AdaptiveLocator<'_> {
                 V::mask_from_bits(take),
                 &self.newton,
             );
-            found = write_hits(out, inverted, |l| CellId(leaf.id[l]));
+            found = write_hits(out, inverted, |l| CellId(id[l]));
         }
         // The lanes whose inversion in their predicted leaf failed: the search goes on from there.
         let mut missed = take & !found;
         while missed != 0 {
             let l = missed.trailing_zeros() as usize;
             missed &= missed - 1;
-            out[l] = self.after_miss(points[l], t_guess.lane(l), leaf.id[l]);
+            out[l] = self.after_miss(points[l], t_guess.lane(l), id[l]);
         }
         answer_the_rest(out, points, found | take, admitted, finite, |x| {
             self.locate(x)

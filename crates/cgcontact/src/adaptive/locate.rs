@@ -17,6 +17,7 @@
 use glam::{DVec3, Vec3A};
 use smallvec::SmallVec;
 
+use super::lanes::Memo;
 use super::nodes::OneLevel;
 use super::{AdaptiveBody, Leaf};
 use crate::hex8::lanes::Maps;
@@ -121,6 +122,16 @@ impl<'a> AdaptiveLocator<'a> {
                 + self.body.nodes.heap_bytes()
                 + size_of_val(self.body.corner_table.as_slice())
                 + self.body.forest.heap_bytes(),
+            remembers: false,
+        }
+    }
+
+    /// The layout `locate_all_into` is scheduled by: [`Self::layout`], remembering leaves
+    /// where [`AdaptiveLocator::locate_run`] does, so that `Auto` sorts whatever the body's size.
+    pub(crate) fn locate_layout(&self) -> Layout<'_> {
+        Layout {
+            remembers: self.remembers(),
+            ..self.layout()
         }
     }
 
@@ -544,20 +555,39 @@ impl AdaptiveLocator<'_> {
     /// points at a time in scalar code. Either way each answer is bitwise that of
     /// [`Locator::locate`].
     fn locate_chunk(&self, points: &[DVec3], out: &mut [Answer]) {
+        self.locate_run(points, out, false);
+    }
+
+    /// [`AdaptiveLocator::locate_chunk`] for `points` sorted by leaf (`sorted`: the schedule
+    /// sorted them) or not: in lanes, sorted points reuse each batch's leaves in the next
+    /// (`lanes.rs`, `Memo`).
+    pub(crate) fn locate_run(&self, points: &[DVec3], out: &mut [Answer], sorted: bool) {
         #[cfg(target_arch = "x86_64")]
         match Isa::get() {
             // SAFETY: `Isa::get` answers `Avx512` only where AVX2, AVX-512F and AVX-512VL were
             // detected on this CPU, `Avx2` only where AVX2 was: the entry points' requirements.
             #[allow(unsafe_code)]
-            Isa::Avx512 => return unsafe { self.locate_chunk_avx512(points, out) },
+            Isa::Avx512 => return unsafe { self.locate_chunk_avx512(points, out, sorted) },
             #[allow(unsafe_code)]
-            Isa::Avx2 => return unsafe { self.locate_chunk_avx2(points, out) },
+            Isa::Avx2 => return unsafe { self.locate_chunk_avx2(points, out, sorted) },
             Isa::Portable => {}
         }
         match self.settings.precision {
+            // One point at a time, each reusing the previous point's leaves.
+            Precision::F64 if sorted => self.locate_chunk_lanes::<Hex8Map, f64, true>(points, out),
             Precision::F64 => self.locate_chunk_grouped::<Hex8Map>(points, out),
-            Precision::F32 => self.locate_chunk_lanes::<Hex8Map32, glam::Vec4>(points, out),
+            Precision::F32 if sorted => {
+                self.locate_chunk_lanes::<Hex8Map32, glam::Vec4, true>(points, out);
+            }
+            Precision::F32 => self.locate_chunk_lanes::<Hex8Map32, glam::Vec4, false>(points, out),
         }
+    }
+
+    /// Whether [`AdaptiveLocator::locate_run`] reuses leaves from batch to batch on sorted
+    /// points (in lanes: the `Predicted` order), so that the schedule sorts whatever the body's
+    /// size.
+    fn remembers(&self) -> bool {
+        self.settings.order == CandidateOrder::Predicted
     }
 
     /// The common path of a group up to the inversion, step by step over the whole group (the
@@ -663,7 +693,7 @@ impl AdaptiveLocator<'_> {
     /// and every lane that leaves the common path through the scalar search, whose answers
     /// these are, bitwise.
     #[inline(always)]
-    pub(crate) fn locate_chunk_lanes<K: Kernel, V: Lanes>(
+    pub(crate) fn locate_chunk_lanes<K: Kernel, V: Lanes, const MEMO: bool>(
         &self,
         points: &[DVec3],
         out: &mut [Answer],
@@ -675,10 +705,11 @@ impl AdaptiveLocator<'_> {
         }
         let w = V::W;
         let batches = points.len() / w;
+        let mut memo = Memo::new();
         for b in 0..batches {
             let range = b * w..(b + 1) * w;
             let (points, out) = (&points[range.clone()], &mut out[range]);
-            self.batch::<V>(points, out);
+            self.batch::<V, MEMO>(points, out, &mut memo);
         }
         let rest = batches * w;
         self.locate_chunk_grouped::<K>(&points[rest..], &mut out[rest..]);
@@ -1086,6 +1117,29 @@ mod tests {
             one_level_scene(true),
         ];
         for (body, points) in &scenes {
+            // Also sorted as the schedule sorts them, each point with 8 near copies: runs of
+            // points in one leaf, which the lanes' memo serves.
+            let blocks = crate::schedule::Blocks::new(body.lattice(), body.finest, 0);
+            let nudge = body.spacing(body.finest) * 1e-3;
+            let mut sorted: Vec<DVec3> = points
+                .iter()
+                .flat_map(|&x| (0..9).map(move |k| x + nudge * f64::from(k)))
+                .collect();
+            sorted.sort_by_key(|&x| blocks.key(x));
+            for points in [points, &sorted] {
+                check_points(precisions, &entry, body, points);
+            }
+        }
+    }
+
+    /// [`check`] on one body and its points.
+    fn check_points(
+        precisions: &[Settings],
+        entry: &impl Fn(&AdaptiveLocator<'_>, &[DVec3], &mut [Answer]),
+        body: &AdaptiveBody,
+        points: &[DVec3],
+    ) {
+        {
             for order in [CandidateOrder::Predicted, CandidateOrder::Undeformed] {
                 for &base in precisions {
                     let locator = AdaptiveLocator::new(body, Settings { order, ..base }).unwrap();
@@ -1235,11 +1289,18 @@ mod tests {
         check(&[f64s], |l, p, o| l.locate_chunk_grouped::<Hex8Map>(p, o));
         check(&[f32s], |l, p, o| l.locate_chunk_grouped::<Hex8Map32>(p, o));
         check(&[f32s], |l, p, o| {
-            l.locate_chunk_lanes::<Hex8Map32, glam::Vec4>(p, o)
+            l.locate_chunk_lanes::<Hex8Map32, glam::Vec4, false>(p, o)
+        });
+        check(&[f32s], |l, p, o| {
+            l.locate_chunk_lanes::<Hex8Map32, glam::Vec4, true>(p, o)
         });
         check(&[f64s], |l, p, o| {
-            l.locate_chunk_lanes::<Hex8Map, f64>(p, o)
+            l.locate_chunk_lanes::<Hex8Map, f64, false>(p, o)
         });
+        check(&[f64s], |l, p, o| {
+            l.locate_chunk_lanes::<Hex8Map, f64, true>(p, o)
+        });
+        check(&[f64s, f32s], |l, p, o| l.locate_run(p, o, true));
         // Through the trait, whatever this machine dispatches to.
         check(&[f64s, f32s], |l, p, o| {
             let mut all = Vec::new();
@@ -1256,7 +1317,12 @@ mod tests {
         // SAFETY: AVX2 was detected just above.
         #[allow(unsafe_code)]
         check(&[Settings::default(), Settings::f32()], |l, p, o| unsafe {
-            l.locate_chunk_avx2(p, o)
+            l.locate_chunk_avx2(p, o, false)
+        });
+        // SAFETY: as above.
+        #[allow(unsafe_code)]
+        check(&[Settings::default(), Settings::f32()], |l, p, o| unsafe {
+            l.locate_chunk_avx2(p, o, true)
         });
     }
 
@@ -1272,7 +1338,12 @@ mod tests {
         // SAFETY: AVX2, AVX-512F and AVX-512VL were detected just above.
         #[allow(unsafe_code)]
         check(&[Settings::default(), Settings::f32()], |l, p, o| unsafe {
-            l.locate_chunk_avx512(p, o)
+            l.locate_chunk_avx512(p, o, false)
+        });
+        // SAFETY: as above.
+        #[allow(unsafe_code)]
+        check(&[Settings::default(), Settings::f32()], |l, p, o| unsafe {
+            l.locate_chunk_avx512(p, o, true)
         });
     }
 

@@ -442,8 +442,13 @@ impl crate::adaptive::AdaptiveLocator<'_> {
     /// # Safety
     /// The CPU must have AVX2 (`is_x86_feature_detected!("avx2")`).
     #[target_feature(enable = "avx2")]
-    pub(crate) unsafe fn locate_chunk_avx2(&self, points: &[DVec3], out: &mut [Answer]) {
-        self.locate_chunk_avx(points, out);
+    pub(crate) unsafe fn locate_chunk_avx2(
+        &self,
+        points: &[DVec3],
+        out: &mut [Answer],
+        memo: bool,
+    ) {
+        self.locate_chunk_avx(points, out, memo);
     }
 
     /// The same compiled with AVX-512VL as well (32 vector registers; the same IEEE operations).
@@ -451,20 +456,36 @@ impl crate::adaptive::AdaptiveLocator<'_> {
     /// # Safety
     /// The CPU must have AVX2, AVX-512F and AVX-512VL.
     #[target_feature(enable = "avx2,avx512f,avx512vl")]
-    pub(crate) unsafe fn locate_chunk_avx512(&self, points: &[DVec3], out: &mut [Answer]) {
-        self.locate_chunk_avx(points, out);
+    pub(crate) unsafe fn locate_chunk_avx512(
+        &self,
+        points: &[DVec3],
+        out: &mut [Answer],
+        memo: bool,
+    ) {
+        self.locate_chunk_avx(points, out, memo);
     }
 
-    /// The AVX lanes of the settings' precision; inlined into the caller's instruction set.
+    /// The AVX lanes of the settings' precision, remembering each batch's leaves for the next
+    /// with `memo` (points sorted by leaf); inlined into the caller's instruction set.
     #[inline(always)]
-    fn locate_chunk_avx(&self, points: &[DVec3], out: &mut [Answer]) {
+    fn locate_chunk_avx(&self, points: &[DVec3], out: &mut [Answer], memo: bool) {
+        if memo {
+            self.locate_chunk_avx_with::<true>(points, out);
+        } else {
+            self.locate_chunk_avx_with::<false>(points, out);
+        }
+    }
+
+    /// [`Self::locate_chunk_avx`] for one value of `memo`.
+    #[inline(always)]
+    fn locate_chunk_avx_with<const MEMO: bool>(&self, points: &[DVec3], out: &mut [Answer]) {
         use crate::hex8::{Hex8Map, Hex8Map32};
         match self.settings().precision {
             Precision::F32 if self.one_level.is_some() => {
-                self.locate_chunk_lanes::<Hex8Map32, F32x8>(points, out);
+                self.locate_chunk_lanes::<Hex8Map32, F32x8, MEMO>(points, out);
             }
-            Precision::F32 => self.locate_chunk_lanes::<Hex8Map32, F32x4>(points, out),
-            Precision::F64 => self.locate_chunk_lanes::<Hex8Map, F64x4>(points, out),
+            Precision::F32 => self.locate_chunk_lanes::<Hex8Map32, F32x4, MEMO>(points, out),
+            Precision::F64 => self.locate_chunk_lanes::<Hex8Map, F64x4, MEMO>(points, out),
         }
     }
 

@@ -336,7 +336,19 @@ impl<'a> LatticeLocator<'a> {
             lattice: self.body.lattice(),
             level: 0,
             bytes: u + self.pyramid.as_ref().map_or(0, Pyramid::heap_bytes),
+            remembers: false,
         }
+    }
+
+    /// The layout `locate_all_into` is scheduled by: [`Self::layout`] (the batches keep
+    /// nothing from one to the next).
+    pub(crate) fn locate_layout(&self) -> Layout<'_> {
+        self.layout()
+    }
+
+    /// `locate_all_into`'s chunks, whether the schedule sorted them or not.
+    fn locate_run(&self, points: &[DVec3], out: &mut [Answer], _sorted: bool) {
+        self.locate_chunk(points, out);
     }
 
     /// The body searched.
@@ -403,7 +415,7 @@ macro_rules! lattice_search_locator {
             }
 
             fn sorts_batch(&self, points: &[DVec3]) -> bool {
-                self.scheduler.would_sort(self.layout(), points)
+                self.scheduler.would_sort(self.locate_layout(), points)
             }
 
             /// Every inversion counted, failed ones included (0 for a point refused before any).
@@ -431,10 +443,13 @@ macro_rules! lattice_search_locator {
                     out.clear();
                     out.resize(points.len(), Ok(None));
                 }
-                self.scheduler
-                    .run(self.layout(), points, out, false, |points, out| {
-                        self.locate_chunk(points, out)
-                    });
+                self.scheduler.run_told(
+                    self.locate_layout(),
+                    points,
+                    out,
+                    false,
+                    |points, out, sorted| self.locate_run(points, out, sorted),
+                );
             }
 
             /// Batched and scheduled as [`Locator::locate_all_into`], without the scatter back to
@@ -445,13 +460,13 @@ macro_rules! lattice_search_locator {
                 order: &mut Vec<usize>,
                 out: &mut Vec<Answer>,
             ) {
-                self.scheduler.run_unordered(
-                    self.layout(),
+                self.scheduler.run_unordered_told(
+                    self.locate_layout(),
                     points,
                     order,
                     out,
                     Ok(None),
-                    |points, out| self.locate_chunk(points, out),
+                    |points, out, sorted| self.locate_run(points, out, sorted),
                 );
             }
 

@@ -242,7 +242,8 @@ fn gap_batches_answer_alike_under_every_schedule() {
 /// `sorts_batch` (of the locators and of the gap finder) says whether a batch would be sorted,
 /// as the schedule decides: always under `Blocked`, never under `Input`, and under `Auto` for
 /// batches of `Schedule::AUTO_MIN_POINTS` or more, out of order, on a body of more than
-/// `Schedule::AUTO_BYTES` of nodal data.
+/// `Schedule::AUTO_BYTES` of nodal data, or on an adaptive body of any size (its batches reuse
+/// the leaves of sorted points).
 #[test]
 fn sorts_batch_follows_the_schedule() {
     let small = uniform_body(8);
@@ -268,6 +269,7 @@ fn sorts_batch_follows_the_schedule() {
         (Schedule::Blocked { log2_cells: 0 }, true, true),
         (Schedule::Auto, false, true),
     ] {
+        let adaptive_sorts = schedule != Schedule::Input;
         for precision in [Settings::default(), Settings::f32()] {
             let settings = Settings {
                 schedule,
@@ -280,9 +282,12 @@ fn sorts_batch_follows_the_schedule() {
             assert_eq!(small.sorts_batch(&random), small_sorts, "small, {what}");
             assert_eq!(
                 adaptive.sorts_batch(&random),
-                small_sorts,
+                adaptive_sorts,
                 "adaptive, {what}"
             );
+            let blocked = matches!(schedule, Schedule::Blocked { .. });
+            let fewer = adaptive.sorts_batch(&random[..min - 1]);
+            assert_eq!(fewer, blocked, "adaptive, fewer, {what}");
             assert_eq!(large.sorts_batch(&random), large_sorts, "large, {what}");
             // The gap finder decides by its surface's locator.
             let gaps = |l| GapFinder::new(l, 1.0).unwrap().sorts_batch(&random);
