@@ -706,10 +706,25 @@ impl AdaptiveLocator<'_> {
         let w = V::W;
         let batches = points.len() / w;
         let mut memo = Memo::new();
-        for b in 0..batches {
-            let range = b * w..(b + 1) * w;
-            let (points, out) = (&points[range.clone()], &mut out[range]);
-            self.batch::<V, MEMO>(points, out, &mut memo);
+        if MEMO && w > 1 {
+            // Sorted points: lane l walks the l-th of W runs of the chunk, so that each lane's
+            // previous point, whose leaves its memo holds, is its neighbour in leaf order.
+            let (mut xs, mut answers) = ([DVec3::ZERO; MAX_W], [Ok(None); MAX_W]);
+            for b in 0..batches {
+                for (l, x) in xs.iter_mut().enumerate().take(w) {
+                    *x = points[l * batches + b];
+                }
+                self.batch::<V, true>(&xs[..w], &mut answers[..w], &mut memo);
+                for (l, &answer) in answers.iter().enumerate().take(w) {
+                    out[l * batches + b] = answer;
+                }
+            }
+        } else {
+            for b in 0..batches {
+                let range = b * w..(b + 1) * w;
+                let (points, out) = (&points[range.clone()], &mut out[range]);
+                self.batch::<V, MEMO>(points, out, &mut memo);
+            }
         }
         let rest = batches * w;
         self.locate_chunk_grouped::<K>(&points[rest..], &mut out[rest..]);
