@@ -27,9 +27,12 @@ use crate::Lattice;
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum Schedule {
     /// [`Schedule::Blocked`] with [`Schedule::AUTO_LOG2_CELLS`] when the body's nodal data
-    /// exceeds [`Schedule::AUTO_BYTES`], there are at least [`Schedule::AUTO_MIN_POINTS`]
-    /// points, and they do not already come in an order the caches follow (a sample of pairs of
-    /// consecutive points, [`Schedule::AUTO_FAR_SHARE`]); otherwise the input order.
+    /// exceeds [`Schedule::AUTO_BYTES`] (for the adaptive locator's `locate_all_into` and
+    /// `locate_all_unordered_into`, whatever its size: its batches reuse the leaves the previous
+    /// points found, which pays only on sorted points), there are at least
+    /// [`Schedule::AUTO_MIN_POINTS`] points, and they do not already come in an order the caches
+    /// follow (a sample of pairs of consecutive points, [`Schedule::AUTO_FAR_SHARE`]); otherwise
+    /// the input order.
     #[default]
     Auto,
     /// The points in the order given, in pieces of 256 across the threads.
