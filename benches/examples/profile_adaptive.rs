@@ -1,11 +1,14 @@
 //! A fixed single-threaded load on the `adaptive` bench's scene, for profilers (perf, callgrind).
 //!
-//! Run: `cargo run --release -p cgcontact-benches --example profile_adaptive [repeats] [f32] [uniform [twin]] [ratio] [big] [table] [each] [points=N] [levels=L] [radius=R] [stats]`
+//! Run: `cargo run --release -p cgcontact-benches --example profile_adaptive [repeats] [f32] [uniform [twin]] [ratio] [big] [table] [each] [points=N] [levels=L] [radius=R] [input] [blocked=N] [adaptive-blocked=N] [stats]`
 //! (`uniform`: the uniform block of about as many cells instead, `twin` its `uniform_twin`: the
 //! adaptive scene's indentation and points; `big`: the bench's 1.3 M-node
 //! block; `table`: the body stores its corner table; `each`: one `locate` call per
 //! point instead of `locate_all_into`; `points=N`: N known points instead of 1 M; `levels=L`
 //! and `radius=R`: refined L levels (2 by default) within R (1.5) of the top face's centre;
+//! `input`: `Schedule::Input` for every body (no sort: the adaptive batches keep nothing from one
+//! to the next); `blocked=N`: `Schedule::Blocked` with blocks of 2^N finest cells for every body,
+//! `adaptive-blocked=N` for the adaptive body only;
 //! `stats`: the body's leaves, nodes and heap bytes per node on stderr).
 //!
 //! `ratio`: the adaptive body against its uniform twin in one process, alternated pass by pass
