@@ -226,6 +226,14 @@ pub unsafe extern "C" fn cgc_locator_new(
                     })?,
             ),
         };
+        // Every worker of the pool (rayon's shared one with 0 threads) has started, and so
+        // allocated this library's thread-local data, before the locator is returned: loaded
+        // with dlopen (Octave's MEX file), a worker that first ran later, in a call under little
+        // memory, aborted the process ("cannot allocate memory for thread-local data").
+        match &pool {
+            Some(pool) => pool.broadcast(|_| ()),
+            None => rayon::broadcast(|_| ()),
+        };
         let locator = CgcLocator {
             body: Arc::clone(&body.state),
             strategy: given.strategy,

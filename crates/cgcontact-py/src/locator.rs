@@ -249,6 +249,14 @@ impl PyLocator {
                     .map_err(|e| PyValueError::new_err(format!("{n} threads: {e}")))?,
             ),
         };
+        // Every worker of the pool (rayon's global one without `threads`) has started, and so
+        // allocated this module's thread-local data, before the locator is returned: a worker
+        // that first ran later, in a call under little memory, aborted the interpreter ("cannot
+        // allocate memory for thread-local data") where the call raises MemoryError.
+        match &pool {
+            Some(pool) => pool.broadcast(|_| ()),
+            None => rayon::broadcast(|_| ()),
+        };
         Ok(Self {
             body: Arc::clone(&body.state),
             strategy,
