@@ -1,6 +1,6 @@
 //! A fixed single-threaded load on the `adaptive` bench's scene, for profilers (perf, callgrind).
 //!
-//! Run: `cargo run --release -p cgcontact-benches --example profile_adaptive [repeats] [f32] [uniform [twin]] [ratio] [big] [table] [each] [points=N] [levels=L] [radius=R] [input] [blocked=N] [adaptive-blocked=N] [stats]`
+//! Run: `cargo run --release -p cgcontact-benches --example profile_adaptive [repeats] [f32] [uniform [twin]] [ratio] [big] [table] [each] [points=N] [levels=L] [radius=R] [input] [blocked=N] [adaptive-blocked=N] [threads=N] [stats]`
 //! (`uniform`: the uniform block of about as many cells instead, `twin` its `uniform_twin`: the
 //! adaptive scene's indentation and points; `big`: the bench's 1.3 M-node
 //! block; `table`: the body stores its corner table; `each`: one `locate` call per
@@ -8,7 +8,7 @@
 //! and `radius=R`: refined L levels (2 by default) within R (1.5) of the top face's centre;
 //! `input`: `Schedule::Input` for every body (no sort: the adaptive batches keep nothing from one
 //! to the next); `blocked=N`: `Schedule::Blocked` with blocks of 2^N finest cells for every body,
-//! `adaptive-blocked=N` for the adaptive body only;
+//! `adaptive-blocked=N` for the adaptive body only; `threads=N`: a pool of N threads instead of 1;
 //! `stats`: the body's leaves, nodes and heap bytes per node on stderr).
 //!
 //! `ratio`: the adaptive body against its uniform twin in one process, alternated pass by pass
@@ -31,6 +31,10 @@ fn main() -> Result<(), cgcontact::Error> {
         .find_map(|a| a.strip_prefix("points="))
         .map(|n| n.parse().expect("points=N with N a number"))
         .unwrap_or(1_000_000);
+    let threads: usize = args
+        .iter()
+        .find_map(|a| a.strip_prefix("threads="))
+        .map_or(1, |n| n.parse().expect("threads=N with N a number"));
     let mut settings = if has("f32") {
         Settings::f32()
     } else {
@@ -81,7 +85,7 @@ fn main() -> Result<(), cgcontact::Error> {
     scene.body.set_corner_table(has("table"));
     let run = |locator: &dyn Locator, xs: &[DVec3]| {
         let one = rayon::ThreadPoolBuilder::new()
-            .num_threads(1)
+            .num_threads(threads)
             .build()
             .expect("pool");
         let mut out = Vec::with_capacity(xs.len());
@@ -115,7 +119,7 @@ fn main() -> Result<(), cgcontact::Error> {
         let xs: Vec<DVec3> = scene.known.iter().map(|k| k.x).collect();
         let ys: Vec<DVec3> = twin.known.iter().map(|k| k.x).collect();
         let one = rayon::ThreadPoolBuilder::new()
-            .num_threads(1)
+            .num_threads(threads)
             .build()
             .expect("pool");
         let mut out = Vec::with_capacity(xs.len());

@@ -1117,9 +1117,10 @@ mod tests {
         })
     }
 
-    /// Runs `entry` on three scenes with every candidate order and each of `precisions`, and
+    /// Runs `entry` on seven scenes with every candidate order and each of `precisions`, and
     /// compares each answer bitwise with `locate`'s; every answer starts as a sentinel that no
-    /// point here gets.
+    /// point here gets. Each scene's points are run as given, then sorted by the schedule's key
+    /// with near copies (runs of points in one leaf, for the sorted path's memo).
     fn check(
         precisions: &[Settings],
         entry: impl Fn(&AdaptiveLocator<'_>, &[DVec3], &mut [Answer]),
@@ -1156,27 +1157,25 @@ mod tests {
         body: &AdaptiveBody,
         points: &[DVec3],
     ) {
-        {
-            for order in [CandidateOrder::Predicted, CandidateOrder::Undeformed] {
-                for &base in precisions {
-                    let locator = AdaptiveLocator::new(body, Settings { order, ..base }).unwrap();
-                    // The one-level scenes take the lanes' one-level lookup, the others not.
-                    assert_eq!(locator.one_level.is_some(), body.finest == 0);
-                    let mut out: Vec<Answer> = points
-                        .iter()
-                        .map(|x| match x.is_finite() {
-                            true => Err(PointError::NonFinite),
-                            false => Ok(None),
-                        })
-                        .collect();
-                    entry(&locator, points, &mut out);
-                    let mut found = 0;
-                    for (x, answer) in points.iter().zip(&out) {
-                        assert_eq!(bits(answer), bits(&locator.locate(*x)), "at {x}");
-                        found += usize::from(matches!(answer, Ok(Some(_))));
-                    }
-                    assert!(found > 150, "{found}");
+        for order in [CandidateOrder::Predicted, CandidateOrder::Undeformed] {
+            for &base in precisions {
+                let locator = AdaptiveLocator::new(body, Settings { order, ..base }).unwrap();
+                // The one-level scenes take the lanes' one-level lookup, the others not.
+                assert_eq!(locator.one_level.is_some(), body.finest == 0);
+                let mut out: Vec<Answer> = points
+                    .iter()
+                    .map(|x| match x.is_finite() {
+                        true => Err(PointError::NonFinite),
+                        false => Ok(None),
+                    })
+                    .collect();
+                entry(&locator, points, &mut out);
+                let mut found = 0;
+                for (x, answer) in points.iter().zip(&out) {
+                    assert_eq!(bits(answer), bits(&locator.locate(*x)), "at {x}");
+                    found += usize::from(matches!(answer, Ok(Some(_))));
                 }
+                assert!(found > 150, "{found}");
             }
         }
     }
