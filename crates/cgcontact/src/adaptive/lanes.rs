@@ -12,6 +12,10 @@
 //! search does: the guess x − ũ in lanes; the leaf there, which is x's own (no lookup) when the
 //! guess lies in its box; one inversion in lanes, each with its leaf's spacing.
 //!
+//! On points the schedule sorted by leaf (`MEMO`), each lane walks its own run of the chunk and
+//! keeps its last leaves, at x and at the guess, with their displacement maps (`Memo`): a point
+//! in the same leaf's box takes them without a lookup, a corner or a gather.
+//!
 //! Every step computes what [`super::AdaptiveLocator`]'s scalar search computes, with the same
 //! IEEE operations in the same order, so the answers are bitwise [`Locator::locate`]'s; a lane
 //! that leaves this path (refused, in a hole) is answered by it, and one that missed in its
