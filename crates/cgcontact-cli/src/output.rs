@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 use std::sync::{Mutex, PoisonError};
 
 use anyhow::{Result, bail};
+use cgcontact_io::same_file;
 
 /// Write `text` to `path`, whole or not at all.
 pub fn write_text(path: &Path, text: &str) -> Result<()> {
@@ -50,44 +51,6 @@ macro_rules! say {
     };
 }
 pub(crate) use say;
-
-/// The file a path names, for comparing: its canonical form when it exists, else its folder's
-/// canonical form joined with its name (the folder must exist). A symbolic link names the file
-/// it leads to, dangling or not: a write goes there ([`cgcontact_io::write_target`]), so a
-/// dangling `known.csv -> mesh.vtu` beside a `mesh.vtu` of the same run is that file.
-fn identity(path: &Path) -> Option<PathBuf> {
-    if let Ok(canonical) = std::fs::canonicalize(path) {
-        return Some(canonical);
-    }
-    let path = cgcontact_io::write_target(path)?;
-    if let Ok(canonical) = std::fs::canonicalize(&path) {
-        return Some(canonical);
-    }
-    let name = path.file_name()?;
-    let folder = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
-    Some(std::fs::canonicalize(folder).ok()?.join(name))
-}
-
-/// Whether two paths name the same file: the same canonical path, or (on Unix) the same device and
-/// inode (hard links).
-fn same_file(a: &Path, b: &Path) -> bool {
-    if let (Some(x), Some(y)) = (identity(a), identity(b))
-        && x == y
-    {
-        return true;
-    }
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::MetadataExt;
-        if let (Ok(x), Ok(y)) = (std::fs::metadata(a), std::fs::metadata(b)) {
-            return x.dev() == y.dev() && x.ino() == y.ino();
-        }
-    }
-    false
-}
 
 /// The longest file name the usual file systems take, in bytes (Linux's `NAME_MAX`).
 const MAX_NAME_BYTES: usize = 255;
@@ -199,11 +162,7 @@ pub fn check_outputs(inputs: &[(&str, &Path)], outputs: &[(&str, PathBuf)]) -> R
 /// as much as `--mesh` is, compared as [`check_outputs`] compares those.
 pub fn check_pieces(mesh: &Path, pieces: &[PathBuf], outputs: &[(&str, PathBuf)]) -> Result<()> {
     for (flag, output) in outputs {
-        if let Some((piece, file)) = pieces
-            .iter()
-            .enumerate()
-            .find(|(_, file)| same_file(output, file))
-        {
+        if let Some((piece, file)) = cgcontact_io::piece_file(output, pieces) {
             bail!(
                 "{}: {flag} would overwrite {}, the file of piece {piece} of the input --mesh {} \
                  (the same file); choose another output",

@@ -347,6 +347,61 @@ pub fn write_target(path: &Path) -> Option<PathBuf> {
     None
 }
 
+/// Whether two paths name one file, as a tool compares its outputs with its inputs before any
+/// work: the same file by [`write_target`]'s rule (a symbolic link names the file it leads to,
+/// dangling or not, and a file not made yet is its folder's canonical form joined with its
+/// name), or on Unix the same device and inode (hard links, which the rename of a write would
+/// otherwise split silently). A path whose folder does not exist names no file, so it is no
+/// other path's file.
+#[must_use]
+pub fn same_file(a: &Path, b: &Path) -> bool {
+    if let (Some(x), Some(y)) = (identity(a), identity(b))
+        && x == y
+    {
+        return true;
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        if let (Ok(x), Ok(y)) = (std::fs::metadata(a), std::fs::metadata(b)) {
+            return x.dev() == y.dev() && x.ino() == y.ino();
+        }
+    }
+    false
+}
+
+/// The first of `pieces` (the files of a parallel mesh's pieces, inputs too) that is the file
+/// `output` ([`same_file`]): its index and path.
+#[must_use]
+pub fn piece_file<'a>(output: &Path, pieces: &'a [PathBuf]) -> Option<(usize, &'a Path)> {
+    pieces
+        .iter()
+        .enumerate()
+        .find(|(_, file)| same_file(output, file))
+        .map(|(piece, file)| (piece, file.as_path()))
+}
+
+/// The file a path names, for comparing: its canonical form when it exists, else the canonical
+/// form of the file a write there would make ([`write_target`]), else that file's folder's
+/// canonical form joined with its name (the folder must exist). A symbolic link names the file
+/// it leads to, dangling or not, so a dangling `known.csv -> mesh.vtu` beside a `mesh.vtu` of
+/// the same run is that file.
+fn identity(path: &Path) -> Option<PathBuf> {
+    if let Ok(canonical) = std::fs::canonicalize(path) {
+        return Some(canonical);
+    }
+    let path = write_target(path)?;
+    if let Ok(canonical) = std::fs::canonicalize(&path) {
+        return Some(canonical);
+    }
+    let name = path.file_name()?;
+    let folder = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    Some(std::fs::canonicalize(folder).ok()?.join(name))
+}
+
 /// The writer's result, flushed; where the writer failed because the file did (a full disk),
 /// that I/O error rather than the writer's rendering of it.
 fn finish<W: Write>(result: Result<(), ErrorKind>, mut out: Recorder<W>) -> Result<(), ErrorKind> {
@@ -541,6 +596,44 @@ mod tests {
                 .file_type()
                 .is_symlink()
         );
+    }
+
+    /// Links of every kind name the file they lead to; a file not made yet is told from its
+    /// folder and name; different files, or a folder that does not exist, are not the same.
+    #[cfg(unix)]
+    #[test]
+    fn same_file_sees_through_links() {
+        let dir = tempfile::tempdir().unwrap();
+        let mesh = dir.path().join("mesh.vtu");
+        std::fs::write(&mesh, "mesh").unwrap();
+        let other = dir.path().join("other.vtu");
+        std::fs::write(&other, "other").unwrap();
+        assert!(same_file(&mesh, &mesh));
+        assert!(!same_file(&mesh, &other));
+        // A hard link: another name, the same inode.
+        let hard = dir.path().join("hard.vtu");
+        std::fs::hard_link(&mesh, &hard).unwrap();
+        assert!(same_file(&hard, &mesh));
+        // A symbolic link, and one that dangles towards a file a write would make.
+        let soft = dir.path().join("soft.vtu");
+        std::os::unix::fs::symlink("mesh.vtu", &soft).unwrap();
+        assert!(same_file(&soft, &mesh));
+        let dangling = dir.path().join("dangling.csv");
+        std::os::unix::fs::symlink("made.csv", &dangling).unwrap();
+        assert!(same_file(&dangling, &dir.path().join("made.csv")));
+        assert!(!same_file(&dangling, &mesh));
+        // Not made yet, through a `..`: the folder's canonical form joined with the name.
+        std::fs::create_dir(dir.path().join("sub")).unwrap();
+        let around = dir.path().join("sub").join("..").join("new.csv");
+        assert!(same_file(&around, &dir.path().join("new.csv")));
+        assert!(!same_file(
+            &dir.path().join("missing").join("mesh.vtu"),
+            &mesh
+        ));
+        // The pieces of a parallel mesh: the first that is the output, with its index.
+        let pieces = [other.clone(), hard.clone(), mesh.clone()];
+        assert_eq!(piece_file(&soft, &pieces), Some((1, hard.as_path())));
+        assert_eq!(piece_file(&dangling, &pieces), None);
     }
 
     /// A full device is reported as such, even through a writer that renders I/O errors its own way.

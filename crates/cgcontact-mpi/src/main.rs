@@ -7,7 +7,7 @@
 //! rank stops every rank with exit code 2, the error printed once, by the rank that met it.
 #![forbid(unsafe_code)]
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
 
@@ -15,8 +15,8 @@ use anyhow::{Context, Result, anyhow, bail};
 use cgcontact::glam::DVec3;
 use cgcontact::{CellId, Settings};
 use cgcontact_io::{
-    DisplacementArray, MeshBody, MeshFile, read_points, unended_points_file, write_owner_rows,
-    write_results_counted,
+    DisplacementArray, MeshBody, MeshFile, read_points, same_file, unended_points_file,
+    write_owner_rows, write_results_counted,
 };
 use cgcontact_mpi::{
     Config, DistributedBody, Error, Gaps, Located, OwnedCell, OwnedLeaf, Partition, QueryStats,
@@ -721,11 +721,7 @@ fn check_pieces(args: &LocateArgs, rank: i32, pieces: &[PathBuf]) -> Result<()> 
     let Some(out) = args.out.as_ref().filter(|_| rank == 0) else {
         return Ok(());
     };
-    if let Some((piece, file)) = pieces
-        .iter()
-        .enumerate()
-        .find(|(_, file)| same_file(out, file))
-    {
+    if let Some((piece, file)) = cgcontact_io::piece_file(out, pieces) {
         bail!(
             "--out {} is {}, the file of piece {piece} of the --mesh {}: it would be overwritten",
             out.display(),
@@ -734,25 +730,6 @@ fn check_pieces(args: &LocateArgs, rank: i32, pieces: &[PathBuf]) -> Result<()> 
         );
     }
     Ok(())
-}
-
-/// Whether two paths name one file, as `cgcontact locate` compares them: by canonical path
-/// (symbolic links), or on Unix by device and inode (hard links, which the rename of the
-/// results would otherwise split silently); a missing output is no input.
-fn same_file(a: &Path, b: &Path) -> bool {
-    if let (Ok(x), Ok(y)) = (a.canonicalize(), b.canonicalize())
-        && x == y
-    {
-        return true;
-    }
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::MetadataExt;
-        if let (Ok(x), Ok(y)) = (std::fs::metadata(a), std::fs::metadata(b)) {
-            return x.dev() == y.dev() && x.ino() == y.ino();
-        }
-    }
-    false
 }
 
 struct Summary<'a> {
