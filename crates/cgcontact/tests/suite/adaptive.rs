@@ -1168,3 +1168,99 @@ fn corners_of_sheared_anisotropic_leaves_keep_every_owner_in_both_precisions() {
         }
     }
 }
+
+/// The hardest scene of an independent audit (a Python generator with a long-double oracle,
+/// nothing shared with this crate), kept as a check: level jumps of three (a level-0 leaf beside
+/// level-3 leaves), leaves in shuffled order, spacings 1000 : 1 : 100 at 1e9 from the origin,
+/// sheared x += 0.5 z and bent. On every node, edge midpoint and face centre of every leaf that
+/// has them on the finest lattice, the owners are exactly the leaves whose closed box holds the
+/// point, and each owner's ξ is the point's dyadic ξ in it, to the rounding of the coordinates.
+#[test]
+fn jumps_of_three_levels_far_and_anisotropic_keep_every_owner_and_exact_xi() {
+    let cells = [3, 2, 2];
+    let mut leaves: BTreeSet<Leaf> = BTreeSet::new();
+    for k in 0..cells[2] {
+        for j in 0..cells[1] {
+            for i in 0..cells[0] {
+                leaves.insert(Leaf::new(0, [i, j, k]));
+            }
+        }
+    }
+    // Split the leaf holding each focus (in base cells) down to level 3: unbalanced on purpose.
+    for focus in [[1.3, 0.9, 1.1], [2.6, 1.7, 0.2]] {
+        for level in 0..3u8 {
+            let scale = f64::from(1u32 << level);
+            let ijk = focus.map(|f: f64| (f * scale) as u32);
+            let leaf = Leaf::new(level, ijk);
+            assert!(leaves.remove(&leaf), "focus {focus:?} in {leaf:?}");
+            leaves.extend(leaf.children());
+        }
+    }
+    let mut rng = Rng(91);
+    let mut list: Vec<Leaf> = leaves.into_iter().collect();
+    for i in (1..list.len()).rev() {
+        list.swap(i, rng.below(i + 1));
+    }
+    let origin = DVec3::new(1e9, -1e9, 1e9);
+    let h = DVec3::new(16.0, 0.016, 1.6);
+    let lattice = Lattice::new(origin, h, cells).unwrap();
+    let mut body = AdaptiveBody::from_leaves(lattice, list).unwrap();
+    body.update_independent(|_, x, u| {
+        let t = (x - origin) / h;
+        *u = DVec3::new(0.5 * (x.z - origin.z), 0.0, 0.0)
+            + 0.04 * h * DVec3::new((0.7 * t.y + 0.3 * t.z).sin(), (0.5 * t.z).cos(), t.x.sin());
+    })
+    .unwrap();
+    body.validate().unwrap();
+    let finest = body.finest_level();
+    assert_eq!(finest, 3);
+    let mut points = Vec::new();
+    for c in 0..body.cell_count() as u32 {
+        let leaf = body.leaves().get(c as usize).unwrap();
+        let s = finest - leaf.level;
+        if s == 0 {
+            continue;
+        }
+        for d in 0..27u32 {
+            let xi = DVec3::new(
+                f64::from(d % 3) - 1.0,
+                f64::from(d / 3 % 3) - 1.0,
+                f64::from(d / 9) - 1.0,
+            );
+            let p = [0, 1, 2].map(|k| (leaf.ijk[k] << s) + ((xi[k] + 1.0) as u32) * (1 << (s - 1)));
+            points.push((body.point_at(CellId(c), xi).unwrap(), p));
+        }
+    }
+    let h_min = body.spacing(finest).min_element();
+    for settings in [Settings::default(), Settings::f32()] {
+        let base = match settings.precision {
+            cgcontact::Precision::F64 => 1e-12,
+            cgcontact::Precision::F32 => 1e-5,
+        };
+        let locator = AdaptiveLocator::new(&body, settings).unwrap();
+        for &(x, p) in &points {
+            let magnitude = x.abs().max(origin.abs()).max_element();
+            // Twice `xi_bound`'s (extremes.rs): the shear couples the axes' roundings.
+            let bound = 2.0 * (base + 8.0 * f64::EPSILON * magnitude / h_min);
+            let at = format!("{:?}: {x} (finest {p:?})", settings.precision);
+            let owners = locator.locate_owners(x).unwrap();
+            let cells: Vec<u32> = owners.iter().map(|hit| hit.cell.0).collect();
+            assert_eq!(cells, leaves_meeting(&body, p), "{at}");
+            for owner in owners.iter() {
+                let leaf = body.leaves().get(owner.cell.0 as usize).unwrap();
+                let s = finest - leaf.level;
+                let exact = DVec3::from_array([0, 1, 2].map(|k| {
+                    f64::from(p[k] - (leaf.ijk[k] << s)) * 2.0 / f64::from(1u32 << s) - 1.0
+                }));
+                let error = (owner.xi - exact).abs().max_element();
+                assert!(
+                    error <= bound,
+                    "{at}: {} ξ {} off {error:.2e} > {bound:.2e}",
+                    owner.cell,
+                    owner.xi
+                );
+            }
+        }
+    }
+    assert!(points.len() > 1000, "{}", points.len());
+}
