@@ -35,12 +35,12 @@ pub enum StrategyName {
 /// The most worker threads per available core `--threads` starts.
 pub const THREADS_PER_CORE: usize = 4;
 
-/// The rounding of the displacements in f32, as a share of a cell (ε₃₂ |u − T| / h, T the
-/// displacements' common translation that the f32 kernel takes out), above which
-/// `--precision f32` gets a warning: displacements about 840 cells away from their common
-/// translation (a body rotated or strained over many cells; a rigid translation costs nothing),
-/// where f32's ξ error grows past 1e-4.
-const F32_ROUNDING_WARNING: f64 = 1e-4;
+/// How far f32's rounding of the displacements may move ξ, as a share of a cell ([`f32_rounding`]:
+/// 4 ε₃₂ |u − T| / h in an unrotated cell, T the displacements' common translation that the f32
+/// kernel takes out), above which `--precision f32` gets a warning: in unrotated cells,
+/// displacements about 840 cells away from their common translation (a body rotated or strained
+/// over many cells; a rigid translation costs nothing).
+const F32_ROUNDING_WARNING: f64 = 4e-4;
 
 /// Newton step tolerances (ξ units) above which `--tol` gets a warning.
 const LOOSE_TOL: f64 = 1e-3;
@@ -214,9 +214,9 @@ pub struct Summary {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub hanging_nodes: Option<usize>,
     pub max_displacement: [f64; 3],
-    /// With f32 precision: how much f32 rounds the largest displacement, as a share of a cell
-    /// (ε₃₂ · |u| / h, per axis, the largest; the finest level's h on an adaptive body); absent
-    /// with f64.
+    /// With f32 precision: how far f32's rounding of the displacements may move ξ, as a share of
+    /// a cell (4 ε₃₂ · |u − T| per axis through each cell's J⁻¹, the largest over the cells:
+    /// 4 ε₃₂ · |u − T| / h in unrotated cells); absent with f64.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub f32_rounding: Option<f64>,
     /// Where the displacement came from: the point-data array read, `generated` for a built-in
@@ -374,11 +374,10 @@ impl Summary {
             && !args.quiet
         {
             eprintln!(
-                "cgcontact: warning: f32: the displacements reach {:.0} cells away from their \
-                 common translation, which f32 rounds by {rounding:.0e} of a cell: ξ is good to \
-                 about that, and a point that close to a face may be put in the cell beside it \
-                 (--precision f64 is exact)",
-                rounding / f64::from(f32::EPSILON)
+                "cgcontact: warning: f32: the displacements spread so far from their common \
+                 translation that f32's rounding of them may move ξ by {rounding:.0e} of a cell: ξ \
+                 is good to about that, and a point that close to a face may be put in the cell \
+                 beside it (--precision f64 is exact)"
             );
         }
         if let Some(share) = self.unresolved_share
@@ -560,10 +559,7 @@ pub fn search_listing_owners(
             BodyRef::Adaptive(b) => Some(b.hanging_nodes().count()),
         },
         max_displacement: body.max_displacement().to_array(),
-        f32_rounding: (settings.precision == Precision::F32).then(|| {
-            let reach = body.frame(&settings).reach();
-            (f64::from(f32::EPSILON) * reach / body.finest_spacing()).max_element()
-        }),
+        f32_rounding: (settings.precision == Precision::F32).then(|| f32_rounding(body, &settings)),
         displacement: Some("generated".to_owned()),
         inverted_cells: body
             .inverted_cells()
@@ -587,6 +583,29 @@ pub fn search_listing_owners(
         },
         owners.map(|(lists, _)| lists),
     ))
+}
+
+/// How far f32's rounding of the displacements may move ξ, as a share of a cell: the kernel
+/// rounds each corner's u − T to f32, and every locator allows for 4 ε₃₂ · |u − T| per axis (the
+/// frame's reach; `cgcontact::InsideTolerance`'s kernel length), which each cell's J⁻¹ at its
+/// centre turns into ξ (`Hex8Map::rounding_share`, halved: ξ spans 2 across a cell); the largest
+/// over the cells. A point that close outside a face may be found inside, so ξ is good to about
+/// that. Taken through J⁻¹ rather than axis by axis, so that a cell rotated across its anisotropy
+/// counts the rounding of a long axis's displacement in its thin one; in an unrotated cell J⁻¹ is
+/// diagonal, and it is 4 ε₃₂ |u − T| / h, the largest over the axes.
+fn f32_rounding(body: BodyRef<'_>, settings: &Settings) -> f64 {
+    let length = 4.0 * f64::from(f32::EPSILON) * body.frame(settings).reach();
+    let share = |cell| {
+        let map = match body {
+            BodyRef::Uniform(b) => b.cell_map(cell),
+            BodyRef::Adaptive(b) => b.cell_map(cell),
+        };
+        // An inverted cell (infinite) is reported as such, not as rounding.
+        map.map(|(map, _)| 0.5 * map.rounding_share(length))
+            .filter(|s| s.is_finite())
+            .unwrap_or(0.0)
+    };
+    body.cells().map(share).fold(0.0, f64::max)
 }
 
 /// Every cell holding each point, point by point in input order: the owners of point p are
