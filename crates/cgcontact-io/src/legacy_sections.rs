@@ -17,7 +17,9 @@
 //!   point and cell data (edge flags of point data only, as VTK reads them), one value a node or
 //!   cell, of any type VTK writes there: its number types (`vtkIdType` is written as 4-byte
 //!   integers), `bit` (binary: packed 8 a byte; ASCII: one number each), `string` and `variant` (text lines, `type value`, in binary files
-//!   too).
+//!   too);
+//! - the `TENSORS6 name type` sections (symmetric tensors, six values a node or cell), measured
+//!   as id sections are.
 //!
 //! Such an array or section that does not hold what it declares is a fault (cut, a length past the
 //! end of the file, an ASCII count above or below its values or strings, binary values or strings
@@ -335,6 +337,30 @@ fn section<'a>(
         which @ ("GLOBAL_IDS" | "PEDIGREE_IDS" | "EDGE_FLAGS") => {
             id_section(header, which, declared)?
         }
+        "TENSORS6" => tensors6(header, declared)?,
+        // Attributes vtkio reads but the reader never needs, measured so that a binary walk
+        // goes on past them (to the id sections and string arrays after them, which it must
+        // find): as `vtkDataReader` reads them, texture coordinates of `dim` components,
+        // 3 × 3 tensors, colour scalars of `n` components (bytes in a binary file, floats in an
+        // ASCII one) and a lookup table of `size` RGBA entries (the same).
+        "TEXTURE_COORDINATES" => match (words.next(), count(words.next()), words.next()) {
+            (Some(_name), Some(dim), kind) => data(product(declared.tuples, dim), kind),
+            _ => Step::Unknown,
+        },
+        "TENSORS" => {
+            let _name = words.next();
+            data(product(declared.tuples, 9), words.next())
+        }
+        "COLOR_SCALARS" => match (words.next(), count(words.next())) {
+            (Some(_name), Some(n)) => data(product(declared.tuples, n), Some("unsigned_char")),
+            _ => Step::Unknown,
+        },
+        // A lookup table of its own (`LOOKUP_TABLE name size`), not the `LOOKUP_TABLE name` line
+        // of a `SCALARS` section, which names no size.
+        "LOOKUP_TABLE" => match (words.next(), count(words.next())) {
+            (Some(_name), Some(size)) => data(product(size, 4), Some("unsigned_char")),
+            _ => Step::Unknown,
+        },
         "VECTORS" | "NORMALS" => {
             let kind = declared.met(header, words.next(), words.next());
             data(product(declared.tuples, 3), kind)
@@ -489,10 +515,41 @@ fn id_section<'a>(
     })
 }
 
-/// Whether a header line starts an id section.
+/// Reads the header of a symmetric tensor section, `TENSORS6 name type`, of the point or cell
+/// data: six values a node or cell, of a number type. vtkio's parser does not know the keyword
+/// (VTK's legacy writer uses it for every tensor array of 6 components, a solver's strain or
+/// stress), and refused the whole file. Such an array is never the displacement, so it is measured
+/// and blanked out as an id section of six values a node or cell is.
+fn tensors6<'a>(header: Header<'a>, declared: &Declared<'a>) -> Result<Step<'a>, Fault> {
+    let mut words = header.text.split_whitespace().skip(1);
+    let (Some(_name), Some(kind), None, Some(of)) = (
+        words.next(),
+        words.next(),
+        words.next(),
+        declared.attributes,
+    ) else {
+        return Ok(Step::Unknown);
+    };
+    let Some(size) = type_size(kind) else {
+        return Ok(Step::Unknown);
+    };
+    let Some(values) = declared.tuples.checked_mul(6) else {
+        return Err(Fault::unread(overflow(
+            header,
+            &format!("{} × 6 values", declared.tuples),
+        )));
+    };
+    Ok(Step::Ids {
+        values,
+        layout: Layout::Numbers(size),
+        of,
+    })
+}
+
+/// Whether a header line starts an id section (or a `TENSORS6` section, measured as one).
 fn id_header(text: &str) -> bool {
     text.split_whitespace().next().is_some_and(|keyword| {
-        ["GLOBAL_IDS", "PEDIGREE_IDS", "EDGE_FLAGS"]
+        ["GLOBAL_IDS", "PEDIGREE_IDS", "EDGE_FLAGS", "TENSORS6"]
             .iter()
             .any(|k| keyword.eq_ignore_ascii_case(k))
     })
@@ -535,7 +592,7 @@ fn empty_line(raw: &[u8]) -> bool {
 }
 
 /// The keywords that start the header lines of legacy files (data sets of every kind).
-const KEYWORDS: [&str; 32] = [
+const KEYWORDS: [&str; 33] = [
     "DATASET",
     "FIELD",
     "POINTS",
@@ -552,6 +609,7 @@ const KEYWORDS: [&str; 32] = [
     "NORMALS",
     "TEXTURE_COORDINATES",
     "TENSORS",
+    "TENSORS6",
     "GLOBAL_IDS",
     "PEDIGREE_IDS",
     "EDGE_FLAGS",

@@ -11,7 +11,9 @@
 //! later errors name the right lines).
 //! - A string array's `FIELD` block has its count lowered by one. A block left with no array
 //!   stays, as `FIELD name 0`.
-//! - An id section's header becomes `FIELD name 0`, padded with spaces: a section that was all
+//! - An id section's header (and a `TENSORS6 name type` section's, symmetric tensors that vtkio
+//!   does not know either, measured as an id section of six values a node or cell) becomes
+//!   `FIELD name 0`, padded with spaces: a section that was all
 //!   its `POINT_DATA n` or `CELL_DATA n` held leaves that header followed by an empty block, not
 //!   bare, so the file does not read as one cut after its header (a bare `CELL_DATA n` or
 //!   `POINT_DATA n` at the end of a file).

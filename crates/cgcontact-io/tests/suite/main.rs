@@ -27,6 +27,7 @@ mod regression_legacy_counts_blamed_line_1;
 mod regression_legacy_cut_inside_last_value;
 mod regression_legacy_names_percent_encoded;
 mod regression_legacy_point_data_count_parsed;
+mod regression_legacy_tensors6_and_attributes_refused;
 mod regression_many_appended_arrays_quadratic;
 mod regression_many_pieces_quadratic;
 mod regression_polyhedron_named_no_cell;
