@@ -285,7 +285,24 @@ fn section<'a>(
         "POINTS" => match count(words.next()) {
             Some(n) => {
                 declared.points = Some((n, header));
-                data(product(n, 3), words.next())
+                let kind = words.next();
+                // VTK writes the points' own type, which may be an integer one (a `vtkPoints`
+                // of ints); vtkio's parser reads float and double points only, and refused
+                // such a file quoting the first values as if they were the fault.
+                if let Some(kind) = kind
+                    && type_size(kind).is_some()
+                    && !["float", "double"]
+                        .iter()
+                        .any(|k| kind.eq_ignore_ascii_case(k))
+                {
+                    return Err(Fault::section(format!(
+                        "line {}: `{}`: points of type {kind}, which this reader does not read in a \
+                         legacy file (write the points as float or double, or the mesh as an XML \
+                         .vtu file, whose points may be of any type)",
+                        header.line, header.text
+                    )));
+                }
+                data(product(n, 3), kind)
             }
             None => Step::Unknown,
         },

@@ -25,6 +25,7 @@ mod regression_float_hanging_nodes_lost_owners;
 mod regression_float_points_off_the_lattice;
 mod regression_legacy_counts_blamed_line_1;
 mod regression_legacy_cut_inside_last_value;
+mod regression_legacy_integer_points_unnamed;
 mod regression_legacy_names_percent_encoded;
 mod regression_legacy_point_data_count_parsed;
 mod regression_legacy_tensors6_and_attributes_refused;
