@@ -367,11 +367,7 @@ fn vtk_error(what: &str) -> impl FnOnce(vtkio::Error) -> ErrorKind + '_ {
 
 /// Parse legacy or XML VTK, told from the first non-blank bytes.
 fn parse_vtk(bytes: &[u8]) -> Result<Vtk, ErrorKind> {
-    let start = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
-    let start = &start[start
-        .iter()
-        .position(|b| !b.is_ascii_whitespace())
-        .unwrap_or(start.len())..];
+    let start = content_start(bytes);
     if start.len() >= 5 && start[..5].eq_ignore_ascii_case(b"# vtk") {
         // Legacy binary files are big-endian by definition of the format.
         guarded("legacy VTK", || {
@@ -475,12 +471,29 @@ fn parse_vtk(bytes: &[u8]) -> Result<Vtk, ErrorKind> {
                 ErrorKind::Vtk(format!("{message}{place}"))
             })
         })
-    } else if start.is_empty() {
-        Err(ErrorKind::Format("the file is empty".to_owned()))
     } else {
-        Err(ErrorKind::Format(
+        Err(not_vtk(start))
+    }
+}
+
+/// `bytes` from their first byte that is not blank, after a UTF-8 byte order mark.
+fn content_start(bytes: &[u8]) -> &[u8] {
+    let start = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
+    &start[start
+        .iter()
+        .position(|b| !b.is_ascii_whitespace())
+        .unwrap_or(start.len())..]
+}
+
+/// What a file that starts as neither a legacy nor an XML VTK file is (`start`: its bytes from
+/// the first that is not blank).
+fn not_vtk(start: &[u8]) -> ErrorKind {
+    if start.is_empty() {
+        ErrorKind::Format("the file is empty".to_owned())
+    } else {
+        ErrorKind::Format(
             "neither a legacy VTK file (`# vtk DataFile ...`) nor an XML VTK file (`<VTKFile ...>`)".to_owned(),
-        ))
+        )
     }
 }
 
@@ -1259,6 +1272,12 @@ fn read_source_piece(
     let bytes =
         crate::input::read_input(file, crate::input::Expect::Vtk).map_err(IoError::into_kind)?;
     if !is_xml(&bytes) {
+        let start = content_start(&bytes);
+        // Only a file that starts as one is called legacy: an empty piece file, or one cut
+        // inside its first bytes (a parallel write that failed), is said to be what it is.
+        if !(start.len() >= 5 && start[..5].eq_ignore_ascii_case(b"# vtk")) {
+            return Err(not_vtk(start));
+        }
         return Err(ErrorKind::Parallel(
             "a legacy VTK file: the pieces of a parallel file are XML unstructured grids (.vtu)"
                 .to_owned(),

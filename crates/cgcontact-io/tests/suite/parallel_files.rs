@@ -423,6 +423,22 @@ fn a_legacy_piece_is_refused() {
     refused_naming(&path, 1, "a legacy VTK file");
 }
 
+/// An empty piece file, or one cut inside its first bytes (a parallel write that failed), was
+/// refused as "a legacy VTK file".
+#[test]
+fn an_empty_or_cut_piece_is_not_called_legacy() {
+    for (bytes, wanted) in [
+        (&b""[..], "the file is empty"),
+        (b" \n\t\n", "the file is empty"),
+        (b"# v", "neither a legacy VTK file"),
+    ] {
+        let (dir, path) = with_piece(1, "cut.vtu");
+        std::fs::write(dir.path().join("cut.vtu"), bytes).unwrap();
+        refused_naming(&path, 1, wanted);
+        assert!(!refusal(&path).contains("a legacy VTK file:"), "{bytes:?}");
+    }
+}
+
 #[test]
 fn a_corrupt_piece_is_refused_as_its_own_file_would_be() {
     // The one piece's displacement cut short by a value. vtkio drops such an array; read alone,
