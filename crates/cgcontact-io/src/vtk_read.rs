@@ -1574,7 +1574,10 @@ fn piece_displacement(
         }
     };
     if components != 3 {
-        return Err(bad(format!("{components} components per node, expected 3")));
+        let plural = if components == 1 { "" } else { "s" };
+        return Err(bad(format!(
+            "{components} component{plural} per node, expected 3"
+        )));
     }
     let values: Vec<f64> = data.cast_into::<f64>().ok_or_else(|| {
         bad(format!(

@@ -416,3 +416,27 @@ fn a_component_count_other_than_3_is_named() {
         .to_string();
     assert!(message.contains("cannot be decoded"), "{message}");
 }
+
+/// A displacement array of one or two components is named with its count, in the right number
+/// ("1 components per node" read as a typo).
+#[test]
+fn a_displacement_of_one_or_two_components_is_counted_in_words() {
+    for (components, says) in [(1, "1 component per node"), (2, "2 components per node")] {
+        let mut text = String::from(
+            "# vtk DataFile Version 4.2\nc\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS 8 double\n",
+        );
+        for k in 0..2 {
+            for (i, j) in [(0, 0), (1, 0), (1, 1), (0, 1)] {
+                text += &format!("{i} {j} {k}\n");
+            }
+        }
+        text += "CELLS 1 9\n8 0 1 2 3 4 5 6 7\nCELL_TYPES 1\n12\nPOINT_DATA 8\n";
+        text += &format!("FIELD f 1\ndisplacement {components} 8 double\n");
+        text += &"0 ".repeat(8 * components);
+        text += "\n";
+        let which = DisplacementArray::Named("displacement".to_owned());
+        let error = parse_hex_mesh(text.as_bytes(), &which).unwrap_err();
+        let message = error.to_string();
+        assert!(message.contains(says), "{components}: {message}");
+    }
+}
