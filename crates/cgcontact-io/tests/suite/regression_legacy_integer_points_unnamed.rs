@@ -4,20 +4,14 @@
 //! The message now names the header, the type, and what to write instead (an XML file of integer
 //! points reads).
 
+use cgcontact::CORNER_OFFSETS;
+
 use crate::common::legacy_fixtures::parse;
 
 /// One unit cube, its points of type `kind`, in an ASCII or a big-endian binary legacy file.
 fn cube(kind: &str, binary: bool) -> Vec<u8> {
-    let corners: [[i32; 3]; 8] = [
-        [0, 0, 0],
-        [1, 0, 0],
-        [1, 1, 0],
-        [0, 1, 0],
-        [0, 0, 1],
-        [1, 0, 1],
-        [1, 1, 1],
-        [0, 1, 1],
-    ];
+    // The unit cube's corners in VTK order, as integers.
+    let corners = CORNER_OFFSETS.map(|corner| corner.map(|v| v as i32));
     let mode = if binary { "BINARY" } else { "ASCII" };
     let mut file = format!(
         "# vtk DataFile Version 4.2\ncube\n{mode}\nDATASET UNSTRUCTURED_GRID\nPOINTS 8 {kind}\n"
@@ -45,9 +39,10 @@ fn cube(kind: &str, binary: bool) -> Vec<u8> {
 
 #[test]
 fn integer_points_are_named_with_their_type() {
+    // The same cube with float points reads (ASCII: the binary values are written as integers).
+    let mesh = parse(&cube("float", false)).unwrap();
+    assert_eq!(mesh.cells.len(), 1);
     for binary in [false, true] {
-        let mesh = parse(&cube("float", false)).unwrap();
-        assert_eq!(mesh.cells.len(), 1);
         let message = parse(&cube("int", binary)).unwrap_err();
         assert!(
             message.contains("line 5: `POINTS 8 int`: points of type int")
