@@ -121,8 +121,11 @@ fn points_from_bytes(bytes: &[u8]) -> Result<Vec<DVec3>, ErrorKind> {
     while let Some(line) = next_record(&mut csv, &mut record, &mut lines)? {
         if first {
             first = false;
-            // A first line with no number at all is a header.
-            if record.iter().all(|f| f.parse::<f64>().is_err()) {
+            // A first line with no number at all is a header, unless its fields are numbers
+            // with a decimal comma (`"1,5","2,5","3,5"`): those get the rows' message.
+            if record.iter().all(|f| f.parse::<f64>().is_err())
+                && !record.iter().all(|f| decimal_comma(f).is_some())
+            {
                 if record.len() != 3 {
                     return Err(ErrorKind::Csv {
                         line,
@@ -161,13 +164,33 @@ fn points_from_bytes(bytes: &[u8]) -> Result<Vec<DVec3>, ErrorKind> {
 
 /// A coordinate of a points file: a number, `nan` or `inf` (any case, signed). A finite number
 /// beyond f64's range (`1e400`), which Rust's parser rounds to infinity, is refused rather than
-/// read as an infinite point: the file holds a value the program cannot, not an infinity.
-fn coordinate(text: &str) -> Result<f64, &'static str> {
-    let value: f64 = text.parse().map_err(|_| "is not a number")?;
+/// read as an infinite point: the file holds a value the program cannot, not an infinity. A
+/// number written with a decimal comma (`"1,5"`, as spreadsheets write in many locales) is
+/// refused with the number it would be.
+fn coordinate(text: &str) -> Result<f64, String> {
+    let value: f64 = text.parse().map_err(|_| match decimal_comma(text) {
+        Some(point) => {
+            format!("is not a number (a decimal comma? write `{point}`)")
+        }
+        None => "is not a number".to_owned(),
+    })?;
     if value.is_infinite() && !text.to_ascii_lowercase().contains("inf") {
-        return Err("is beyond the range of f64 (magnitudes up to 1.8e308)");
+        return Err("is beyond the range of f64 (magnitudes up to 1.8e308)".to_owned());
     }
     Ok(value)
+}
+
+/// `text` with its one comma made a decimal point, when that makes it a finite number written
+/// with digits on both sides of the comma (`1,5`, `-0,25e3`), as a decimal-comma locale writes
+/// one; `None` otherwise (`1,000,000`, `,5`, `x,y`).
+fn decimal_comma(text: &str) -> Option<String> {
+    let text = text.trim();
+    let (whole, fraction) = text.split_once(',')?;
+    let digit_ends = whole.ends_with(|c: char| c.is_ascii_digit())
+        && fraction.starts_with(|c: char| c.is_ascii_digit());
+    let point = format!("{whole}.{fraction}");
+    (digit_ends && !fraction.contains(',') && point.parse::<f64>().is_ok_and(f64::is_finite))
+        .then_some(point)
 }
 
 /// The axis each column of a points file holds, from its 3-field header: x, y and z in any order

@@ -376,3 +376,38 @@ fn numbers_are_short_and_read_back_bitwise() {
         );
     }
 }
+
+/// Numbers with a decimal comma (`"1,5"`, quoted as spreadsheets write them in many locales)
+/// were "not a number" without the reason, and a file of one such row was "no data rows": its
+/// row was taken for a header. Both now name the comma and the number it would be.
+#[test]
+fn decimal_commas_are_named_with_the_number_meant() {
+    for (text, line, meant) in [
+        ("\"1,5\",\"2,5\",\"3,5\"\n", 1, "`1.5`"),
+        (
+            "\"1,5\",\"2,5\",\"3,5\"\n\"4,5\",\"5,5\",\"6,5\"\n",
+            1,
+            "`1.5`",
+        ),
+        ("x,y,z\n1,2,3\n4,\"-0,25e3\",6\n", 3, "`-0.25e3`"),
+    ] {
+        let message = message_of(text);
+        assert!(
+            message.contains(&format!("line {line}:"))
+                && message.contains("decimal comma")
+                && message.contains(meant),
+            "{text:?}: {message}"
+        );
+    }
+    // Not numbers with a decimal comma: no such hint, and a header stays a header.
+    for text in ["x,\"1,000,000\",z\n", "x,\",5\",z\n", "x,\"y,z\",z\n"] {
+        assert!(
+            !message_of(&format!("x,y,z\n{text}")).contains("decimal"),
+            "{text:?}"
+        );
+    }
+    assert_eq!(
+        points("\"x,1\",\"y,2\",\"z,3\"\n1,2,3\n").unwrap(),
+        vec![DVec3::new(1.0, 2.0, 3.0)]
+    );
+}
