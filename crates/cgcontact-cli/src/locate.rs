@@ -24,8 +24,8 @@ use crate::run::{
 #[command(after_help = "Example:
   cgcontact locate --mesh block.vtu --points contact.csv --out results.csv --strategy lattice --json
 
-The mesh is a VTK unstructured grid of hexahedra (legacy .vtk ASCII/binary or XML .vtu) whose nodes lie on
-a cartesian lattice, or whose cells are dyadic refinements of one (an adaptive mesh: levels are detected
+The mesh is a VTK unstructured grid of hexahedra (legacy .vtk ASCII/binary, XML .vtu, or a parallel .pvtu of
+.vtu pieces) whose nodes lie on a cartesian lattice, or whose cells are dyadic refinements of one (an adaptive mesh: levels are detected
 from the cell sizes, cells and nodes may come in any order); the displacement is the point-data vector `displacement` (or --displacement NAME).
 The points file has three columns x,y,z and an optional header line. Results: CSV with header
 point,cell,xi,eta,zeta,... where cell is the 0-based input cell index, or -1 when not found.
