@@ -2,10 +2,12 @@
 //!
 //! Exit codes: 0 success; 2 bad input or any other error, with one line on stderr naming the file
 //! and the line, cell or node at fault.
-#![forbid(unsafe_code)]
+// Safe Rust, but for `oom`: the allocator that turns a failed allocation into exit code 2.
+#![deny(unsafe_code)]
 
 mod demo;
 mod locate;
+mod oom;
 mod output;
 mod picture;
 mod run;
@@ -40,6 +42,10 @@ enum Command {
     Scene(scene::SceneArgs),
     Tradeoff(tradeoff::TradeoffArgs),
 }
+
+/// The system's allocator, ending the run with one line and exit code 2 when it fails.
+#[global_allocator]
+static ALLOCATOR: oom::ExitOnOom = oom::ExitOnOom;
 
 /// The exit code of a run ended by Ctrl-C or SIGTERM: 128 + SIGINT's number, as shells report.
 const INTERRUPTED: i32 = 130;

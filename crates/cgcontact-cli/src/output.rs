@@ -254,7 +254,20 @@ fn made_folders() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
 /// [`prepare_folder`] do when they drop, for a run ended by a signal, whose destructors do not
 /// run. Call it after [`cgcontact_io::abandon_writes`], so that no write starts in them.
 pub fn remove_made_folders() {
-    let mut all = made_folders().clone();
+    remove_folders(made_folders().clone());
+}
+
+/// [`remove_made_folders`] for a run that cannot wait for the list: one that failed to allocate,
+/// maybe while this thread held it. Gives up, leaving the folders, when the list is locked.
+pub fn try_remove_made_folders() {
+    match MADE.try_lock() {
+        Ok(all) => remove_folders(all.clone()),
+        Err(std::sync::TryLockError::Poisoned(e)) => remove_folders(e.into_inner().clone()),
+        Err(std::sync::TryLockError::WouldBlock) => {}
+    }
+}
+
+fn remove_folders(mut all: Vec<PathBuf>) {
     all.sort_by_key(|f| std::cmp::Reverse(f.components().count()));
     for folder in all {
         // Fails, and keeps the folder, where anything was written in it.

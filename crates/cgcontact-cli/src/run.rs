@@ -141,8 +141,16 @@ impl SearchArgs {
         if let Some(n) = self.threads {
             builder = builder.num_threads(capped_threads(n, self.quiet)?);
         }
-        builder.build().context("cannot start the worker threads")
+        build_pool(builder)
     }
+}
+
+/// The pool `builder` makes, or an error naming the system's refusal once: rayon's error shows
+/// its cause, and gives it as its source too, so a chain of causes said it twice.
+pub fn build_pool(builder: rayon::ThreadPoolBuilder) -> Result<rayon::ThreadPool> {
+    builder
+        .build()
+        .map_err(|e| anyhow::anyhow!("cannot start the worker threads: {e}"))
 }
 
 /// A `--threads N` count checked (at least 1) and capped at [`THREADS_PER_CORE`] per available

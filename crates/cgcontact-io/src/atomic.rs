@@ -32,7 +32,11 @@ fn in_progress() -> MutexGuard<'static, Vec<PathBuf>> {
 /// Writes that call [`write_file`] afterwards wait forever before their rename: call this only
 /// when the process exits next.
 pub fn abandon_writes() -> usize {
-    let guard = in_progress();
+    abandon(in_progress())
+}
+
+/// Removes the temporary files on the list `guard` holds, and keeps it locked.
+fn abandon(guard: MutexGuard<'static, Vec<PathBuf>>) -> usize {
     let removed = guard
         .iter()
         .filter(|path| std::fs::remove_file(path).is_ok())
@@ -41,6 +45,26 @@ pub fn abandon_writes() -> usize {
     // over its target.
     std::mem::forget(guard);
     removed
+}
+
+/// [`abandon_writes`] for a program that cannot wait for the list of writes in progress: one that
+/// failed to allocate memory, which may have failed while this very thread held the list (a write
+/// registering its temporary file), so that waiting would never end. Tries for `patience`, then
+/// gives up and returns `None`, leaving the temporary files where they are.
+pub fn abandon_writes_within(patience: std::time::Duration) -> Option<usize> {
+    let start = std::time::Instant::now();
+    let guard = loop {
+        match IN_PROGRESS.try_lock() {
+            Ok(guard) => break guard,
+            // A writer that panicked left the list as valid as ever.
+            Err(std::sync::TryLockError::Poisoned(e)) => break e.into_inner(),
+            Err(std::sync::TryLockError::WouldBlock) if start.elapsed() < patience => {
+                std::thread::sleep(std::time::Duration::from_millis(1));
+            }
+            Err(std::sync::TryLockError::WouldBlock) => return None,
+        }
+    };
+    Some(abandon(guard))
 }
 
 /// A temporary file on the [`IN_PROGRESS`] list while it lives. Dropped, it removes the file (if

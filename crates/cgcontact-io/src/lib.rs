@@ -70,8 +70,8 @@ mod xml_normal;
 
 pub use adaptive_mesh::{AdaptiveMesh, MeshBody};
 pub use atomic::{
-    Descriptor, abandon_writes, check_replaceable, descriptor, piece_file, same_file, write_file,
-    write_target,
+    Descriptor, abandon_writes, abandon_writes_within, check_replaceable, descriptor, piece_file,
+    same_file, write_file, write_target,
 };
 pub use caller_body::{AnyBody, CallerBody, Kept, KeptBuffers, UpdateError};
 pub use csv_io::{

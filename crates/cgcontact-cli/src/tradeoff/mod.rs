@@ -27,7 +27,7 @@ use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use clap::Args;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
@@ -89,12 +89,7 @@ pub fn run(args: &TradeoffArgs) -> Result<()> {
         Some(n) => crate::run::capped_threads(n, false)?,
         None => std::thread::available_parallelism().map_or(1, |n| n.get()),
     };
-    let pool = |n: usize| {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(n)
-            .build()
-            .context("cannot start the worker threads")
-    };
+    let pool = |n: usize| crate::run::build_pool(rayon::ThreadPoolBuilder::new().num_threads(n));
     let (one, all) = (pool(1)?, pool(threads)?);
     // Read before the long measurements, so that a bad log fails at once.
     let gslib = args.gslib.as_deref().map(Gslib::read).transpose()?;

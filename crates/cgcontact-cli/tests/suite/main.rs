@@ -6,6 +6,7 @@ mod end_to_end;
 mod lzma;
 mod output_safety;
 mod regression_links_and_interrupted_folders;
+mod regression_out_of_memory_aborted;
 mod scene_flags;
 mod tradeoff_gslib_input;
 mod tradeoff_quick;
