@@ -2,7 +2,8 @@
 //! (fixtures/vtk-written-adaptive, made by its make.py, which computed every owner of each point
 //! and its ξ): the rows name the file's cells, every owner of a point on a shared node, edge or
 //! face, and a hanging node's coarse cell among them, on cells sheared by x += 10 z and x += 1e3 z
-//! far from the origin too.
+//! far from the origin too. And on meshes from VTK's HyperTreeGrid pipeline
+//! (fixtures/vtk-written-htg): vtkHyperTreeGridToUnstructuredGrid's voxels, masked cells as holes.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -11,7 +12,13 @@ use std::process::Command;
 use cgcontact_io::read_results;
 
 fn folder() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/vtk-written-adaptive")
+    fixtures("vtk-written-adaptive")
+}
+
+fn fixtures(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../fixtures")
+        .join(name)
 }
 
 /// Per point: (x, y, z) as written, and its owners (file cell, ξ).
@@ -21,7 +28,11 @@ type Row = (String, Vec<(usize, [f64; 3])>);
 type Found = BTreeMap<usize, Vec<(usize, [f64; 3])>>;
 
 fn expected(scene: &str) -> Vec<Row> {
-    std::fs::read_to_string(folder().join(format!("{scene}.expected.csv")))
+    expected_in(&folder(), scene)
+}
+
+fn expected_in(dir: &Path, scene: &str) -> Vec<Row> {
+    std::fs::read_to_string(dir.join(format!("{scene}.expected.csv")))
         .unwrap()
         .lines()
         .skip(2)
@@ -42,15 +53,24 @@ fn expected(scene: &str) -> Vec<Row> {
 
 /// Runs `locate --all-owners` with `flags` on `mesh`; the exit status, stderr and rows by point.
 fn locate(mesh: &str, rows: &[Row], flags: &[&str]) -> (std::process::Output, Found) {
-    let dir = tempfile::tempdir().unwrap();
-    let points = dir.path().join("points.csv");
+    locate_in(&folder(), mesh, rows, flags)
+}
+
+fn locate_in(
+    dir: &Path,
+    mesh: &str,
+    rows: &[Row],
+    flags: &[&str],
+) -> (std::process::Output, Found) {
+    let tmp = tempfile::tempdir().unwrap();
+    let points = tmp.path().join("points.csv");
     let text: String = rows.iter().map(|(x, _)| format!("{x}\n")).collect();
     std::fs::write(&points, format!("x,y,z\n{text}")).unwrap();
-    let out = dir.path().join("owners.csv");
+    let out = tmp.path().join("owners.csv");
     let mut args = vec![
         "locate".to_string(),
         "--mesh".into(),
-        folder().join(mesh).to_str().unwrap().into(),
+        dir.join(mesh).to_str().unwrap().into(),
         "--points".into(),
         points.to_str().unwrap().into(),
         "--out".into(),
@@ -77,22 +97,51 @@ fn locate(mesh: &str, rows: &[Row], flags: &[&str]) -> (std::process::Output, Fo
 #[test]
 fn every_owner_of_every_point_in_the_files_numbering() {
     // Each mesh with its finest cells' shortest edge, or less (for the ξ bound below).
-    for (scene, mesh, edge) in [
-        ("jumps", "jumps.appended-zlib.vtu", 0.0625),
-        ("balanced", "balanced.legacy-binary.vtk", 0.0625),
-        ("all-refined", "all-refined.appended.vtu", 0.0625),
-        // Spacings 4 x 0.25 x 0.002 (finest z edge 0.0005), sheared by x += 10 z at 1e5 and by
-        // x += 1e3 z at -1e7: nodes lost owners at c203d69, whose inside test took its allowance
-        // for rounding from J⁻¹'s diagonal alone (92 of 940 and 209 of 1315 owners missed).
-        ("sheared-1e5", "sheared-1e5.appended-zlib.vtu", 0.0005),
-        ("sheared-m1e7", "sheared-m1e7.binary-zlib.vtu", 0.0005),
-    ] {
-        let rows = expected(scene);
+    every_owner_in(
+        &folder(),
+        &[
+            ("jumps", "jumps.appended-zlib.vtu", 0.0625),
+            ("balanced", "balanced.legacy-binary.vtk", 0.0625),
+            ("all-refined", "all-refined.appended.vtu", 0.0625),
+            // Spacings 4 x 0.25 x 0.002 (finest z edge 0.0005), sheared by x += 10 z at 1e5 and by
+            // x += 1e3 z at -1e7: nodes lost owners at c203d69, whose inside test took its allowance
+            // for rounding from J⁻¹'s diagonal alone (92 of 940 and 209 of 1315 owners missed).
+            ("sheared-1e5", "sheared-1e5.appended-zlib.vtu", 0.0005),
+            ("sheared-m1e7", "sheared-m1e7.binary-zlib.vtu", 0.0005),
+        ],
+        &[],
+    );
+}
+
+/// vtkHyperTreeGridToUnstructuredGrid's meshes (voxels with float32 points at 1e5, masked cells,
+/// jumps of 3 levels, unmerged and merged, sheared by x += 10 z), with the lattice, brute force
+/// and the R-tree. The raw appended file's `OriginalIds` holds more values than it has cells
+/// (a value per leaf, masked ones too): refused before an unread cell array could.
+#[test]
+fn hyper_tree_grids_converted_by_vtk() {
+    let dir = fixtures("vtk-written-htg");
+    let meshes = [
+        ("masked-1e5", "masked-1e5.appended.vtu", 0.015625),
+        ("masked-1e5", "masked-1e5.legacy-binary.vtk", 0.015625),
+        ("jumps-sheared", "jumps-sheared.binary-zlib.vtu", 0.015625),
+    ];
+    for strategy in [&[][..], &["--strategy", "brute"], &["--strategy", "rtree"]] {
+        every_owner_in(&dir, &meshes, strategy);
+    }
+}
+
+/// `locate --all-owners --strict` with 1 and 3 threads and `flags` on each (scene, mesh, finest
+/// edge): every expected owner and no other, each ξ to the rounding of the point's coordinates.
+fn every_owner_in(dir: &Path, meshes: &[(&str, &str, f64)], flags: &[&str]) {
+    for &(scene, mesh, edge) in meshes {
+        let rows = expected_in(dir, scene);
         for threads in ["1", "3"] {
-            let (run, found) = locate(mesh, &rows, &["--threads", threads, "--strict"]);
+            let mut all = vec!["--threads", threads, "--strict"];
+            all.extend(flags);
+            let (run, found) = locate_in(dir, mesh, &rows, &all);
             assert!(
                 run.status.success() && run.stderr.is_empty(),
-                "{mesh}: {}",
+                "{mesh} {flags:?}: {}",
                 String::from_utf8_lossy(&run.stderr)
             );
             assert_eq!(found.len(), rows.len(), "{mesh}");
@@ -100,7 +149,7 @@ fn every_owner_of_every_point_in_the_files_numbering() {
                 let got = &found[&p];
                 let cells: Vec<usize> = got.iter().map(|g| g.0).collect();
                 let want: Vec<usize> = owners.iter().map(|o| o.0).collect();
-                assert_eq!(cells, want, "{mesh}: point {p} at {x}");
+                assert_eq!(cells, want, "{mesh} {flags:?}: point {p} at {x}");
                 let magnitude = x
                     .split(',')
                     .map(|v| v.parse::<f64>().unwrap().abs())
@@ -111,7 +160,7 @@ fn every_owner_of_every_point_in_the_files_numbering() {
                     let bound = 1e-10 + 64.0 * f64::EPSILON * magnitude / edge;
                     assert!(
                         (0..3).all(|a| (xi[a] - known[a]).abs() <= bound),
-                        "{mesh}: point {p}: {xi:?} vs {known:?}"
+                        "{mesh} {flags:?}: point {p}: {xi:?} vs {known:?}"
                     );
                 }
             }

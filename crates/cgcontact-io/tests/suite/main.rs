@@ -18,6 +18,7 @@ mod parallel_files;
 mod parser_property;
 mod regression_appended_array_without_offset;
 mod regression_appended_counts_unchecked;
+mod regression_appended_unread_cell_array_longer;
 mod regression_block_of_the_wrong_size;
 mod regression_corrupt_block_header_aborted;
 mod regression_corrupt_displacement_dropped;

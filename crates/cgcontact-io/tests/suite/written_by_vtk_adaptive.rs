@@ -6,6 +6,10 @@
 //! x += 1e3 z at 1e5 and -1e7 (those also LZMA-compressed). The script computes each scene's leaf, node and hanging
 //! node counts and, for points at every node, edge midpoint and face centre and at random
 //! (leaf, ξ), every leaf holding the point with its ξ.
+//!
+//! The same for meshes from VTK's HyperTreeGrid pipeline (fixtures/vtk-written-htg, made by its
+//! make.py from the trees themselves): vtkHyperTreeGridToUnstructuredGrid's voxels with float32
+//! points, unmerged or merged by vtkStaticCleanUnstructuredGrid, masked cells as holes.
 
 use std::path::{Path, PathBuf};
 
@@ -14,7 +18,13 @@ use cgcontact::{AdaptiveLocator, Locator, Settings};
 use cgcontact_io::{DisplacementArray, MeshBody, read_body, read_hex_mesh};
 
 fn folder() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fixtures/vtk-written-adaptive")
+    fixtures("vtk-written-adaptive")
+}
+
+fn fixtures(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../fixtures")
+        .join(name)
 }
 
 /// A scene's expected answers: the counts of its header line, and per point every owner (file
@@ -26,8 +36,8 @@ pub struct Expected {
     pub rows: Vec<(DVec3, Vec<(usize, DVec3)>)>,
 }
 
-pub fn expected(scene: &str) -> Expected {
-    let text = std::fs::read_to_string(folder().join(format!("{scene}.expected.csv"))).unwrap();
+pub fn expected_in(dir: &Path, scene: &str) -> Expected {
+    let text = std::fs::read_to_string(dir.join(format!("{scene}.expected.csv"))).unwrap();
     let mut lines = text.lines();
     let counts: Vec<usize> = lines
         .next()
@@ -68,8 +78,12 @@ pub fn expected(scene: &str) -> Expected {
 /// files may fall a rounding outside some of its owners (or, on the outer surface, all): there the
 /// owners found must be among the expected ones, and every interior point still in its one cell.
 fn check(scene: &str, file: &str) {
-    let expected = expected(scene);
-    let path = folder().join(file);
+    check_in(&folder(), scene, file);
+}
+
+fn check_in(dir: &Path, scene: &str, file: &str) {
+    let expected = expected_in(dir, scene);
+    let path = dir.join(file);
     let MeshBody::Adaptive(mesh) =
         read_body(&path, &DisplacementArray::Default).unwrap_or_else(|e| panic!("{file}: {e}"))
     else {
@@ -241,4 +255,21 @@ fn no_cell_at_level_zero() {
     assert_eq!(mesh.body.finest_level(), 2);
     assert!((mesh.body.spacing(0) - DVec3::ONE).abs().max_element() < 1e-12);
     assert!(mesh.body.leaves().iter().any(|l| l.level == 0));
+}
+
+/// vtkHyperTreeGridSource's tree grid with masked cells (holes), refined 3 levels with jumps of 2
+/// and 3, on root cells of 2 x 0.5 x 0.125 at 1e5, converted by vtkHyperTreeGridToUnstructuredGrid
+/// (voxels, each with its own 8 float32 points); and trees built by cursor with jumps of 3, merged
+/// by vtkStaticCleanUnstructuredGrid and sheared by x += 10 z. The raw appended file's
+/// `OriginalIds` holds a value per leaf, masked ones too: more than the piece has cells.
+#[test]
+fn hyper_tree_grids_as_vtk_converts_them() {
+    let dir = fixtures("vtk-written-htg");
+    for (scene, file) in [
+        ("masked-1e5", "masked-1e5.appended.vtu"),
+        ("masked-1e5", "masked-1e5.legacy-binary.vtk"),
+        ("jumps-sheared", "jumps-sheared.binary-zlib.vtu"),
+    ] {
+        check_in(&dir, scene, file);
+    }
 }
