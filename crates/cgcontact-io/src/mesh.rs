@@ -564,6 +564,21 @@ impl HexMesh {
         (digits >= 9).then_some(Rounding::Decimal(digits))
     }
 
+    /// [`Rounding::Decimal`] of 6 to 8 digits when every used coordinate is a decimal print of at
+    /// most that many significant digits, at least one of exactly that many, and that print is
+    /// coarser near `magnitude` than the binary rounding the values have: VTK's legacy ASCII
+    /// writer prints `float` coordinates (vtkHyperTreeGridToUnstructuredGrid's, for one) with 6
+    /// (`%g`), so near 1e5 they are known only to 0.5, not to a 32-bit float's 4e-3. Only for the
+    /// words of an error: too few digits to tell a print from numbers written on purpose for the
+    /// lattice detection ([`Self::decimal_rounding`]).
+    fn short_print(&self, used: &BitVec, magnitude: f64) -> Option<Rounding> {
+        let digits = decimal_digits(used.iter_ones().flat_map(|n| self.points[n].to_array()))?;
+        let print = Rounding::Decimal(digits);
+        let binary = Rounding::of(&self.points, used);
+        ((6..=8).contains(&digits) && print.resolution(magnitude) > binary.resolution(magnitude))
+            .then_some(print)
+    }
+
     /// `error`, found before the lattice detection (a flat cell), as [`Self::detect_rounded`]
     /// words it.
     pub(crate) fn imprecise_before_detection(&self, error: ErrorKind, used: &BitVec) -> ErrorKind {
@@ -588,6 +603,7 @@ impl HexMesh {
         let magnitude = (used.iter_ones())
             .map(|n| points[n].abs().max_element())
             .fold(0.0, f64::max);
+        let rounding = self.short_print(used, magnitude).unwrap_or(rounding);
         let edge = (self.cells.iter())
             .flat_map(|c| {
                 [0, 1, 2].map(|a| (points[c[STEP[a]] as usize][a] - points[c[0] as usize][a]).abs())

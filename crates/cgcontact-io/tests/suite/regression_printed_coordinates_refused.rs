@@ -215,3 +215,33 @@ fn cells_the_coordinates_cannot_place_are_refused_saying_why() {
         );
     }
 }
+
+/// VTK's legacy ASCII writer prints `float` coordinates with 6 significant digits (`%g`):
+/// vtkHyperTreeGridToUnstructuredGrid's points near 1e5, on cells of 0.25, print as 100000 and
+/// 100001, flat cells. Those values are also 32-bit floats, and the error said so: "known only to
+/// about 6.0e-3, 0.60 % of the smallest cell edge 1.000e0", no reason for a cell to be flat; it names
+/// the print and its rounding, 0.5 there.
+#[test]
+fn six_digit_prints_are_named_not_their_float_rounding() {
+    let mesh = printed(&block(DVec3::splat(1e5), DVec3::splat(0.25), 3, false).0, 6);
+    assert!(
+        mesh.points
+            .iter()
+            .all(|p| p.to_array().iter().all(|&c| f64::from(c as f32) == c))
+    );
+    let message = mesh.to_body().err().unwrap().to_string();
+    assert!(
+        message.contains(
+            "printed with 6 significant digits: near 1.000e5 they are known only to about 5.0e-1"
+        ),
+        "{message}"
+    );
+    assert!(!message.contains("32-bit floats"), "{message}");
+    // 11 digits of the same cells: still read (the print's rounding tolerated).
+    printed(
+        &block(DVec3::splat(1e5), DVec3::splat(0.25), 3, false).0,
+        11,
+    )
+    .to_body()
+    .unwrap();
+}
