@@ -89,12 +89,27 @@ impl Rounding {
 /// The most significant decimal digits any of `values` needs (its shortest exact print), or
 /// `None` when one needs more than 15: then they are not decimal prints of fewer digits.
 pub(crate) fn decimal_digits(values: impl IntoIterator<Item = f64>) -> Option<u32> {
-    use std::fmt::Write;
+    use std::fmt::Write as _;
+    most_digits(values, |v, text| write!(text, "{v:e}"))
+}
+
+/// [`decimal_digits`] of 32-bit floats: the digits of each value's shortest print that reads
+/// back as the same float (a legacy `float` coordinate printed as -99999.8 is -99999.796875 as
+/// a double, 11 digits).
+pub(crate) fn float_decimal_digits(values: impl IntoIterator<Item = f64>) -> Option<u32> {
+    use std::fmt::Write as _;
+    most_digits(values, |v, text| write!(text, "{:e}", v as f32))
+}
+
+fn most_digits(
+    values: impl IntoIterator<Item = f64>,
+    print: impl Fn(f64, &mut String) -> std::fmt::Result,
+) -> Option<u32> {
     let mut text = String::with_capacity(32);
     let mut most = 1;
     for v in values {
         text.clear();
-        write!(text, "{v:e}").expect("a String takes any text");
+        print(v, &mut text).expect("a String takes any text");
         let mantissa = text.split('e').next().unwrap_or("");
         let digits = mantissa.bytes().filter(u8::is_ascii_digit).count() as u32;
         if digits > 15 {
@@ -565,16 +580,21 @@ impl HexMesh {
     }
 
     /// [`Rounding::Decimal`] of 6 to 8 digits when every used coordinate is a decimal print of at
-    /// most that many significant digits, at least one of exactly that many, and that print is
+    /// most that many significant digits (as a 32-bit float when all are:
+    /// [`float_decimal_digits`]), at least one of exactly that many, and that print is
     /// coarser near `magnitude` than the binary rounding the values have: VTK's legacy ASCII
     /// writer prints `float` coordinates (vtkHyperTreeGridToUnstructuredGrid's, for one) with 6
     /// (`%g`), so near 1e5 they are known only to 0.5, not to a 32-bit float's 4e-3. Only for the
     /// words of an error: too few digits to tell a print from numbers written on purpose for the
     /// lattice detection ([`Self::decimal_rounding`]).
     fn short_print(&self, used: &BitVec, magnitude: f64) -> Option<Rounding> {
-        let digits = decimal_digits(used.iter_ones().flat_map(|n| self.points[n].to_array()))?;
-        let print = Rounding::Decimal(digits);
         let binary = Rounding::of(&self.points, used);
+        let values = used.iter_ones().flat_map(|n| self.points[n].to_array());
+        let digits = match binary {
+            Rounding::F32 => float_decimal_digits(values),
+            _ => decimal_digits(values),
+        }?;
+        let print = Rounding::Decimal(digits);
         ((6..=8).contains(&digits) && print.resolution(magnitude) > binary.resolution(magnitude))
             .then_some(print)
     }
@@ -968,6 +988,10 @@ mod tests {
         assert_eq!(decimal_digits([0.1, 2.5e-7, -3e300]), Some(2));
         assert_eq!(decimal_digits([123_456_789_012_345.0]), Some(15));
         assert_eq!(decimal_digits([0.1, 1.0 / 3.0]), None);
+        // A float read from "-99999.8" is -99999.796875: 6 digits as a float, 11 as a double.
+        let float = f64::from(-99999.8_f32);
+        assert_eq!(decimal_digits([float]), Some(11));
+        assert_eq!(float_decimal_digits([float, 25000.0, 1e5]), Some(6));
         assert_eq!(decimal_digits([f64::from(0.1f32)]), None);
         assert_eq!(decimal_digits([]), Some(1));
     }

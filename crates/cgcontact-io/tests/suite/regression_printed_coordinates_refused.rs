@@ -220,7 +220,9 @@ fn cells_the_coordinates_cannot_place_are_refused_saying_why() {
 /// vtkHyperTreeGridToUnstructuredGrid's points near 1e5, on cells of 0.25, print as 100000 and
 /// 100001, flat cells. Those values are also 32-bit floats, and the error said so: "known only to
 /// about 6.0e-3, 0.60 % of the smallest cell edge 1.000e0", no reason for a cell to be flat; it names
-/// the print and its rounding, 0.5 there.
+/// the print and its rounding, 0.5 there. The legacy reader reads such prints as floats, so a
+/// print such as -99999.8 is counted in the digits of its float, not of its double (11), which
+/// the first version of the wording missed.
 #[test]
 fn six_digit_prints_are_named_not_their_float_rounding() {
     let mesh = printed(&block(DVec3::splat(1e5), DVec3::splat(0.25), 3, false).0, 6);
@@ -237,6 +239,24 @@ fn six_digit_prints_are_named_not_their_float_rounding() {
         "{message}"
     );
     assert!(!message.contains("32-bit floats"), "{message}");
+    // Prints that are no integers, read as the legacy reader reads `float` points: "-99999.9"
+    // is -99999.8984375 as a double (11 digits), 6 digits as the float it is.
+    let printed_floats = |mesh: &HexMesh| HexMesh {
+        ghosts: Vec::new(),
+        points: (printed(mesh, 6).points.iter())
+            .map(|p| DVec3::from_array(p.to_array().map(|c| f64::from(c as f32))))
+            .collect(),
+        ..mesh.clone()
+    };
+    let far = DVec3::new(1e5, -1e5, 2.5e4);
+    let mesh = printed_floats(&block(far, DVec3::new(0.25, 0.0625, 0.015625), 3, false).0);
+    let message = mesh.to_body().err().unwrap().to_string();
+    assert!(
+        message.contains(
+            "printed with 6 significant digits: near 1.000e5 they are known only to about 5.0e-1"
+        ),
+        "{message}"
+    );
     // 11 digits of the same cells: still read (the print's rounding tolerated).
     printed(
         &block(DVec3::splat(1e5), DVec3::splat(0.25), 3, false).0,
